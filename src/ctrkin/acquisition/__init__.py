@@ -1,0 +1,1 @@
+"""Acquisition: joint trajectories of the paper's protocols and recording them into datasets."""

@@ -1,0 +1,181 @@
+"""A dataset: a folder with `data.parquet` (samples) and `meta.json` (how they were made).
+
+Writes are atomic: the folder is built beside the target and swapped in, so an interrupted write
+never leaves a half-written dataset and never loses the one that was there.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import shutil
+import tempfile
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ctrkin import __version__
+from ctrkin.data import schema
+from ctrkin.data.splits import Split, split_by_sequence
+from ctrkin.errors import DatasetError
+from ctrkin.robots.robot import Robot
+
+DATA_FILE = "data.parquet"
+META_FILE = "meta.json"
+SPLIT_FILE = "split.json"
+
+
+def validate_frame(frame: pd.DataFrame, n_tubes: int, source: str = "dataset") -> None:
+    """Check columns, NaNs and time order; errors name the column and row to fix."""
+    missing = [c for c in schema.required_columns(n_tubes) if c not in frame.columns]
+    if missing:
+        raise DatasetError(f"{source}: missing column(s) {missing}; required: "
+                           f"{schema.required_columns(n_tubes)}")
+    numeric = schema.joint_columns(n_tubes) + schema.POSE_COLUMNS
+    numeric += [c for c in schema.TRUE_POSE_COLUMNS if c in frame.columns]
+    for c in numeric:
+        vals = frame[c].to_numpy(dtype=float)
+        bad = ~np.isfinite(vals)
+        if bad.any():
+            r = int(np.argmax(bad))
+            raise DatasetError(f"{source}: column {c!r} has NaN or inf at row {r}")
+    sid = frame["sequence_id"].to_numpy()
+    step = frame["step"].to_numpy()
+    same = sid[1:] == sid[:-1]
+    bad_order = same & (step[1:] <= step[:-1])
+    if bad_order.any():
+        r = int(np.argmax(bad_order)) + 1
+        raise DatasetError(f"{source}: row {r}: 'step' must increase within sequence "
+                           f"{sid[r]} (got {step[r - 1]} then {step[r]}); sort by time")
+    starts = np.r_[True, ~same]
+    if len(np.unique(sid)) != int(starts.sum()):
+        raise DatasetError(f"{source}: the rows of each sequence_id must be contiguous")
+
+
+@dataclass(eq=False)
+class Dataset:
+    """frame: the samples (schema.py); robot: the robot they come from; meta: everything else
+    (protocol, parameters, seed, noise levels, cleaning report ...)."""
+
+    frame: pd.DataFrame
+    robot: Robot
+    meta: dict[str, Any] = field(default_factory=dict)
+    split: Split | None = None
+
+    def __post_init__(self) -> None:
+        validate_frame(self.frame, self.robot.n_tubes)
+
+    # --- views -----------------------------------------------------------------------------------
+    @property
+    def n_tubes(self) -> int:
+        return self.robot.n_tubes
+
+    def joints(self) -> np.ndarray:
+        """(T, 2N) joints (deg, mm) in the fixed order α1..αN, β1..βN."""
+        return self.frame[schema.joint_columns(self.n_tubes)].to_numpy(dtype=float)
+
+    def poses(self, true: bool = False) -> np.ndarray:
+        """(T, 6) measured (or true) tip poses."""
+        cols = schema.TRUE_POSE_COLUMNS if true else schema.POSE_COLUMNS
+        if true and not self.has_truth:
+            raise DatasetError("this dataset has no true pose columns (true_x ...)")
+        return self.frame[cols].to_numpy(dtype=float)
+
+    @property
+    def has_truth(self) -> bool:
+        return all(c in self.frame.columns for c in schema.TRUE_POSE_COLUMNS)
+
+    def sequence_bounds(self) -> list[tuple[int, int]]:
+        """[(start, stop)) row ranges of the sequences, in file order."""
+        sid = self.frame["sequence_id"].to_numpy()
+        edges = np.r_[0, np.nonzero(sid[1:] != sid[:-1])[0] + 1, len(sid)]
+        return [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
+
+    def get_split(self, seed: int = 0) -> Split:
+        """The saved split, or a by-sequence 70:15:15 split made (and kept) on first use."""
+        if self.split is None:
+            self.split = split_by_sequence(self.frame["sequence_id"].to_numpy(), seed=seed)
+        return self.split
+
+    # --- files -----------------------------------------------------------------------------------
+    def save(self, folder: str | Path) -> Path:
+        target = Path(folder)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        meta = {**self.meta, "format_version": schema.FORMAT_VERSION, "robot": self.robot.to_dict(),
+                "robot_fingerprint": self.robot.fingerprint(), "n_tubes": self.n_tubes,
+                "units": schema.UNITS, "samples": len(self.frame),
+                "sequences": int(self.frame["sequence_id"].nunique()),
+                "ctrkin_version": __version__}
+        tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+        try:
+            self.frame.to_parquet(tmp / DATA_FILE, index=False)
+            (tmp / META_FILE).write_text(json.dumps(meta, indent=2, default=_json_default))
+            if self.split is not None:
+                self.split.save(tmp / SPLIT_FILE)
+            _swap_in(tmp, target)
+        finally:
+            if tmp.exists():
+                shutil.rmtree(tmp)
+        self.meta = meta
+        return target
+
+    @classmethod
+    def load(cls, folder: str | Path, robot: Robot | None = None) -> Dataset:
+        """Read and validate a dataset folder. If `robot` is given it must be the dataset's robot."""
+        src = Path(folder)
+        if not (src / META_FILE).is_file() or not (src / DATA_FILE).is_file():
+            raise DatasetError(f"{src} is not a ctrkin dataset: it needs {DATA_FILE} and {META_FILE}")
+        try:
+            meta = json.loads((src / META_FILE).read_text())
+        except (OSError, json.JSONDecodeError) as e:
+            raise DatasetError(f"{src / META_FILE} is not valid JSON: {e}") from None
+        version = meta.get("format_version")
+        if version != schema.FORMAT_VERSION:
+            raise DatasetError(f"{src}: dataset format version {version!r}; this ctrkin reads "
+                               f"version {schema.FORMAT_VERSION}")
+        if "robot" not in meta:
+            raise DatasetError(f"{src / META_FILE} has no 'robot' description")
+        ds_robot = Robot.from_dict(meta["robot"], source=f"{src / META_FILE} robot")
+        if robot is not None and robot.fingerprint() != ds_robot.fingerprint():
+            raise DatasetError(f"{src} was recorded on robot {ds_robot.name!r} "
+                               f"({ds_robot.fingerprint()}), not on {robot.name!r} "
+                               f"({robot.fingerprint()})")
+        try:
+            frame = pd.read_parquet(src / DATA_FILE)
+        except Exception as e:  # pyarrow raises several types for corrupt files
+            raise DatasetError(f"{src / DATA_FILE} cannot be read: {e}") from None
+        split = Split.load(src / SPLIT_FILE) if (src / SPLIT_FILE).is_file() else None
+        validate_frame(frame, ds_robot.n_tubes, source=str(src))
+        return cls(frame=frame, robot=ds_robot, meta=meta, split=split)
+
+
+def _swap_in(tmp: Path, target: Path) -> None:
+    """Replace folder `target` by `tmp`; the old folder is removed only after the swap."""
+    old = None
+    if target.exists():
+        if not target.is_dir():
+            raise DatasetError(f"{target} exists and is not a folder")
+        old = target.with_name(f".{target.name}.old-{uuid.uuid4().hex[:8]}")
+        target.rename(old)
+    try:
+        tmp.rename(target)
+    except OSError:
+        if old is not None:
+            old.rename(target)
+        raise
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def _json_default(o: object) -> object:
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON serialisable: {type(o)}")

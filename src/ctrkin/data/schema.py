@@ -1,0 +1,40 @@
+"""Dataset schema (DESIGN.md: Data). One row a sample, time-ordered by `step` within `sequence_id`.
+
+Column     dtype    unit          meaning
+sequence_id int64   -             a continuous run of the robot (the input buffer never crosses it)
+step        int64   -             sample index within the sequence, strictly increasing
+alpha_i     float64 deg           base rotation of tube i (unwrapped), i = 1..N innermost first
+beta_i      float64 mm            base translation of tube i (βi ≤ 0 convention)
+x, y, z     float64 mm            measured tip position (tracker, registered to the robot base)
+q0, qx, qy  float64 -             measured tip orientation, unit quaternion with qz = 0
+true_*      float64 mm / -        the true tip pose where known (virtual robot)
+snap        bool    -             a snap happened on the way into this sample
+outlier     bool    -             flagged by cleaning (encoder glitch, out of workspace)
+"""
+
+from __future__ import annotations
+
+FORMAT_VERSION = 1
+POSE_COLUMNS = ["x", "y", "z", "q0", "qx", "qy"]
+TRUE_POSE_COLUMNS = [f"true_{c}" for c in POSE_COLUMNS]
+INDEX_COLUMNS = ["sequence_id", "step"]
+FLAG_COLUMNS = ["snap", "outlier"]
+UNITS = {"alpha": "deg", "beta": "mm", "position": "mm",
+         "orientation": "unit quaternion (q0, qx, qy), qz = 0"}
+
+
+def alpha_columns(n_tubes: int) -> list[str]:
+    return [f"alpha_{i + 1}" for i in range(n_tubes)]
+
+
+def beta_columns(n_tubes: int) -> list[str]:
+    return [f"beta_{i + 1}" for i in range(n_tubes)]
+
+
+def joint_columns(n_tubes: int) -> list[str]:
+    """Joint vector order (fixed): α1..αN, β1..βN."""
+    return alpha_columns(n_tubes) + beta_columns(n_tubes)
+
+
+def required_columns(n_tubes: int) -> list[str]:
+    return INDEX_COLUMNS + joint_columns(n_tubes) + POSE_COLUMNS + FLAG_COLUMNS

@@ -1,0 +1,46 @@
+"""Kernel-ready view of a Robot (stiffnesses and precurvature sections as flat arrays)."""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+
+from ctrkin.robots.robot import Robot
+
+
+@dataclass(frozen=True, eq=False)
+class RobotArrays:
+    """k, gj: (N,) bending and torsional stiffness (N·mm²); lengths (N,) mm;
+    sec_len, sec_kap: (N, S) sections base to tip (mm, 1/mm); n_sec (N,); rigid transmission flag."""
+
+    k: np.ndarray
+    gj: np.ndarray
+    lengths: np.ndarray
+    sec_len: np.ndarray
+    sec_kap: np.ndarray
+    n_sec: np.ndarray
+    rigid: bool
+
+
+@functools.lru_cache(maxsize=64)
+def robot_arrays(robot: Robot) -> RobotArrays:
+    n = robot.n_tubes
+    s_max = max(len(t.sections) for t in robot.tubes) or 1
+    sec_len = np.zeros((n, s_max))
+    sec_kap = np.zeros((n, s_max))
+    n_sec = np.zeros(n, dtype=np.int64)
+    for i, t in enumerate(robot.tubes):
+        n_sec[i] = len(t.sections)
+        for j, s in enumerate(t.sections):
+            sec_len[i, j] = s.length
+            sec_kap[i, j] = s.curvature
+    arrs = RobotArrays(
+        k=np.array([t.bending_stiffness for t in robot.tubes]),
+        gj=np.array([t.torsional_stiffness for t in robot.tubes]),
+        lengths=robot.lengths, sec_len=sec_len, sec_kap=sec_kap, n_sec=n_sec,
+        rigid=robot.transmission == "rigid")
+    for a in (arrs.k, arrs.gj, arrs.lengths, arrs.sec_len, arrs.sec_kap, arrs.n_sec):
+        a.setflags(write=False)
+    return arrs

@@ -1,0 +1,138 @@
+"""Continuation along a joint trajectory: history-dependent equilibria and snaps.
+
+Each step is warm-started from the previous equilibrium (natural-parameter continuation). A step is
+accepted when Newton converges to a stable equilibrium close to the previous one, with a stability
+measure that changed continuously; otherwise the joint increment is halved. When even the smallest
+sub-step has no stable continuation, the branch has ended at a fold: the robot snaps to another
+stable equilibrium, found by a multi-start search around the last state and taken as the nearest
+stable one (the basin the released twist falls into).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ctrkin.mechanics.pointwise import (
+    Equilibrium,
+    _finish,
+    _newton,
+    _prepare,
+    _search,
+    _solve_prepared,
+    _stable,
+    _twisted_guesses,
+    solve,
+)
+from ctrkin.mechanics.settings import DEFAULT_SETTINGS, SolverSettings
+from ctrkin.pose import tip_azimuth
+from ctrkin.robots.robot import Robot
+
+JUMP_RAD = 0.35  # largest accepted twist change per (sub)step, max_i |Δuz_i(0)| · L_i (rad)
+SAME_BRANCH_RAD = 0.02  # a state this close (rad of twist) after a failed step is the same branch
+# the stability measure det J is continuous along a branch and → 0 at a fold: a (sub)step whose det J
+# changes by more than this has left the branch (near-critical folds have a small twist gap)
+DET_SLACK, DET_RATE = 0.05, 0.5
+MIN_FRACTION = 1.0 / 256  # smallest sub-step, as a fraction of one trajectory step
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """Result of `follow`. tip_poses (T, 6); snaps (T,) bool: a fold was crossed on the way into
+    step t; azimuth (T,) deg: T(L), the tip azimuth about z from the outer tube's base rotation
+    (unwrapped); stable, converged (T,) bool; equilibria: the T Equilibrium objects."""
+
+    q: np.ndarray
+    tip_poses: np.ndarray
+    snaps: np.ndarray
+    azimuth: np.ndarray
+    stable: np.ndarray
+    converged: np.ndarray
+    equilibria: list[Equilibrium]
+
+    @property
+    def tip_positions(self) -> np.ndarray:
+        return self.tip_poses[:, :3]
+
+    @property
+    def n_snaps(self) -> int:
+        return int(self.snaps.sum())
+
+
+def _distance(a: np.ndarray, b: np.ndarray, lengths: np.ndarray) -> float:
+    """Largest change of twist (rad) a change of base torsion a − b (rad/mm) makes over a tube."""
+    return float(np.abs((a - b) * lengths).max())
+
+
+def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: SolverSettings
+             ) -> tuple[Equilibrium, bool]:
+    """Continue from equilibrium `prev` to joints q_to. Returns (equilibrium, snapped)."""
+    q_from = prev.q
+    x = prev.x
+    det = prev.stability
+    t = 0.0
+    dt = 1.0
+    snapped = False
+    last = None
+    while t < 1.0:
+        t_try = min(1.0, t + dt)
+        q_try = q_from + (q_to - q_from) * t_try
+        pb = _prepare(robot, q_try, settings, checked=True)
+        sol = _newton(pb, x, settings)
+        if (_stable(sol) and _distance(sol[0], x, pb.arrays.lengths) <= JUMP_RAD
+                and abs(sol[4] - det) <= DET_SLACK + DET_RATE * det):
+            x, det, t, last = sol[0], sol[4], t_try, (pb, sol)
+            dt = min(2.0 * dt, 1.0)
+            continue
+        if dt > MIN_FRACTION:
+            dt *= 0.5
+            continue
+        # fold: no stable equilibrium near the current one, however small the step
+        guesses = [x, *_twisted_guesses(pb, x), *_twisted_guesses(pb, np.zeros_like(x))]
+        found = [c for c in _search(pb, guesses, settings) if _stable(c)]
+        if not found:
+            eq = _solve_prepared(pb, None, settings)
+            found_x = eq.x
+            sol = _newton(pb, found_x, settings)
+        else:
+            sol = min(found, key=lambda c: _distance(c[0], x, pb.arrays.lengths))
+        # a fold was crossed: that is a snap unless the search only re-found the same branch
+        snapped = snapped or _distance(sol[0], x, pb.arrays.lengths) > SAME_BRANCH_RAD
+        x, det, t, last = sol[0], sol[4], t_try, (pb, sol)
+        dt = 1.0 - t
+    assert last is not None
+    return _finish(*last), snapped
+
+
+def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
+           settings: SolverSettings = DEFAULT_SETTINGS,
+           progress: Callable[[int], None] | None = None) -> Trajectory:
+    """Follow joint trajectory Q (T, 2N) (deg, mm) by continuation.
+
+    start: the equilibrium the robot is in before Q[0] (continued to Q[0]); without it Q[0] is
+    solved point-wise. progress: called with the step index after each step.
+    """
+    Qa = robot.check_joints(np.atleast_2d(np.asarray(Q, dtype=float)))
+    n_steps = Qa.shape[0]
+    eqs: list[Equilibrium] = []
+    snaps = np.zeros(n_steps, dtype=bool)
+    if start is None:
+        cur = solve(robot, Qa[0], settings=settings)
+    else:
+        cur, snaps[0] = _advance(robot, start, Qa[0], settings)
+    eqs.append(cur)
+    if progress:
+        progress(0)
+    for t in range(1, n_steps):
+        cur, snaps[t] = _advance(robot, cur, Qa[t], settings)
+        eqs.append(cur)
+        if progress:
+            progress(t)
+    poses = np.array([e.tip_pose for e in eqs])
+    n = robot.n_tubes
+    return Trajectory(q=Qa, tip_poses=poses, snaps=snaps,
+                      azimuth=tip_azimuth(poses[:, :3], Qa[:, n - 1]),
+                      stable=np.array([e.stable for e in eqs]),
+                      converged=np.array([e.converged for e in eqs]), equilibria=eqs)

@@ -1,0 +1,230 @@
+"""Point-wise TCM equilibria: `solve(robot, q, guess)`.
+
+Without a guess, Newton starts from untwisted tubes (uz(0) = 0); if that gives no stable equilibrium,
+a fixed set of twisted guesses is tried and the stable equilibrium of lowest elastic energy is kept.
+That is a solve with no history: the paper's "TCM" baseline. History (which of several stable
+equilibria the robot is in) is the job of `follow`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ctrkin.errors import ConvergenceError
+from ctrkin.mechanics import kernels
+from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
+from ctrkin.mechanics.settings import DEFAULT_SETTINGS, SolverSettings
+from ctrkin.pose import quat_from_tangent
+from ctrkin.robots.robot import Robot
+
+
+@dataclass(frozen=True, eq=False)
+class Equilibrium:
+    """One TCM equilibrium.
+
+    q: (2N,) joints (deg, mm); x: (N,) base torsional curvatures uz(0) (rad/mm), the state that
+    warm-starts the next solve; tip_position (3,) mm; tip_tangent (3,) unit; tip_pose (6,)
+    (x, y, z, q0, qx, qy); s (K,) mm, backbone (K, 3) mm, twist (K, N) material angles ψ (deg) and
+    torsion (K, N) uz (rad/mm) on the integration grid, NaN where a tube has ended;
+    stability: det of the shooting Jacobian ∂uz(tips)/∂uz(0) (1 for a straight robot, 0 at a fold);
+    conjugate: min over the coupled length of det H (see kernels._relative_det);
+    stable: converged and both are > 0; energy: elastic energy (N·mm).
+    """
+
+    q: np.ndarray
+    x: np.ndarray
+    tip_position: np.ndarray
+    tip_tangent: np.ndarray
+    converged: bool
+    stability: float
+    conjugate: float
+    energy: float
+    residual: float
+    iterations: int
+    s: np.ndarray = field(repr=False)
+    backbone: np.ndarray = field(repr=False)
+    twist: np.ndarray = field(repr=False)
+    torsion: np.ndarray = field(repr=False)
+
+    @property
+    def stable(self) -> bool:
+        return bool(self.converged and self.stability > 0 and self.conjugate > 0)
+
+    @property
+    def tip_pose(self) -> np.ndarray:
+        return np.concatenate([self.tip_position, quat_from_tangent(self.tip_tangent)])
+
+    @property
+    def base_twist(self) -> np.ndarray:
+        """(N,) deg: twist stored in each tube's transmission, ψi(0) − αi."""
+        n = self.x.shape[0]
+        return self.twist[0] - self.q[:n]
+
+    def to_dict(self) -> dict[str, object]:
+        return {
+            "q": self.q.tolist(), "tip_pose": self.tip_pose.tolist(),
+            "tip_position_mm": self.tip_position.tolist(), "tip_tangent": self.tip_tangent.tolist(),
+            "converged": self.converged, "stable": self.stable, "stability": self.stability,
+            "conjugate_min": self.conjugate if math.isfinite(self.conjugate) else None,
+            "energy_nmm": self.energy, "residual": self.residual, "iterations": self.iterations,
+            "base_uz_rad_per_mm": self.x.tolist(), "base_twist_deg": self.base_twist.tolist(),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class _Problem:
+    """A joint configuration prepared for the kernels."""
+
+    arrays: RobotArrays
+    q: np.ndarray
+    alpha: np.ndarray  # rad
+    beta: np.ndarray
+    tips: np.ndarray
+    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+    @property
+    def length(self) -> float:
+        return float(max(self.tips.max(), 1e-9))
+
+
+def _prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: bool = False
+             ) -> _Problem:
+    qa = np.asarray(q, dtype=float) if checked else robot.check_joints(q)
+    if qa.ndim != 1:
+        raise ValueError("solve takes one configuration q (2N,); use solve_many for (T, 2N)")
+    arr = robot_arrays(robot)
+    n = robot.n_tubes
+    beta = qa[n:].copy()
+    grid = kernels.build_grid(beta, arr.lengths, arr.sec_len, arr.sec_kap, arr.n_sec,
+                              settings.step)
+    return _Problem(arr, qa, np.radians(qa[:n]), beta, beta + arr.lengths, grid)
+
+
+def _newton(pb: _Problem, x0: np.ndarray, settings: SolverSettings
+            ) -> tuple[np.ndarray, bool, int, float, float, float]:
+    a = pb.arrays
+    x = np.empty_like(x0)
+    conv, it, rn, det_j, det_h = kernels.newton(
+        np.asarray(x0, float), pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,
+        settings.tol, settings.max_iter, settings.max_step, x)
+    return x, bool(conv), int(it), float(rn), float(det_j), float(det_h)
+
+
+def _finish(pb: _Problem, sol: tuple[np.ndarray, bool, int, float, float, float]) -> Equilibrium:
+    x, conv, it, rn, det_j, det_h = sol
+    a = pb.arrays
+    nrec = 1 + int(pb.grid[3].sum())
+    n = x.shape[0]
+    s_rec = np.empty(nrec)
+    p_rec = np.empty((nrec, 3))
+    psi_rec = np.empty((nrec, n))
+    uz_rec = np.empty((nrec, n))
+    tip, tan, energy = kernels.integrate_full(x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj,
+                                              *pb.grid, s_rec, p_rec, psi_rec, uz_rec)
+    if not conv:
+        tip = np.full(3, np.nan)
+        tan = np.full(3, np.nan)
+    return Equilibrium(q=pb.q, x=x, tip_position=tip, tip_tangent=tan, converged=conv,
+                       stability=det_j, conjugate=det_h, energy=float(energy), residual=rn,
+                       iterations=it, s=s_rec, backbone=p_rec, twist=np.degrees(psi_rec),
+                       torsion=uz_rec)
+
+
+def _twisted_guesses(pb: _Problem, around: np.ndarray) -> list[np.ndarray]:
+    """Guesses with relative twist between tube i and the outermost tube, zero net torque.
+
+    Rate scale π / (robot length): the twist needed to turn one tube half a turn against another.
+    """
+    gj = pb.arrays.gj
+    n = gj.shape[0]
+    u0 = math.pi / pb.length
+    out = []
+    for i in range(n - 1):
+        d = np.zeros(n)
+        d[i] = 1.0 / gj[i]
+        d[-1] = -1.0 / gj[-1]
+        d /= 1.0 / gj[i] + 1.0 / gj[-1]  # unit relative rate x_i − x_N
+        for m in (0.5, -0.5, 1.0, -1.0, 1.5, -1.5, 2.0, -2.0, 3.0, -3.0):
+            out.append(around + m * u0 * d)
+    return out
+
+
+def _search(pb: _Problem, guesses: list[np.ndarray], settings: SolverSettings
+            ) -> list[tuple[np.ndarray, bool, int, float, float, float]]:
+    """Distinct converged solutions from several guesses."""
+    found: list[tuple[np.ndarray, bool, int, float, float, float]] = []
+    for g in guesses:
+        sol = _newton(pb, g, settings)
+        if not sol[1]:
+            continue
+        if all(np.abs(sol[0] - f[0]).max() * pb.length > 1e-6 for f in found):
+            found.append(sol)
+    return found
+
+
+def _stable(sol: tuple[np.ndarray, bool, int, float, float, float]) -> bool:
+    return sol[1] and sol[4] > 0 and sol[5] > 0
+
+
+def solve(robot: Robot, q: np.ndarray, guess: Equilibrium | np.ndarray | None = None,
+          settings: SolverSettings = DEFAULT_SETTINGS, strict: bool = False) -> Equilibrium:
+    """Equilibrium of the TCM at joints q (2N,) = (α deg, β mm).
+
+    guess: an Equilibrium (or its x, (N,) rad/mm) to warm-start from; Newton then stays on that
+    branch if it can and the result says whether it is stable. Without a guess, the lowest-energy
+    stable equilibrium found from untwisted and twisted starts is returned.
+    Invalid joints raise JointError. A failed solve returns converged=False with a NaN pose, or
+    raises ConvergenceError if strict.
+    """
+    pb = _prepare(robot, q, settings)
+    eq = _solve_prepared(pb, guess, settings)
+    if strict and not eq.converged:
+        raise ConvergenceError(f"no TCM equilibrium found at q = {pb.q.tolist()} "
+                               f"(residual {eq.residual:.3g} rad/mm)")
+    return eq
+
+
+def _solve_prepared(pb: _Problem, guess: Equilibrium | np.ndarray | None,
+                    settings: SolverSettings) -> Equilibrium:
+    n = pb.alpha.shape[0]
+    if guess is not None:
+        x0 = guess.x if isinstance(guess, Equilibrium) else np.asarray(guess, float)
+        if x0.shape != (n,):
+            raise ValueError(f"guess must have shape ({n},) (uz(0) per tube, rad/mm)")
+        return _finish(pb, _newton(pb, x0, settings))
+    first = _newton(pb, np.zeros(n), settings)
+    if _stable(first) or n == 1:
+        return _finish(pb, first)
+    cands = _search(pb, [first[0], *_twisted_guesses(pb, np.zeros(n))], settings)
+    stable = [c for c in cands if _stable(c)]
+    pool = stable or cands
+    if not pool:
+        return _finish(pb, first)
+    best = min(pool, key=lambda c: _energy(pb, c[0]))
+    return _finish(pb, best)
+
+
+def _energy(pb: _Problem, x: np.ndarray) -> float:
+    a = pb.arrays
+    nrec = 1 + int(pb.grid[3].sum())
+    n = x.shape[0]
+    _, _, e = kernels.integrate_full(x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,
+                                     np.empty(nrec), np.empty((nrec, 3)), np.empty((nrec, n)),
+                                     np.empty((nrec, n)))
+    return float(e)
+
+
+def solve_many(robot: Robot, Q: np.ndarray, settings: SolverSettings = DEFAULT_SETTINGS
+               ) -> list[Equilibrium]:
+    """Independent point-wise solves (no history) of Q (T, 2N); rows are validated first."""
+    Qa = robot.check_joints(np.atleast_2d(Q))
+    return [_solve_prepared(_prepare(robot, qr, settings, checked=True), None, settings)
+            for qr in Qa]
+
+
+def tip_poses(eqs: list[Equilibrium]) -> np.ndarray:
+    """(T, 6) tip poses of a list of equilibria."""
+    return np.array([e.tip_pose for e in eqs]).reshape(len(eqs), 6)

@@ -1,0 +1,34 @@
+"""Numerical settings of the TCM solver."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ctrkin.errors import CtrkinError
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """step: largest RK4 step (mm); tol: shooting residual |uz(tip)|∞ (rad/mm);
+    max_iter: Newton iterations; max_step: largest Newton update |Δuz(0)|∞ (rad/mm).
+
+    The default step keeps the tip within 1e-3 mm of a tight-tolerance reference on the paper
+    robot (benchmarks/bench_mechanics.py measures it)."""
+
+    step: float = 1.0
+    tol: float = 1e-10
+    max_iter: int = 40
+    max_step: float = 0.05
+
+    def __post_init__(self) -> None:
+        if not self.step > 0:
+            raise CtrkinError(f"SolverSettings.step must be > 0 mm, got {self.step}")
+        if not self.tol > 0:
+            raise CtrkinError(f"SolverSettings.tol must be > 0, got {self.tol}")
+        if self.max_iter < 1:
+            raise CtrkinError(f"SolverSettings.max_iter must be >= 1, got {self.max_iter}")
+        if not self.max_step > 0:
+            raise CtrkinError(f"SolverSettings.max_step must be > 0, got {self.max_step}")
+
+
+DEFAULT_SETTINGS = SolverSettings()

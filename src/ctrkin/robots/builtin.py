@@ -1,0 +1,39 @@
+"""Built-in robots.
+
+The paper robot (paper Table I): two nitinol tubes for vitreoretinal surgery. The paper gives no
+elastic modulus; we use E = 58 GPa and ν = 0.33, typical of superelastic nitinol tubes in the CTR
+literature (Webster, Romano, Cowan 2009: E ≈ 58 GPa measured on nitinol tubes; Rucker, Jones, Webster
+2010 use ν = 0.33). In the unloaded TCM the kinematics depend only on stiffness *ratios*, so a common E
+cancels; ν enters through GJ = EI / (1 + ν).
+"""
+
+from __future__ import annotations
+
+from ctrkin.robots.robot import Robot
+from ctrkin.robots.tube import Tube
+
+NITINOL_E_GPA = 58.0
+NITINOL_NU = 0.33
+
+
+def paper_robot(transmission: str = "compliant") -> Robot:
+    """The two-tube robot of paper Table I, innermost first.
+
+    Inner: OD 0.4, ID 0.2 mm, straight 57 mm, curved 15 mm, radius 27 mm.
+    Outer: OD 0.635, ID 0.48 mm, straight 37 mm, curved 14.5 mm, radius 24 mm.
+    """
+    inner = Tube(od=0.4, id=0.2, straight_length=57.0, curved_length=15.0, curvature=1 / 27.0,
+                 youngs_modulus=NITINOL_E_GPA, poisson_ratio=NITINOL_NU)
+    outer = Tube(od=0.635, id=0.48, straight_length=37.0, curved_length=14.5, curvature=1 / 24.0,
+                 youngs_modulus=NITINOL_E_GPA, poisson_ratio=NITINOL_NU)
+    return Robot(tubes=(inner, outer), transmission=transmission, name="paper")  # type: ignore[arg-type]
+
+
+BUILTIN = {"paper": paper_robot}
+
+
+def load_robot(spec: str) -> Robot:
+    """`paper` (or another built-in name) or a path to a TOML robot file."""
+    if spec in BUILTIN:
+        return BUILTIN[spec]()
+    return Robot.from_toml(spec)

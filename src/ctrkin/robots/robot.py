@@ -1,0 +1,185 @@
+"""A concentric tube robot: tubes innermost first, a transmission model, joint convention checks.
+
+Joint vector (fixed convention): q = (α1..αN deg, β1..βN mm). βi is the base position of tube i
+relative to the front plate (s = 0), βi ≤ 0; tube i occupies s ∈ [βi, βi + Li]. Valid joints satisfy
+β1 ≤ β2 ≤ … ≤ βN ≤ 0 and β1 + L1 ≥ β2 + L2 ≥ … ≥ βN + LN ≥ 0.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import tomli_w
+import tomllib
+
+from ctrkin.errors import JointError, RobotDescriptionError
+from ctrkin.robots.tube import Tube
+from ctrkin.util.files import atomic_write_text
+
+Transmission = Literal["compliant", "rigid"]
+JOINT_TOL = 1e-9  # mm: slack on the joint inequalities for round-off
+
+
+@dataclass(frozen=True)
+class Robot:
+    """tubes: innermost first. transmission: "compliant" (the part s < 0 is straight but twists,
+    DESIGN.md Mechanics) or "rigid" (the tube base angle is αi at s = 0)."""
+
+    tubes: tuple[Tube, ...]
+    transmission: Transmission = "compliant"
+    name: str = "robot"
+
+    def __post_init__(self) -> None:
+        tubes = tuple(self.tubes)
+        object.__setattr__(self, "tubes", tubes)
+        if len(tubes) < 1:
+            raise RobotDescriptionError("Robot needs at least one tube")
+        for k, t in enumerate(tubes):
+            if not isinstance(t, Tube):
+                raise RobotDescriptionError(f"Robot.tubes[{k}] must be a Tube, got {type(t)}")
+        if self.transmission not in ("compliant", "rigid"):
+            raise RobotDescriptionError(
+                f"Robot.transmission must be 'compliant' or 'rigid', got {self.transmission!r}")
+        for k in range(len(tubes) - 1):
+            inner, outer = tubes[k], tubes[k + 1]
+            if inner.od > outer.id + 1e-12:
+                raise RobotDescriptionError(
+                    f"tube {k + 1} (od {inner.od} mm) does not fit inside tube {k + 2} "
+                    f"(id {outer.id} mm): list tubes innermost first")
+            if inner.length < outer.length:
+                raise RobotDescriptionError(
+                    f"tube {k + 1} ({inner.length} mm) is shorter than tube {k + 2} "
+                    f"({outer.length} mm): inner tubes must be at least as long as outer ones")
+
+    @property
+    def n_tubes(self) -> int:
+        return len(self.tubes)
+
+    @property
+    def n_joints(self) -> int:
+        return 2 * len(self.tubes)
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """(N,) mm."""
+        return np.array([t.length for t in self.tubes])
+
+    def joint_names(self) -> list[str]:
+        n = self.n_tubes
+        return [f"alpha_{i + 1}" for i in range(n)] + [f"beta_{i + 1}" for i in range(n)]
+
+    def check_joints(self, q: np.ndarray) -> np.ndarray:
+        """Validate joints q: (2N,) or (T, 2N) in (deg, mm); returns them as float arrays.
+
+        Raises JointError naming the violated condition (and the row for a trajectory).
+        """
+        qa = np.asarray(q, dtype=float)
+        n = self.n_tubes
+        if qa.shape[-1:] != (2 * n,) or qa.ndim not in (1, 2):
+            raise JointError(f"joints must have shape (2N,) or (T, 2N) with 2N = {2 * n} "
+                             f"(alpha_1..alpha_N deg, beta_1..beta_N mm), got {qa.shape}")
+        rows = qa.reshape(-1, 2 * n)
+        bad = ~np.isfinite(rows).all(axis=1)
+        if bad.any():
+            raise JointError(f"joints contain NaN or inf at row {int(np.argmax(bad))}")
+        beta = rows[:, n:]
+        tips = beta + self.lengths
+        problems = [
+            (beta[:, -1] > JOINT_TOL, f"beta_{n} must be <= 0 mm (bases behind the front plate)"),
+            (tips[:, -1] < -JOINT_TOL,
+             f"tube {n} tip beta_{n} + L_{n} must be >= 0 mm (no tube pulled behind the plate)"),
+        ]
+        for i in range(n - 1):
+            problems.append((beta[:, i] > beta[:, i + 1] + JOINT_TOL,
+                             f"beta_{i + 1} <= beta_{i + 2} is required (tube {i + 1} is inside "
+                             f"tube {i + 2}, so its base is further back)"))
+            problems.append((tips[:, i] < tips[:, i + 1] - JOINT_TOL,
+                             f"beta_{i + 1} + L_{i + 1} >= beta_{i + 2} + L_{i + 2} is required "
+                             f"(inner tubes reach further)"))
+        for mask, msg in problems:
+            if mask.any():
+                r = int(np.argmax(mask))
+                where = f" (row {r}: {rows[r].tolist()})" if qa.ndim == 2 else f" (q = {rows[r].tolist()})"
+                raise JointError(msg + where)
+        return qa
+
+    def is_valid(self, q: np.ndarray) -> np.ndarray:
+        """Boolean mask of valid rows for joints (T, 2N) (no exception)."""
+        rows = np.atleast_2d(np.asarray(q, dtype=float))
+        n = self.n_tubes
+        beta = rows[:, n:]
+        tips = beta + self.lengths
+        ok = np.isfinite(rows).all(axis=1) & (beta[:, -1] <= JOINT_TOL) & (tips[:, -1] >= -JOINT_TOL)
+        for i in range(n - 1):
+            ok &= beta[:, i] <= beta[:, i + 1] + JOINT_TOL
+            ok &= tips[:, i] >= tips[:, i + 1] - JOINT_TOL
+        return ok
+
+    # --- serialisation -------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, object]:
+        return {"name": self.name, "transmission": self.transmission,
+                "tubes": [t.to_dict() for t in self.tubes]}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, object], source: str = "robot description") -> Robot:
+        if not isinstance(d, dict) or "tubes" not in d:
+            raise RobotDescriptionError(f"{source}: needs a 'tubes' list ([[tubes]] in TOML), "
+                                        "innermost tube first")
+        tubes_raw = d["tubes"]
+        if not isinstance(tubes_raw, list) or not tubes_raw:
+            raise RobotDescriptionError(f"{source}: 'tubes' must be a non-empty list")
+        known = {"od", "id", "straight_length", "curved_length", "curvature", "youngs_modulus",
+                 "poisson_ratio", "sections"}
+        tubes = []
+        for k, t in enumerate(tubes_raw):
+            if not isinstance(t, dict):
+                raise RobotDescriptionError(f"{source}: tubes[{k}] must be a table")
+            unknown = set(t) - known
+            if unknown:
+                raise RobotDescriptionError(
+                    f"{source}: tubes[{k}] has unknown field(s) {sorted(unknown)}; "
+                    f"allowed: {sorted(known)}")
+            try:
+                if "sections" in t and "straight_length" not in t and "curved_length" not in t:
+                    tubes.append(Tube.from_sections(
+                        t["od"], t["id"], [tuple(s) for s in t["sections"]],
+                        t.get("youngs_modulus", 58.0), t.get("poisson_ratio", 0.33)))
+                else:
+                    missing = {"od", "id", "straight_length", "curved_length", "curvature"} - set(t)
+                    if missing:
+                        raise RobotDescriptionError(
+                            f"{source}: tubes[{k}] is missing field(s) {sorted(missing)}")
+                    args = dict(t)
+                    if "sections" in args:
+                        args["sections"] = tuple(tuple(s) for s in args["sections"])
+                    tubes.append(Tube(**args))
+            except RobotDescriptionError as e:
+                raise RobotDescriptionError(f"{source}: tubes[{k}]: {e}") from None
+            except (TypeError, KeyError) as e:
+                raise RobotDescriptionError(f"{source}: tubes[{k}]: {e}") from None
+        return cls(tubes=tuple(tubes), transmission=d.get("transmission", "compliant"),  # type: ignore[arg-type]
+                   name=str(d.get("name", "robot")))
+
+    def to_toml(self, path: str | Path) -> None:
+        atomic_write_text(path, tomli_w.dumps(self.to_dict()))
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> Robot:
+        p = Path(path)
+        if not p.is_file():
+            raise RobotDescriptionError(f"robot file {p} does not exist")
+        try:
+            d = tomllib.loads(p.read_text())
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+            raise RobotDescriptionError(f"robot file {p} is not valid TOML: {e}") from None
+        return cls.from_dict(d, source=str(p))
+
+    def fingerprint(self) -> str:
+        """A short hash of the description, stored with datasets and models to detect mix-ups."""
+        blob = json.dumps(self.to_dict(), sort_keys=True).encode()
+        return hashlib.sha256(blob).hexdigest()[:16]

@@ -1,0 +1,1 @@
+"""Plots (matplotlib, Agg backend): sweeps, comparisons, training curves."""
