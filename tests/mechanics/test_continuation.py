@@ -1,0 +1,91 @@
+"""Continuation: history, hysteresis and snaps on the paper robot."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ctrkin import follow, paper_robot, solve
+from ctrkin.acquisition.trajectories import rotation_sweep
+
+ROBOT = paper_robot()
+
+
+def test_low_overlap_sweep_has_no_snap_and_no_hysteresis() -> None:
+    Q = rotation_sweep(2, relative_translation=4.0)
+    traj = follow(ROBOT, Q)
+    assert traj.n_snaps == 0 and traj.stable.all() and traj.converged.all()
+    np.testing.assert_allclose(traj.tip_positions[:361], traj.tip_positions[360:][::-1], atol=1e-8)
+    assert np.abs(np.diff(traj.azimuth)).max() < 10.0
+
+
+def test_full_overlap_sweep_snaps_once_each_way() -> None:
+    Q = rotation_sweep(2, relative_translation=20.0)
+    traj = follow(ROBOT, Q)
+    idx = np.nonzero(traj.snaps)[0]
+    assert len(idx) == 2 and idx[0] < 361 <= idx[1]
+    jumps = np.linalg.norm(np.diff(traj.tip_positions, axis=0), axis=1)
+    assert jumps[idx - 1].min() > 2.0  # mm: the released twist throws the tip ...
+    assert jumps[idx - 1].min() > 20 * np.median(jumps)  # ... far more than a 1° step moves it
+    fwd, bwd = traj.azimuth[:361], traj.azimuth[360:][::-1]
+    assert np.abs(fwd - bwd).max() > 30.0  # deg of T(L): a wide hysteresis loop
+
+
+def test_hysteresis_grows_with_overlap() -> None:
+    widths = []
+    for d in (12.0, 16.0, 20.0):
+        traj = follow(ROBOT, rotation_sweep(2, d))
+        widths.append(np.abs(traj.azimuth[:361] - traj.azimuth[360:][::-1]).max())
+    assert widths[0] < 1.0 < widths[1] < widths[2]
+
+
+def test_start_equilibrium_carries_history() -> None:
+    """The same joints reached from two directions give two different stable equilibria."""
+    fwd = follow(ROBOT, rotation_sweep(2, 20.0)[:191])  # 0° → 190°, before the forward snap
+    back_q = np.array([[a, 0.0, -20.0, 0.0] for a in np.arange(360.0, 189.0, -1.0)])
+    start = solve(ROBOT, [360.0, 0.0, -20.0, 0.0])
+    back = follow(ROBOT, back_q, start=start)
+    a, b = fwd.equilibria[-1], back.equilibria[-1]
+    np.testing.assert_allclose(a.q, b.q)
+    assert a.stable and b.stable
+    assert np.linalg.norm(a.tip_position - b.tip_position) > 3.0
+
+
+def test_follow_matches_pointwise_on_a_unique_branch() -> None:
+    Q = rotation_sweep(2, 8.0, step_deg=10.0)
+    traj = follow(ROBOT, Q)
+    for q, eq in zip(Q[::7], traj.equilibria[::7], strict=True):
+        np.testing.assert_allclose(eq.tip_pose, solve(ROBOT, q).tip_pose, atol=1e-9)
+
+
+def test_coarse_steps_still_find_the_fold() -> None:
+    """Sub-stepping resolves the fold even with 10° steps."""
+    traj = follow(ROBOT, rotation_sweep(2, 20.0, step_deg=10.0))
+    assert traj.n_snaps == 2
+
+
+def test_progress_callback_sees_every_step() -> None:
+    seen: list[int] = []
+    Q = rotation_sweep(2, 8.0, step_deg=30.0)
+    follow(ROBOT, Q, progress=seen.append)
+    assert seen == list(range(len(Q)))
+
+
+def test_rigid_transmission_paper_robot_snaps_less_easily() -> None:
+    """Without transmission compliance only the exposed straight parts (s ∈ [0, 37] mm) twist, so
+    b ≈ 37–41 mm instead of ≈ 55 mm: at d = 16 (L = 10.5) λ tan λ = 0.25 < L/b ≈ 0.26, no snap; at
+    d = 20 (L = 14.5) λ tan λ = 0.51 > L/b = 0.39, a snap. The compliant robot snaps at both."""
+    rigid = paper_robot("rigid")
+    n_snaps = [follow(rigid, rotation_sweep(2, d)).n_snaps for d in (16.0, 20.0)]
+    assert n_snaps == [0, 2]
+    assert follow(ROBOT, rotation_sweep(2, 16.0)).n_snaps == 2
+
+
+@pytest.mark.parametrize("d", [4.0, 20.0])
+def test_trajectory_arrays_are_consistent(d: float) -> None:
+    Q = rotation_sweep(2, d, step_deg=5.0)
+    traj = follow(ROBOT, Q)
+    T = len(Q)
+    assert traj.tip_poses.shape == (T, 6) and traj.snaps.shape == (T,) and traj.azimuth.shape == (T,)
+    np.testing.assert_allclose(np.linalg.norm(traj.tip_poses[:, 3:], axis=1), 1.0)
+    assert len(traj.equilibria) == T

@@ -1,0 +1,157 @@
+"""Point-wise solves: invariances, exact Jacobian, agreement with the reference, bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ctrkin import Robot, SolverSettings, Tube, paper_robot, solve, solve_many
+from ctrkin.errors import ConvergenceError, JointError
+from ctrkin.mechanics import kernels
+from ctrkin.mechanics.pointwise import _prepare
+
+from .reference_tcm import reference_tip
+
+ROBOT = paper_robot()
+
+
+def random_q(rng: np.random.Generator, robot: Robot = ROBOT) -> np.ndarray:
+    """A valid configuration of the paper robot: β2 ∈ [−15, 0], d = β2 − β1 ∈ [0, 20.5]."""
+    b2 = rng.uniform(-15, 0)
+    return np.array([rng.uniform(0, 360), rng.uniform(0, 360), b2 - rng.uniform(0, 20.5), b2])
+
+
+def rz(deg: float) -> np.ndarray:
+    a = np.radians(deg)
+    return np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), turn=st.floats(-720, 720))
+def test_common_rotation_turns_tip_about_z(seed: int, turn: float) -> None:
+    q = random_q(np.random.default_rng(seed))
+    a = solve(ROBOT, q)
+    q2 = q.copy()
+    q2[:2] += turn
+    b = solve(ROBOT, q2, guess=a)  # same branch
+    np.testing.assert_allclose(b.tip_position, rz(turn) @ a.tip_position, atol=1e-9)
+    np.testing.assert_allclose(b.tip_tangent, rz(turn) @ a.tip_tangent, atol=1e-9)
+    np.testing.assert_allclose(b.x, a.x, atol=1e-12)
+
+
+@pytest.mark.parametrize("transmission", ["compliant", "rigid"])
+def test_shooting_jacobian_matches_finite_differences(transmission: str, rng) -> None:
+    robot = paper_robot(transmission)
+    for _ in range(5):
+        pb = _prepare(robot, random_q(rng), SolverSettings())
+        x = rng.normal(0, 0.01, 2)
+        a = pb.arrays
+
+        def residual(xx: np.ndarray, with_var: bool = False) -> tuple[np.ndarray, np.ndarray]:
+            r, jac = np.empty(2), np.empty((2, 2))
+            kernels.shoot(xx, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid, r, jac, with_var)
+            return r, jac
+
+        _, jac = residual(x, True)
+        h = 1e-7
+        fd = np.column_stack([(residual(x + h * e)[0] - residual(x - h * e)[0]) / (2 * h)
+                              for e in np.eye(2)])
+        np.testing.assert_allclose(jac, fd, rtol=1e-6, atol=1e-8)
+
+
+def test_matches_reference_integration(rng) -> None:
+    for _ in range(4):
+        q = random_q(rng)
+        eq = solve(ROBOT, q)
+        tip, tangent, x = reference_tip(ROBOT, q, eq.x)
+        np.testing.assert_allclose(eq.x, x, atol=1e-8)
+        assert np.linalg.norm(eq.tip_position - tip) < 1e-5  # mm, default 1 mm steps
+        assert np.linalg.norm(eq.tip_tangent - tangent) < 1e-6
+
+
+def test_three_tubes_with_flush_straight_outer_equal_two_tubes(rng) -> None:
+    """A straight third tube whose tip is at the front plate adds nothing."""
+    inner, middle = ROBOT.tubes
+    outer = Tube(1.0, 0.7, straight_length=1.0, curved_length=0.0, curvature=0.0)
+    three = Robot((inner, middle, outer))
+    for _ in range(5):
+        q = random_q(rng)
+        q[2:] -= 1.0  # keep β2 ≤ β3 = −1 mm
+        a = solve(ROBOT, q)
+        q3 = np.r_[q[:2], 123.0, q[2:], -1.0]
+        b = solve(three, q3)
+        np.testing.assert_allclose(b.tip_pose, a.tip_pose, atol=1e-12)
+        np.testing.assert_allclose(b.x[:2], a.x, atol=1e-12)
+
+
+def test_three_tube_robot_matches_reference(rng) -> None:
+    tubes = (Tube(0.5, 0.4, 80.0, 20.0, 1 / 40.0), Tube(0.9, 0.7, 55.0, 20.0, 1 / 50.0),
+             Tube(1.3, 1.1, 30.0, 25.0, 1 / 60.0))
+    robot = Robot(tubes)
+    for _ in range(3):
+        q = np.r_[rng.uniform(0, 360, 3), -45.0 + rng.uniform(0, 10), -20.0, -5.0]
+        eq = solve(robot, q)
+        assert eq.converged
+        tip, _, _ = reference_tip(robot, q, eq.x)
+        assert np.linalg.norm(eq.tip_position - tip) < 1e-5
+
+
+def test_backbone_and_twist_records() -> None:
+    eq = solve(ROBOT, [40.0, 10.0, -15.0, -5.0])
+    assert eq.backbone.shape == (eq.s.shape[0], 3)
+    np.testing.assert_allclose(eq.backbone[-1], eq.tip_position)
+    assert eq.s[0] == 0.0 and eq.s[-1] == pytest.approx(-15.0 + 72.0)
+    steps = np.linalg.norm(np.diff(eq.backbone, axis=0), axis=1)
+    np.testing.assert_allclose(steps.sum(), eq.s[-1], rtol=1e-3)  # arc length ≈ chord sum
+    # the outer tube has ended beyond its tip: NaN there
+    assert np.isnan(eq.twist[-1, 1]) and np.isfinite(eq.twist[-1, 0])
+    # base twist: compliant transmission stores ψ(0) − α = −β uz(0)
+    np.testing.assert_allclose(eq.base_twist, np.degrees(-eq.q[2:] * eq.x), atol=1e-9)
+
+
+@pytest.mark.parametrize("q", [
+    [0, 0, 5.0, -5.0],          # β1 > 0
+    [0, 0, -5.0, -10.0],        # β1 > β2 (inner base ahead of outer)
+    [0, 0, -30.0, 0.0],         # inner tip behind outer tip (β1 + L1 < β2 + L2)
+    [0, 0, -60.0, -55.0],       # outer tube pulled behind the front plate
+    [0, 0, np.nan, -5.0],
+    [0, 0, -5.0],               # wrong length
+])
+def test_invalid_joints_raise(q) -> None:
+    with pytest.raises(JointError):
+        solve(ROBOT, np.array(q, dtype=float))
+
+
+def test_error_names_row_of_trajectory() -> None:
+    Q = np.array([[0, 0, -10.0, -5.0], [0, 0, -10.0, -5.0], [0, 0, 3.0, -5.0]])
+    with pytest.raises(JointError, match="row 2"):
+        solve_many(ROBOT, Q)
+
+
+def test_non_convergence_is_flagged_not_silent() -> None:
+    tight = SolverSettings(max_iter=1, tol=1e-16)
+    eq = solve(ROBOT, [170.0, 0.0, -20.0, 0.0], guess=np.array([0.05, -0.05]), settings=tight)
+    assert not eq.converged and not eq.stable
+    assert np.isnan(eq.tip_pose).all()
+    with pytest.raises(ConvergenceError):
+        solve(ROBOT, [170.0, 0.0, -20.0, 0.0], settings=tight, strict=True)
+
+
+def test_cold_solve_picks_lowest_energy_stable_branch() -> None:
+    """In the bistable range the point-wise solve returns a stable equilibrium of least energy."""
+    q = [185.0, 0.0, -20.0, 0.0]
+    eq = solve(ROBOT, q)
+    assert eq.stable
+    others = [solve(ROBOT, q, guess=np.array([s * 0.03, -s * 0.006])) for s in (-1, 1)]
+    for o in others:
+        if o.stable:
+            assert eq.energy <= o.energy + 1e-12
+
+
+def test_solve_many_equals_solve(rng) -> None:
+    Q = np.array([random_q(rng) for _ in range(4)])
+    many = solve_many(ROBOT, Q)
+    for q, e in zip(Q, many, strict=True):
+        np.testing.assert_array_equal(e.tip_pose, solve(ROBOT, q).tip_pose)

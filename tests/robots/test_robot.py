@@ -1,0 +1,73 @@
+"""Robot description: nesting, joint convention, TOML round trip and malformed files."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ctrkin.errors import JointError, RobotDescriptionError
+from ctrkin.robots import Robot, Tube, load_robot, paper_robot
+
+
+def test_paper_robot_table_one() -> None:
+    r = paper_robot()
+    inner, outer = r.tubes
+    assert (inner.od, inner.id, inner.straight_length, inner.curved_length) == (0.4, 0.2, 57.0, 15.0)
+    assert (outer.od, outer.id, outer.straight_length, outer.curved_length) == (0.635, 0.48, 37.0, 14.5)
+    assert 1 / inner.curvature == pytest.approx(27.0) and 1 / outer.curvature == pytest.approx(24.0)
+    assert r.joint_names() == ["alpha_1", "alpha_2", "beta_1", "beta_2"]
+
+
+def test_tubes_must_nest_innermost_first() -> None:
+    inner, outer = paper_robot().tubes
+    with pytest.raises(RobotDescriptionError, match="innermost first"):
+        Robot((outer, inner))
+    with pytest.raises(RobotDescriptionError, match="transmission"):
+        Robot((inner, outer), transmission="springy")  # type: ignore[arg-type]
+
+
+def test_joint_limits() -> None:
+    r = paper_robot()
+    ok = np.array([[0, 0, -20.5, 0], [10, 20, -10, -10], [0, 0, -51.5, -51.5]])
+    assert r.is_valid(ok).all()
+    r.check_joints(ok)
+    bad = np.array([[0, 0, -21.0, 0], [0, 0, -10, -11], [0, 0, -52, -52.0], [0, 0, 0.1, 0.1]])
+    assert not r.is_valid(bad).any()
+    with pytest.raises(JointError, match="row 1"):
+        r.check_joints(np.vstack([ok[0], bad[0]]))
+
+
+def test_toml_round_trip(tmp_path) -> None:
+    r = Robot((Tube.from_sections(0.5, 0.3, [(40, 0.0), (10, 0.01), (10, 0.03)]),
+               Tube(0.9, 0.6, 20, 15, 1 / 40, youngs_modulus=60, poisson_ratio=0.3)),
+              transmission="rigid", name="custom")
+    path = tmp_path / "robot.toml"
+    r.to_toml(path)
+    back = Robot.from_toml(path)
+    assert back == r and back.fingerprint() == r.fingerprint()
+    assert load_robot(str(path)) == r
+    assert load_robot("paper") == paper_robot()
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("this is = not toml [", "not valid TOML"),
+    ("name = 'x'\n", "tubes"),
+    ("[[tubes]]\nod = 1.0\nid = 0.5\n", "missing field"),
+    ("[[tubes]]\nod = 1.0\nid = 0.5\nstraight_length = 1\ncurved_length = 1\ncurvature = 0.1\n"
+     "colour = 'red'\n", "unknown field"),
+    ("[[tubes]]\nod = 1.0\nid = 1.5\nstraight_length = 1\ncurved_length = 1\ncurvature = 0.1\n", "id"),
+])
+def test_malformed_robot_file(tmp_path, text: str, message: str) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(RobotDescriptionError, match=message):
+        Robot.from_toml(path)
+
+
+def test_missing_robot_file(tmp_path) -> None:
+    with pytest.raises(RobotDescriptionError, match="does not exist"):
+        load_robot(str(tmp_path / "nope.toml"))
+
+
+def test_fingerprint_differs_between_robots() -> None:
+    assert paper_robot().fingerprint() != paper_robot("rigid").fingerprint()
