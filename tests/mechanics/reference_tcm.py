@@ -6,6 +6,8 @@ Used by the tests and by benchmarks/bench_mechanics.py to check the fast solver'
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import root
@@ -71,7 +73,7 @@ def reference_tip(robot: Robot, q: np.ndarray, x0: np.ndarray | None = None, tol
     def integrate(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         z = np.concatenate([alpha if rigid else alpha - beta * x, x, np.zeros(3), np.eye(3).ravel()])
         res = np.zeros(n)
-        for a, b in zip(breaks[:-1], breaks[1:], strict=True):
+        for a, b in itertools.pairwise(breaks):
             sol = solve_ivp(_rhs(robot, beta, 0.5 * (a + b)), (a, b), z, method="DOP853",
                             rtol=tol, atol=tol)
             z = sol.y[:, -1]

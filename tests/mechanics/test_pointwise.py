@@ -49,7 +49,7 @@ def test_shooting_jacobian_matches_finite_differences(transmission: str, rng) ->
         x = rng.normal(0, 0.01, 2)
         a = pb.arrays
 
-        def residual(xx: np.ndarray, with_var: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        def residual(xx: np.ndarray, with_var: bool = False, pb=pb, a=a) -> tuple[np.ndarray, np.ndarray]:
             r, jac = np.empty(2), np.empty((2, 2))
             kernels.shoot(xx, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid, r, jac, with_var)
             return r, jac
