@@ -8,12 +8,14 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from ctrkin import Robot, Tube, follow, solve
+from ctrkin import Robot, SolverSettings, Tube, follow, solve
 
-# One tolerance for closed-form geometry: RK4 at the default 1 mm step is ~1e-7 mm from exact on
-# these arcs (local error ∝ (κh)^5); 1e-5 mm leaves two orders of margin and still catches any
-# modelling error (a wrong sign or factor moves the tip by millimetres).
-ARC_TOL_MM = 1e-5
+# Closed-form geometry is checked with a fine 0.5 mm RK4 step, ~1e-9 mm from exact on these arcs
+# (local error ∝ (κh)^5), against one tolerance of 1e-6 mm: three orders of margin, and any
+# modelling error (a wrong sign or factor) moves the tip by millimetres. The default step's own
+# accuracy is tested against the reference integration in test_pointwise.py.
+FINE = SolverSettings(step=0.5)
+ARC_TOL_MM = 1e-6
 
 
 def arc_tip(kappa: float, straight: float, curved: float, alpha_deg: float) -> np.ndarray:
@@ -31,7 +33,7 @@ def arc_tip(kappa: float, straight: float, curved: float, alpha_deg: float) -> n
 def test_single_tube_is_exact_circular_arc(alpha: float, beta: float) -> None:
     kappa = 1 / 25.0
     robot = Robot((Tube(1.0, 0.8, straight_length=30.0, curved_length=20.0, curvature=kappa),))
-    eq = solve(robot, [alpha, beta])
+    eq = solve(robot, [alpha, beta], settings=FINE)
     assert eq.converged and eq.stable
     exposed_straight = max(30.0 + beta, 0.0)
     exposed_curved = min(20.0, 50.0 + beta)
@@ -50,7 +52,7 @@ def test_aligned_tubes_give_combined_arc(kappas: tuple[float, float]) -> None:
     outer = Tube(1.2, 0.9, 25.0, 15.0, kappas[1])
     robot = Robot((inner, outer))
     # both curved parts on s ∈ [0, 15], tips together
-    eq = solve(robot, [30.0, 30.0, -40.0, -25.0])
+    eq = solve(robot, [30.0, 30.0, -40.0, -25.0], settings=FINE)
     assert eq.converged and eq.stable
     k1, k2 = inner.bending_stiffness, outer.bending_stiffness
     kappa = (k1 * kappas[0] + k2 * kappas[1]) / (k1 + k2)
@@ -62,7 +64,7 @@ def test_straight_outer_tube_stiffens_the_arc() -> None:
     """A straight tube adds stiffness but no curvature: κ_eff = k1 κ1 / (k1 + k2)."""
     inner = Tube(0.8, 0.6, 40.0, 15.0, 1 / 20.0)
     outer = Tube(1.2, 0.9, 25.0, 15.0, 0.0)
-    eq = solve(Robot((inner, outer)), [10.0, 70.0, -40.0, -25.0])
+    eq = solve(Robot((inner, outer)), [10.0, 70.0, -40.0, -25.0], settings=FINE)
     k1, k2 = inner.bending_stiffness, outer.bending_stiffness
     expected = arc_tip(k1 / 20.0 / (k1 + k2), 0.0, 15.0, 10.0)
     np.testing.assert_allclose(eq.tip_position, expected, atol=ARC_TOL_MM)

@@ -67,8 +67,9 @@ def test_matches_reference_integration(rng) -> None:
         eq = solve(ROBOT, q)
         tip, tangent, x = reference_tip(ROBOT, q, eq.x)
         np.testing.assert_allclose(eq.x, x, atol=1e-8)
-        assert np.linalg.norm(eq.tip_position - tip) < 1e-5  # mm, default 1 mm steps
-        assert np.linalg.norm(eq.tip_tangent - tangent) < 1e-6
+        # default 3 mm steps: ~3e-5 mm from the reference; the goal is 1e-3 mm
+        assert np.linalg.norm(eq.tip_position - tip) < 1e-4
+        assert np.linalg.norm(eq.tip_tangent - tangent) < 1e-5
 
 
 def test_three_tubes_with_flush_straight_outer_equal_two_tubes(rng) -> None:
@@ -95,7 +96,7 @@ def test_three_tube_robot_matches_reference(rng) -> None:
         eq = solve(robot, q)
         assert eq.converged
         tip, _, _ = reference_tip(robot, q, eq.x)
-        assert np.linalg.norm(eq.tip_position - tip) < 1e-5
+        assert np.linalg.norm(eq.tip_position - tip) < 1e-4
 
 
 def test_backbone_and_twist_records() -> None:
@@ -104,7 +105,7 @@ def test_backbone_and_twist_records() -> None:
     np.testing.assert_allclose(eq.backbone[-1], eq.tip_position)
     assert eq.s[0] == 0.0 and eq.s[-1] == pytest.approx(-15.0 + 72.0)
     steps = np.linalg.norm(np.diff(eq.backbone, axis=0), axis=1)
-    np.testing.assert_allclose(steps.sum(), eq.s[-1], rtol=1e-3)  # arc length ≈ chord sum
+    np.testing.assert_allclose(steps.sum(), eq.s[-1], rtol=1e-2)  # arc length ≈ chord sum
     # the outer tube has ended beyond its tip: NaN there
     assert np.isnan(eq.twist[-1, 1]) and np.isfinite(eq.twist[-1, 0])
     # base twist: compliant transmission stores ψ(0) − α = −β uz(0)

@@ -27,7 +27,7 @@ from ctrkin.mechanics.pointwise import (
     solve,
 )
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS, SolverSettings
-from ctrkin.pose import tip_azimuth
+from ctrkin.pose import tip_azimuth, tip_pose
 from ctrkin.robots.robot import Robot
 
 JUMP_RAD = 0.35  # largest accepted twist change per (sub)step, max_i |Δuz_i(0)| · L_i (rad)
@@ -66,10 +66,15 @@ def _distance(a: np.ndarray, b: np.ndarray, lengths: np.ndarray) -> float:
     return float(np.abs((a - b) * lengths).max())
 
 
-def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: SolverSettings
-             ) -> tuple[Equilibrium, bool]:
-    """Continue from equilibrium `prev` to joints q_to. Returns (equilibrium, snapped)."""
+def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: SolverSettings,
+             velocity: np.ndarray | None = None) -> tuple[Equilibrium, bool]:
+    """Continue from equilibrium `prev` to joints q_to. Returns (equilibrium, snapped).
+
+    velocity: an estimate of dx per unit of this step (the secant of the previous step when it had
+    the same joint increment); Newton then starts from the predictor x + t·velocity.
+    """
     q_from = prev.q
+    arr = prev._problem.arrays
     x = prev.x
     det = prev.stability
     t = 0.0
@@ -79,12 +84,16 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     while t < 1.0:
         t_try = min(1.0, t + dt)
         q_try = q_from + (q_to - q_from) * t_try
-        pb = _prepare(robot, q_try, settings, checked=True)
-        sol = _newton(pb, x, settings)
+        pb = _prepare(robot, q_try, settings, checked=True, arr=arr)
+        guess = x if velocity is None else x + (t_try - t) * velocity
+        sol = _newton(pb, guess, settings)
         if (_stable(sol) and _distance(sol[0], x, pb.arrays.lengths) <= JUMP_RAD
                 and abs(sol[4] - det) <= DET_SLACK + DET_RATE * det):
             x, det, t, last = sol[0], sol[4], t_try, (pb, sol)
             dt = min(2.0 * dt, 1.0)
+            continue
+        if velocity is not None:  # retry from the plain warm start before sub-stepping
+            velocity = None
             continue
         if dt > MIN_FRACTION:
             dt *= 0.5
@@ -126,11 +135,14 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     if progress:
         progress(0)
     for t in range(1, n_steps):
-        cur, snaps[t] = _advance(robot, cur, Qa[t], settings)
+        velocity = None
+        if t >= 2 and not snaps[t - 1] and np.array_equal(Qa[t] - Qa[t - 1], Qa[t - 1] - Qa[t - 2]):
+            velocity = eqs[-1].x - eqs[-2].x  # secant predictor for equal joint increments
+        cur, snaps[t] = _advance(robot, cur, Qa[t], settings, velocity)
         eqs.append(cur)
         if progress:
             progress(t)
-    poses = np.array([e.tip_pose for e in eqs])
+    poses = tip_pose(np.array([e.tip_position for e in eqs]), np.array([e.tip_tangent for e in eqs]))
     n = robot.n_tubes
     return Trajectory(q=Qa, tip_poses=poses, snaps=snaps,
                       azimuth=tip_azimuth(poses[:, :3], Qa[:, n - 1]),

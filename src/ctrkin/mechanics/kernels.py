@@ -76,16 +76,21 @@ def build_grid(beta, tube_len, sec_len, sec_kap, n_sec, h_max):
 
 
 @njit(cache=True)
-def _bending(psi, kap, pres, k):
-    """(M1): backbone curvature (ux, uy) 1/mm and the bending stiffness sum of present tubes."""
+def _bending(psi, kap, pres, k, cs, sn):
+    """(M1): backbone curvature (ux, uy) 1/mm and the bending stiffness sum of present tubes.
+    Also writes cs, sn = cos ψi, sin ψi of present tubes (reused by the callers)."""
     ksum = 0.0
     ux = 0.0
     uy = 0.0
     for i in range(k.shape[0]):
         if pres[i] > 0.0:
+            c = math.cos(psi[i])
+            s = math.sin(psi[i])
+            cs[i] = c
+            sn[i] = s
             ksum += k[i]
-            ux += k[i] * kap[i] * math.cos(psi[i])
-            uy += k[i] * kap[i] * math.sin(psi[i])
+            ux += k[i] * kap[i] * c
+            uy += k[i] * kap[i] * s
     if ksum > 0.0:
         ux /= ksum
         uy /= ksum
@@ -93,16 +98,16 @@ def _bending(psi, kap, pres, k):
 
 
 @njit(cache=True)
-def _deriv(y, phi, kap, pres, k, gj, dy, dphi, with_var):
-    """(M2) and its variation dΦ = A(y) Φ; writes into dy (2N,) and dphi (2N, N)."""
+def _deriv(y, phi, kap, pres, k, gj, dy, dphi, with_var, cs, sn):
+    """(M2) and its variation dΦ = A(y) Φ; writes into dy (2N,) and dphi (2N, N).
+
+    ∂uiz'/∂ψj = ai [δij (cos ψi ux + sin ψi uy) − kj κj cos(ψi − ψj) / Σk],  ai = ki κi / GJi."""
     n = k.shape[0]
-    ux, uy, ksum = _bending(y, kap, pres, k)
+    ux, uy, ksum = _bending(y, kap, pres, k, cs, sn)
     for i in range(n):
         if pres[i] > 0.0:
-            a = k[i] / gj[i] * kap[i]
-            si, ci = math.sin(y[i]), math.cos(y[i])
             dy[i] = y[n + i]
-            dy[n + i] = a * (si * ux - ci * uy)
+            dy[n + i] = k[i] / gj[i] * kap[i] * (sn[i] * ux - cs[i] * uy)
         else:
             dy[i] = 0.0
             dy[n + i] = 0.0
@@ -115,13 +120,14 @@ def _deriv(y, phi, kap, pres, k, gj, dy, dphi, with_var):
                 dphi[i, c] = phi[n + i, c]
             a = k[i] / gj[i] * kap[i]
             if a != 0.0:
-                diag = math.cos(y[i]) * ux + math.sin(y[i]) * uy
+                diag = cs[i] * ux + sn[i] * uy
                 for c in range(nc):
-                    acc = a * diag * phi[i, c]
+                    acc = diag * phi[i, c]
                     for j in range(n):
                         if pres[j] > 0.0 and kap[j] != 0.0:
-                            acc -= a * k[j] * kap[j] * math.cos(y[i] - y[j]) / ksum * phi[j, c]
-                    dphi[n + i, c] = acc
+                            cij = cs[i] * cs[j] + sn[i] * sn[j]  # cos(ψi − ψj)
+                            acc -= k[j] * kap[j] * cij / ksum * phi[j, c]
+                    dphi[n + i, c] = a * acc
             else:
                 for c in range(nc):
                     dphi[n + i, c] = 0.0
@@ -139,6 +145,11 @@ def _relative_det(phi, gj):
     n = gj.shape[0]
     m = n - 1
     gsum = gj.sum()
+    if m == 1:
+        acc = 0.0
+        for r in range(n):
+            acc += (phi[0, r] - phi[1, r]) * ((1.0 if r == 0 else 0.0) - gj[0] / gsum)
+        return acc
     h = np.empty((m, m))
     for i in range(m):
         for j in range(m):
@@ -171,28 +182,28 @@ def _init_state(x, alpha, beta, rigid, y, phi):
 def _rk4_step(y, phi, h, kp, pr, k, gj, with_var, w):
     """One RK4 step of (M2) and, differentiated stage by stage, of its variation.
     w: work arrays (k1..k4, q1..q4, yt, pt)."""
-    k1, k2, k3, k4, q1, q2, q3, q4, yt, pt = w
+    k1, k2, k3, k4, q1, q2, q3, q4, yt, pt, cs, sn = w
     n2 = y.shape[0]
     nc = phi.shape[1]
-    _deriv(y, phi, kp, pr, k, gj, k1, q1, with_var)
+    _deriv(y, phi, kp, pr, k, gj, k1, q1, with_var, cs, sn)
     for j in range(n2):
         yt[j] = y[j] + 0.5 * h * k1[j]
         if with_var:
             for c in range(nc):
                 pt[j, c] = phi[j, c] + 0.5 * h * q1[j, c]
-    _deriv(yt, pt, kp, pr, k, gj, k2, q2, with_var)
+    _deriv(yt, pt, kp, pr, k, gj, k2, q2, with_var, cs, sn)
     for j in range(n2):
         yt[j] = y[j] + 0.5 * h * k2[j]
         if with_var:
             for c in range(nc):
                 pt[j, c] = phi[j, c] + 0.5 * h * q2[j, c]
-    _deriv(yt, pt, kp, pr, k, gj, k3, q3, with_var)
+    _deriv(yt, pt, kp, pr, k, gj, k3, q3, with_var, cs, sn)
     for j in range(n2):
         yt[j] = y[j] + h * k3[j]
         if with_var:
             for c in range(nc):
                 pt[j, c] = phi[j, c] + h * q3[j, c]
-    _deriv(yt, pt, kp, pr, k, gj, k4, q4, with_var)
+    _deriv(yt, pt, kp, pr, k, gj, k4, q4, with_var, cs, sn)
     for j in range(n2):
         y[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
         if with_var:
@@ -205,7 +216,7 @@ def _work(n):
     n2 = 2 * n
     return (np.empty(n2), np.empty(n2), np.empty(n2), np.empty(n2),
             np.empty((n2, n)), np.empty((n2, n)), np.empty((n2, n)), np.empty((n2, n)),
-            np.empty(n2), np.empty((n2, n)))
+            np.empty(n2), np.empty((n2, n)), np.empty(n), np.empty(n))
 
 
 @njit(cache=True)
@@ -352,12 +363,12 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
 
 
 @njit(cache=True)
-def _deriv_full(z, kp, pr, k, gj, dz, dummy_phi):
+def _deriv_full(z, kp, pr, k, gj, dz, dummy_phi, cs, sn):
     """Augmented state z = (ψ, uz (2N), p (3), R row-major (9), energy (1)): (M2), (M3), energy."""
     n = k.shape[0]
     n2 = 2 * n
-    _deriv(z[:n2], dummy_phi, kp, pr, k, gj, dz[:n2], dummy_phi, False)
-    ux, uy, _ = _bending(z[:n2], kp, pr, k)
+    _deriv(z[:n2], dummy_phi, kp, pr, k, gj, dz[:n2], dummy_phi, False, cs, sn)
+    ux, uy, _ = _bending(z[:n2], kp, pr, k, cs, sn)
     # p' = R e3 ; R' = R [u]^ with u = (ux, uy, 0): columns c0' = −uy c2, c1' = ux c2,
     # c2' = uy c0 − ux c1 (R stored row-major at z[n2+3 : n2+12])
     o = n2 + 3
@@ -372,18 +383,18 @@ def _deriv_full(z, kp, pr, k, gj, dz, dummy_phi):
     e = 0.0
     for i in range(n):
         if pr[i] > 0.0:
-            bx = ux - kp[i] * math.cos(z[i])
-            by = uy - kp[i] * math.sin(z[i])
+            bx = ux - kp[i] * cs[i]
+            by = uy - kp[i] * sn[i]
             e += 0.5 * k[i] * (bx * bx + by * by) + 0.5 * gj[i] * z[n + i] * z[n + i]
     dz[n2 + 12] = e
 
 
 @njit(cache=True)
 def integrate_full(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
-                   s_rec, p_rec, psi_rec, uz_rec):
+                   record, s_rec, p_rec, psi_rec, uz_rec):
     """Integrate (M2), (M3) and the elastic energy at the solution x.
 
-    Records every grid point into s_rec (K,), p_rec (K, 3) mm, psi_rec (K, N) rad and
+    If record, every grid point is written to s_rec (K,), p_rec (K, 3) mm, psi_rec (K, N) rad and
     uz_rec (K, N) rad/mm, K = 1 + Σ nsteps; tubes not present there are NaN. Returns
     (tip position (3,) mm, unit tip tangent (3,), energy N·mm). Energy = Σ ∫ ½ ki |u − Rz(ψi) ûi|²
     + ½ GJi uiz² ds, plus ½ GJi xi² (−βi) stored in the compliant transmission.
@@ -405,13 +416,16 @@ def integrate_full(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nst
     k4 = np.empty(nz)
     zt = np.empty(nz)
     dummy = np.zeros((n2, n))
+    cs = np.empty(n)
+    sn = np.empty(n)
     rec = 0
-    s_rec[0] = 0.0
-    p_rec[0, :] = 0.0
-    for i in range(n):
-        on = tips[i] > S_TOL
-        psi_rec[0, i] = z[i] if on else np.nan
-        uz_rec[0, i] = z[n + i] if on else np.nan
+    if record:
+        s_rec[0] = 0.0
+        p_rec[0, :] = 0.0
+        for i in range(n):
+            on = tips[i] > S_TOL
+            psi_rec[0, i] = z[i] if on else np.nan
+            uz_rec[0, i] = z[n + i] if on else np.nan
     for seg in range(bounds.shape[0] - 1):
         a, b = bounds[seg], bounds[seg + 1]
         ns = nsteps[seg]
@@ -419,18 +433,20 @@ def integrate_full(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nst
         kp = kap[seg]
         pr = present[seg]
         for st in range(ns):
-            _deriv_full(z, kp, pr, k, gj, k1, dummy)
+            _deriv_full(z, kp, pr, k, gj, k1, dummy, cs, sn)
             for j in range(nz):
                 zt[j] = z[j] + 0.5 * h * k1[j]
-            _deriv_full(zt, kp, pr, k, gj, k2, dummy)
+            _deriv_full(zt, kp, pr, k, gj, k2, dummy, cs, sn)
             for j in range(nz):
                 zt[j] = z[j] + 0.5 * h * k2[j]
-            _deriv_full(zt, kp, pr, k, gj, k3, dummy)
+            _deriv_full(zt, kp, pr, k, gj, k3, dummy, cs, sn)
             for j in range(nz):
                 zt[j] = z[j] + h * k3[j]
-            _deriv_full(zt, kp, pr, k, gj, k4, dummy)
+            _deriv_full(zt, kp, pr, k, gj, k4, dummy, cs, sn)
             for j in range(nz):
                 z[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+            if not record:
+                continue
             rec += 1
             s_rec[rec] = a + (st + 1) * h
             for d in range(3):

@@ -8,6 +8,7 @@ equilibria the robot is in) is the job of `follow`.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -28,7 +29,8 @@ class Equilibrium:
     q: (2N,) joints (deg, mm); x: (N,) base torsional curvatures uz(0) (rad/mm), the state that
     warm-starts the next solve; tip_position (3,) mm; tip_tangent (3,) unit; tip_pose (6,)
     (x, y, z, q0, qx, qy); s (K,) mm, backbone (K, 3) mm, twist (K, N) material angles ψ (deg) and
-    torsion (K, N) uz (rad/mm) on the integration grid, NaN where a tube has ended;
+    torsion (K, N) uz (rad/mm) on the integration grid, NaN where a tube has ended (computed on
+    first access);
     stability: det of the shooting Jacobian ∂uz(tips)/∂uz(0) (1 for a straight robot, 0 at a fold);
     conjugate: min over the coupled length of det H (see kernels._relative_det);
     stable: converged and both are > 0; energy: elastic energy (N·mm).
@@ -44,10 +46,32 @@ class Equilibrium:
     energy: float
     residual: float
     iterations: int
-    s: np.ndarray = field(repr=False)
-    backbone: np.ndarray = field(repr=False)
-    twist: np.ndarray = field(repr=False)
-    torsion: np.ndarray = field(repr=False)
+    _problem: _Problem = field(repr=False)
+
+    @functools.cached_property
+    def _records(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Backbone and twist along s, integrated on first use (a solve needs only the tip)."""
+        return _integrate(self._problem, self.x, record=True)[3]
+
+    @property
+    def s(self) -> np.ndarray:
+        """(K,) mm: arc length of the integration grid points."""
+        return self._records[0]
+
+    @property
+    def backbone(self) -> np.ndarray:
+        """(K, 3) mm: backbone points."""
+        return self._records[1]
+
+    @property
+    def twist(self) -> np.ndarray:
+        """(K, N) deg: material angle ψ of each tube (NaN past its tip)."""
+        return np.degrees(self._records[2])
+
+    @property
+    def torsion(self) -> np.ndarray:
+        """(K, N) rad/mm: torsional curvature uz of each tube (NaN past its tip)."""
+        return self._records[3]
 
     @property
     def stable(self) -> bool:
@@ -59,9 +83,11 @@ class Equilibrium:
 
     @property
     def base_twist(self) -> np.ndarray:
-        """(N,) deg: twist stored in each tube's transmission, ψi(0) − αi."""
+        """(N,) deg: twist stored in each tube's transmission, ψi(0) − αi = −βi uiz(0) (M4)."""
         n = self.x.shape[0]
-        return self.twist[0] - self.q[:n]
+        if self._problem.arrays.rigid:
+            return np.zeros(n)
+        return np.degrees(-self.q[n:] * self.x)
 
     def to_dict(self) -> dict[str, object]:
         return {
@@ -90,13 +116,15 @@ class _Problem:
         return float(max(self.tips.max(), 1e-9))
 
 
-def _prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: bool = False
-             ) -> _Problem:
+def _prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: bool = False,
+             arr: RobotArrays | None = None) -> _Problem:
+    """Validate q (unless checked) and build the integration grid; arr: robot_arrays(robot)."""
     qa = np.asarray(q, dtype=float) if checked else robot.check_joints(q)
     if qa.ndim != 1:
         raise ValueError("solve takes one configuration q (2N,); use solve_many for (T, 2N)")
-    arr = robot_arrays(robot)
-    n = robot.n_tubes
+    if arr is None:
+        arr = robot_arrays(robot)
+    n = arr.k.shape[0]
     beta = qa[n:].copy()
     grid = kernels.build_grid(beta, arr.lengths, arr.sec_len, arr.sec_kap, arr.n_sec,
                               settings.step)
@@ -113,24 +141,34 @@ def _newton(pb: _Problem, x0: np.ndarray, settings: SolverSettings
     return x, bool(conv), int(it), float(rn), float(det_j), float(det_h)
 
 
+_NO_RECORD = (np.empty(1), np.empty((1, 3)), np.empty((1, 1)), np.empty((1, 1)))
+
+
+def _integrate(pb: _Problem, x: np.ndarray, record: bool
+               ) -> tuple[np.ndarray, np.ndarray, float,
+                          tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """Tip position, tangent, energy and (if record) the grid records at base torsion x."""
+    a = pb.arrays
+    n = x.shape[0]
+    if record:
+        nrec = 1 + int(pb.grid[3].sum())
+        recs = (np.empty(nrec), np.empty((nrec, 3)), np.empty((nrec, n)), np.empty((nrec, n)))
+    else:
+        recs = _NO_RECORD
+    tip, tan, energy = kernels.integrate_full(x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj,
+                                              *pb.grid, record, *recs)
+    return tip, tan, float(energy), recs
+
+
 def _finish(pb: _Problem, sol: tuple[np.ndarray, bool, int, float, float, float]) -> Equilibrium:
     x, conv, it, rn, det_j, det_h = sol
-    a = pb.arrays
-    nrec = 1 + int(pb.grid[3].sum())
-    n = x.shape[0]
-    s_rec = np.empty(nrec)
-    p_rec = np.empty((nrec, 3))
-    psi_rec = np.empty((nrec, n))
-    uz_rec = np.empty((nrec, n))
-    tip, tan, energy = kernels.integrate_full(x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj,
-                                              *pb.grid, s_rec, p_rec, psi_rec, uz_rec)
+    tip, tan, energy, _ = _integrate(pb, x, record=False)
     if not conv:
         tip = np.full(3, np.nan)
         tan = np.full(3, np.nan)
     return Equilibrium(q=pb.q, x=x, tip_position=tip, tip_tangent=tan, converged=conv,
-                       stability=det_j, conjugate=det_h, energy=float(energy), residual=rn,
-                       iterations=it, s=s_rec, backbone=p_rec, twist=np.degrees(psi_rec),
-                       torsion=uz_rec)
+                       stability=det_j, conjugate=det_h, energy=energy, residual=rn,
+                       iterations=it, _problem=pb)
 
 
 def _twisted_guesses(pb: _Problem, around: np.ndarray) -> list[np.ndarray]:
@@ -208,13 +246,7 @@ def _solve_prepared(pb: _Problem, guess: Equilibrium | np.ndarray | None,
 
 
 def _energy(pb: _Problem, x: np.ndarray) -> float:
-    a = pb.arrays
-    nrec = 1 + int(pb.grid[3].sum())
-    n = x.shape[0]
-    _, _, e = kernels.integrate_full(x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,
-                                     np.empty(nrec), np.empty((nrec, 3)), np.empty((nrec, n)),
-                                     np.empty((nrec, n)))
-    return float(e)
+    return _integrate(pb, x, record=False)[2]
 
 
 def solve_many(robot: Robot, Q: np.ndarray, settings: SolverSettings = DEFAULT_SETTINGS

@@ -12,10 +12,11 @@ class SolverSettings:
     """step: largest RK4 step (mm); tol: shooting residual |uz(tip)|∞ (rad/mm);
     max_iter: Newton iterations; max_step: largest Newton update |Δuz(0)|∞ (rad/mm).
 
-    The default step keeps the tip within 1e-3 mm of a tight-tolerance reference on the paper
-    robot (benchmarks/bench_mechanics.py measures it)."""
+    RK4's error falls as step⁴: on the paper robot the tip is within 3e-5 mm of a tight-tolerance
+    reference at the default 3 mm (5e-6 mm at 2 mm, 1.3e-3 mm at 8 mm);
+    benchmarks/bench_mechanics.py measures it."""
 
-    step: float = 1.0
+    step: float = 3.0
     tol: float = 1e-10
     max_iter: int = 40
     max_step: float = 0.05

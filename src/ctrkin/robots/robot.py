@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -80,6 +81,8 @@ class Robot:
         """
         qa = np.asarray(q, dtype=float)
         n = self.n_tubes
+        if qa.ndim == 1 and qa.shape[0] == 2 * n and self._valid_single(qa):
+            return qa  # fast path for one valid configuration (the control-loop case)
         if qa.shape[-1:] != (2 * n,) or qa.ndim not in (1, 2):
             raise JointError(f"joints must have shape (2N,) or (T, 2N) with 2N = {2 * n} "
                              f"(alpha_1..alpha_N deg, beta_1..beta_N mm), got {qa.shape}")
@@ -107,6 +110,18 @@ class Robot:
                 where = f" (row {r}: {rows[r].tolist()})" if qa.ndim == 2 else f" (q = {rows[r].tolist()})"
                 raise JointError(msg + where)
         return qa
+
+    def _valid_single(self, q: np.ndarray) -> bool:
+        vals = q.tolist()
+        if not all(math.isfinite(v) for v in vals):
+            return False
+        n = self.n_tubes
+        beta = vals[n:]
+        tips = [b + t.length for b, t in zip(beta, self.tubes, strict=True)]
+        if beta[-1] > JOINT_TOL or tips[-1] < -JOINT_TOL:
+            return False
+        return all(beta[i] <= beta[i + 1] + JOINT_TOL and tips[i] >= tips[i + 1] - JOINT_TOL
+                   for i in range(n - 1))
 
     def is_valid(self, q: np.ndarray) -> np.ndarray:
         """Boolean mask of valid rows for joints (T, 2N) (no exception)."""
