@@ -11,6 +11,7 @@ import sys
 import click
 
 from ctrkin import __version__
+from ctrkin.cli.collect import collect_cmd
 from ctrkin.cli.mechanics import solve_cmd, sweep_cmd
 from ctrkin.errors import CtrkinError
 
@@ -23,6 +24,7 @@ def cli() -> None:
 
 cli.add_command(solve_cmd)
 cli.add_command(sweep_cmd)
+cli.add_command(collect_cmd)
 
 
 def main() -> None:

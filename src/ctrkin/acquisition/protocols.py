@@ -1,0 +1,207 @@
+"""The paper's data acquisition protocols as joint plans (Sec. II.B, III.A, IV.A of the paper).
+
+All joints follow the fixed convention q = (α1..αN deg, β1..βN mm), βi ≤ 0. A protocol is written
+for the paper's two-tube robot: tube 1 (inner) and tube N (outer) move; on a robot with more tubes
+the middle tubes move with the outer tube. d = βN − β1 ≥ 0 is the relative translation (how far the
+inner tube's base is behind the outer tube's): on the paper robot the curved sections overlap for
+d > 5.5 mm and fully at d = 20 mm (d ≤ 20.5 mm keeps the inner tip in front of the outer tip).
+
+Protocols (each returns a `Plan`; every random draw comes from `seed`):
+  paper          training data, Sec. III.A: per relative translation level, the outer tube steps
+                 through 360° in 10° increments; at each outer angle the inner tube turns 0 → 360 → 0°
+                 in 1° increments (721 samples, one sequence). The outer translation cycles over
+                 βN ∈ {0, −2.5, −5} mm across the outer angles, so the training data also covers the
+                 outer-tube translation range of the `arbitrary` path. Full scale: 8 levels
+                 (d = 4, 8, 10, 12, 14, 16, 18, 20 mm, denser where the curved overlap makes the robot
+                 nonlinear) × 36 angles × 721 = 207,648 samples (the paper: 212,527). Quick scale:
+                 d = 4, 12, 20 mm × 4 angles × 721 = 8,652 samples. Each level is one run (parallel).
+  sweeps         Fig. 2b, 6, 10a: the outer tube fixed at α = 0, βN = 0; the inner tube turns
+                 0 → 360 → 0° at d = 4, 8, 12, 16, 20 mm (the paper's β12 = 15..55), one run.
+  random-points  Fig. 10b: N random configurations (α uniform in [0, 360)°, d in [4, 20] mm, βN in
+                 [−5, 0] mm), each reached by a joint-space move from the previous one; one sequence
+                 per move, the target its last sample (is_target).
+  arbitrary      Fig. 10c: the paper's outer tube retracts 5 mm while turning 0 → 360° and the inner
+                 tube extends 10 mm while turning 360 → 0°, simultaneously. In our convention:
+                 βN 0 → −5 mm, β1 −20 → −10 mm (d 20 → 5 mm), αN 0 → 360°, α1 360 → 0°, 361 samples.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+import numpy as np
+
+from ctrkin.acquisition.plan import Plan, Run, Segment, move, transition
+from ctrkin.acquisition.trajectories import PAPER_LEVELS_MM
+from ctrkin.errors import JointError
+from ctrkin.robots.robot import Robot
+
+Scale = Literal["quick", "full"]
+SCALES = ("quick", "full")
+
+PAPER_FULL_LEVELS_MM = (4.0, 8.0, 10.0, 12.0, 14.0, 16.0, 18.0, 20.0)
+PAPER_QUICK_LEVELS_MM = (4.0, 12.0, 20.0)
+PAPER_OUTER_BETAS_MM = (0.0, -2.5, -5.0)
+ARBITRARY_START = {"alpha_inner": 360.0, "alpha_outer": 0.0, "beta_inner": -20.0, "beta_outer": 0.0}
+ARBITRARY_END = {"alpha_inner": 0.0, "alpha_outer": 360.0, "beta_inner": -10.0, "beta_outer": -5.0}
+RANDOM_D_RANGE_MM = (4.0, 20.0)
+RANDOM_OUTER_BETA_RANGE_MM = (-5.0, 0.0)
+
+
+def config(n_tubes: int, alpha_inner: float | np.ndarray, alpha_outer: float | np.ndarray,
+           beta_outer: float | np.ndarray, d: float | np.ndarray) -> np.ndarray:
+    """Joints (T, 2N) (or (2N,) for scalars) from the inner/outer tube's rotation (deg), the outer
+    translation βN (mm) and the relative translation d = βN − β1 (mm); middle tubes follow the outer."""
+    ai, ao, bo, dd = np.broadcast_arrays(*(np.asarray(v, dtype=float)
+                                           for v in (alpha_inner, alpha_outer, beta_outer, d)))
+    q = np.empty((*ai.shape, 2 * n_tubes))
+    q[..., 0] = ai
+    q[..., 1:n_tubes] = ao[..., None]
+    q[..., n_tubes:] = bo[..., None]
+    q[..., n_tubes] = bo - dd
+    return q
+
+
+def _check_scale(scale: str) -> None:
+    if scale not in SCALES:
+        raise ValueError(f"scale must be one of {SCALES}, got {scale!r}")
+
+
+def _check_levels(robot: Robot, levels: tuple[float, ...], outer_betas: tuple[float, ...]) -> None:
+    reach = float(robot.lengths[0] - robot.lengths[-1])
+    for d in levels:
+        if not 0 <= d <= reach:
+            raise JointError(f"relative translation level d = {d} mm is outside 0..{reach:g} mm for "
+                             f"robot {robot.name!r} (d <= L1 - LN keeps the inner tip in front); "
+                             "pass levels the robot can reach")
+    for b in outer_betas:
+        if not -float(robot.lengths[-1]) <= b <= 0:
+            raise JointError(f"outer translation {b} mm is outside -{robot.lengths[-1]:g}..0 mm for "
+                             f"robot {robot.name!r}")
+
+
+def inner_turn(n_tubes: int, alpha_outer: float, beta_outer: float, d: float,
+               step_deg: float = 1.0) -> np.ndarray:
+    """The inner tube turning 0 → 360 → 0° in step_deg increments, others fixed: (2·360/step + 1, 2N)."""
+    k = round(360.0 / step_deg)
+    fwd = step_deg * np.arange(k + 1)
+    a1 = np.r_[fwd, fwd[-2::-1]]
+    return config(n_tubes, a1, alpha_outer, beta_outer, d)
+
+
+def paper(robot: Robot, scale: Scale = "full", seed: int = 0,
+          levels: tuple[float, ...] | None = None, step_deg: float = 1.0) -> Plan:
+    """The paper's training protocol (Sec. III.A). One run per level, 36 (quick: 4) sequences each.
+
+    seed is unused (the protocol is deterministic; noise is seeded by the recorder) but kept so every
+    protocol has the same signature.
+    """
+    _check_scale(scale)
+    n = robot.n_tubes
+    lv = tuple(float(v) for v in (levels if levels is not None else
+                                  (PAPER_FULL_LEVELS_MM if scale == "full" else PAPER_QUICK_LEVELS_MM)))
+    angles = tuple(float(a) for a in (range(0, 360, 10) if scale == "full" else (0, 90, 180, 270)))
+    _check_levels(robot, lv, PAPER_OUTER_BETAS_MM)
+    runs = []
+    for li, d in enumerate(lv):
+        segs: list[Segment] = []
+        prev = None
+        for k, ao in enumerate(angles):
+            bo = PAPER_OUTER_BETAS_MM[k % len(PAPER_OUTER_BETAS_MM)]
+            q = inner_turn(n, ao, bo, d, step_deg)
+            if prev is not None:
+                segs.append(transition(prev, q[0], n))
+            segs.append(Segment(q, record=True, level=li))
+            prev = q[-1]
+        runs.append(Run(tuple(segs)))
+    params = {"scale": scale, "levels_mm": list(lv), "outer_angles_deg": list(angles),
+              "outer_betas_mm": list(PAPER_OUTER_BETAS_MM), "inner_step_deg": step_deg,
+              "transition_step": {"deg": 1.0, "mm": 0.1}}
+    return Plan("paper", tuple(runs), tuple({"relative_translation_mm": d} for d in lv), params)
+
+
+def sweeps(robot: Robot, scale: Scale = "full", seed: int = 0,
+           levels: tuple[float, ...] | None = None, step_deg: float = 1.0) -> Plan:
+    """Full inner rotations forward and back at five relative translations (Fig. 2b, 6, 10a), the
+    outer tube at α = 0, βN = 0; one run, the inner tube translating between levels unrecorded."""
+    _check_scale(scale)
+    n = robot.n_tubes
+    lv = tuple(float(v) for v in (levels if levels is not None else PAPER_LEVELS_MM))
+    _check_levels(robot, lv, (0.0,))
+    segs: list[Segment] = []
+    prev = None
+    for li, d in enumerate(lv):
+        q = inner_turn(n, 0.0, 0.0, d, step_deg)
+        if prev is not None:
+            segs.append(transition(prev, q[0], n))
+        segs.append(Segment(q, record=True, level=li))
+        prev = q[-1]
+    return Plan("sweeps", (Run(tuple(segs)),), tuple({"relative_translation_mm": d} for d in lv),
+                {"scale": scale, "levels_mm": list(lv), "outer_alpha_deg": 0.0, "outer_beta_mm": 0.0,
+                 "inner_step_deg": step_deg})
+
+
+def random_points(robot: Robot, scale: Scale = "full", seed: int = 0, n_points: int = 20) -> Plan:
+    """N random configurations (Fig. 10b), each reached by a move from the previous one (1°, 0.1 mm
+    steps), starting at rest at α = 0, d = 4 mm, βN = 0. One sequence per move."""
+    _check_scale(scale)
+    if n_points < 1:
+        raise ValueError(f"n_points must be >= 1, got {n_points}")
+    n = robot.n_tubes
+    _check_levels(robot, RANDOM_D_RANGE_MM, RANDOM_OUTER_BETA_RANGE_MM)
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xF1]))
+    ai = rng.uniform(0.0, 360.0, n_points)
+    ao = rng.uniform(0.0, 360.0, n_points)
+    dd = rng.uniform(*RANDOM_D_RANGE_MM, n_points)
+    bo = rng.uniform(*RANDOM_OUTER_BETA_RANGE_MM, n_points)
+    targets = config(n, ai, ao, bo, dd)
+    home = config(n, 0.0, 0.0, 0.0, RANDOM_D_RANGE_MM[0])
+    segs = [Segment(home[None, :], record=False)]
+    prev = home
+    for t in targets:
+        path = move(prev, t, n)
+        if path.shape[0] == 0:
+            path = t[None, :]
+        flag = np.zeros(path.shape[0], dtype=bool)
+        flag[-1] = True
+        segs.append(Segment(path, record=True, is_target=flag))
+        prev = t
+    return Plan("random-points", (Run(tuple(segs)),), (),
+                {"scale": scale, "n_points": n_points, "seed": seed, "targets": targets.tolist(),
+                 "d_range_mm": list(RANDOM_D_RANGE_MM),
+                 "outer_beta_range_mm": list(RANDOM_OUTER_BETA_RANGE_MM), "home": home.tolist()})
+
+
+def arbitrary(robot: Robot, scale: Scale = "full", seed: int = 0, samples: int = 361) -> Plan:
+    """The paper's simultaneous trajectory (Fig. 10c) in our convention: βN 0 → −5 mm, β1 −20 → −10
+    mm, αN 0 → 360°, α1 360 → 0°, linear in `samples` steps (1° per step by default)."""
+    _check_scale(scale)
+    if samples < 2:
+        raise ValueError(f"samples must be >= 2, got {samples}")
+    n = robot.n_tubes
+    s, e = ARBITRARY_START, ARBITRARY_END
+    f = np.linspace(0.0, 1.0, samples)
+
+    def lerp(key: str) -> np.ndarray:
+        return s[key] + f * (e[key] - s[key])
+
+    bo = lerp("beta_outer")
+    q = config(n, lerp("alpha_inner"), lerp("alpha_outer"), bo, bo - lerp("beta_inner"))
+    robot.check_joints(q)
+    return Plan("arbitrary", (Run((Segment(q, record=True),)),), (),
+                {"scale": scale, "samples": samples, "start": dict(s), "end": dict(e),
+                 "paper": "outer beta2 20 -> 15 mm, alpha2 0 -> 360 deg; inner beta1 30 -> 40 mm, "
+                          "alpha1 360 -> 0 deg (paper encoder units)"})
+
+
+PROTOCOLS: dict[str, Any] = {"paper": paper, "sweeps": sweeps, "random-points": random_points,
+                             "arbitrary": arbitrary}
+
+
+def build(name: str, robot: Robot, scale: Scale = "full", seed: int = 0, **kw: Any) -> Plan:
+    """The plan of protocol `name` (one of PROTOCOLS) for `robot`."""
+    if name not in PROTOCOLS:
+        raise ValueError(f"unknown protocol {name!r}; choose one of {sorted(PROTOCOLS)}")
+    plan: Plan = PROTOCOLS[name](robot, scale=scale, seed=seed, **kw)
+    robot.check_joints(plan.all_joints())
+    return plan

@@ -1,0 +1,116 @@
+"""Effect magnitudes of the virtual robot (frozen, validated, stored in every dataset's meta).
+
+Every default is a plausible value for a hand-made two-tube nitinol robot measured with an NDI Aurora
+5-DOF sensor; docs/virtual_robot.md gives the source of each. All randomness is drawn from a seed, so a
+config plus a robot seed is one reproducible "piece of hardware".
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+from typing import Any
+
+from ctrkin.errors import CtrkinError
+
+
+class VirtualConfigError(CtrkinError, ValueError):
+    """A virtual robot effect magnitude is out of range."""
+
+
+@dataclass(frozen=True)
+class VirtualConfig:
+    """Magnitudes of the imperfections (all >= 0; zero switches an effect off).
+
+    Tubes (drawn once per robot seed, per tube):
+      precurvature_error: relative std of each tube's precurvature (shape-setting springback).
+      stiffness_error: relative std of each tube's E·I (diameter tolerance, E of nitinol).
+      residual_curvature: std (1/mm) of the curvature of the nominally straight parts.
+      alpha_zero_error_deg: std (deg) of the offset between a rotation encoder's zero and the tube's
+        precurvature plane (tube clamped into its gear by hand).
+    Transmission (direction-dependent dead band between motor and tube base, i.e. hysteresis):
+      gear_backlash_deg: full width (deg) of the gear backlash of each rotation stage.
+      friction_deg: full width (deg) of the torsional-friction wind-up with no curved overlap.
+      friction_deg_per_mm: extra wind-up width (deg) per mm of curved overlap of two or more tubes
+        (contact force between curved tubes, so friction, grows with the overlap).
+      leadscrew_backlash_mm: full width (mm) of the lead-screw backlash of each translation stage.
+    Tracker (EM sensor, registered to the robot base):
+      registration_mm, registration_deg: std of the residual rigid registration error (per axis; angle).
+      sensor_offset_mm: distance (mm) of the sensor coil's centre beyond the tube tip, along the tip
+        tangent (the sensor sits in a fixture on the tip; the nominal model predicts the tube tip).
+      noise_mm, noise_deg: std of one reading's position noise (per axis) and tangent noise (angle).
+      readings_per_sample: readings averaged into one sample (the paper averaged five).
+    Encoder:
+      glitch_rate: probability that a recorded sample carries a corrupted joint reading.
+      glitch_deg, glitch_mm: largest corruption of a rotation (deg) / translation (mm) reading.
+    """
+
+    precurvature_error: float = 0.08
+    stiffness_error: float = 0.08
+    residual_curvature: float = 1e-3
+    alpha_zero_error_deg: float = 4.0
+    gear_backlash_deg: float = 1.0
+    friction_deg: float = 0.5
+    friction_deg_per_mm: float = 0.8
+    leadscrew_backlash_mm: float = 0.05
+    registration_mm: float = 1.0
+    registration_deg: float = 1.0
+    sensor_offset_mm: float = 4.0
+    noise_mm: float = 0.25
+    noise_deg: float = 0.2
+    readings_per_sample: int = 5
+    glitch_rate: float = 2e-4
+    glitch_deg: float = 90.0
+    glitch_mm: float = 5.0
+
+    def __post_init__(self) -> None:
+        limits = {  # name: (upper bound, why)
+            "precurvature_error": (0.5, "a relative std; 0.05 is 5 %"),
+            "stiffness_error": (0.5, "a relative std; 0.08 is 8 %"),
+            "residual_curvature": (0.01, "1/mm; 0.01 is a 100 mm radius, no longer 'straight'"),
+            "alpha_zero_error_deg": (45.0, "deg"),
+            "gear_backlash_deg": (30.0, "deg"),
+            "friction_deg": (30.0, "deg"),
+            "friction_deg_per_mm": (5.0, "deg per mm of curved overlap"),
+            "leadscrew_backlash_mm": (2.0, "mm"),
+            "registration_mm": (20.0, "mm"),
+            "registration_deg": (20.0, "deg"),
+            "sensor_offset_mm": (50.0, "mm"),
+            "noise_mm": (10.0, "mm"),
+            "noise_deg": (10.0, "deg"),
+            "glitch_rate": (0.5, "a probability per sample; glitches must stay rare"),
+            "glitch_deg": (3600.0, "deg"),
+            "glitch_mm": (100.0, "mm"),
+        }
+        for name, (upper, unit) in limits.items():
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise VirtualConfigError(f"VirtualConfig.{name} must be a finite number, got {v!r}")
+            if v < 0:
+                raise VirtualConfigError(
+                    f"VirtualConfig.{name} must be >= 0 (0 switches the effect off), got {v}")
+            if v > upper:
+                raise VirtualConfigError(
+                    f"VirtualConfig.{name} = {v} is implausibly large ({unit}); use a value <= {upper}")
+        n = self.readings_per_sample
+        if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 1000:
+            raise VirtualConfigError(
+                f"VirtualConfig.readings_per_sample must be an integer in 1..1000, got {n!r}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> VirtualConfig:
+        known = {f.name for f in fields(cls)}
+        unknown = set(d) - known
+        if unknown:
+            raise VirtualConfigError(f"unknown virtual robot setting(s) {sorted(unknown)}; "
+                                     f"allowed: {sorted(known)}")
+        return cls(**d)
+
+    def ideal(self) -> VirtualConfig:
+        """All effects off: the virtual robot is then the nominal TCM with perfect sensing."""
+        off: dict[str, Any] = {f.name: 0.0 for f in fields(self)}
+        off["readings_per_sample"] = 1
+        return VirtualConfig(**off)

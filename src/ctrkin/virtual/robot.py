@@ -1,0 +1,127 @@
+"""The virtual robot: the TCM of a perturbed ("true") robot behind imperfect actuation and sensing.
+
+Data flow of one motion (joints are motor-side encoder values, the fixed joint convention):
+
+    commanded motor joints m (T, 2N)
+      -> play operator per joint (backlash + friction dead band, transmission.py)
+      -> + encoder zero offset of each rotation (tube clamped into its gear by hand)
+      -> clipped to the stages' travel                       = tube base joints b (T, 2N)
+      -> TCM continuation on the true tubes (mechanics.follow: history, snaps)
+      -> true tip pose (robot base frame)                    = true_* columns
+      -> tracker: sensor offset, registration error, noise, mean of 5 readings
+                                                             = measured x..qy columns
+    encoder readings = m, with rare glitches (outlier = True)
+
+One `VirtualRobot(nominal, config, seed)` is one reproducible piece of hardware: the same seed gives
+the same true tubes, offsets and registration. Measurement noise is drawn from a generator passed in
+per recording, so protocols decide how to seed (and parallelise) it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ctrkin.mechanics import Equilibrium, follow, solve
+from ctrkin.robots.robot import Robot
+from ctrkin.virtual.config import VirtualConfig
+from ctrkin.virtual.encoder import glitch
+from ctrkin.virtual.hardware import perturb_robot
+from ctrkin.virtual.tracker import Tracker
+from ctrkin.virtual.transmission import clip_to_valid, curved_overlap, dead_band, play
+
+
+@dataclass(frozen=True, eq=False)
+class VirtualState:
+    """Where the robot is between motions. equilibrium: the true robot's TCM state (its branch);
+    play: (2N,) the play operators' outputs (motor-side deg, mm) before offsets and clipping."""
+
+    equilibrium: Equilibrium
+    play: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Motion:
+    """A motion of the virtual robot, T steps. commanded (T, 2N) motor joints (deg, mm); base (T, 2N)
+    the tube-base joints the mechanics saw; true_poses (T, 6) in the robot base frame; snaps (T,)
+    bool: a fold of the true robot's equilibrium branch was crossed on the way into the step."""
+
+    commanded: np.ndarray
+    base: np.ndarray
+    true_poses: np.ndarray
+    snaps: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Recording:
+    """Sensor view of a motion. joints (T, 2N) encoder readings; outlier (T,) bool (a glitch);
+    measured (T, 6) tracker poses registered to the robot base."""
+
+    joints: np.ndarray
+    outlier: np.ndarray
+    measured: np.ndarray
+
+
+class VirtualRobot:
+    """nominal: the robot description a user would have; config: effect magnitudes;
+    seed: draws the hardware (true tubes, encoder offsets, registration)."""
+
+    def __init__(self, nominal: Robot, config: VirtualConfig | None = None, seed: int = 0) -> None:
+        self.nominal = nominal
+        self.config = config if config is not None else VirtualConfig()
+        self.seed = int(seed)
+        rng = np.random.default_rng(np.random.SeedSequence([self.seed, 0x5EED]))
+        self.true_robot, self.tube_errors = perturb_robot(nominal, self.config, rng)
+        self.alpha_offset = self.config.alpha_zero_error_deg * rng.standard_normal(nominal.n_tubes)
+        c = self.config
+        self.tracker = Tracker.draw(rng, c.registration_mm, c.registration_deg, c.sensor_offset_mm,
+                                    c.noise_mm, c.noise_deg, c.readings_per_sample)
+
+    # --- actuation ------------------------------------------------------------------------------
+    def base_joints(self, play_out: np.ndarray) -> np.ndarray:
+        """Play outputs (T, 2N) -> tube-base joints (T, 2N): encoder offsets added, stops applied."""
+        n = self.nominal.n_tubes
+        b = np.array(play_out, dtype=float, copy=True)
+        b[:, :n] += self.alpha_offset
+        return clip_to_valid(self.true_robot, b)
+
+    def rest(self, q: np.ndarray) -> VirtualState:
+        """The robot at rest at motor joints q (2N,): play centred, the lowest-energy stable
+        equilibrium (a point-wise solve: no history before the first motion)."""
+        qa = self.nominal.check_joints(np.asarray(q, dtype=float))
+        base = self.base_joints(qa[None, :])[0]
+        return VirtualState(solve(self.true_robot, base), qa.copy())
+
+    def move(self, state: VirtualState, Q: np.ndarray,
+             progress: Callable[[int], None] | None = None) -> tuple[Motion, VirtualState]:
+        """Drive the motors through Q (T, 2N) (deg, mm), starting from `state`."""
+        Qa = self.nominal.check_joints(np.atleast_2d(np.asarray(Q, dtype=float)))
+        width = dead_band(self.nominal, self.config, Qa)
+        p = np.empty_like(Qa)
+        play(Qa, width, state.play, p)
+        base = self.base_joints(p)
+        tr = follow(self.true_robot, base, start=state.equilibrium, progress=progress)
+        motion = Motion(commanded=Qa, base=base, true_poses=tr.tip_poses, snaps=tr.snaps)
+        return motion, VirtualState(tr.equilibria[-1], p[-1].copy())
+
+    # --- sensing --------------------------------------------------------------------------------
+    def record(self, motion: Motion, rng: np.random.Generator) -> Recording:
+        """Encoder readings and tracker poses of a motion (noise drawn from rng)."""
+        c = self.config
+        joints, outlier = glitch(self.nominal, motion.commanded, c.glitch_rate, c.glitch_deg,
+                                 c.glitch_mm, rng)
+        return Recording(joints, outlier, self.tracker.measure(motion.true_poses, rng))
+
+    def curved_overlap(self, Q: np.ndarray) -> np.ndarray:
+        """(T,) mm of curved overlap of the nominal robot at joints Q (T, 2N)."""
+        return curved_overlap(self.nominal, Q)
+
+    def describe(self) -> dict[str, Any]:
+        """Everything that defines this virtual robot, for the dataset meta."""
+        return {"seed": self.seed, "config": self.config.to_dict(),
+                "true_robot": self.true_robot.to_dict(), "tube_errors": self.tube_errors,
+                "alpha_zero_offset_deg": self.alpha_offset.tolist(),
+                "tracker": self.tracker.to_dict()}
