@@ -12,6 +12,7 @@ import click
 
 from ctrkin import __version__
 from ctrkin.cli.collect import collect_cmd
+from ctrkin.cli.dataset import dataset_group
 from ctrkin.cli.mechanics import solve_cmd, sweep_cmd
 from ctrkin.errors import CtrkinError
 
@@ -25,6 +26,7 @@ def cli() -> None:
 cli.add_command(solve_cmd)
 cli.add_command(sweep_cmd)
 cli.add_command(collect_cmd)
+cli.add_command(dataset_group)
 
 
 def main() -> None:

@@ -21,7 +21,7 @@ import pandas as pd
 from ctrkin import __version__
 from ctrkin.data import schema
 from ctrkin.data.splits import Split, split_by_sequence
-from ctrkin.errors import DatasetError
+from ctrkin.errors import DatasetError, RobotDescriptionError
 from ctrkin.robots.robot import Robot
 
 DATA_FILE = "data.parquet"
@@ -30,14 +30,24 @@ SPLIT_FILE = "split.json"
 
 
 def validate_frame(frame: pd.DataFrame, n_tubes: int, source: str = "dataset") -> None:
-    """Check columns, NaNs and time order; errors name the column and row to fix."""
+    """Check columns, dtypes, NaNs and time order; errors name the column and row to fix."""
     missing = [c for c in schema.required_columns(n_tubes) if c not in frame.columns]
     if missing:
         raise DatasetError(f"{source}: missing column(s) {missing}; required: "
                            f"{schema.required_columns(n_tubes)}")
+    if len(frame) == 0:
+        raise DatasetError(f"{source}: has no samples (0 rows)")
+    for c in schema.INDEX_COLUMNS:
+        if not pd.api.types.is_integer_dtype(frame[c]):
+            raise DatasetError(f"{source}: column {c!r} must hold integers, got dtype {frame[c].dtype}")
+    for c in schema.FLAG_COLUMNS:
+        if not pd.api.types.is_bool_dtype(frame[c]):
+            raise DatasetError(f"{source}: column {c!r} must hold booleans, got dtype {frame[c].dtype}")
     numeric = schema.joint_columns(n_tubes) + schema.POSE_COLUMNS
     numeric += [c for c in schema.TRUE_POSE_COLUMNS if c in frame.columns]
     for c in numeric:
+        if not pd.api.types.is_numeric_dtype(frame[c]) or pd.api.types.is_bool_dtype(frame[c]):
+            raise DatasetError(f"{source}: column {c!r} must hold numbers, got dtype {frame[c].dtype}")
         vals = frame[c].to_numpy(dtype=float)
         bad = ~np.isfinite(vals)
         if bad.any():
@@ -53,7 +63,27 @@ def validate_frame(frame: pd.DataFrame, n_tubes: int, source: str = "dataset") -
                            f"{sid[r]} (got {step[r - 1]} then {step[r]}); sort by time")
     starts = np.r_[True, ~same]
     if len(np.unique(sid)) != int(starts.sum()):
-        raise DatasetError(f"{source}: the rows of each sequence_id must be contiguous")
+        seen: set[object] = set()
+        for row in np.nonzero(starts)[0]:
+            if sid[row] in seen:
+                raise DatasetError(f"{source}: row {row}: sequence_id {sid[row]} starts again after "
+                                   "other sequences; the rows of each sequence_id must be contiguous")
+            seen.add(sid[row])
+
+
+def _check_split(split: Split, n_rows: int, source: str) -> None:
+    """The split must index rows of this frame, each row at most once."""
+    parts = [split.train, split.val, split.test]
+    idx = np.concatenate(parts)
+    if idx.size and (idx.min() < 0 or idx.max() >= n_rows):
+        raise DatasetError(f"{source}: split indexes row {int(idx.max())} but the dataset has {n_rows} "
+                           "rows; make the split again (ctrkin dataset split)")
+    if len(np.unique(idx)) != idx.size:
+        raise DatasetError(f"{source}: split puts some rows in two parts; make the split again "
+                           "(ctrkin dataset split)")
+    if split.n_rows is not None and split.n_rows != n_rows:
+        raise DatasetError(f"{source}: split was made for {split.n_rows} rows but the dataset has "
+                           f"{n_rows}; make the split again (ctrkin dataset split)")
 
 
 @dataclass(eq=False)
@@ -68,6 +98,8 @@ class Dataset:
 
     def __post_init__(self) -> None:
         validate_frame(self.frame, self.robot.n_tubes)
+        if self.split is not None:
+            _check_split(self.split, len(self.frame), "dataset")
 
     # --- views -----------------------------------------------------------------------------------
     @property
@@ -101,8 +133,18 @@ class Dataset:
             self.split = split_by_sequence(self.frame["sequence_id"].to_numpy(), seed=seed)
         return self.split
 
+    def save_split(self, folder: str | Path, split: Split) -> None:
+        """Attach `split` and write only split.json into the saved dataset `folder` (atomically)."""
+        _check_split(split, len(self.frame), str(folder))
+        if not (Path(folder) / DATA_FILE).is_file():
+            raise DatasetError(f"{folder} is not a saved dataset; save it first")
+        split.save(Path(folder) / SPLIT_FILE)
+        self.split = split
+
     # --- files -----------------------------------------------------------------------------------
     def save(self, folder: str | Path) -> Path:
+        """Write the dataset folder (data.parquet, meta.json, split.json if any) atomically: it is
+        built beside `folder` and swapped in, so a failure leaves the previous folder intact."""
         target = Path(folder)
         target.parent.mkdir(parents=True, exist_ok=True)
         meta = {**self.meta, "format_version": schema.FORMAT_VERSION, "robot": self.robot.to_dict(),
@@ -133,13 +175,22 @@ class Dataset:
             meta = json.loads((src / META_FILE).read_text())
         except (OSError, json.JSONDecodeError) as e:
             raise DatasetError(f"{src / META_FILE} is not valid JSON: {e}") from None
+        if not isinstance(meta, dict):
+            raise DatasetError(f"{src / META_FILE} must hold a JSON object")
         version = meta.get("format_version")
+        if version is None:
+            raise DatasetError(f"{src / META_FILE} has no 'format_version': not written by ctrkin")
         if version != schema.FORMAT_VERSION:
-            raise DatasetError(f"{src}: dataset format version {version!r}; this ctrkin reads "
-                               f"version {schema.FORMAT_VERSION}")
+            newer = isinstance(version, int) and version > schema.FORMAT_VERSION
+            hint = "upgrade ctrkin to read it" if newer else "re-create it with this ctrkin"
+            raise DatasetError(f"{src}: dataset format version {version!r}, but this ctrkin "
+                               f"{__version__} reads version {schema.FORMAT_VERSION}; {hint}")
         if "robot" not in meta:
             raise DatasetError(f"{src / META_FILE} has no 'robot' description")
-        ds_robot = Robot.from_dict(meta["robot"], source=f"{src / META_FILE} robot")
+        try:
+            ds_robot = Robot.from_dict(meta["robot"], source=f"{src / META_FILE} robot")
+        except RobotDescriptionError as e:
+            raise DatasetError(str(e)) from None
         if robot is not None and robot.fingerprint() != ds_robot.fingerprint():
             raise DatasetError(f"{src} was recorded on robot {ds_robot.name!r} "
                                f"({ds_robot.fingerprint()}), not on {robot.name!r} "
@@ -150,6 +201,8 @@ class Dataset:
             raise DatasetError(f"{src / DATA_FILE} cannot be read: {e}") from None
         split = Split.load(src / SPLIT_FILE) if (src / SPLIT_FILE).is_file() else None
         validate_frame(frame, ds_robot.n_tubes, source=str(src))
+        if split is not None:
+            _check_split(split, len(frame), str(src / SPLIT_FILE))
         return cls(frame=frame, robot=ds_robot, meta=meta, split=split)
 
 

@@ -10,6 +10,15 @@ q0, qx, qy  float64 -             measured tip orientation, unit quaternion with
 true_*      float64 mm / -        the true tip pose where known (virtual robot)
 snap        bool    -             a snap happened on the way into this sample
 outlier     bool    -             flagged by cleaning (encoder glitch, out of workspace)
+
+Optional columns (kept on save and load when present):
+time        float64 s (log)       time stamp of the sample's first reading, in the log's own unit
+n_readings  int64   -             readings averaged into the sample (the paper averaged five)
+source_line int64   -             line of the sample's first reading in the imported log file
+
+Format version policy: FORMAT_VERSION changes whenever a reader of the old version would misread a
+new file (a column renamed, a unit changed). Adding an optional column or meta key does not change it.
+Readers refuse other versions with a message saying which side to upgrade.
 """
 
 from __future__ import annotations
@@ -19,6 +28,7 @@ POSE_COLUMNS = ["x", "y", "z", "q0", "qx", "qy"]
 TRUE_POSE_COLUMNS = [f"true_{c}" for c in POSE_COLUMNS]
 INDEX_COLUMNS = ["sequence_id", "step"]
 FLAG_COLUMNS = ["snap", "outlier"]
+OPTIONAL_COLUMNS = ["time", "n_readings", "source_line"]
 UNITS = {"alpha": "deg", "beta": "mm", "position": "mm",
          "orientation": "unit quaternion (q0, qx, qy), qz = 0"}
 
@@ -38,3 +48,15 @@ def joint_columns(n_tubes: int) -> list[str]:
 
 def required_columns(n_tubes: int) -> list[str]:
     return INDEX_COLUMNS + joint_columns(n_tubes) + POSE_COLUMNS + FLAG_COLUMNS
+
+
+def column_unit(column: str) -> str:
+    """Unit of a dataset column, for summaries ("" for dimensionless)."""
+    base = column.removeprefix("true_")
+    if base.startswith("alpha_"):
+        return "deg"
+    if base.startswith("beta_") or base in ("x", "y", "z"):
+        return "mm"
+    if base == "time":
+        return "log unit"
+    return ""

@@ -18,9 +18,13 @@ from ctrkin.util.files import atomic_write_text
 SPLIT_NAMES = ("train", "val", "test")
 
 
+SPLIT_KINDS = ("sequence", "random")
+
+
 @dataclass(frozen=True, eq=False)
 class Split:
-    """Row indices (into the dataset frame) of each part; kind: "sequence" or "random"."""
+    """Row indices (into the dataset frame) of each part, (n_part,) int64 sorted; kind: "sequence"
+    or "random"; n_rows: the number of rows of the frame it was made for (None: not recorded)."""
 
     train: np.ndarray
     val: np.ndarray
@@ -28,6 +32,16 @@ class Split:
     kind: str
     seed: int
     fractions: tuple[float, float, float]
+    n_rows: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in SPLIT_KINDS:
+            raise DatasetError(f"split kind must be one of {SPLIT_KINDS}, got {self.kind!r}")
+        for name in SPLIT_NAMES:
+            object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=np.int64))
+
+    def sizes(self) -> dict[str, int]:
+        return {k: len(self.part(k)) for k in SPLIT_NAMES}
 
     def part(self, name: str) -> np.ndarray:
         if name not in SPLIT_NAMES:
@@ -36,16 +50,19 @@ class Split:
 
     def to_dict(self) -> dict[str, object]:
         return {"kind": self.kind, "seed": self.seed, "fractions": list(self.fractions),
-                **{k: self.part(k).tolist() for k in SPLIT_NAMES}}
+                "n_rows": self.n_rows, **{k: self.part(k).tolist() for k in SPLIT_NAMES}}
 
     @classmethod
     def from_dict(cls, d: dict) -> Split:
         try:
             tr, va, te = (np.asarray(d[k], dtype=np.int64) for k in SPLIT_NAMES)
             f = tuple(float(v) for v in d["fractions"])
+            n_rows = d.get("n_rows")
             return cls(tr, va, te, kind=str(d["kind"]), seed=int(d["seed"]),
-                       fractions=(f[0], f[1], f[2]))
-        except (KeyError, TypeError, ValueError) as e:
+                       fractions=(f[0], f[1], f[2]), n_rows=None if n_rows is None else int(n_rows))
+        except KeyError as e:
+            raise DatasetError(f"malformed split: missing key {e}") from None
+        except (TypeError, ValueError, IndexError) as e:
             raise DatasetError(f"malformed split: {e}") from None
 
     def save(self, path: str | Path) -> None:
@@ -59,10 +76,20 @@ class Split:
             raise DatasetError(f"cannot read split file {path}: {e}") from None
 
 
-def _check_fractions(fractions: tuple[float, float, float]) -> None:
+def _check_fractions(fractions: tuple[float, ...]) -> tuple[float, float, float]:
     if len(fractions) != 3 or any(f < 0 for f in fractions) or abs(sum(fractions) - 1) > 1e-9:
         raise DatasetError(f"split fractions must be three non-negative numbers summing to 1, "
                            f"got {fractions}")
+    return float(fractions[0]), float(fractions[1]), float(fractions[2])
+
+
+def part_sizes(n_rows: int, fractions: tuple[float, float, float]) -> tuple[int, int, int]:
+    """Sizes summing exactly to n_rows, each within one of fraction·n_rows (largest remainder)."""
+    exact = np.asarray(fractions, dtype=float) * n_rows
+    sizes = np.floor(exact).astype(int)
+    for k in np.argsort(-(exact - sizes), kind="stable")[: n_rows - int(sizes.sum())]:
+        sizes[k] += 1
+    return int(sizes[0]), int(sizes[1]), int(sizes[2])
 
 
 def split_by_sequence(sequence_id: np.ndarray, fractions: tuple[float, float, float] = (0.7, 0.15, 0.15),
@@ -72,7 +99,7 @@ def split_by_sequence(sequence_id: np.ndarray, fractions: tuple[float, float, fl
     sequence_id: (T,) per-row sequence ids. Sequences are shuffled (seeded) and filled greedily;
     with at least three sequences each part gets one.
     """
-    _check_fractions(fractions)
+    fractions = _check_fractions(fractions)
     sid = np.asarray(sequence_id)
     uniq, counts = np.unique(sid, return_counts=True)
     order = np.random.default_rng(seed).permutation(len(uniq))
@@ -88,15 +115,15 @@ def split_by_sequence(sequence_id: np.ndarray, fractions: tuple[float, float, fl
         assign[k] = part
         filled[part] += counts[k]
     tr, va, te = (np.nonzero(np.isin(sid, uniq[assign == p]))[0] for p in range(3))
-    return Split(tr, va, te, kind="sequence", seed=seed, fractions=fractions)
+    return Split(tr, va, te, kind="sequence", seed=seed, fractions=fractions, n_rows=len(sid))
 
 
 def random_split(n_rows: int, fractions: tuple[float, float, float] = (0.7, 0.15, 0.15),
                  seed: int = 0) -> Split:
     """The paper's split: rows shuffled individually (neighbouring samples leak across parts)."""
-    _check_fractions(fractions)
+    fractions = _check_fractions(fractions)
     perm = np.random.default_rng(seed).permutation(n_rows)
-    a = round(fractions[0] * n_rows)
-    b = a + round(fractions[1] * n_rows)
+    n_train, n_val, _ = part_sizes(n_rows, fractions)
+    a, b = n_train, n_train + n_val
     return Split(np.sort(perm[:a]), np.sort(perm[a:b]), np.sort(perm[b:]), kind="random",
-                 seed=seed, fractions=fractions)
+                 seed=seed, fractions=fractions, n_rows=n_rows)

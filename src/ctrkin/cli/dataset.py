@@ -1,0 +1,225 @@
+"""`ctrkin dataset`: inspect datasets, import your own robot logs, make splits.
+
+    ctrkin dataset info data/sweeps
+    ctrkin dataset info data/sweeps --json
+
+    # a log in radians and metres, a full quaternion in x, y, z, w order, five readings per sample
+    ctrkin dataset import robot_log.csv --robot paper --out data/mylog \\
+        --map enc_rot_inner=alpha_1 --map enc_rot_outer=alpha_2 \\
+        --map enc_lin_inner=beta_1 --map enc_lin_outer=beta_2 \\
+        --map px=x --map py=y --map pz=z --map stamp=time --map run=sequence_id \\
+        --quaternion ox,oy,oz,ow --quat-order xyzw --units rad,m
+
+    ctrkin dataset split data/mylog --kind random --seed 0 --fractions 0.7,0.15,0.15
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, cast
+
+import click
+from rich.console import Console
+from rich.table import Table
+
+from ctrkin.cli.common import get_robot, parse_floats, robot_option
+from ctrkin.data.cleaning import CleaningConfig
+from ctrkin.data.dataset import Dataset
+from ctrkin.data.importer import ImportConfig, import_csv
+from ctrkin.data.splits import random_split, split_by_sequence
+from ctrkin.data.summary import summarize
+
+
+@click.group("dataset")
+def dataset_group() -> None:
+    """Inspect datasets, import robot logs (CSV) and split datasets."""
+
+
+# --- info ------------------------------------------------------------------------------------------
+def _fmt(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, dict):
+        return ", ".join(f"{k}={_fmt(x)}" for k, x in v.items())
+    if isinstance(v, list):
+        return "; ".join(_fmt(x) for x in v) if v else "-"
+    return "-" if v is None else str(v)
+
+
+def print_summary(s: dict[str, Any], title: str) -> None:
+    console = Console(width=110)
+    head = Table(title=title, show_header=False, title_justify="left")
+    head.add_column("key", style="bold")
+    head.add_column("value")
+    r = s["robot"]
+    head.add_row("robot", f"{r['name']} ({r['n_tubes']} tubes, {r['transmission']}, {r['fingerprint']})")
+    head.add_row("protocol", _fmt(s["protocol"]))
+    if s.get("protocol_params"):
+        head.add_row("parameters", _fmt(s["protocol_params"]))
+    head.add_row("seed", _fmt(s["seed"]))
+    head.add_row("samples", str(s["samples"]))
+    head.add_row("sequences", f"{s['sequences']} (length {_fmt(s['sequence_length'])})")
+    head.add_row("snaps", str(s["snaps"]))
+    head.add_row("outliers flagged", str(s["outliers_flagged"]))
+    head.add_row("true poses", "yes" if s["has_truth"] else "no")
+    for key in ("noise", "cleaning"):
+        entry = s.get(key)
+        if isinstance(entry, dict):
+            for k, v in entry.items():
+                head.add_row(f"{key}: {k}", _fmt(v))
+        elif entry is not None:
+            head.add_row(key, _fmt(entry))
+    split = s["split"]
+    head.add_row("split", "none saved (by sequence 70:15:15 on first use)" if split is None else _fmt(split))
+    head.add_row("format", f"version {s['format_version']} (ctrkin {_fmt(s['ctrkin_version'])})")
+    console.print(head)
+    ranges = Table(title="columns", title_justify="left")
+    for name in ("column", "unit", "min", "max", "mean"):
+        ranges.add_column(name, justify="left" if name in ("column", "unit") else "right")
+    for c, v in s["ranges"].items():
+        ranges.add_row(c, v["unit"], f"{v['min']:.4g}", f"{v['max']:.4g}", f"{v['mean']:.4g}")
+    console.print(ranges)
+
+
+@dataset_group.command("info")
+@click.argument("folder", type=click.Path(exists=True, file_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+def info_cmd(folder: str, as_json: bool) -> None:
+    """Summary of the dataset in FOLDER: samples, sequences, ranges, snaps, cleaning, noise, split."""
+    s = summarize(Dataset.load(folder))
+    if as_json:
+        click.echo(json.dumps(s, indent=2))
+    else:
+        print_summary(s, title=str(folder))
+
+
+# --- import ----------------------------------------------------------------------------------------
+def parse_map(items: tuple[str, ...]) -> tuple[tuple[str, str], ...]:
+    """("a=alpha_1", "b=beta_1,c=x") -> (("a", "alpha_1"), ("b", "beta_1"), ("c", "x"))."""
+    pairs = []
+    for item in items:
+        for part in item.split(","):
+            if not part.strip():
+                continue
+            col, sep, fld = part.partition("=")
+            if not sep or not col.strip() or not fld.strip():
+                raise click.BadParameter(f"expected LOG_COLUMN=FIELD, got {part!r}", param_hint="--map")
+            pairs.append((col.strip(), fld.strip()))
+    return tuple(pairs)
+
+
+def parse_units(items: tuple[str, ...]) -> dict[str, str]:
+    """Units of the log: tokens deg|rad (angles), mm|m (all lengths), or angles=, beta=, position=."""
+    out: dict[str, str] = {}
+    for item in items:
+        for tok in (t.strip() for t in item.split(",")):
+            key, sep, val = tok.partition("=")
+            if not tok:
+                continue
+            if not sep:
+                key, val = ("angles", tok) if tok in ("deg", "rad") else ("lengths", tok)
+            if key in ("angles", "alpha") and val in ("deg", "rad"):
+                out["angle_unit"] = val
+            elif key == "lengths" and val in ("mm", "m"):
+                out["beta_unit"] = out["position_unit"] = val
+            elif key == "beta" and val in ("mm", "m"):
+                out["beta_unit"] = val
+            elif key == "position" and val in ("mm", "m"):
+                out["position_unit"] = val
+            else:
+                raise click.BadParameter(
+                    f"{tok!r}: use deg|rad, mm|m, or angles=deg|rad, beta=mm|m, position=mm|m",
+                    param_hint="--units")
+    return out
+
+
+def parse_gap(text: str) -> float | str | None:
+    if text in ("auto", "none"):
+        return None if text == "none" else "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise click.BadParameter(f"auto, none or a time gap in the log's unit, got {text!r}",
+                                 param_hint="--sequence-gap") from None
+
+
+@dataset_group.command("import")
+@click.argument("log_file", type=click.Path(exists=True, dir_okay=False))
+@robot_option
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
+              help="Dataset folder to write.")
+@click.option("--map", "maps", multiple=True, metavar="LOG_COLUMN=FIELD",
+              help="Map a log column to a field (alpha_1.., beta_1.., x, y, z, q0, qw, qx, qy, qz, tx, "
+                   "ty, tz, sequence_id, time, step, snap). Repeatable or comma-separated. Columns "
+                   "already named like a field need no mapping.")
+@click.option("--units", "units", multiple=True, metavar="UNITS",
+              help="Units of the log, e.g. 'rad,m' or 'angles=rad,beta=mm,position=m' "
+                   "(default deg, mm).")
+@click.option("--quaternion", "quat_cols", default=None, metavar="C1,C2,C3,C4",
+              help="Four log columns holding a full quaternion, in --quat-order.")
+@click.option("--quat-order", type=click.Choice(["wxyz", "xyzw"]), default="wxyz", show_default=True,
+              help="Order of the --quaternion columns.")
+@click.option("--sequence-gap", "gap_text", default="auto", show_default=True,
+              help="Without sequence_id: start a new sequence after a time gap larger than this "
+                   "(log time unit), 'auto' (10x the median time step) or 'none'.")
+@click.option("--drop-invalid", is_flag=True, help="Drop rows whose joints are outside the robot's "
+              "limits instead of failing.")
+@click.option("--drop-incomplete", is_flag=True, help="Drop rows with empty or NaN cells instead of "
+              "failing.")
+@click.option("--keep-outliers", is_flag=True, help="Keep outliers, flagged outlier = True, instead "
+              "of dropping them (the paper dropped them).")
+@click.option("--no-average", is_flag=True, help="Do not average repeated readings of one sample.")
+@click.option("--unwrap", is_flag=True, help="Unwrap alpha (for logs wrapping angles to ±180°).")
+@click.option("--delimiter", default=",", show_default=True, help="CSV field separator.")
+@click.option("--force", is_flag=True, help="Replace the --out folder if it exists.")
+def import_cmd(log_file: str, robot_spec: str, out_dir: str, maps: tuple[str, ...], units: tuple[str, ...],
+               quat_cols: str | None, quat_order: str, gap_text: str, drop_invalid: bool,
+               drop_incomplete: bool, keep_outliers: bool, no_average: bool, unwrap: bool,
+               delimiter: str, force: bool) -> None:
+    """Import a robot log LOG_FILE (CSV, one row a tracker reading) into a cleaned dataset: repeated
+    readings averaged, encoder glitches and pose outliers removed, snaps detected (see
+    docs/data.md)."""
+    out = Path(out_dir)
+    if out.exists() and not force:
+        raise click.UsageError(f"{out} exists; pass --force to replace it")
+    robot = get_robot(robot_spec)
+    quaternion_columns = tuple(c.strip() for c in quat_cols.split(",")) if quat_cols else ()
+    cfg = ImportConfig(
+        mapping=parse_map(maps), quaternion_columns=quaternion_columns,
+        quaternion_order=cast(Any, quat_order), sequence_gap=cast(Any, parse_gap(gap_text)),
+        drop_invalid_joints=drop_invalid, drop_incomplete=drop_incomplete, unwrap=unwrap,
+        delimiter=delimiter,
+        cleaning=CleaningConfig(average_repeats=not no_average, outliers="flag" if keep_outliers else "drop"),
+        **cast(Any, parse_units(units)))
+    ds = import_csv(log_file, robot, cfg)
+    ds.save(out)
+    print_summary(summarize(ds), title=f"imported {log_file} -> {out}")
+    for w in ds.meta["cleaning"]["warnings"]:
+        click.echo(f"warning: {w}", err=True)
+
+
+# --- split -----------------------------------------------------------------------------------------
+@dataset_group.command("split")
+@click.argument("folder", type=click.Path(exists=True, file_okay=False))
+@click.option("--kind", type=click.Choice(["sequence", "random"]), default="sequence", show_default=True,
+              help="sequence: whole sequences per part (no leakage through the input buffer); "
+                   "random: the paper's per-sample shuffle.")
+@click.option("--seed", default=0, show_default=True, help="Seed of the shuffle.")
+@click.option("--fractions", default="0.7,0.15,0.15", show_default=True,
+              help="Train, validation, test fractions.")
+def split_cmd(folder: str, kind: str, seed: int, fractions: str) -> None:
+    """Make a train/validation/test split of the dataset in FOLDER and save it as split.json."""
+    f = parse_floats(fractions, "--fractions")
+    if len(f) != 3:
+        raise click.BadParameter(f"three fractions needed, got {f}", param_hint="--fractions")
+    ds = Dataset.load(folder)
+    frac = (f[0], f[1], f[2])
+    if kind == "sequence":
+        split = split_by_sequence(ds.frame["sequence_id"].to_numpy(), frac, seed=seed)
+    else:
+        split = random_split(len(ds.frame), frac, seed=seed)
+    ds.save_split(folder, split)
+    sizes = split.sizes()
+    click.echo(f"{folder}: {kind} split, seed {seed}: train {sizes['train']}, val {sizes['val']}, "
+               f"test {sizes['test']} samples -> {Path(folder) / 'split.json'}")
