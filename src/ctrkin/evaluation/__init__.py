@@ -1,0 +1,1 @@
+"""Evaluation: metrics, the TCM baseline, the paper's experiments and the reproduction report."""

@@ -1,0 +1,149 @@
+"""Error metrics (DESIGN.md: Evaluation) and snap prediction by the paper's 10° T(L) rule.
+
+Position error: Euclidean (mm). Orientation error: the angle between tip tangents (deg), which is
+what a 5-DOF sensor observes (q and −q give the same tangent). Joint error: per sample, the
+Euclidean norm of the α error (deg) and of the β error (mm) (paper III.A), then RMSE/MAE/max.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from ctrkin.pose import position_error, tangent_angle_error, tip_azimuth
+
+SNAP_THRESHOLD_DEG = 10.0  # paper II.B: a snap is a step where T(L) changes by more than 10°
+
+
+def error_stats(e: np.ndarray) -> dict[str, float]:
+    """RMSE, MAE and max of errors e (any shape); NaN entries count as failures (NaN result)."""
+    e = np.abs(np.asarray(e, dtype=float).ravel())
+    if e.size == 0:
+        return {"rmse": float("nan"), "mae": float("nan"), "max": float("nan"), "n": 0}
+    return {"rmse": float(np.sqrt(np.mean(e**2))), "mae": float(np.mean(e)), "max": float(np.max(e)),
+            "n": int(e.size)}
+
+
+def pose_errors(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray | None = None
+                ) -> dict[str, dict[str, float]]:
+    """pred, ref: (T, 6) poses -> {"position_mm": stats, "orientation_deg": stats} over rows in mask."""
+    pred, ref = np.asarray(pred, float), np.asarray(ref, float)
+    if mask is not None:
+        pred, ref = pred[mask], ref[mask]
+    return {"position_mm": error_stats(position_error(pred, ref)),
+            "orientation_deg": error_stats(tangent_angle_error(pred, ref))}
+
+
+def joint_errors(pred: np.ndarray, ref: np.ndarray, n_tubes: int) -> dict[str, dict[str, float]]:
+    """pred, ref: (T, 2N) joints (deg, mm) -> {"alpha_deg": stats, "beta_mm": stats}."""
+    d = np.asarray(pred, float) - np.asarray(ref, float)
+    return {"alpha_deg": error_stats(np.linalg.norm(d[:, :n_tubes], axis=1)),
+            "beta_mm": error_stats(np.linalg.norm(d[:, n_tubes:], axis=1))}
+
+
+def sequence_bounds(sequence_id: np.ndarray) -> list[tuple[int, int]]:
+    """[(start, stop)) row ranges of contiguous sequence ids."""
+    sid = np.asarray(sequence_id)
+    if sid.size == 0:
+        return []
+    edges = np.r_[0, np.nonzero(sid[1:] != sid[:-1])[0] + 1, len(sid)]
+    return [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
+
+
+def azimuth_series(poses: np.ndarray, joints: np.ndarray, n_tubes: int,
+                   bounds: list[tuple[int, int]]) -> np.ndarray:
+    """T(L) (deg) of every row, unwrapped within each sequence: tip azimuth about z from the outer
+    tube's base rotation αN. poses (T, 6), joints (T, 2N)."""
+    out = np.empty(len(poses))
+    for a, b in bounds:
+        out[a:b] = tip_azimuth(poses[a:b, :3], joints[a:b, n_tubes - 1])
+    return out
+
+
+def snap_steps(azimuth: np.ndarray, bounds: list[tuple[int, int]],
+               threshold: float = SNAP_THRESHOLD_DEG) -> np.ndarray:
+    """Rows n (not a sequence start) where |T(L)_n − T(L)_{n−1}| > threshold (deg)."""
+    rows = []
+    for a, b in bounds:
+        jumps = np.abs(np.diff(azimuth[a:b]))
+        rows.append(a + 1 + np.nonzero(jumps > threshold)[0])
+    return np.concatenate(rows) if rows else np.zeros(0, dtype=int)
+
+
+def _events(steps: np.ndarray) -> np.ndarray:
+    """Merge consecutive snap rows into one event (a snap spread over two steps is one snap)."""
+    if len(steps) == 0:
+        return steps
+    keep = np.r_[True, np.diff(steps) > 1]
+    return steps[keep]
+
+
+@dataclass(frozen=True)
+class SnapScore:
+    """Snap prediction against a reference: counts, precision, recall, timing error (steps, mean
+    |Δn| over matched events) and magnitude error (deg, mean |ΔT_pred − ΔT_ref| over matched events,
+    each event's magnitude being the T(L) change over rows n−1 … n+1)."""
+
+    n_reference: int
+    n_predicted: int
+    n_matched: int
+    precision: float
+    recall: float
+    timing_error_steps: float
+    magnitude_error_deg: float
+
+    def to_dict(self) -> dict[str, float]:
+        return {k: float(v) for k, v in self.__dict__.items()}
+
+
+def snap_score(pred_azimuth: np.ndarray, ref_azimuth: np.ndarray, bounds: list[tuple[int, int]],
+               tolerance_steps: int = 2, threshold: float = SNAP_THRESHOLD_DEG) -> SnapScore:
+    """Match predicted snap events to reference events of the same sequence within ±tolerance."""
+    pred_ev = _events(snap_steps(pred_azimuth, bounds, threshold))
+    ref_ev = _events(snap_steps(ref_azimuth, bounds, threshold))
+    seq_of = np.empty(bounds[-1][1] if bounds else 0, dtype=int)
+    for k, (a, b) in enumerate(bounds):
+        seq_of[a:b] = k
+    used = np.zeros(len(pred_ev), dtype=bool)
+    timing, magnitude = [], []
+
+    def mag(az: np.ndarray, n: int) -> float:
+        a, b = bounds[seq_of[n]]
+        return float(az[min(n + 1, b - 1)] - az[max(n - 1, a)])
+
+    for r in ref_ev:
+        cand = [i for i, p in enumerate(pred_ev) if not used[i] and seq_of[p] == seq_of[r]
+                and abs(int(p) - int(r)) <= tolerance_steps]
+        if not cand:
+            continue
+        i = min(cand, key=lambda j: abs(int(pred_ev[j]) - int(r)))
+        used[i] = True
+        timing.append(abs(int(pred_ev[i]) - int(r)))
+        magnitude.append(abs(mag(pred_azimuth, int(pred_ev[i])) - mag(ref_azimuth, int(r))))
+    n_m = int(used.sum())
+    return SnapScore(
+        n_reference=len(ref_ev), n_predicted=len(pred_ev), n_matched=n_m,
+        precision=n_m / len(pred_ev) if len(pred_ev) else float("nan"),
+        recall=n_m / len(ref_ev) if len(ref_ev) else float("nan"),
+        timing_error_steps=float(np.mean(timing)) if timing else float("nan"),
+        magnitude_error_deg=float(np.mean(magnitude)) if magnitude else float("nan"))
+
+
+def snap_window(snap: np.ndarray, bounds: list[tuple[int, int]], width: int = 2) -> np.ndarray:
+    """(T,) bool: the `width` rows starting at each flagged snap row (the steps at a snap, where a
+    history buffer lags by one or two steps), within its sequence."""
+    snap = np.asarray(snap, bool)
+    out = np.zeros_like(snap)
+    for a, b in bounds:
+        for n in np.nonzero(snap[a:b])[0]:
+            out[a + n:min(a + n + width, b)] = True
+    return out
+
+
+def timing_stats(seconds: np.ndarray) -> dict[str, float]:
+    """Per-prediction times (s) -> mean and std in ms, median in µs."""
+    t = np.asarray(seconds, float)
+    return {"ms_mean": float(t.mean() * 1e3), "ms_std": float(t.std() * 1e3),
+            "us_median": float(np.median(t) * 1e6), "n": int(t.size)}
