@@ -55,8 +55,8 @@ def points_figure(measured: np.ndarray, model: np.ndarray, tcm: np.ndarray, path
         ax.plot(tcm[:, i], tcm[:, j], "s", color=TCM, mfc="none", label="TCM")
         ax.plot(measured[:, i], measured[:, j], "o", color=MEAS, label="measured")
         ax.plot(model[:, i], model[:, j], "+", color=MODEL, ms=9, label="LSTM-MLP")
-        for k, p in enumerate(measured):
-            ax.annotate(str(k + 1), (p[i], p[j]), fontsize=6, xytext=(2, 2), textcoords="offset points")
+        for num, p in enumerate(measured, start=1):
+            ax.annotate(str(num), (p[i], p[j]), fontsize=6, xytext=(2, 2), textcoords="offset points")
         ax.set_xlabel("xyz"[i] + " (mm)")
         ax.set_ylabel("xyz"[j] + " (mm)")
         ax.set_title(f"{title}: {lab}", fontsize=9)
