@@ -99,3 +99,17 @@ def test_split_by_sequence_with_fractions(tmp_path, small_dataset):
     assert res.exit_code == 2 and "three fractions needed" in res.output
     res = runner.invoke(cli, ["dataset", "split", str(folder), "--fractions", "0.6,0.3,0.3"])
     assert isinstance(res.exception, DatasetError) and "summing to 1" in str(res.exception)
+
+
+def test_info_reports_measurement_error_against_truth(tmp_path, small_dataset):
+    for c in ("x", "y", "z", "q0", "qx", "qy"):
+        small_dataset.frame[f"true_{c}"] = small_dataset.frame[c]
+    small_dataset.frame["true_x"] += 0.3
+    small_dataset.meta["virtual_robot"] = {"config": {"noise_mm": 0.25, "readings_per_sample": 5}}
+    folder = small_dataset.save(tmp_path / "ds")
+    res = CliRunner().invoke(cli, ["dataset", "info", str(folder), "--json"])
+    noise = json.loads(res.output)["noise"]
+    assert noise["measured_vs_true_position_rms_mm"] == pytest.approx(0.3)
+    assert noise["measured_vs_true_tangent_rms_deg"] == pytest.approx(0.0, abs=1e-6)
+    assert (noise["noise_mm"], noise["readings_per_sample"]) == (0.25, 5)
+    assert json.loads(res.output)["ranges"]["true_x"]["unit"] == "mm"

@@ -288,3 +288,18 @@ def test_unreadable_files(tmp_path):
     (tmp_path / "header.csv").write_text(",".join(schema.joint_columns(2)) + "\n\n")
     with pytest.raises(DatasetError, match="has a header but no data rows"):
         import_csv(tmp_path / "header.csv", _robot())
+
+
+def test_positions_in_metres_read_as_mm_are_warned_about(tmp_path, log):
+    metres = log.assign(x=log["x"] / 1000, y=log["y"] / 1000, z=log["z"] / 1000)
+    ds = import_csv(_write(metres, tmp_path / "log.csv"), _robot())
+    assert any("--units position=m" in w for w in ds.meta["cleaning"]["warnings"])
+    ds = import_csv(tmp_path / "log.csv", _robot(), ImportConfig(position_unit="m"))
+    assert ds.meta["cleaning"]["warnings"] == []
+
+
+def test_short_row_is_named(tmp_path):
+    path = tmp_path / "short.csv"
+    path.write_text("alpha_1,alpha_2,beta_1,beta_2,x,y,z,q0,qx,qy\n0,0,-10,0,1,2,50,1,0,0\n1,0,-10,0,1,2,50\n")
+    with pytest.raises(DatasetError, match=r"line 3, column 'q0' \(q0\) is empty"):
+        import_csv(path, _robot())

@@ -43,6 +43,8 @@ def _fmt(v: Any) -> str:
     if isinstance(v, dict):
         return ", ".join(f"{k}={_fmt(x)}" for k, x in v.items())
     if isinstance(v, list):
+        if len(v) > 8:
+            return f"[{len(v)} values]"
         return "; ".join(_fmt(x) for x in v) if v else "-"
     return "-" if v is None else str(v)
 

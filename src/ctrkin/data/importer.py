@@ -141,12 +141,14 @@ class _Log:
             raise DatasetError(f"log file {path} does not exist") from None
         except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
             raise DatasetError(f"{path} is not a readable CSV file: {e}") from None
+        raw = raw.fillna("")  # cells missing from short rows
         raw.columns = [str(c).strip() for c in raw.columns]
         blank = (raw.apply(lambda c: c.str.strip()) == "").all(axis=1).to_numpy()
         tail = len(blank)
         while tail > 0 and blank[tail - 1]:
             tail -= 1
         self.raw = raw.iloc[:tail]
+        self.field_names: dict[str, str] = {}
         if len(self.raw) == 0:
             raise DatasetError(f"{path} has a header but no data rows")
         self.columns = self._resolve()
@@ -173,6 +175,7 @@ class _Log:
                                "map only one")
         if "q0" in columns:
             columns["qw"] = columns.pop("q0")
+            self.field_names["qw"] = "q0"  # errors use the name the user gave
         required = [*schema.joint_columns(n), "x", "y", "z"]
         missing = [f for f in required if f not in columns]
         if self.orientation_mode(columns) is None:
@@ -203,12 +206,12 @@ class _Log:
         bad = np.isnan(vals) & ~empty
         if bad.any():
             r = int(np.argmax(bad))
-            raise DatasetError(f"{self.path}: line {_line(r)}, column {col!r} ({fld}): "
+            raise DatasetError(f"{self.path}: line {_line(r)}, {self.line_col(fld)}: "
                                f"{text.iloc[r]!r} is not a number")
         return vals
 
     def line_col(self, fld: str) -> str:
-        return f"column {self.columns[fld]!r} ({fld})"
+        return f"column {self.columns[fld]!r} ({self.field_names.get(fld, fld)})"
 
 
 def import_csv(path: str | Path, robot: Robot, config: ImportConfig | None = None) -> Dataset:
@@ -344,6 +347,9 @@ def import_csv(path: str | Path, robot: Robot, config: ImportConfig | None = Non
         snap = np.zeros(len(idx), dtype=bool)
         for a, b in _bounds(s_seq):
             snap[a:b] = cleaning.snap_mask(s_joints[a:b], s_pos[a:b], n, cc)
+    if np.abs(s_pos).max() < 1.0:
+        warnings.append("every tip position is within 1 mm of the origin: are the positions in metres? "
+                        "(--units position=m)")
     if np.median(s_tan[:, 2]) < 0:
         warnings.append("most tip tangents point backwards (-z): check the quaternion order "
                         "(--quat-order) and the tracker-to-robot registration")

@@ -8,6 +8,30 @@ import numpy as np
 
 from ctrkin.data import schema
 from ctrkin.data.dataset import Dataset
+from ctrkin.pose import position_error, tangent_angle_error
+
+VIRTUAL_NOISE_KEYS = ("noise_mm", "noise_deg", "readings_per_sample", "glitch_rate", "glitch_deg",
+                      "glitch_mm")
+
+
+def noise_info(ds: Dataset) -> dict[str, Any] | None:
+    """meta["noise"] (imported logs: the spread of repeated readings), or the virtual robot's
+    tracker noise and glitch settings; plus, with true poses, the measured-minus-true error of the
+    samples not flagged as outliers (position RMS mm, tangent angle RMS deg)."""
+    out: dict[str, Any] = {}
+    if isinstance(ds.meta.get("noise"), dict):
+        out.update(ds.meta["noise"])
+    config = (ds.meta.get("virtual_robot") or {}).get("config")
+    if isinstance(config, dict):
+        out.update({k: config[k] for k in VIRTUAL_NOISE_KEYS if k in config})
+    if ds.has_truth:
+        keep = ~ds.frame["outlier"].to_numpy(dtype=bool)
+        meas, true = ds.poses()[keep], ds.poses(true=True)[keep]
+        if len(meas):
+            out["measured_vs_true_position_rms_mm"] = float(np.sqrt(np.mean(position_error(meas, true) ** 2)))
+            out["measured_vs_true_tangent_rms_deg"] = float(
+                np.sqrt(np.mean(tangent_angle_error(meas, true) ** 2)))
+    return out or None
 
 
 def summarize(ds: Dataset) -> dict[str, Any]:
@@ -46,6 +70,6 @@ def summarize(ds: Dataset) -> dict[str, Any]:
         "has_truth": ds.has_truth,
         "ranges": ranges,
         "cleaning": meta.get("cleaning"),
-        "noise": meta.get("noise"),
+        "noise": noise_info(ds),
         "split": split,
     }
