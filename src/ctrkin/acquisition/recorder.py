@@ -18,6 +18,7 @@ import contextlib
 import multiprocessing as mp
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -94,13 +95,15 @@ def _worker_run(run_index: int) -> list[_Chunk]:
     return record_run(_JOB["virtual"], _JOB["plan"].runs[run_index], run_index, _JOB["seed"], bump)
 
 
-def _record_parallel(plan: Plan, virtual: VirtualRobot, seed: int, workers: int, bar: Any
-                     ) -> list[list[_Chunk]]:
+def _record_parallel(plan: Plan, virtual: VirtualRobot, seed: int, workers: int,
+                     make_bar: Callable[[], Any]) -> list[list[_Chunk]]:
+    """Record the runs in `workers` forked processes; the progress bar (and its monitor thread) is
+    started only after the fork."""
     ctx = mp.get_context("fork")
     counter = ctx.Value("q", 0)
     _JOB.update(virtual=virtual, plan=plan, seed=seed, counter=counter)
     try:
-        with ctx.Pool(workers) as pool:
+        with ctx.Pool(workers) as pool, make_bar() as bar:
             # longest (most steps) runs first, so the last worker is not left with a long run alone
             order = sorted(range(len(plan.runs)), key=lambda i: -plan.runs[i].n_steps)
             pending = {i: pool.apply_async(_worker_run, (i,)) for i in order}
@@ -127,14 +130,18 @@ def record(plan: Plan, virtual: VirtualRobot, seed: int = 0, workers: int | None
     """
     n_workers = min(workers if workers is not None else (os.cpu_count() or 1), len(plan.runs))
     n_workers = max(n_workers, 1)
-    bar_cm = (progress_bar(total=plan.n_steps, desc=f"collect {plan.protocol}", unit="step")
-              if progress else contextlib.nullcontext(_NullBar()))
-    with bar_cm as bar:
-        if n_workers == 1 or "fork" not in mp.get_all_start_methods():
+
+    def make_bar() -> Any:
+        if not progress:
+            return contextlib.nullcontext(_NullBar())
+        return progress_bar(total=plan.n_steps, desc=f"collect {plan.protocol}", unit="step")
+
+    if n_workers == 1 or "fork" not in mp.get_all_start_methods():
+        with make_bar() as bar:
             per_run = [record_run(virtual, run, i, seed, bar.update) for i, run in enumerate(plan.runs)]
-        else:
-            virtual.rest(plan.runs[0].start)  # compile / load the kernels once before forking
-            per_run = _record_parallel(plan, virtual, seed, n_workers, bar)
+    else:
+        virtual.rest(plan.runs[0].start)  # compile / load the kernels once before forking
+        per_run = _record_parallel(plan, virtual, seed, n_workers, make_bar)
     frame = _frame(virtual, per_run)
     info = {"protocol": plan.protocol, "protocol_params": plan.params, "levels": list(plan.levels),
             "seed": int(seed), "source": "virtual robot", "virtual_robot": virtual.describe(),

@@ -52,25 +52,26 @@ def _config(settings: tuple[str, ...]) -> VirtualConfig:
 @robot_option
 @click.option("--seed", default=0, show_default=True, help="Noise, glitches, random configurations.")
 @click.option("--robot-seed", default=0, show_default=True, help="The virtual hardware draw.")
-@click.option("--n-points", default=20, show_default=True, help="random-points: number of targets; "
-              "square/triangle: number of path points (10 in the paper).")
+@click.option("--n-points", default=None, type=int,
+              help="random-points: number of targets (default 20); square/triangle: number of path "
+              "points (default 10, as in the paper).")
 @click.option("--workers", default=None, type=int, help="Processes (default: all cores).")
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
               help="Override a virtual robot effect magnitude (repeatable).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Output folder (replaced atomically).")
-def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_seed: int, n_points: int,
-                workers: int | None, settings: tuple[str, ...], out_dir: str) -> None:
+def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_seed: int,
+                n_points: int | None, workers: int | None, settings: tuple[str, ...], out_dir: str) -> None:
     """Record a protocol on the virtual robot (or write square/triangle IK targets)."""
     robot = get_robot(robot_spec)
     virtual = VirtualRobot(robot, _config(settings), seed=robot_seed)
     out = Path(out_dir)
     if protocol in SHAPES:
-        path = task_path(virtual, protocol, n_points=10 if n_points == 20 else n_points, seed=seed)
+        path = task_path(virtual, protocol, n_points=n_points or 10, seed=seed)
         path.save(out)
         click.echo(f"wrote {len(path.poses)} {protocol} targets to {out}")
         return
-    kw = {"n_points": n_points} if protocol == "random-points" else {}
+    kw = {"n_points": n_points or 20} if protocol == "random-points" else {}
     plan = protocols.build(protocol, robot, scale=scale, seed=seed, **kw)  # type: ignore[arg-type]
     t0 = time.perf_counter()
     ds = record(plan, virtual, seed=seed, workers=workers)
@@ -86,5 +87,5 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
             click.echo(f"  d = {row['relative_translation_mm']:5.1f} mm: hysteresis mean "
                        f"{row['hysteresis_mean_mm']:.2f} mm, max {row['hysteresis_max_mm']:.2f} mm, "
                        f"T(L) gap {row['azimuth_gap_max_deg']:.1f} deg, snap samples "
-                       f"{row['snap_samples']}")
+                       f"{int(row['snap_samples'])}")
     click.echo(f"wrote {out}")

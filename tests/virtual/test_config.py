@@ -1,0 +1,46 @@
+"""VirtualConfig: validation messages say what to change; round trip through the dataset meta."""
+
+from __future__ import annotations
+
+import pytest
+
+from ctrkin.errors import CtrkinError
+from ctrkin.virtual import VirtualConfig, VirtualConfigError
+
+
+def test_defaults_are_valid_and_round_trip():
+    c = VirtualConfig()
+    assert VirtualConfig.from_dict(c.to_dict()) == c
+    assert c.readings_per_sample == 5  # the paper averaged five readings
+
+
+@pytest.mark.parametrize(("name", "value", "words"), [
+    ("precurvature_error", -0.1, ">= 0"),
+    ("noise_mm", float("nan"), "finite"),
+    ("glitch_rate", 0.9, "<= 0.5"),
+    ("friction_deg_per_mm", True, "finite number"),
+    ("residual_curvature", 0.5, "<= 0.01"),
+])
+def test_invalid_magnitudes_are_refused(name, value, words):
+    with pytest.raises(VirtualConfigError, match=f"VirtualConfig.{name}.*") as e:
+        VirtualConfig(**{name: value})
+    assert words in str(e.value)
+    assert isinstance(e.value, CtrkinError)
+
+
+@pytest.mark.parametrize("n", [0, 2.5, True])
+def test_readings_must_be_a_positive_integer(n):
+    with pytest.raises(VirtualConfigError, match="readings_per_sample"):
+        VirtualConfig(readings_per_sample=n)
+
+
+def test_unknown_setting_names_the_allowed_ones():
+    with pytest.raises(VirtualConfigError, match=r"allowed: .*noise_mm"):
+        VirtualConfig.from_dict({"noise": 0.1})
+
+
+def test_ideal_switches_everything_off():
+    c = VirtualConfig().ideal()
+    d = c.to_dict()
+    assert d.pop("readings_per_sample") == 1
+    assert all(v == 0.0 for v in d.values())
