@@ -2,6 +2,7 @@
 
     ctrkin collect --protocol paper --scale quick --seed 0 --out data/paper-quick
     ctrkin collect --protocol sweeps --out data/sweeps
+    ctrkin collect --protocol sweeps --levels 2,6,10 --robot my_robot.toml --out data/my-sweeps
     ctrkin collect --protocol random-points --n-points 20 --seed 1 --out data/random
     ctrkin collect --protocol arbitrary --out data/arbitrary
     ctrkin collect --protocol square --out data/square        # IK targets, not a dataset
@@ -23,7 +24,7 @@ from ctrkin.acquisition import protocols
 from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.acquisition.task_paths import SHAPES, task_path
-from ctrkin.cli.common import get_robot, robot_option
+from ctrkin.cli.common import get_robot, parse_floats, robot_option
 from ctrkin.virtual import VirtualConfig, VirtualConfigError, VirtualRobot
 
 CHOICES = [*protocols.PROTOCOLS, *SHAPES]
@@ -55,13 +56,17 @@ def _config(settings: tuple[str, ...]) -> VirtualConfig:
 @click.option("--n-points", default=None, type=int,
               help="random-points: number of targets (default 20); square/triangle: number of path "
               "points (default 10, as in the paper).")
+@click.option("--levels", default=None,
+              help="paper/sweeps: relative translations d = beta_N - beta_1 (mm), comma-separated "
+              "(default: the protocol's; needed for robots that cannot reach d = 20 mm).")
 @click.option("--workers", default=None, type=int, help="Processes (default: all cores).")
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
               help="Override a virtual robot effect magnitude (repeatable).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Output folder (replaced atomically).")
 def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_seed: int,
-                n_points: int | None, workers: int | None, settings: tuple[str, ...], out_dir: str) -> None:
+                n_points: int | None, levels: str | None, workers: int | None,
+                settings: tuple[str, ...], out_dir: str) -> None:
     """Record a protocol on the virtual robot (or write square/triangle IK targets)."""
     robot = get_robot(robot_spec)
     virtual = VirtualRobot(robot, _config(settings), seed=robot_seed)
@@ -71,7 +76,11 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
         path.save(out)
         click.echo(f"wrote {len(path.poses)} {protocol} targets to {out}")
         return
-    kw = {"n_points": n_points or 20} if protocol == "random-points" else {}
+    kw: dict[str, object] = {"n_points": n_points or 20} if protocol == "random-points" else {}
+    if levels is not None:
+        if protocol not in ("paper", "sweeps"):
+            raise click.BadParameter("--levels applies to the paper and sweeps protocols")
+        kw["levels"] = tuple(parse_floats(levels, "--levels"))
     plan = protocols.build(protocol, robot, scale=scale, seed=seed, **kw)  # type: ignore[arg-type]
     t0 = time.perf_counter()
     ds = record(plan, virtual, seed=seed, workers=workers)
