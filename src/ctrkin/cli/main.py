@@ -13,7 +13,10 @@ import click
 from ctrkin import __version__
 from ctrkin.cli.collect import collect_cmd
 from ctrkin.cli.dataset import dataset_group
+from ctrkin.cli.export import export_cmd
 from ctrkin.cli.mechanics import solve_cmd, sweep_cmd
+from ctrkin.cli.predict import predict_cmd
+from ctrkin.cli.train import train_cmd
 from ctrkin.errors import CtrkinError
 
 
@@ -26,6 +29,9 @@ def cli() -> None:
 cli.add_command(solve_cmd)
 cli.add_command(sweep_cmd)
 cli.add_command(collect_cmd)
+cli.add_command(train_cmd)
+cli.add_command(export_cmd)
+cli.add_command(predict_cmd)
 cli.add_command(dataset_group)
 
 

@@ -1,0 +1,24 @@
+"""`ctrkin export`: write a trained model as ONNX (normalisation included).
+
+    ctrkin export models/fk --out fk.onnx
+
+The ONNX input "window" is (B, IB, F) raw features (oldest step first; see the file's metadata
+ctrkin.input_names), the output (B, O) is in mm / deg / unit quaternion.
+"""
+
+from __future__ import annotations
+
+import click
+
+
+@click.command("export")
+@click.argument("model_dir", type=click.Path(exists=True, file_okay=False))
+@click.option("--out", "out_file", required=True, type=click.Path(dir_okay=False), help="ONNX file.")
+def export_cmd(model_dir: str, out_file: str) -> None:
+    """Export MODEL_DIR (from `ctrkin train`) to an ONNX file."""
+    from ctrkin.inference import Kinematics, export_onnx
+
+    kin = Kinematics.load(model_dir)
+    path = export_onnx(kin, out_file)
+    click.echo(f"wrote {path}: input window (batch, {kin.ib}, {kin.layout.n_inputs}) "
+               f"{list(kin.layout.input_names)} -> output {list(kin.layout.output_names)}")

@@ -1,0 +1,86 @@
+"""`ctrkin train`: learn forward (joints -> tip pose) or inverse (tip poses -> joints) kinematics.
+
+    ctrkin train --task fk --data data/paper_full --out models/fk              # paper default model
+    ctrkin train --task ik --data data/paper_full --out models/ik
+    ctrkin train --task fk --model mlp --ib 3 --data data/quick --out models/fk_mlp
+    ctrkin train --task fk --model lstm_mlp --structure S3 --ib 3 --data data/quick --out models/s3
+    ctrkin train --task fk --model lstm_mlp_no_delta --data data/quick --out models/no_delta   # Fig. 5b
+
+Running the same command again resumes from the last checkpoint in --out (or raise --max-epochs to
+continue a finished run); --overwrite starts over. Models: see `ctrkin train --list-models`.
+"""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from ctrkin.data import Dataset
+
+
+def _list_models(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
+    if not value or ctx.resilient_parsing:
+        return
+    from ctrkin.models import MODELS, STRUCTURES
+
+    for name, e in MODELS.items():
+        click.echo(f"{name:20s} {e.description}")
+    click.echo("structures (lstm_mlp --structure): " + ", ".join(f"{k}={v}" for k, v in STRUCTURES.items()))
+    ctx.exit()
+
+
+@click.command("train")
+@click.option("--list-models", is_flag=True, expose_value=False, is_eager=True, callback=_list_models,
+              help="List the model registry and exit.")
+@click.option("--task", type=click.Choice(["fk", "ik"]), required=True, help="Forward or inverse kinematics.")
+@click.option("--data", "data_dir", required=True, type=click.Path(exists=True, file_okay=False),
+              help="Dataset folder (data.parquet + meta.json).")
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Model folder.")
+@click.option("--model", default="lstm_mlp", show_default=True, help="Registry name (--list-models).")
+@click.option("--structure", default=None, help="LSTM-MLP/LSTM/MLP structure: paper, S1..S5 or 'L128|D64'.")
+@click.option("--option", "options", multiple=True, metavar="KEY=VALUE",
+              help="Other model options, e.g. channels=32 (cnn/tcn), width=64 (resnet).")
+@click.option("--ib", default=2, show_default=True, help="Input buffer: current + IB-1 previous steps.")
+@click.option("--no-delta", is_flag=True, help="Drop the directional feature Δα0 (IK: the pose deltas).")
+@click.option("--angles", type=click.Choice(["minmax", "sincos"]), default="minmax", show_default=True,
+              help="FK angle encoding: min-max of unwrapped degrees (paper) or sin/cos.")
+@click.option("--output-activation", type=click.Choice(["relu", "linear"]), default="relu", show_default=True,
+              help="Output layer activation (paper eq. 7: relu).")
+@click.option("--pose", "pose_source", type=click.Choice(["measured", "true"]), default="measured",
+              show_default=True, help="Pose columns to learn from (true: virtual-robot ground truth).")
+@click.option("--split", type=click.Choice(["dataset", "sequence", "random"]), default="dataset",
+              show_default=True, help="dataset: its saved split, else by sequence; random: paper 70:15:15.")
+@click.option("--epochs", "max_epochs", default=500, show_default=True, help="Maximum epochs.")
+@click.option("--patience", default=20, show_default=True, help="Early stopping patience (epochs).")
+@click.option("--batch-size", default=32, show_default=True)
+@click.option("--lr", default=1e-3, show_default=True)
+@click.option("--seed", default=0, show_default=True)
+@click.option("--threads", default=2, show_default=True, help="torch CPU threads.")
+@click.option("--overwrite", is_flag=True, help="Start over even if --out holds a checkpoint.")
+def train_cmd(task: str, data_dir: str, out_dir: str, model: str, structure: str | None,
+              options: tuple[str, ...], ib: int, no_delta: bool, angles: str, output_activation: str,
+              pose_source: str, split: str, max_epochs: int, patience: int, batch_size: int, lr: float,
+              seed: int, threads: int, overwrite: bool) -> None:
+    """Train a history-aware kinematics model (paper LSTM-MLP by default) and save it to --out."""
+    from ctrkin.training import TrainConfig, train
+
+    opts: dict[str, object] = {}
+    for item in options:
+        if "=" not in item:
+            raise click.BadParameter(f"--option must be KEY=VALUE, got {item!r}")
+        k, v = item.split("=", 1)
+        opts[k] = int(v) if v.lstrip("-").isdigit() else v
+    if structure is not None:
+        opts["structure"] = structure
+    cfg = TrainConfig(task=task, model=model, options=opts, ib=ib, delta=not no_delta, angle_encoding=angles,
+                      output_activation=output_activation, pose_source=pose_source, split=split,
+                      max_epochs=max_epochs, patience=patience, batch_size=batch_size, lr=lr, seed=seed,
+                      threads=threads)
+    ds = Dataset.load(data_dir)
+    ds.meta.setdefault("path", data_dir)
+    res = train(ds, cfg, out_dir, overwrite=overwrite, log=lambda m: click.echo(m, err=True))
+    tr = res.metrics["training"]
+    click.echo(f"trained {tr['epochs']} epochs (best {tr['best_epoch']}, val loss {tr['best_val_loss']:.4g}) "
+               f"in {tr['seconds']:.1f} s; model in {res.out}")
+    click.echo(json.dumps({k: v for k, v in res.metrics.items() if k in ("val", "test")}, indent=2))

@@ -1,0 +1,171 @@
+"""Streaming engine: a trained SeqNet (LSTM-MLP, LSTM, MLP) run one step at a time in numba.
+
+Why: a torch module call costs tens of µs of dispatch alone; control loops want one prediction in a few.
+
+How: the network sees windows of the IB latest steps, and each LSTM starts every window from zero
+state. The window ending at step t is the chain of cell updates started at step t−IB+1. So we keep IB
+chains alive: chain j (j = 0..IB−1) started j steps ago and has consumed j+1 inputs. A new step
+advances every chain by one cell update (chain j−1 -> j, a fresh chain 0 starts from zero state) and
+retires chain IB−1, whose outputs at its IB positions are exactly the flattened window. Each step
+therefore costs IB cell updates per LSTM layer, with the weights read once (the chains are stacked
+as rows of one matrix), instead of IB² for recomputing the window.
+
+The start of a sequence is the batch path's padding (the first step repeated): `reset()` marks it and
+the first `step()` feeds that step IB times.
+
+All arithmetic is float64, so the engine matches the float32 torch batch path to float32 round-off.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+import torch
+from torch import nn
+
+from ctrkin.errors import ModelError
+from ctrkin.models.seqnet import SeqNet
+
+
+@numba.njit(cache=True, fastmath=True)
+def _lstm_rows(inp: np.ndarray, shared: bool, w_ih: np.ndarray, w_hh: np.ndarray, b: np.ndarray,
+               h_prev: np.ndarray, c_prev: np.ndarray, h_new: np.ndarray, c_new: np.ndarray) -> None:
+    """One LSTM cell update for each of R chains (torch gate order i, f, g, o).
+
+    inp: (R, in) inputs (row 0 only if `shared`); h_prev, c_prev: (R, H) chain states before this
+    step, row j is the chain that becomes row j+1; row 0 of the result starts from zero state.
+    """
+    r_count, hid = h_new.shape
+    n_in = inp.shape[1]
+    g = np.empty(4 * hid)
+    gx = np.empty(4 * hid)
+    if shared:
+        for k in range(4 * hid):
+            s = b[k]
+            for m in range(n_in):
+                s += w_ih[k, m] * inp[0, m]
+            gx[k] = s
+    for r in range(r_count):
+        if shared:
+            for k in range(4 * hid):
+                g[k] = gx[k]
+        else:
+            for k in range(4 * hid):
+                s = b[k]
+                for m in range(n_in):
+                    s += w_ih[k, m] * inp[r, m]
+                g[k] = s
+        if r > 0:
+            for k in range(4 * hid):
+                s = 0.0
+                for m in range(hid):
+                    s += w_hh[k, m] * h_prev[r - 1, m]
+                g[k] += s
+        for u in range(hid):
+            i = 1.0 / (1.0 + np.exp(-g[u]))
+            f = 1.0 / (1.0 + np.exp(-g[hid + u]))
+            gg = np.tanh(g[2 * hid + u])
+            o = 1.0 / (1.0 + np.exp(-g[3 * hid + u]))
+            c = i * gg
+            if r > 0:
+                c += f * c_prev[r - 1, u]
+            c_new[r, u] = c
+            h_new[r, u] = o * np.tanh(c)
+
+
+@numba.njit(cache=True, fastmath=True)
+def _dense_rows(inp: np.ndarray, w: np.ndarray, b: np.ndarray, out: np.ndarray, relu: bool) -> None:
+    """out = act(inp @ w.T + b); inp: (R, in), w: (O, in), out: (R, O)."""
+    for r in range(inp.shape[0]):
+        for k in range(w.shape[0]):
+            s = b[k]
+            for m in range(w.shape[1]):
+                s += w[k, m] * inp[r, m]
+            out[r, k] = max(s, 0.0) if relu else s
+
+
+def _f64(t: object) -> np.ndarray:
+    if not isinstance(t, torch.Tensor):
+        raise ModelError(f"expected a weight tensor, got {type(t).__name__}")
+    return np.ascontiguousarray(t.detach().cpu().numpy(), dtype=np.float64)
+
+
+class StreamingEngine:
+    """Step-by-step twin of a SeqNet. step(x: (F,) normalised features) -> (O,) normalised outputs."""
+
+    def __init__(self, net: SeqNet) -> None:
+        if not isinstance(net, SeqNet):
+            raise ModelError(f"the streaming engine runs SeqNet models, not {type(net).__name__}")
+        self.ib = net.ib
+        self.pooling = net.pooling
+        self.relu_out = net.output_activation == "relu"
+        f64 = _f64
+        self.seq: list[tuple[str, tuple[np.ndarray, ...]]] = []
+        width = net.n_inputs
+        for layer in net.seq:
+            if isinstance(layer, nn.LSTM):
+                self.seq.append(("lstm", (f64(layer.weight_ih_l0), f64(layer.weight_hh_l0),
+                                          f64(layer.bias_ih_l0) + f64(layer.bias_hh_l0))))
+                width = layer.hidden_size
+            else:
+                assert isinstance(layer, nn.Linear)
+                self.seq.append(("dense", (f64(layer.weight), f64(layer.bias))))
+                width = layer.out_features
+        self.seq_width = width
+        self.head = [(f64(lin.weight), f64(lin.bias)) for lin in net.head]
+        self.out = (f64(net.out.weight), f64(net.out.bias))
+        ib = self.ib
+        self._h = [np.zeros((ib, w[1].shape[1])) if kind == "lstm" else np.zeros(0)
+                   for kind, w in self.seq]
+        self._c = [np.zeros_like(h) for h in self._h]
+        self._h2 = [np.zeros_like(h) for h in self._h]
+        self._c2 = [np.zeros_like(h) for h in self._h]
+        self._rows = [np.zeros((ib, w[0].shape[0] if kind == "dense" else w[1].shape[1]))
+                      for kind, w in self.seq]
+        self._hist = np.zeros((ib, ib, width))    # chain j's outputs at positions 0..j
+        self._head_bufs = [np.zeros((1, w.shape[0])) for w, _ in self.head]
+        self._y = np.zeros((1, self.out[0].shape[0]))
+        self._x = np.zeros((1, net.n_inputs))
+        self._fresh = True
+
+    def reset(self) -> None:
+        """Start a new sequence: the next step is its first (and is repeated to fill the buffer)."""
+        self._fresh = True
+
+    def step(self, x: np.ndarray) -> np.ndarray:
+        """x: (F,) normalised features of the current step -> (O,) normalised outputs."""
+        self._x[0, :] = x
+        if self._fresh:
+            self._fresh = False
+            for _ in range(self.ib - 1):
+                self._advance()
+        return self._advance()
+
+    def _advance(self) -> np.ndarray:
+        inp: np.ndarray = self._x
+        shared = True
+        for k, (kind, w) in enumerate(self.seq):
+            if kind == "lstm":
+                _lstm_rows(inp, shared, w[0], w[1], w[2], self._h[k], self._c[k], self._h2[k], self._c2[k])
+                self._h[k], self._h2[k] = self._h2[k], self._h[k]
+                self._c[k], self._c2[k] = self._c2[k], self._c[k]
+                inp = self._h[k]
+            else:
+                if shared:  # a Dense first layer on identical rows: compute once, copy
+                    _dense_rows(inp, w[0], w[1], self._rows[k][:1], True)
+                    self._rows[k][1:] = self._rows[k][0]
+                else:
+                    _dense_rows(inp, w[0], w[1], self._rows[k], True)
+                inp = self._rows[k]
+            shared = False
+        hist = self._hist
+        hist[1:] = hist[:-1].copy()                      # chain j-1 becomes chain j
+        for j in range(self.ib):
+            hist[j, j] = inp[0] if shared else inp[j]
+        window = hist[self.ib - 1]                       # retiring chain: the full window
+        h = window.reshape(1, -1) if self.pooling == "flatten" else window[-1:].copy()
+        for (hw, hb), buf in zip(self.head, self._head_bufs, strict=True):
+            _dense_rows(h, hw, hb, buf, True)
+            h = buf
+        _dense_rows(h, self.out[0], self.out[1], self._y, self.relu_out)
+        return self._y[0].copy()

@@ -1,0 +1,94 @@
+"""Is an IK target inside the workspace the model was trained on? (paper IV.C: outside it, a learned
+IK silently returns invalid joints.)
+
+Two checks on the target pose, min-max normalised with the model's input normalisation:
+1. range: every component within [−margin, 1 + margin] of the training range;
+2. support: the nearest training target (KD-tree, 6-D normalised pose) is closer than `threshold`.
+   The threshold is calibrated on held-out data: 1.5 × the 99th percentile of the distance from the
+   validation targets (whole sequences the model never trained on) to their nearest training target.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ctrkin.errors import ModelError
+from ctrkin.models.features import POSE_NAMES
+from ctrkin.models.normalize import MinMax
+from ctrkin.util.files import atomic_path
+
+WORKSPACE_FILE = "workspace.npz"
+_UNITS = ("mm", "mm", "mm", "", "", "")
+
+
+@dataclass(eq=False)
+class Workspace:
+    """points: (M, 6) normalised training target poses; norm: pose min-max; threshold: normalised
+    distance beyond which a target counts as unseen; margin: allowed range overshoot (normalised)."""
+
+    points: np.ndarray
+    norm: MinMax
+    threshold: float
+    margin: float = 0.05
+
+    def __post_init__(self) -> None:
+        self.points = np.ascontiguousarray(self.points, dtype=np.float64)
+        self._tree = cKDTree(self.points)
+
+    @classmethod
+    def fit(cls, train_poses: np.ndarray, val_poses: np.ndarray, norm: MinMax, factor: float = 1.5,
+            quantile: float = 0.99) -> Workspace:
+        """train_poses, val_poses: (M, 6) raw poses (mm, unit quaternion); norm: their min-max."""
+        pts = norm.transform(train_poses)
+        tree = cKDTree(pts)
+        if len(val_poses):
+            d, _ = tree.query(norm.transform(val_poses), k=1)
+        else:  # no held-out data: nearest-other-point spacing of the training set
+            d = tree.query(pts, k=2)[0][:, 1]
+        thr = float(factor * np.quantile(d, quantile))
+        return cls(pts, norm, max(thr, 1e-6))
+
+    def check(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
+        """poses: (T, 6) raw targets -> (in_workspace (T,) bool, distance (T,) normalised, reasons),
+        reasons[t] = "" when in the workspace."""
+        p = np.atleast_2d(np.asarray(poses, dtype=np.float64))
+        z = self.norm.transform(p)
+        dist, _ = self._tree.query(z, k=1)
+        out_lo, out_hi = z < -self.margin, z > 1 + self.margin
+        bad_range = (out_lo | out_hi).any(axis=1)
+        far = dist > self.threshold
+        reasons = [""] * len(p)
+        for t in np.nonzero(bad_range | far)[0]:
+            reasons[t] = self._reason(p[t], z[t], float(dist[t]))
+        return ~(bad_range | far), dist, reasons
+
+    def _reason(self, p: np.ndarray, z: np.ndarray, dist: float) -> str:
+        parts = []
+        for k in np.nonzero((z < -self.margin) | (z > 1 + self.margin))[0]:
+            lo, hi = self.norm.lo[k], self.norm.hi[k]
+            parts.append(f"{POSE_NAMES[k]} = {p[k]:.4g}{_UNITS[k]} is outside the training range "
+                         f"[{lo:.4g}, {hi:.4g}]{_UNITS[k]}")
+        if dist > self.threshold:
+            parts.append(f"nearest training target is {dist:.3g} away (normalised pose distance; "
+                         f"threshold {self.threshold:.3g})")
+        return "; ".join(parts)
+
+    def save(self, folder: str | Path) -> None:
+        with atomic_path(Path(folder) / WORKSPACE_FILE) as tmp:
+            with open(tmp, "wb") as fh:
+                np.savez_compressed(fh, points=self.points.astype(np.float32), lo=self.norm.lo,
+                                    span=self.norm.span, threshold=self.threshold, margin=self.margin)
+
+    @classmethod
+    def load(cls, folder: str | Path) -> Workspace:
+        path = Path(folder) / WORKSPACE_FILE
+        try:
+            with np.load(path) as z:
+                return cls(z["points"].astype(np.float64), MinMax(z["lo"], z["span"]),
+                           float(z["threshold"]), float(z["margin"]))
+        except (OSError, KeyError, ValueError) as e:
+            raise ModelError(f"cannot read the IK workspace {path}: {e}") from None

@@ -1,0 +1,209 @@
+"""Per-step features and input-buffer windows (paper III.B, eq. 1-2; DESIGN.md: Learned kinematics).
+
+Forward kinematics (FK), N tubes, per step n:
+    (α1..αN, β1..βN, α0, Δα0)      α0(n) = α1(n) − αN(n)             (eq. 1)
+                                   Δα0(n) = α0(n) − α0(n−1), 0 at a sequence start   (eq. 2)
+For the paper's two tubes this is exactly (α1, α2, β1, β2, α0, Δα0). Angles are the unwrapped degrees
+of the dataset (min-max on unwrapped angles is the paper's choice); `angle_encoding="sincos"` replaces
+each angle αi and α0 by (sin, cos) — Δα0 stays in degrees.
+
+Inverse kinematics (IK), per step: the tip pose (x, y, z, q0, qx, qy) and, by default, its step change
+(Δx .. Δqy, 0 at a sequence start): the IK analogue of Δα0, it tells the model which way the robot is
+moving, which is what disambiguates a hysteresis loop.
+
+A window of IB steps holds the current step and the IB−1 previous ones, oldest first. Windows never
+cross a sequence boundary: the start of a sequence is padded by repeating its first step.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from ctrkin.errors import ModelError
+
+Task = Literal["fk", "ik"]
+AngleEncoding = Literal["minmax", "sincos"]
+POSE_NAMES = ("x", "y", "z", "q0", "qx", "qy")
+
+
+@dataclass(frozen=True)
+class FeatureLayout:
+    """What goes into and comes out of a model, per step.
+
+    task: "fk" (joints -> tip pose) or "ik" (tip poses -> joints); n_tubes: N; ib: input buffer length
+    (current + IB−1 previous steps, 1..5 in the paper); delta: include Δα0 (FK) or the pose deltas (IK);
+    angle_encoding: "minmax" (paper) or "sincos" (FK inputs only).
+    """
+
+    task: Task = "fk"
+    n_tubes: int = 2
+    ib: int = 2
+    delta: bool = True
+    angle_encoding: AngleEncoding = "minmax"
+    input_names: tuple[str, ...] = field(init=False)
+    output_names: tuple[str, ...] = field(init=False)
+
+    def __post_init__(self) -> None:
+        if self.task not in ("fk", "ik"):
+            raise ModelError(f"task must be 'fk' or 'ik', got {self.task!r}")
+        if not isinstance(self.n_tubes, int) or self.n_tubes < 1:
+            raise ModelError(f"n_tubes must be a positive integer, got {self.n_tubes!r}")
+        if not isinstance(self.ib, int) or not 1 <= self.ib <= 32:
+            raise ModelError(f"input buffer ib must be an integer in 1..32 (paper: 1..5), got {self.ib!r}")
+        if self.angle_encoding not in ("minmax", "sincos"):
+            raise ModelError(f"angle_encoding must be 'minmax' or 'sincos', got {self.angle_encoding!r}")
+        if self.task == "ik" and self.angle_encoding != "minmax":
+            raise ModelError("angle_encoding='sincos' applies to FK inputs only; use 'minmax' for IK")
+        n = self.n_tubes
+        alphas = [f"alpha_{i + 1}" for i in range(n)]
+        betas = [f"beta_{i + 1}" for i in range(n)]
+        if self.task == "fk":
+            if self.angle_encoding == "sincos":
+                ins = [f"{f}_{a}" for a in alphas for f in ("sin", "cos")] + betas
+                ins += ["sin_alpha_0", "cos_alpha_0"]
+            else:
+                ins = [*alphas, *betas, "alpha_0"]
+            if self.delta:
+                ins.append("delta_alpha_0")
+            outs = list(POSE_NAMES)
+        else:
+            ins = list(POSE_NAMES) + ([f"delta_{p}" for p in POSE_NAMES] if self.delta else [])
+            outs = alphas + betas
+        object.__setattr__(self, "input_names", tuple(ins))
+        object.__setattr__(self, "output_names", tuple(outs))
+
+    @property
+    def n_inputs(self) -> int:
+        return len(self.input_names)
+
+    @property
+    def n_outputs(self) -> int:
+        return len(self.output_names)
+
+    @property
+    def raw_width(self) -> int:
+        """Columns of the raw per-step input: joints (2N) for FK, poses (6) for IK."""
+        return 2 * self.n_tubes if self.task == "fk" else 6
+
+    def to_dict(self) -> dict[str, object]:
+        return {"task": self.task, "n_tubes": self.n_tubes, "ib": self.ib, "delta": self.delta,
+                "angle_encoding": self.angle_encoding, "input_names": list(self.input_names),
+                "output_names": list(self.output_names)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> FeatureLayout:
+        try:
+            layout = cls(task=d["task"], n_tubes=int(d["n_tubes"]), ib=int(d["ib"]),
+                         delta=bool(d["delta"]), angle_encoding=d["angle_encoding"])
+        except KeyError as e:
+            raise ModelError(f"feature layout lacks {e}") from None
+        if "input_names" in d and tuple(d["input_names"]) != layout.input_names:
+            raise ModelError(f"stored feature names {d['input_names']} differ from this ctrkin's "
+                             f"{list(layout.input_names)}: the model was made by another version")
+        return layout
+
+    def describe_difference(self, other: FeatureLayout) -> list[str]:
+        """Human-readable list of what differs between two layouts (empty if equal)."""
+        diffs = []
+        for k in ("task", "n_tubes", "ib", "delta", "angle_encoding"):
+            a, b = getattr(self, k), getattr(other, k)
+            if a != b:
+                diffs.append(f"{k}: {a!r} vs {b!r}")
+        return diffs
+
+
+def step_features(layout: FeatureLayout, raw: np.ndarray, prev_raw: np.ndarray | None) -> np.ndarray:
+    """Features of one step (the streaming path; must equal `sequence_features` row by row).
+
+    raw: (2N,) joints (deg, mm) for FK or (6,) pose for IK; prev_raw: the previous step of the same
+    sequence, or None at its start. Returns (F,).
+    """
+    cur = np.asarray(raw, dtype=np.float64)[None, :]
+    prev = cur if prev_raw is None else np.asarray(prev_raw, dtype=np.float64)[None, :]
+    return _features(layout, cur, prev)[0]
+
+
+def sequence_features(layout: FeatureLayout, raw: np.ndarray, bounds: list[tuple[int, int]]
+                      ) -> np.ndarray:
+    """Features of every row. raw: (T, 2N) joints or (T, 6) poses; bounds: [(start, stop)) of the
+    sequences (deltas are 0 at each start). Returns (T, F) float64."""
+    raw = check_raw(layout, raw)
+    prev = np.empty_like(raw)
+    prev[1:] = raw[:-1]
+    for a, _ in bounds:
+        prev[a] = raw[a]
+    return _features(layout, raw, prev)
+
+
+def _features(layout: FeatureLayout, cur: np.ndarray, prev: np.ndarray) -> np.ndarray:
+    n = layout.n_tubes
+    if layout.task == "ik":
+        cols = [cur] + ([cur - prev] if layout.delta else [])
+        return np.concatenate(cols, axis=1)
+    alpha, beta = cur[:, :n], cur[:, n:]
+    a0 = alpha[:, 0] - alpha[:, n - 1]                      # eq. (1)
+    cols_: list[np.ndarray]
+    if layout.angle_encoding == "sincos":
+        ang = np.radians(np.concatenate([alpha, a0[:, None]], axis=1))
+        sc = np.stack([np.sin(ang), np.cos(ang)], axis=2).reshape(len(cur), -1)
+        cols_ = [sc[:, : 2 * n], beta, sc[:, 2 * n:]]
+    else:
+        cols_ = [alpha, beta, a0[:, None]]
+    if layout.delta:
+        a0_prev = prev[:, 0] - prev[:, n - 1]
+        cols_.append((a0 - a0_prev)[:, None])                # eq. (2)
+    return np.concatenate(cols_, axis=1)
+
+
+def check_raw(layout: FeatureLayout, raw: np.ndarray) -> np.ndarray:
+    """Validate a raw (T, 2N) joint or (T, 6) pose array for this layout."""
+    arr = np.asarray(raw, dtype=np.float64)
+    what = f"joints (α1..α{layout.n_tubes} deg, β1..β{layout.n_tubes} mm)" if layout.task == "fk" \
+        else "tip poses (x, y, z mm, q0, qx, qy)"
+    if arr.ndim != 2 or arr.shape[1] != layout.raw_width:
+        raise ModelError(f"this {layout.task.upper()} model expects {what}: an array (T, "
+                         f"{layout.raw_width}), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ModelError(f"input {what} contain NaN or inf at row {int(np.argmax(~np.isfinite(arr).all(1)))}")
+    return arr
+
+
+def window_index(bounds: list[tuple[int, int]], ib: int) -> np.ndarray:
+    """(T, IB) row indices of the window ending at each row, oldest first, clamped to the start of
+    the row's sequence (the start is padded by repeating the first step)."""
+    total = bounds[-1][1] if bounds else 0
+    start = np.empty(total, dtype=np.int64)
+    for a, b in bounds:
+        start[a:b] = a
+    rows = np.arange(total)[:, None] + np.arange(-ib + 1, 1)[None, :]
+    return np.maximum(rows, start[:, None])
+
+
+def windows(features: np.ndarray, bounds: list[tuple[int, int]], ib: int) -> np.ndarray:
+    """features: (T, F) -> (T, IB, F) input buffers that never cross a sequence boundary."""
+    return features[window_index(bounds, ib)]
+
+
+def bounds_from_ids(sequence_id: np.ndarray) -> list[tuple[int, int]]:
+    """[(start, stop)) of the runs of equal ids (sequences must be contiguous)."""
+    sid = np.asarray(sequence_id)
+    if len(sid) == 0:
+        return []
+    edges = np.r_[0, np.nonzero(sid[1:] != sid[:-1])[0] + 1, len(sid)]
+    return [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
+
+
+def postprocess(layout: FeatureLayout, y: np.ndarray) -> np.ndarray:
+    """Denormalised outputs (..., O) -> user outputs: FK quaternions (q0, qx, qy) rescaled to unit
+    length (the network predicts them component-wise); IK joints unchanged."""
+    if layout.task != "fk":
+        return y
+    y = np.array(y, dtype=np.float64, copy=True)
+    q = y[..., 3:6]
+    n = np.linalg.norm(q, axis=-1, keepdims=True)
+    y[..., 3:6] = q / np.where(n > 1e-12, n, 1.0)
+    return y

@@ -1,0 +1,57 @@
+"""Min-max normalisation to [0, 1] (paper III.C), fit on the training split only and saved with a model."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ctrkin.errors import ModelError
+
+
+@dataclass(frozen=True, eq=False)
+class MinMax:
+    """x_n = (x − lo) / span per column. A constant column (span 0) gets span 1, so it maps to 0."""
+
+    lo: np.ndarray
+    span: np.ndarray
+
+    def __post_init__(self) -> None:
+        lo = np.asarray(self.lo, dtype=np.float64).ravel()
+        span = np.asarray(self.span, dtype=np.float64).ravel()
+        if lo.shape != span.shape or not np.all(np.isfinite(lo)) or not np.all(span > 0):
+            raise ModelError("MinMax needs finite lo and positive span of equal length")
+        object.__setattr__(self, "lo", lo)
+        object.__setattr__(self, "span", span)
+
+    @classmethod
+    def fit(cls, x: np.ndarray) -> MinMax:
+        """x: (M, F) training rows."""
+        x = np.asarray(x, dtype=np.float64)
+        if x.ndim != 2 or len(x) == 0:
+            raise ModelError(f"cannot fit a normaliser on an array of shape {x.shape}; the training "
+                             f"split is empty?")
+        lo, hi = x.min(axis=0), x.max(axis=0)
+        span = hi - lo
+        return cls(lo, np.where(span > 1e-12, span, 1.0))
+
+    @property
+    def hi(self) -> np.ndarray:
+        return self.lo + self.span
+
+    def transform(self, x: np.ndarray) -> np.ndarray:
+        """(..., F) -> (..., F) in [0, 1] on the training range."""
+        return (np.asarray(x, dtype=np.float64) - self.lo) / self.span
+
+    def inverse(self, x: np.ndarray) -> np.ndarray:
+        return np.asarray(x, dtype=np.float64) * self.span + self.lo
+
+    def to_dict(self) -> dict[str, list[float]]:
+        return {"lo": self.lo.tolist(), "span": self.span.tolist()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> MinMax:
+        try:
+            return cls(np.array(d["lo"], dtype=np.float64), np.array(d["span"], dtype=np.float64))
+        except KeyError as e:
+            raise ModelError(f"normalisation entry lacks {e}") from None

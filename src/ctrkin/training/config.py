@@ -1,0 +1,96 @@
+"""Training configuration: the paper's setup (IV.A) as defaults, validated on construction."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+from ctrkin.errors import ModelError
+from ctrkin.models.base import OUTPUT_ACTIVATIONS
+from ctrkin.models.features import FeatureLayout
+from ctrkin.models.registry import get_entry, resolve_options
+
+SPLITS = ("dataset", "sequence", "random")
+POSE_SOURCES = ("measured", "true")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Everything a training run depends on; saved as config.json beside the weights.
+
+    task: "fk" | "ik"; model: registry name (ctrkin.models.MODELS); options: model options
+    (e.g. {"structure": "S3"}); ib: input buffer (1..5 in the paper, 2 the final model); delta: the
+    directional feature Δα0 (FK) / pose deltas (IK); angle_encoding: "minmax" (paper) | "sincos";
+    output_activation: "relu" (paper eq. 7) | "linear"; pose_source: which pose columns are the FK target
+    / IK input: "measured" (tracker, as in the paper) or "true" (virtual robot only);
+    split: "dataset" (the dataset's saved split, else by sequence), "sequence", or "random" (the paper's
+    70:15:15 shuffle); lr, batch_size, max_epochs: Adam 1e-3, 32, 500 (paper); patience: early stopping
+    epochs without a val-loss improvement of min_delta; threads: torch CPU threads; drop_outliers:
+    rows flagged `outlier` are not used as targets.
+    """
+
+    task: str = "fk"
+    model: str = "lstm_mlp"
+    options: dict[str, Any] = field(default_factory=dict)
+    ib: int = 2
+    delta: bool = True
+    angle_encoding: str = "minmax"
+    output_activation: str = "relu"
+    pose_source: str = "measured"
+    split: str = "dataset"
+    split_seed: int = 0
+    lr: float = 1e-3
+    batch_size: int = 32
+    max_epochs: int = 500
+    patience: int = 20
+    min_delta: float = 0.0
+    seed: int = 0
+    threads: int = 2
+    drop_outliers: bool = True
+
+    def __post_init__(self) -> None:
+        if self.task not in ("fk", "ik"):
+            raise ModelError(f"task must be 'fk' or 'ik', got {self.task!r}")
+        entry = get_entry(self.model)
+        object.__setattr__(self, "options", resolve_options(self.model, self.options))
+        forced = entry.layout.get("delta")
+        if forced is not None and forced != self.delta:
+            object.__setattr__(self, "delta", forced)   # the ablation entry fixes delta
+        if self.output_activation not in OUTPUT_ACTIVATIONS:
+            raise ModelError(f"output_activation must be one of {OUTPUT_ACTIVATIONS}")
+        if self.pose_source not in POSE_SOURCES:
+            raise ModelError(f"pose_source must be one of {POSE_SOURCES}, got {self.pose_source!r}")
+        if self.split not in SPLITS:
+            raise ModelError(f"split must be one of {SPLITS}, got {self.split!r}")
+        for name, lo in (("batch_size", 1), ("max_epochs", 1), ("patience", 1), ("threads", 1)):
+            v = getattr(self, name)
+            if not isinstance(v, int) or v < lo:
+                raise ModelError(f"{name} must be an integer >= {lo}, got {v!r}")
+        if not self.lr > 0:
+            raise ModelError(f"lr must be positive, got {self.lr}")
+        if self.min_delta < 0:
+            raise ModelError(f"min_delta must be >= 0, got {self.min_delta}")
+        self.layout(2)   # validates ib and angle_encoding
+
+    def layout(self, n_tubes: int) -> FeatureLayout:
+        return FeatureLayout(task=self.task, n_tubes=n_tubes, ib=self.ib,  # type: ignore[arg-type]
+                             delta=self.delta, angle_encoding=self.angle_encoding)  # type: ignore[arg-type]
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> TrainConfig:
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - names)
+        if unknown:
+            raise ModelError(f"unknown training config keys {unknown}")
+        return cls(**d)
+
+    def differences(self, other: TrainConfig, ignore: tuple[str, ...] = ("max_epochs", "threads")
+                    ) -> list[str]:
+        """What differs, as 'key: a vs b' (keys that may change on resume are ignored)."""
+        a, b = self.to_dict(), other.to_dict()
+        return [f"{k}: {json.dumps(a[k])} vs {json.dumps(b[k])}" for k in a
+                if k not in ignore and a[k] != b[k]]

@@ -1,0 +1,121 @@
+"""Kinematics: batch equals streaming, save -> load, wrong robot refused, IK workspace, ONNX."""
+
+from __future__ import annotations
+
+import numpy as np
+import onnxruntime as ort
+import pytest
+
+import ctrkin
+from ctrkin.data import Dataset
+from ctrkin.errors import ModelError
+from ctrkin.inference import Kinematics, export_onnx
+from ctrkin.robots import Robot
+
+STREAM_TOL = 1e-5   # batch (torch float32) vs streaming (float64 engine)
+ONNX_TOL = 1e-4
+
+
+def _stream(kin, raw, bounds):
+    out = []
+    for a, b in bounds:
+        kin.reset()
+        for t in range(a, b):
+            r = kin.step(raw[t])
+            out.append(r if kin.task == "fk" else r.joints)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("name", ["fk", "fk_default", "fk_cnn"])
+def test_fk_batch_equals_streaming(model_dirs, sweeps, name):
+    kin = ctrkin.Kinematics.load(model_dirs[name])
+    batch = kin.predict(sweeps)
+    stream = _stream(kin, sweeps.joints(), sweeps.sequence_bounds())
+    assert batch.shape == (len(sweeps.frame), 6)
+    assert np.abs(batch - stream).max() < STREAM_TOL          # mm and unit-quaternion components
+    np.testing.assert_allclose(np.linalg.norm(batch[:, 3:], axis=1), 1.0, atol=1e-9)
+
+
+def test_ik_batch_equals_streaming(model_dirs, sweeps):
+    kin = Kinematics.load(model_dirs["ik"])
+    res = kin.predict(sweeps)
+    stream = _stream(kin, sweeps.poses(), sweeps.sequence_bounds())
+    span = kin.bundle.y_norm.span      # α reaches 450°: float32 resolves 3e-5° there, so compare
+    assert np.abs((res.joints - stream) / span).max() < STREAM_TOL    # relative to the output range
+    assert res.joints.shape == (len(sweeps.frame), 4)
+
+
+def test_save_load_gives_identical_predictions(model_dirs, sweeps, tmp_path):
+    kin = Kinematics.load(model_dirs["fk"])
+    copy = tmp_path / "copy"
+    kin.bundle.save(copy)
+    again = Kinematics.load(copy)
+    np.testing.assert_array_equal(kin.predict(sweeps), again.predict(sweeps))
+    assert again.layout == kin.layout and again.robot.fingerprint() == kin.robot.fingerprint()
+
+
+def test_wrong_robot_and_layout_are_refused(model_dirs, sweeps):
+    kin = Kinematics.load(model_dirs["fk"])
+    d = sweeps.robot.to_dict()
+    d["tubes"][0]["curvature"] = 0.05
+    other = Robot.from_dict(d)
+    ds = Dataset(sweeps.frame, other, {})
+    with pytest.raises(ModelError, match=r"curvature: 0\.037\d* vs 0\.05"):
+        kin.predict(ds)
+    with pytest.raises(ModelError, match=r"\(T, 4\)"):
+        kin.predict(np.zeros((5, 6)))
+    with pytest.raises(ModelError, match=r"\(4,\)"):
+        kin.step(np.zeros(3))
+
+
+def test_missing_folder_says_what_to_do(tmp_path):
+    with pytest.raises(ModelError, match="ctrkin train"):
+        Kinematics.load(tmp_path)
+
+
+def test_ik_reports_targets_outside_the_trained_workspace(model_dirs, sweeps):
+    kin = Kinematics.load(model_dirs["ik"])
+    split = sweeps.get_split()
+    poses = sweeps.poses()
+    inside = kin.predict(poses[split.train[:40]])
+    assert inside.in_workspace.mean() > 0.95
+    far = poses[:5].copy()
+    far[:, 0] += 40.0                                    # 40 mm beside anything seen in training
+    res = kin.predict(far)
+    assert not res.in_workspace.any()
+    assert "outside the training range" in res.reasons[0] and "x =" in res.reasons[0]
+    assert res.joints.shape == (5, 4)                  # joints still returned, but flagged
+    with pytest.raises(ModelError, match="outside the trained workspace"):
+        kin.predict(far, strict=True)
+    kin.reset()
+    step = kin.step(far[0])
+    assert step.in_workspace is False and step.reason
+    with pytest.raises(ModelError):
+        kin.step(far[1], strict=True)
+
+
+@pytest.mark.parametrize("name", ["fk", "ik", "fk_cnn"])
+def test_onnx_equals_pytorch(model_dirs, sweeps, tmp_path, name):
+    kin = Kinematics.load(model_dirs[name])
+    path = export_onnx(kin, tmp_path / f"{name}.onnx")
+    sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    meta = sess.get_modelmeta().custom_metadata_map
+    assert meta["ctrkin.task"] == kin.task and meta["ctrkin.robot_fingerprint"] == kin.robot.fingerprint()
+    windows = kin.feature_windows(sweeps).astype(np.float32)
+    ref = kin.predict(sweeps)
+    ref = ref if kin.task == "fk" else ref.joints
+    scale = 1.0 if kin.task == "fk" else kin.bundle.y_norm.span   # IK: relative to the output range
+    for n in (1, 7, len(windows)):
+        out = sess.run(None, {"window": windows[:n]})[0]
+        assert np.abs((out - ref[:n]) / scale).max() < ONNX_TOL
+
+
+def test_batch_predict_accepts_sequence_ids(model_dirs, sweeps):
+    kin = Kinematics.load(model_dirs["fk"])
+    sid = sweeps.frame["sequence_id"].to_numpy()
+    np.testing.assert_allclose(kin.predict(sweeps.joints(), sequence_id=sid), kin.predict(sweeps))
+    one = kin.predict(sweeps.joints())             # as one long sequence: differs only at the seams
+    starts = [a for a, _ in sweeps.sequence_bounds()]
+    same = np.setdiff1d(np.arange(len(sid)), np.r_[starts, np.add(starts, 1)])
+    np.testing.assert_allclose(one[same], kin.predict(sweeps)[same], atol=1e-6)
+
