@@ -90,9 +90,11 @@ def inner_turn(n_tubes: int, alpha_outer: float, beta_outer: float, d: float,
 
 
 def paper(robot: Robot, scale: Scale = "full", seed: int = 0,
-          levels: tuple[float, ...] | None = None, step_deg: float = 1.0) -> Plan:
+          levels: tuple[float, ...] | None = None, step_deg: float = 1.0,
+          outer_step_deg: float | None = None) -> Plan:
     """The paper's training protocol (Sec. III.A). One run per level, 36 (quick: 4) sequences each.
 
+    outer_step_deg: the outer tube's increment (default 10° full, 90° quick).
     seed is unused (the protocol is deterministic; noise is seeded by the recorder) but kept so every
     protocol has the same signature.
     """
@@ -100,7 +102,10 @@ def paper(robot: Robot, scale: Scale = "full", seed: int = 0,
     n = robot.n_tubes
     lv = tuple(float(v) for v in (levels if levels is not None else
                                   (PAPER_FULL_LEVELS_MM if scale == "full" else PAPER_QUICK_LEVELS_MM)))
-    angles = tuple(float(a) for a in (range(0, 360, 10) if scale == "full" else (0, 90, 180, 270)))
+    outer = outer_step_deg if outer_step_deg is not None else (10.0 if scale == "full" else 90.0)
+    if not 0 < outer <= 360:
+        raise ValueError(f"outer_step_deg must be in (0, 360], got {outer}")
+    angles = tuple(float(a) for a in np.arange(0.0, 360.0 - 1e-9, outer))
     _check_levels(robot, lv, PAPER_OUTER_BETAS_MM)
     runs = []
     for li, d in enumerate(lv):
