@@ -2,6 +2,7 @@
 
     ctrkin solve --robot paper --q 0,0,-15,-5
     ctrkin sweep --robot paper --out out/sweep
+    ctrkin reproduce --scale quick --out out/reproduce
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from ctrkin.cli.dataset import dataset_group
 from ctrkin.cli.export import export_cmd
 from ctrkin.cli.mechanics import solve_cmd, sweep_cmd
 from ctrkin.cli.predict import predict_cmd
+from ctrkin.cli.reproduce import reproduce_cmd
 from ctrkin.cli.train import train_cmd
 from ctrkin.errors import CtrkinError
 
@@ -33,6 +35,7 @@ cli.add_command(train_cmd)
 cli.add_command(export_cmd)
 cli.add_command(predict_cmd)
 cli.add_command(dataset_group)
+cli.add_command(reproduce_cmd)
 
 
 def main() -> None:

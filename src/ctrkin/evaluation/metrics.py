@@ -22,25 +22,34 @@ def error_stats(e: np.ndarray) -> dict[str, float]:
     e = np.abs(np.asarray(e, dtype=float).ravel())
     if e.size == 0:
         return {"rmse": float("nan"), "mae": float("nan"), "max": float("nan"), "n": 0}
-    return {"rmse": float(np.sqrt(np.mean(e**2))), "mae": float(np.mean(e)), "max": float(np.max(e)),
-            "n": int(e.size)}
+    return {
+        "rmse": float(np.sqrt(np.mean(e**2))),
+        "mae": float(np.mean(e)),
+        "max": float(np.max(e)),
+        "n": int(e.size),
+    }
 
 
-def pose_errors(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray | None = None
-                ) -> dict[str, dict[str, float]]:
+def pose_errors(
+    pred: np.ndarray, ref: np.ndarray, mask: np.ndarray | None = None
+) -> dict[str, dict[str, float]]:
     """pred, ref: (T, 6) poses -> {"position_mm": stats, "orientation_deg": stats} over rows in mask."""
     pred, ref = np.asarray(pred, float), np.asarray(ref, float)
     if mask is not None:
         pred, ref = pred[mask], ref[mask]
-    return {"position_mm": error_stats(position_error(pred, ref)),
-            "orientation_deg": error_stats(tangent_angle_error(pred, ref))}
+    return {
+        "position_mm": error_stats(position_error(pred, ref)),
+        "orientation_deg": error_stats(tangent_angle_error(pred, ref)),
+    }
 
 
 def joint_errors(pred: np.ndarray, ref: np.ndarray, n_tubes: int) -> dict[str, dict[str, float]]:
     """pred, ref: (T, 2N) joints (deg, mm) -> {"alpha_deg": stats, "beta_mm": stats}."""
     d = np.asarray(pred, float) - np.asarray(ref, float)
-    return {"alpha_deg": error_stats(np.linalg.norm(d[:, :n_tubes], axis=1)),
-            "beta_mm": error_stats(np.linalg.norm(d[:, n_tubes:], axis=1))}
+    return {
+        "alpha_deg": error_stats(np.linalg.norm(d[:, :n_tubes], axis=1)),
+        "beta_mm": error_stats(np.linalg.norm(d[:, n_tubes:], axis=1)),
+    }
 
 
 def sequence_bounds(sequence_id: np.ndarray) -> list[tuple[int, int]]:
@@ -52,8 +61,9 @@ def sequence_bounds(sequence_id: np.ndarray) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
 
 
-def azimuth_series(poses: np.ndarray, joints: np.ndarray, n_tubes: int,
-                   bounds: list[tuple[int, int]]) -> np.ndarray:
+def azimuth_series(
+    poses: np.ndarray, joints: np.ndarray, n_tubes: int, bounds: list[tuple[int, int]]
+) -> np.ndarray:
     """T(L) (deg) of every row, unwrapped within each sequence: tip azimuth about z from the outer
     tube's base rotation αN. poses (T, 6), joints (T, 2N)."""
     out = np.empty(len(poses))
@@ -62,8 +72,9 @@ def azimuth_series(poses: np.ndarray, joints: np.ndarray, n_tubes: int,
     return out
 
 
-def snap_steps(azimuth: np.ndarray, bounds: list[tuple[int, int]],
-               threshold: float = SNAP_THRESHOLD_DEG) -> np.ndarray:
+def snap_steps(
+    azimuth: np.ndarray, bounds: list[tuple[int, int]], threshold: float = SNAP_THRESHOLD_DEG
+) -> np.ndarray:
     """Rows n (not a sequence start) where |T(L)_n − T(L)_{n−1}| > threshold (deg)."""
     rows = []
     for a, b in bounds:
@@ -98,8 +109,13 @@ class SnapScore:
         return {k: float(v) for k, v in self.__dict__.items()}
 
 
-def snap_score(pred_azimuth: np.ndarray, ref_azimuth: np.ndarray, bounds: list[tuple[int, int]],
-               tolerance_steps: int = 2, threshold: float = SNAP_THRESHOLD_DEG) -> SnapScore:
+def snap_score(
+    pred_azimuth: np.ndarray,
+    ref_azimuth: np.ndarray,
+    bounds: list[tuple[int, int]],
+    tolerance_steps: int = 2,
+    threshold: float = SNAP_THRESHOLD_DEG,
+) -> SnapScore:
     """Match predicted snap events to reference events of the same sequence within ±tolerance."""
     pred_ev = _events(snap_steps(pred_azimuth, bounds, threshold))
     ref_ev = _events(snap_steps(ref_azimuth, bounds, threshold))
@@ -114,8 +130,11 @@ def snap_score(pred_azimuth: np.ndarray, ref_azimuth: np.ndarray, bounds: list[t
         return float(az[min(n + 1, b - 1)] - az[max(n - 1, a)])
 
     for r in ref_ev:
-        cand = [i for i, p in enumerate(pred_ev) if not used[i] and seq_of[p] == seq_of[r]
-                and abs(int(p) - int(r)) <= tolerance_steps]
+        cand = [
+            i
+            for i, p in enumerate(pred_ev)
+            if not used[i] and seq_of[p] == seq_of[r] and abs(int(p) - int(r)) <= tolerance_steps
+        ]
         if not cand:
             continue
         i = min(cand, key=lambda j: abs(int(pred_ev[j]) - int(r)))
@@ -124,11 +143,14 @@ def snap_score(pred_azimuth: np.ndarray, ref_azimuth: np.ndarray, bounds: list[t
         magnitude.append(abs(mag(pred_azimuth, int(pred_ev[i])) - mag(ref_azimuth, int(r))))
     n_m = int(used.sum())
     return SnapScore(
-        n_reference=len(ref_ev), n_predicted=len(pred_ev), n_matched=n_m,
+        n_reference=len(ref_ev),
+        n_predicted=len(pred_ev),
+        n_matched=n_m,
         precision=n_m / len(pred_ev) if len(pred_ev) else float("nan"),
         recall=n_m / len(ref_ev) if len(ref_ev) else float("nan"),
         timing_error_steps=float(np.mean(timing)) if timing else float("nan"),
-        magnitude_error_deg=float(np.mean(magnitude)) if magnitude else float("nan"))
+        magnitude_error_deg=float(np.mean(magnitude)) if magnitude else float("nan"),
+    )
 
 
 def snap_window(snap: np.ndarray, bounds: list[tuple[int, int]], width: int = 2) -> np.ndarray:
@@ -138,12 +160,16 @@ def snap_window(snap: np.ndarray, bounds: list[tuple[int, int]], width: int = 2)
     out = np.zeros_like(snap)
     for a, b in bounds:
         for n in np.nonzero(snap[a:b])[0]:
-            out[a + n:min(a + n + width, b)] = True
+            out[a + n : min(a + n + width, b)] = True
     return out
 
 
 def timing_stats(seconds: np.ndarray) -> dict[str, float]:
     """Per-prediction times (s) -> mean and std in ms, median in µs."""
     t = np.asarray(seconds, float)
-    return {"ms_mean": float(t.mean() * 1e3), "ms_std": float(t.std() * 1e3),
-            "us_median": float(np.median(t) * 1e6), "n": int(t.size)}
+    return {
+        "ms_mean": float(t.mean() * 1e3),
+        "ms_std": float(t.std() * 1e3),
+        "us_median": float(np.median(t) * 1e6),
+        "n": int(t.size),
+    }

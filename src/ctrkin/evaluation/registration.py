@@ -49,5 +49,8 @@ class Registration:
         return np.concatenate([pos, quat_from_tangent(tan)], axis=1)
 
     def to_dict(self) -> dict[str, object]:
-        return {"rotation": self.rotation.tolist(), "translation_mm": self.translation.tolist(),
-                "rms_mm": self.rms_mm}
+        return {
+            "rotation": self.rotation.tolist(),
+            "translation_mm": self.translation.tolist(),
+            "rms_mm": self.rms_mm,
+        }

@@ -43,8 +43,9 @@ class TCMBaseline:
         """joints (T, 2N) -> (T, 6) poses in the tracker frame."""
         return self.registration.apply(self.predict_robot_frame(joints, desc))
 
-    def fit_registration(self, joints: np.ndarray, measured: np.ndarray, max_points: int = 2000,
-                         seed: int = 0) -> Registration:
+    def fit_registration(
+        self, joints: np.ndarray, measured: np.ndarray, max_points: int = 2000, seed: int = 0
+    ) -> Registration:
         """Fit robot -> tracker on (a seeded subsample of) training rows: joints (T, 2N), measured
         poses (T, 6). Uses positions only (the tangents then follow the fitted rotation)."""
         rng = np.random.default_rng(seed)

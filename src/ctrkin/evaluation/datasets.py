@@ -1,0 +1,114 @@
+"""The datasets a reproduction needs, recorded on one virtual robot (one hardware draw), and the
+truth as the tracker would see it without noise (the reference for "vs true" errors)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ctrkin.acquisition import protocols
+from ctrkin.acquisition.recorder import record
+from ctrkin.acquisition.task_paths import task_path
+from ctrkin.data.dataset import Dataset
+from ctrkin.errors import DatasetError
+from ctrkin.evaluation.scales import ReproScale
+from ctrkin.robots.robot import Robot
+from ctrkin.virtual import VirtualConfig, VirtualRobot
+
+# noise seeds: training and each test experiment see independent measurement noise
+SEEDS = {"paper": 0, "sweeps": 1, "random-points": 2, "arbitrary": 3, "square": 4, "triangle": 5}
+
+
+@dataclass(eq=False)
+class ReproData:
+    """paper: training data; sweeps, random_points, arbitrary: test experiments (Fig. 10);
+    square, triangle: IK target poses (P, 6) in the tracker frame (Fig. 12)."""
+
+    virtual: VirtualRobot
+    paper: Dataset
+    sweeps: Dataset
+    random_points: Dataset
+    arbitrary: Dataset
+    square: np.ndarray
+    triangle: np.ndarray
+
+
+def virtual_from_meta(ds: Dataset) -> VirtualRobot:
+    """Rebuild the virtual robot a dataset was recorded on (its hardware draw is seeded)."""
+    vr = ds.meta.get("virtual_robot")
+    if not isinstance(vr, dict) or "seed" not in vr or "config" not in vr:
+        raise DatasetError("this dataset was not recorded on the virtual robot (no virtual_robot in meta)")
+    virtual = VirtualRobot(ds.robot, VirtualConfig.from_dict(vr["config"]), seed=int(vr["seed"]))
+    recorded = np.asarray(vr["tracker"]["registration_rotation"], float)
+    if not np.allclose(recorded, virtual.tracker.rotation, atol=1e-12):
+        raise DatasetError("the dataset's virtual robot cannot be rebuilt with this ctrkin version")
+    return virtual
+
+
+def registered_truth(ds: Dataset, virtual: VirtualRobot | None = None) -> np.ndarray:
+    """(T, 6) true poses seen by the tracker without noise: the reference a model trained on
+    measurements should reach (its frame and sensor offset are the tracker's)."""
+    v = virtual or virtual_from_meta(ds)
+    return v.tracker.registered(ds.poses(true=True))
+
+
+def collect(
+    robot: Robot,
+    scale: ReproScale,
+    out: Path,
+    robot_seed: int = 0,
+    workers: int | None = None,
+    progress: bool = True,
+) -> ReproData:
+    """Record every dataset of a reproduction into out/<name> (reused when already there)."""
+    virtual = VirtualRobot(robot, VirtualConfig(), seed=robot_seed)
+
+    def get(name: str, **kw: object) -> Dataset:
+        folder = out / name
+        if (folder / "meta.json").is_file():
+            ds = Dataset.load(folder, robot=robot)
+            if ds.meta.get("reproduce_key") == _key(name, scale, robot_seed, kw):
+                return ds
+        plan = protocols.build(
+            name,
+            robot,
+            scale=scale.protocol_scale,  # type: ignore[arg-type]
+            seed=SEEDS[name],
+            **kw,
+        )
+        ds = record(
+            plan,
+            virtual,
+            seed=SEEDS[name],
+            workers=workers,
+            progress=progress,
+            meta={"reproduce_key": _key(name, scale, robot_seed, kw)},
+        )
+        ds.save(folder)
+        return Dataset.load(folder, robot=robot)
+
+    paper_kw: dict[str, object] = {}
+    if scale.paper_levels is not None:
+        paper_kw["levels"] = scale.paper_levels
+    if scale.paper_outer_step_deg is not None:
+        paper_kw["outer_step_deg"] = scale.paper_outer_step_deg
+    paper = get("paper", **paper_kw)
+    shapes = {
+        s: virtual.tracker.registered(task_path(virtual, s, n_points=10, seed=SEEDS[s]).poses)
+        for s in ("square", "triangle")
+    }
+    return ReproData(
+        virtual=virtual,
+        paper=paper,
+        sweeps=get("sweeps"),
+        random_points=get("random-points", n_points=20),
+        arbitrary=get("arbitrary"),
+        square=shapes["square"],
+        triangle=shapes["triangle"],
+    )
+
+
+def _key(name: str, scale: ReproScale, robot_seed: int, kw: dict[str, object]) -> str:
+    return f"{name}|{scale.protocol_scale}|{robot_seed}|{sorted((k, str(v)) for k, v in kw.items())}"

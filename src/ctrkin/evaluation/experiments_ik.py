@@ -1,0 +1,144 @@
+"""Inverse-kinematics experiments: held-out sequences, 20 random poses (Fig. 11) and the square and
+triangle paths (Fig. 12). Predicted joints are checked two ways: through the learned FK model (as
+the paper did) and by driving the virtual robot to them (what hardware would do)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ctrkin.acquisition.plan import move
+from ctrkin.evaluation.context import Context, bounds, summary, valid_rows
+from ctrkin.evaluation.metrics import joint_errors, sequence_bounds
+from ctrkin.virtual import VirtualRobot
+from ctrkin.virtual.transmission import clip_to_valid
+from ctrkin.viz import experiments as fig
+
+
+def drive(
+    virtual: VirtualRobot, Q: np.ndarray, bounds_: list[tuple[int, int]] | None = None
+) -> tuple[np.ndarray, int]:
+    """Command the virtual robot through joints Q (T, 2N), each sequence from rest at its first row;
+    consecutive rows are joined by 1°/0.1 mm moves. Returns the noise-free tracker view of the tip at
+    every row (T, 6) and how many rows had to be projected onto the valid joint set."""
+    robot = virtual.nominal
+    Qv = clip_to_valid(robot, Q)
+    clipped = int(np.any(np.abs(Qv - Q) > 1e-9, axis=1).sum())
+    out = np.empty((len(Q), 6))
+    n = robot.n_tubes
+    for a, b in bounds_ or [(0, len(Q))]:
+        state = virtual.rest(Qv[a])
+        path, rows = [Qv[a][None]], [0]
+        for k in range(a + 1, b):
+            seg = move(Qv[k - 1], Qv[k], n)
+            if len(seg) == 0:
+                seg = Qv[k][None]
+            path.append(seg)
+            rows.append(rows[-1] + len(seg))
+        motion, _ = virtual.move(state, np.vstack(path))
+        out[a:b] = virtual.tracker.registered(motion.true_poses[np.array(rows)])
+    return out, clipped
+
+
+def _ik_checks(
+    ctx: Context, joints_pred: np.ndarray, targets: np.ndarray, b: list[tuple[int, int]]
+) -> tuple[dict[str, Any], np.ndarray, np.ndarray, int]:
+    fk = ctx.models["fk_lstm_mlp"]
+    sid = np.concatenate([np.full(y - x, k) for k, (x, y) in enumerate(b)])
+    Qv = clip_to_valid(ctx.data.virtual.nominal, joints_pred)
+    via_fk = np.asarray(fk.predict(Qv, sequence_id=sid), float)
+    via_robot, clipped = drive(ctx.data.virtual, joints_pred, b)
+    return (
+        {
+            "via_fk_model": summary(via_fk, targets, None),
+            "via_robot": summary(via_robot, targets, None),
+            "joints_projected_to_valid": clipped,
+        },
+        via_fk,
+        via_robot,
+        clipped,
+    )
+
+
+def ik_heldout(ctx: Context) -> dict[str, Any]:
+    """IK on the paper dataset's test sequences: joint errors, and the tip the joints reach."""
+    ds = ctx.data.paper
+    ik = ctx.models["ik_lstm_mlp"]
+    res = ik.predict(ds)
+    rows = valid_rows(ds, ds.get_split().test)
+    je = joint_errors(res.joints[rows], ds.joints()[rows], ds.n_tubes)
+    sid = ds.frame["sequence_id"].to_numpy()[rows]
+    b = sequence_bounds(sid)
+    checks, _, _, _ = _ik_checks(ctx, res.joints[rows], ds.poses()[rows], b)
+    return {
+        "joint_rmse_mm": je["beta_mm"]["rmse"],
+        "joint_rmse_deg": je["alpha_deg"]["rmse"],
+        "joint_mae_mm": je["beta_mm"]["mae"],
+        "joint_mae_deg": je["alpha_deg"]["mae"],
+        "tip_error_mm": checks["via_robot"]["position_rmse_mm"],
+        "tip_error_via_fk_mm": checks["via_fk_model"]["position_rmse_mm"],
+        "in_workspace_fraction": float(np.mean(res.in_workspace[rows])),
+        **checks,
+    }
+
+
+def ik_random(ctx: Context) -> dict[str, Any]:
+    """Fig. 11: IK at the 20 random poses (with the history of the moves between them)."""
+    ds = ctx.data.random_points
+    ik = ctx.models["ik_lstm_mlp"]
+    res = ik.predict(ds)
+    is_t = ds.frame["is_target"].to_numpy()
+    rows = valid_rows(ds, np.nonzero(is_t)[0])
+    je = joint_errors(res.joints[rows], ds.joints()[rows], ds.n_tubes)
+    # the robot is driven along the predicted joints of the whole run, and looked at on the targets
+    b = bounds(ds)
+    via_robot_all, clipped = drive(ctx.data.virtual, res.joints, [(b[0][0], b[-1][1])])
+    fk = ctx.models["fk_lstm_mlp"]
+    via_fk_all = np.asarray(
+        fk.predict(clip_to_valid(ds.robot, res.joints), sequence_id=ds.frame["sequence_id"].to_numpy()), float
+    )
+    targets = ds.poses()[rows]
+    out: dict[str, Any] = {
+        "joint_rmse_mm": je["beta_mm"]["rmse"],
+        "joint_rmse_deg": je["alpha_deg"]["rmse"],
+        "via_fk_model": summary(via_fk_all[rows], targets, None),
+        "via_robot": summary(via_robot_all[rows], targets, None),
+        "in_workspace": int(res.in_workspace[rows].sum()),
+        "n_points": len(rows),
+        "joints_projected_to_valid": clipped,
+    }
+    out["position_rmse_mm"] = out["via_robot"]["position_rmse_mm"]
+    out["within_1mm_via_robot"] = int(
+        (np.linalg.norm(via_robot_all[rows, :3] - targets[:, :3], axis=1) < 1.0).sum()
+    )
+    fig.ik_points_figure(
+        ds.joints()[rows],
+        res.joints[rows],
+        targets,
+        via_fk_all[rows],
+        via_robot_all[rows],
+        ctx.figures / "fig11_ik_random.png",
+    )
+    return out
+
+
+def ik_path(ctx: Context, shape: str) -> dict[str, Any]:
+    """Fig. 12: IK along a square or triangle of 10 target poses (tracker frame)."""
+    targets = getattr(ctx.data, shape)
+    ik = ctx.models["ik_lstm_mlp"]
+    res = ik.predict(targets)
+    checks, via_fk, via_robot, _ = _ik_checks(ctx, res.joints, targets, [(0, len(targets))])
+    out = {
+        **checks,
+        "position_rmse_mm": checks["via_robot"]["position_rmse_mm"],
+        "in_workspace": int(res.in_workspace.sum()),
+        "n_points": len(targets),
+        "outside_workspace_reasons": [
+            r for r, ok in zip(res.reasons, res.in_workspace, strict=True) if not ok
+        ],
+    }
+    fig.ik_path_figure(
+        targets, via_fk, via_robot, res.joints, ctx.figures / f"fig12_ik_{shape}.png", f"IK along a {shape}"
+    )
+    return out

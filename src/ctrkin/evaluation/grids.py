@@ -1,0 +1,91 @@
+"""The input-buffer and structure grids (paper Tables II and III, Fig. 7 and 8), and timing."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from ctrkin.evaluation.context import Context, summary, valid_rows
+from ctrkin.evaluation.metrics import joint_errors, timing_stats
+from ctrkin.evaluation.scales import ReproScale
+from ctrkin.viz import experiments as fig
+
+
+def grids(ctx: Context, scale: ReproScale) -> dict[str, Any]:
+    """Test-split errors of every grid model; normalised test loss (MAE) as the paper's tables."""
+    ds = ctx.data.paper
+    rows = valid_rows(ds, ds.get_split().test)
+    measured, truth = ds.poses(), ctx.truth(ds)
+    out: dict[str, Any] = {"ib": {"fk": {}, "ik": {}}, "structure": {}}
+    for ib in scale.ib_grid:
+        m = ctx.models[f"grid_fk_ib{ib}"]
+        r = summary(ctx.fk(f"grid_fk_ib{ib}", ds)[rows], measured[rows], truth[rows])
+        r["test_loss"] = m.metrics.get("test", {}).get("loss")
+        out["ib"]["fk"][str(ib)] = r
+        ik = ctx.models[f"grid_ik_ib{ib}"]
+        je = joint_errors(ik.predict(ds).joints[rows], ds.joints()[rows], ds.n_tubes)
+        out["ib"]["ik"][str(ib)] = {
+            "joint_rmse_mm": je["beta_mm"]["rmse"],
+            "joint_rmse_deg": je["alpha_deg"]["rmse"],
+            "test_loss": ik.metrics.get("test", {}).get("loss"),
+        }
+    for ib in scale.structure_ibs:
+        for s in scale.structure_grid:
+            name = f"grid_fk_ib{ib}_{s}"
+            r = summary(ctx.fk(name, ds)[rows], measured[rows], truth[rows])
+            r["test_loss"] = ctx.models[name].metrics.get("test", {}).get("loss")
+            out["structure"][f"ib{ib}_{s}"] = r
+    ibs = [str(i) for i in scale.ib_grid]
+    fig.grid_figure(
+        ["FK position RMSE (mm)", "IK β RMSE (mm)", "IK α RMSE (deg)"],
+        [f"IB={i}" for i in ibs],
+        np.array(
+            [
+                [out["ib"]["fk"][i]["position_rmse_mm"] for i in ibs],
+                [out["ib"]["ik"][i]["joint_rmse_mm"] for i in ibs],
+                [out["ib"]["ik"][i]["joint_rmse_deg"] for i in ibs],
+            ]
+        ),
+        ctx.figures / "fig7_input_buffer.png",
+        "Input buffer (Table II, Fig. 7)",
+        "{:.2f}",
+    )
+    fig.grid_figure(
+        [f"IB={ib}" for ib in scale.structure_ibs],
+        list(scale.structure_grid),
+        np.array(
+            [
+                [out["structure"][f"ib{ib}_{s}"]["position_rmse_mm"] for s in scale.structure_grid]
+                for ib in scale.structure_ibs
+            ]
+        ),
+        ctx.figures / "fig8_structures.png",
+        "FK position RMSE (mm) by structure (Table III, Fig. 8)",
+        "{:.2f}",
+    )
+    return out
+
+
+def timing(ctx: Context, n_steps: int = 2000) -> dict[str, Any]:
+    """Streaming single-step latency of the FK and IK models over a held-out sequence (one step a
+    call, the control-loop case), in ms."""
+    ds = ctx.data.paper
+    test = ds.get_split().test
+    q = ds.joints()[test][:n_steps]
+    p = ds.poses()[test][:n_steps]
+    out: dict[str, Any] = {}
+    for name, x in (("fk", q), ("ik", p)):
+        model = ctx.models[f"{name}_lstm_mlp"]
+        model.reset()
+        for v in x[:50]:  # warm-up (numba dispatch, caches)
+            model.step(v)
+        model.reset()
+        t = np.empty(len(x))
+        for k, v in enumerate(x):
+            t0 = time.perf_counter()
+            model.step(v)
+            t[k] = time.perf_counter() - t0
+        out[name] = timing_stats(t)
+    return out

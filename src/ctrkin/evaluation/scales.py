@@ -1,0 +1,82 @@
+"""How big a reproduction is: data sizes and training budgets of `ctrkin reproduce --scale`."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+from ctrkin.errors import CtrkinError
+
+
+@dataclass(frozen=True)
+class Budget:
+    """Training budget of one role of model: epochs (max), early-stopping patience, batch size."""
+
+    epochs: int
+    patience: int
+    batch_size: int
+
+
+@dataclass(frozen=True)
+class ReproScale:
+    """paper_levels / paper_outer_step_deg: the training protocol (None: the protocol's own);
+    main: the LSTM-MLP FK and IK models; compare: baselines and the Δα0 ablation; grid: the IB and
+    structure grids (Tables II, III); grid_sequences: how many training sequences the grid and
+    comparison models see (None: all); ib_grid / structure_grid: what the grids cover."""
+
+    name: str
+    protocol_scale: str
+    paper_levels: tuple[float, ...] | None
+    paper_outer_step_deg: float | None
+    main: Budget
+    compare: Budget
+    grid: Budget
+    grid_sequences: int | None
+    ib_grid: tuple[int, ...] = (1, 2, 3, 4, 5)
+    structure_grid: tuple[str, ...] = ("S1", "S2", "S3", "S4", "S5")
+    structure_ibs: tuple[int, ...] = (2, 3)
+
+    def to_dict(self) -> dict[str, object]:
+        return asdict(self)
+
+
+SCALES = {
+    # the paper's protocol and training (Adam 1e-3, batch 32, up to 500 epochs, early stopping)
+    "full": ReproScale(
+        "full",
+        "full",
+        None,
+        None,
+        main=Budget(500, 20, 32),
+        compare=Budget(500, 20, 32),
+        grid=Budget(500, 20, 32),
+        grid_sequences=None,
+    ),
+    # the README's main job: minutes on two cores; 3 levels × 12 outer angles × 721 samples
+    "quick": ReproScale(
+        "quick",
+        "quick",
+        (4.0, 12.0, 20.0),
+        30.0,
+        main=Budget(40, 6, 64),
+        compare=Budget(12, 4, 128),
+        grid=Budget(8, 3, 128),
+        grid_sequences=18,
+    ),
+    # the CI test of the whole pipeline: every step and key, seconds of training
+    "tiny": ReproScale(
+        "tiny",
+        "quick",
+        (4.0, 20.0),
+        90.0,
+        main=Budget(2, 2, 256),
+        compare=Budget(1, 1, 512),
+        grid=Budget(1, 1, 512),
+        grid_sequences=4,
+    ),
+}
+
+
+def get_scale(name: str) -> ReproScale:
+    if name not in SCALES:
+        raise CtrkinError(f"unknown scale {name!r}; choose one of {sorted(SCALES)}")
+    return SCALES[name]
