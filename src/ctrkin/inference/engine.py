@@ -26,51 +26,73 @@ from torch import nn
 from ctrkin.errors import ModelError
 from ctrkin.models.seqnet import SeqNet
 
+_LN2_HI, _LN2_LO, _INV_LN2 = 0.693147180369123816490, 1.90821492927058770002e-10, 1.4426950408889634
+
+
+@numba.njit(cache=True, fastmath=True)
+def _sigmoid_inplace(x: np.ndarray, bits: np.ndarray) -> None:
+    """x <- 1 / (1 + exp(-x)), elementwise on a 1-D array, in loops LLVM vectorises.
+
+    numba's scalar np.exp calls libm one value at a time (no SVML here), which cost more than the
+    matrix products; this exp uses Cody-Waite reduction, a degree-11 Taylor polynomial on |r| <= ln2/2
+    (relative error < 1e-14) and 2^k built in the exponent bits. bits: int64 scratch of x's size.
+    """
+    n = x.size
+    for j in range(n):
+        v = min(max(-x[j], -700.0), 700.0)
+        k = np.floor(v * _INV_LN2 + 0.5)
+        r = (v - k * _LN2_HI) - k * _LN2_LO
+        p = 1.0 + r * (1.0 + r * (1.0 / 2 + r * (1.0 / 6 + r * (1.0 / 24 + r * (1.0 / 120 + r * (
+            1.0 / 720 + r * (1.0 / 5040 + r * (1.0 / 40320 + r * (1.0 / 362880 + r * (
+                1.0 / 3628800 + r * (1.0 / 39916800)))))))))))
+        x[j] = p
+        bits[j] = (np.int64(k) + 1023) << 52
+    two_k = bits[:n].view(np.float64)
+    for j in range(n):
+        x[j] = 1.0 / (1.0 + x[j] * two_k[j])
+
 
 @numba.njit(cache=True, fastmath=True)
 def _lstm_rows(inp: np.ndarray, shared: bool, w_ih: np.ndarray, w_hh: np.ndarray, b: np.ndarray,
-               h_prev: np.ndarray, c_prev: np.ndarray, h_new: np.ndarray, c_new: np.ndarray) -> None:
+               h_prev: np.ndarray, c_prev: np.ndarray, h_new: np.ndarray, c_new: np.ndarray,
+               g: np.ndarray, t: np.ndarray, bits: np.ndarray) -> None:
     """One LSTM cell update for each of R chains (torch gate order i, f, g, o).
 
     inp: (R, in) inputs (row 0 only if `shared`); h_prev, c_prev: (R, H) chain states before this
     step, row j is the chain that becomes row j+1; row 0 of the result starts from zero state.
+    w_ih, w_hh, b have the cell-candidate rows doubled, so that tanh(g) = 2·σ(2g) − 1 comes out of
+    one sigmoid pass over all gates. Scratch: g (R, 4H), t (R, H), bits (R·4H,) int64.
     """
     r_count, hid = h_new.shape
     n_in = inp.shape[1]
-    g = np.empty(4 * hid)
-    gx = np.empty(4 * hid)
-    if shared:
-        for k in range(4 * hid):
-            s = b[k]
-            for m in range(n_in):
-                s += w_ih[k, m] * inp[0, m]
-            gx[k] = s
     for r in range(r_count):
-        if shared:
+        if shared and r > 0:        # same input for every chain: reuse row 0's projection
             for k in range(4 * hid):
-                g[k] = gx[k]
+                g[r, k] = g[0, k]
         else:
             for k in range(4 * hid):
                 s = b[k]
                 for m in range(n_in):
                     s += w_ih[k, m] * inp[r, m]
-                g[k] = s
-        if r > 0:
-            for k in range(4 * hid):
-                s = 0.0
-                for m in range(hid):
-                    s += w_hh[k, m] * h_prev[r - 1, m]
-                g[k] += s
+                g[r, k] = s
+    for r in range(1, r_count):
+        for k in range(4 * hid):
+            s = 0.0
+            for m in range(hid):
+                s += w_hh[k, m] * h_prev[r - 1, m]
+            g[r, k] += s
+    _sigmoid_inplace(g.reshape(-1), bits)
+    for r in range(r_count):
         for u in range(hid):
-            i = 1.0 / (1.0 + np.exp(-g[u]))
-            f = 1.0 / (1.0 + np.exp(-g[hid + u]))
-            gg = np.tanh(g[2 * hid + u])
-            o = 1.0 / (1.0 + np.exp(-g[3 * hid + u]))
-            c = i * gg
+            c = g[r, u] * (2.0 * g[r, 2 * hid + u] - 1.0)       # σ(i)·tanh(g)
             if r > 0:
-                c += f * c_prev[r - 1, u]
+                c += g[r, hid + u] * c_prev[r - 1, u]          # + σ(f)·c
             c_new[r, u] = c
-            h_new[r, u] = o * np.tanh(c)
+            t[r, u] = 2.0 * c
+    _sigmoid_inplace(t.reshape(-1), bits)
+    for r in range(r_count):
+        for u in range(hid):
+            h_new[r, u] = g[r, 3 * hid + u] * (2.0 * t[r, u] - 1.0)    # σ(o)·tanh(c)
 
 
 @numba.njit(cache=True, fastmath=True)
@@ -104,9 +126,12 @@ class StreamingEngine:
         width = net.n_inputs
         for layer in net.seq:
             if isinstance(layer, nn.LSTM):
-                self.seq.append(("lstm", (f64(layer.weight_ih_l0), f64(layer.weight_hh_l0),
-                                          f64(layer.bias_ih_l0) + f64(layer.bias_hh_l0))))
-                width = layer.hidden_size
+                hid = layer.hidden_size
+                scale = np.ones((4 * hid, 1))
+                scale[2 * hid:3 * hid] = 2.0          # see _lstm_rows: tanh(g) = 2σ(2g) − 1
+                self.seq.append(("lstm", (f64(layer.weight_ih_l0) * scale, f64(layer.weight_hh_l0) * scale,
+                                          (f64(layer.bias_ih_l0) + f64(layer.bias_hh_l0)) * scale[:, 0])))
+                width = hid
             else:
                 assert isinstance(layer, nn.Linear)
                 self.seq.append(("dense", (f64(layer.weight), f64(layer.bias))))
@@ -120,6 +145,9 @@ class StreamingEngine:
         self._c = [np.zeros_like(h) for h in self._h]
         self._h2 = [np.zeros_like(h) for h in self._h]
         self._c2 = [np.zeros_like(h) for h in self._h]
+        self._g = [np.zeros((ib, 4 * h.shape[-1])) if h.ndim == 2 else np.zeros((0, 0)) for h in self._h]
+        self._t = [np.zeros_like(h) for h in self._h]
+        self._bits = [np.zeros(g.size, dtype=np.int64) for g in self._g]
         self._rows = [np.zeros((ib, w[0].shape[0] if kind == "dense" else w[1].shape[1]))
                       for kind, w in self.seq]
         self._hist = np.zeros((ib, ib, width))    # chain j's outputs at positions 0..j
@@ -146,7 +174,8 @@ class StreamingEngine:
         shared = True
         for k, (kind, w) in enumerate(self.seq):
             if kind == "lstm":
-                _lstm_rows(inp, shared, w[0], w[1], w[2], self._h[k], self._c[k], self._h2[k], self._c2[k])
+                _lstm_rows(inp, shared, w[0], w[1], w[2], self._h[k], self._c[k], self._h2[k], self._c2[k],
+                           self._g[k], self._t[k], self._bits[k])
                 self._h[k], self._h2[k] = self._h2[k], self._h[k]
                 self._c[k], self._c2[k] = self._c2[k], self._c[k]
                 inp = self._h[k]
