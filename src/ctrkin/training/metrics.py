@@ -22,7 +22,11 @@ def pose_errors(pred: np.ndarray, ref: np.ndarray) -> dict[str, float]:
 
 def joint_errors(pred: np.ndarray, ref: np.ndarray, n_tubes: int) -> dict[str, float]:
     """pred, ref: (T, 2N) joints (deg, mm). Per sample the Euclidean norm of the α error (deg) and
-    of the β error (mm) (paper III.A: distance in joint space), then RMSE/MAE/max over samples."""
+    of the β error (mm) (paper III.A: distance in joint space), then RMSE/MAE/max over samples.
+    alpha_wrapped_deg: the α errors taken modulo 360° first (α and α + 360° turn the tube base to the
+    same place; the unwrapped value is ambiguous from a pose at the ends of a full turn)."""
     d = np.asarray(pred, float) - np.asarray(ref, float)
+    wrapped = (d[:, :n_tubes] + 180.0) % 360.0 - 180.0
     return {**_stats(np.linalg.norm(d[:, :n_tubes], axis=1), "alpha_deg"),
+            **_stats(np.linalg.norm(wrapped, axis=1), "alpha_wrapped_deg"),
             **_stats(np.linalg.norm(d[:, n_tubes:], axis=1), "beta_mm"), "n": len(pred)}
