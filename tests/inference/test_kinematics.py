@@ -119,3 +119,14 @@ def test_batch_predict_accepts_sequence_ids(model_dirs, sweeps):
     same = np.setdiff1d(np.arange(len(sid)), np.r_[starts, np.add(starts, 1)])
     np.testing.assert_allclose(one[same], kin.predict(sweeps)[same], atol=1e-6)
 
+
+
+def test_streaming_workspace_check_matches_batch(model_dirs, sweeps):
+    kin = Kinematics.load(model_dirs["ik"])
+    poses = sweeps.poses()[:200].copy()
+    poses[50:80, 1] += np.linspace(0.0, 30.0, 30)        # a detour out of the workspace and back
+    batch = kin.predict(poses)
+    assert 0 < batch.in_workspace.sum() < len(poses)
+    kin.reset()
+    flags = [kin.step(p).in_workspace for p in poses]
+    np.testing.assert_array_equal(flags, batch.in_workspace)

@@ -100,6 +100,7 @@ class Kinematics:
         self._engine = StreamingEngine(self.net) if isinstance(self.net, SeqNet) else None
         self._window: deque[np.ndarray] = deque(maxlen=self.layout.ib)
         self._prev: np.ndarray | None = None
+        self._ws_hint = 0      # nearest training target of the previous IK step (Workspace.check_one)
         self._fast_fk = self.layout.task == "fk" and self.layout.angle_encoding == "minmax"
 
     # --- loading ---------------------------------------------------------------------------------
@@ -233,7 +234,7 @@ class Kinematics:
         if not check:
             return IKStep(y, True, "")
         assert self.workspace is not None
-        ok, _, reasons = self.workspace.check(raw[None])
-        if strict and not ok[0]:
-            raise ModelError(f"IK target outside the trained workspace: {reasons[0]}")
-        return IKStep(y, bool(ok[0]), reasons[0])
+        ok, reason, self._ws_hint = self.workspace.check_one(raw, self._ws_hint)
+        if strict and not ok:
+            raise ModelError(f"IK target outside the trained workspace: {reason}")
+        return IKStep(y, ok, reason)

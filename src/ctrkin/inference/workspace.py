@@ -66,6 +66,22 @@ class Workspace:
             reasons[t] = self._reason(p[t], z[t], float(dist[t]))
         return ~(bad_range | far), dist, reasons
 
+    def check_one(self, pose: np.ndarray, hint: int) -> tuple[bool, str, int]:
+        """Streaming check of one raw target (6,), the same verdict as `check`, usually without a tree
+        query: a target within `threshold` of the training point `hint` (the previous target's nearest)
+        is inside. Returns (in_workspace, reason, new hint)."""
+        z = (pose - self.norm.lo) / self.norm.span
+        if not (np.all(z >= -self.margin) and np.all(z <= 1 + self.margin)):
+            d, hint = self._tree.query(z, k=1)
+            return False, self._reason(pose, z, float(d)), int(hint)
+        diff = z - self.points[hint]
+        if float(diff @ diff) <= self.threshold * self.threshold:
+            return True, "", hint
+        d, hint = self._tree.query(z, k=1)
+        if d <= self.threshold:
+            return True, "", int(hint)
+        return False, self._reason(pose, z, float(d)), int(hint)
+
     def _reason(self, p: np.ndarray, z: np.ndarray, dist: float) -> str:
         parts = []
         for k in np.nonzero((z < -self.margin) | (z > 1 + self.margin))[0]:
