@@ -99,7 +99,7 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
     best_weights = {k: v.clone() for k, v in net.state_dict().items()}
     ckpt = out / CHECKPOINT
     if ckpt.is_file() and not overwrite:
-        saved = torch.load(ckpt, map_location="cpu", weights_only=False)
+        saved = torch.load(ckpt, map_location="cpu", weights_only=True)
         old = TrainConfig.from_dict(saved["config"])
         diffs = old.differences(cfg)
         if saved["data_signature"] != signature:
