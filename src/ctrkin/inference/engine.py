@@ -121,7 +121,6 @@ class StreamingEngine:
         self.ib = net.ib
         self.pooling = net.pooling
         self.relu_out = net.output_activation == "relu"
-        f64 = _f64
         self.seq: list[tuple[str, tuple[np.ndarray, ...]]] = []
         width = net.n_inputs
         for layer in net.seq:
@@ -129,16 +128,15 @@ class StreamingEngine:
                 hid = layer.hidden_size
                 scale = np.ones((4 * hid, 1))
                 scale[2 * hid:3 * hid] = 2.0          # see _lstm_rows: tanh(g) = 2σ(2g) − 1
-                self.seq.append(("lstm", (f64(layer.weight_ih_l0) * scale, f64(layer.weight_hh_l0) * scale,
-                                          (f64(layer.bias_ih_l0) + f64(layer.bias_hh_l0)) * scale[:, 0])))
+                self.seq.append(("lstm", (_f64(layer.weight_ih_l0) * scale, _f64(layer.weight_hh_l0) * scale,
+                                          (_f64(layer.bias_ih_l0) + _f64(layer.bias_hh_l0)) * scale[:, 0])))
                 width = hid
             else:
                 assert isinstance(layer, nn.Linear)
-                self.seq.append(("dense", (f64(layer.weight), f64(layer.bias))))
+                self.seq.append(("dense", (_f64(layer.weight), _f64(layer.bias))))
                 width = layer.out_features
-        self.seq_width = width
-        self.head = [(f64(lin.weight), f64(lin.bias)) for lin in net.head]
-        self.out = (f64(net.out.weight), f64(net.out.bias))
+        self.head = [(_f64(lin.weight), _f64(lin.bias)) for lin in net.head]
+        self.out = (_f64(net.out.weight), _f64(net.out.bias))
         ib = self.ib
         self._h = [np.zeros((ib, w[1].shape[1])) if kind == "lstm" else np.zeros(0)
                    for kind, w in self.seq]
