@@ -6,7 +6,6 @@ never leaves a half-written dataset and never loses the one that was there.
 
 from __future__ import annotations
 
-import itertools
 import json
 import shutil
 import tempfile
@@ -123,9 +122,7 @@ class Dataset:
 
     def sequence_bounds(self) -> list[tuple[int, int]]:
         """[(start, stop)) row ranges of the sequences, in file order."""
-        sid = self.frame["sequence_id"].to_numpy()
-        edges = np.r_[0, np.nonzero(sid[1:] != sid[:-1])[0] + 1, len(sid)]
-        return [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
+        return schema.sequence_bounds(self.frame["sequence_id"].to_numpy())
 
     def get_split(self, seed: int = 0) -> Split:
         """The saved split, or a by-sequence 70:15:15 split made (and kept) on first use."""

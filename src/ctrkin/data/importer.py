@@ -25,7 +25,6 @@ the history seen by the input buffer is broken there).
 from __future__ import annotations
 
 import hashlib
-import itertools
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -311,7 +310,7 @@ def import_csv(path: str | Path, robot: Robot, config: ImportConfig | None = Non
                                    f"after {v[r - 1]:g}; the log must be sorted by {f} within each "
                                    "sequence")
     if cfg.unwrap:
-        for a, b in _bounds(sequence):
+        for a, b in schema.sequence_bounds(sequence):
             joints[a:b, :n] = np.unwrap(joints[a:b, :n], period=360.0, axis=0)
 
     # --- cleaning -----------------------------------------------------------------------------------
@@ -327,10 +326,10 @@ def import_csv(path: str | Path, robot: Robot, config: ImportConfig | None = Non
     if "step" in values:
         s_step = values["step"][first].astype(np.int64)
     else:
-        s_step = np.concatenate([np.arange(b - a) for a, b in _bounds(s_seq)]).astype(np.int64)
+        s_step = np.concatenate([np.arange(b - a) for a, b in schema.sequence_bounds(s_seq)]).astype(np.int64)
     glitch = np.zeros(len(first), dtype=bool)
     pose_out = np.zeros(len(first), dtype=bool)
-    for a, b in _bounds(s_seq):
+    for a, b in schema.sequence_bounds(s_seq):
         glitch[a:b] = cleaning.glitch_mask(s_joints[a:b], n, cc)
         pose_out[a:b] = cleaning.pose_outlier_mask(s_pos[a:b], s_tan[a:b], cc) & ~glitch[a:b]
     outlier = glitch | pose_out
@@ -345,7 +344,7 @@ def import_csv(path: str | Path, robot: Robot, config: ImportConfig | None = Non
         snap = snap_read[idx]
     else:
         snap = np.zeros(len(idx), dtype=bool)
-        for a, b in _bounds(s_seq):
+        for a, b in schema.sequence_bounds(s_seq):
             snap[a:b] = cleaning.snap_mask(s_joints[a:b], s_pos[a:b], n, cc)
     if np.abs(s_pos).max() < 1.0:
         warnings.append("every tip position is within 1 mm of the origin: are the positions in metres? "
@@ -453,12 +452,6 @@ def _sequences(labels: np.ndarray | None, time: np.ndarray | None, line: np.ndar
         new[1:] = dt > gap
     seq = np.cumsum(new).astype(np.int64)
     return seq, [f"segment {k}" for k in range(int(seq[-1]) + 1)]
-
-
-def _bounds(sequence: np.ndarray) -> list[tuple[int, int]]:
-    """[(start, stop)) of the runs of equal values in a contiguous (S,) sequence index."""
-    edges = np.r_[0, np.nonzero(np.diff(sequence))[0] + 1, len(sequence)]
-    return [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
 
 
 def _sha256(path: Path) -> str:

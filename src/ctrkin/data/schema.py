@@ -23,6 +23,10 @@ Readers refuse other versions with a message saying which side to upgrade.
 
 from __future__ import annotations
 
+import itertools
+
+import numpy as np
+
 FORMAT_VERSION = 1
 POSE_COLUMNS = ["x", "y", "z", "q0", "qx", "qy"]
 TRUE_POSE_COLUMNS = [f"true_{c}" for c in POSE_COLUMNS]
@@ -60,3 +64,12 @@ def column_unit(column: str) -> str:
     if base == "time":
         return "log unit"
     return ""
+
+
+def sequence_bounds(sequence_id: np.ndarray) -> list[tuple[int, int]]:
+    """[(start, stop)) row ranges of the runs of equal, contiguous sequence ids (T,), in order."""
+    sid = np.asarray(sequence_id)
+    if sid.size == 0:
+        return []
+    edges = np.r_[0, np.nonzero(sid[1:] != sid[:-1])[0] + 1, len(sid)]
+    return [(int(a), int(b)) for a, b in itertools.pairwise(edges)]

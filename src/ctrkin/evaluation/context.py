@@ -10,8 +10,9 @@ from typing import Any
 import numpy as np
 
 from ctrkin.data.dataset import Dataset
+from ctrkin.data.schema import sequence_bounds
 from ctrkin.evaluation.datasets import ReproData, registered_truth
-from ctrkin.evaluation.metrics import pose_errors, sequence_bounds
+from ctrkin.evaluation.metrics import pose_errors
 from ctrkin.evaluation.tcm_baseline import TCMBaseline
 from ctrkin.inference import Kinematics
 

@@ -9,8 +9,9 @@ from typing import Any
 import numpy as np
 
 from ctrkin.acquisition.plan import move
+from ctrkin.data.schema import sequence_bounds
 from ctrkin.evaluation.context import Context, bounds, summary, valid_rows
-from ctrkin.evaluation.metrics import joint_errors, sequence_bounds
+from ctrkin.evaluation.metrics import joint_errors
 from ctrkin.virtual import VirtualRobot
 from ctrkin.virtual.transmission import clip_to_valid
 from ctrkin.viz import experiments as fig

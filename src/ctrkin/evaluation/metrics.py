@@ -7,7 +7,6 @@ Euclidean norm of the α error (deg) and of the β error (mm) (paper III.A), the
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,15 +49,6 @@ def joint_errors(pred: np.ndarray, ref: np.ndarray, n_tubes: int) -> dict[str, d
         "alpha_deg": error_stats(np.linalg.norm(d[:, :n_tubes], axis=1)),
         "beta_mm": error_stats(np.linalg.norm(d[:, n_tubes:], axis=1)),
     }
-
-
-def sequence_bounds(sequence_id: np.ndarray) -> list[tuple[int, int]]:
-    """[(start, stop)) row ranges of contiguous sequence ids."""
-    sid = np.asarray(sequence_id)
-    if sid.size == 0:
-        return []
-    edges = np.r_[0, np.nonzero(sid[1:] != sid[:-1])[0] + 1, len(sid)]
-    return [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
 
 
 def azimuth_series(
