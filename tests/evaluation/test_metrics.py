@@ -46,6 +46,15 @@ def test_joint_errors_norms() -> None:
     assert e["alpha_deg"]["rmse"] == pytest.approx(5.0) and e["beta_mm"]["rmse"] == pytest.approx(1.0)
 
 
+def test_joint_errors_wrap_full_turns() -> None:
+    pred = np.array([[359.0, 10.0, -1.0, 0.0], [-170.0, 720.0, -1.0, 0.0]])
+    ref = np.array([[-1.0, 370.0, -1.0, 0.0], [170.0, 0.0, -1.0, 0.0]])
+    e = joint_errors(pred, ref, 2)
+    assert e["alpha_deg"]["max"] == pytest.approx(20.0)  # (0, 0) and (20, 0)
+    assert e["alpha_deg"]["rmse"] == pytest.approx(np.sqrt(200.0))
+    assert e["beta_mm"]["max"] == 0.0
+
+
 def test_azimuth_wraps_across_180_and_is_relative_to_outer_alpha() -> None:
     th = np.radians(np.array([170.0, 179.0, -179.0, -170.0]))
     poses = np.c_[np.cos(th), np.sin(th), np.ones(4), np.ones(4), np.zeros((4, 2))]

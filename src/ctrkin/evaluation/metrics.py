@@ -42,9 +42,18 @@ def pose_errors(
     }
 
 
+def wrap_deg(a: np.ndarray) -> np.ndarray:
+    """Angles (deg) wrapped to [−180, 180)."""
+    return (np.asarray(a, float) + 180.0) % 360.0 - 180.0
+
+
 def joint_errors(pred: np.ndarray, ref: np.ndarray, n_tubes: int) -> dict[str, dict[str, float]]:
-    """pred, ref: (T, 2N) joints (deg, mm) -> {"alpha_deg": stats, "beta_mm": stats}."""
+    """pred, ref: (T, 2N) joints (deg, mm) -> {"alpha_deg": stats, "beta_mm": stats}.
+
+    α differences are wrapped to [−180°, 180°): data angles are unwrapped, but a tube turned by a full
+    turn is the same configuration, which no pose can tell apart."""
     d = np.asarray(pred, float) - np.asarray(ref, float)
+    d[:, :n_tubes] = wrap_deg(d[:, :n_tubes])
     return {
         "alpha_deg": error_stats(np.linalg.norm(d[:, :n_tubes], axis=1)),
         "beta_mm": error_stats(np.linalg.norm(d[:, n_tubes:], axis=1)),
