@@ -10,7 +10,8 @@ the weight values. Goals (issue 4): streaming median <= 50 µs on one core (pape
 
 Streaming: Kinematics.step() (features, normalisation, numba engine, denormalisation), one thread.
 For reference also one torch module call on a (1, IB, F) window. Batch: Kinematics.predict() on one
-long sequence (features + windows + torch under inference_mode), 1 and 2 threads.
+long sequence (features, chain batch path in torch under inference_mode, IK workspace check), 1 and 2
+threads, and the network alone (chain batch path on ready features).
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ import numpy as np
 import torch
 
 from ctrkin.inference import Kinematics
+from ctrkin.inference.batch import padded_rows, seqnet_predict
+from ctrkin.models import SeqNet
 
 
 def _latency(fn: Any, inputs: np.ndarray, warmup: int = 500) -> dict[str, float]:
@@ -92,6 +95,15 @@ def main() -> None:
             with torch.inference_mode():
                 r["torch_module_single_window"] = _latency(lambda _x, w=win, k=kin: k.net(w), xs[:3000])
             big = _inputs(kin, args.batch)
+            if isinstance(kin.net, SeqNet):    # the network alone (chain batch path), no features/checks
+                feats = np.random.default_rng(0).random((args.batch, kin.layout.n_inputs))
+                padded, starts = padded_rows(feats, [(0, args.batch)], kin.ib)
+                for threads in (1, 2):
+                    torch.set_num_threads(threads)
+                    seqnet_predict(kin.net, padded[:5000], starts[:4000])
+                    t0 = time.perf_counter()
+                    seqnet_predict(kin.net, padded, starts)
+                    r[f"network_only_per_s_{threads}_threads"] = args.batch / (time.perf_counter() - t0)
             for threads in (1, 2):
                 torch.set_num_threads(threads)
                 kin.predict(big[:5000])
@@ -110,8 +122,11 @@ def main() -> None:
             print(f"   without workspace check: median {s2['median_us']:.1f} µs, p95 {s2['p95_us']:.1f} µs")
         t = r["torch_module_single_window"]
         print(f"   torch module call on one window: median {t['median_us']:.1f} µs")
-        print(f"   batch: {r['batch_predictions_per_s_1_threads']:,.0f} /s (1 thread), "
+        print(f"   batch predict(): {r['batch_predictions_per_s_1_threads']:,.0f} /s (1 thread), "
               f"{r['batch_predictions_per_s_2_threads']:,.0f} /s (2 threads)")
+        if "network_only_per_s_1_threads" in r:
+            print(f"   network only: {r['network_only_per_s_1_threads']:,.0f} /s (1 thread), "
+                  f"{r['network_only_per_s_2_threads']:,.0f} /s (2 threads)")
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(report, indent=2))

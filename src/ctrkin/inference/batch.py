@@ -77,7 +77,7 @@ def _lstm_positions(weights: tuple[torch.Tensor, torch.Tensor, torch.Tensor], in
 
 
 @torch.inference_mode()
-def seqnet_predict(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: int = 4096) -> np.ndarray:
+def seqnet_predict(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: int = 1024) -> np.ndarray:
     """padded: (P, F) normalised features with sequence-start padding; starts: (T,) window starts.
     Returns (T, O) normalised outputs, equal to net(windows)."""
     ib = net.ib

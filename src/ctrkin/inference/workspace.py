@@ -54,10 +54,11 @@ class Workspace:
 
     def check(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
         """poses: (T, 6) raw targets -> (in_workspace (T,) bool, distance (T,) normalised, reasons),
-        reasons[t] = "" when in the workspace."""
+        reasons[t] = "" when in the workspace. distance is inf where no training target lies within
+        the threshold (the search stops there: far targets would otherwise cost a full tree walk)."""
         p = np.atleast_2d(np.asarray(poses, dtype=np.float64))
         z = self.norm.transform(p)
-        dist, _ = self._tree.query(z, k=1)
+        dist, _ = self._tree.query(z, k=1, distance_upper_bound=self.threshold * (1 + 1e-9))
         out_lo, out_hi = z < -self.margin, z > 1 + self.margin
         bad_range = (out_lo | out_hi).any(axis=1)
         far = dist > self.threshold
@@ -72,15 +73,15 @@ class Workspace:
         is inside. Returns (in_workspace, reason, new hint)."""
         z = (pose - self.norm.lo) / self.norm.span
         if not (np.all(z >= -self.margin) and np.all(z <= 1 + self.margin)):
-            d, hint = self._tree.query(z, k=1)
-            return False, self._reason(pose, z, float(d)), int(hint)
+            d, _ = self._tree.query(z, k=1, distance_upper_bound=self.threshold * (1 + 1e-9))
+            return False, self._reason(pose, z, float(d)), hint
         diff = z - self.points[hint]
         if float(diff @ diff) <= self.threshold * self.threshold:
             return True, "", hint
-        d, hint = self._tree.query(z, k=1)
+        d, nearest = self._tree.query(z, k=1, distance_upper_bound=self.threshold * (1 + 1e-9))
         if d <= self.threshold:
-            return True, "", int(hint)
-        return False, self._reason(pose, z, float(d)), int(hint)
+            return True, "", int(nearest)
+        return False, self._reason(pose, z, float(d)), hint
 
     def _reason(self, p: np.ndarray, z: np.ndarray, dist: float) -> str:
         parts = []
@@ -89,8 +90,8 @@ class Workspace:
             parts.append(f"{POSE_NAMES[k]} = {p[k]:.4g}{_UNITS[k]} is outside the training range "
                          f"[{lo:.4g}, {hi:.4g}]{_UNITS[k]}")
         if dist > self.threshold:
-            parts.append(f"nearest training target is {dist:.3g} away (normalised pose distance; "
-                         f"threshold {self.threshold:.3g})")
+            parts.append(f"no training target within {self.threshold:.3g} (normalised 6-D pose distance, "
+                         f"calibrated on held-out sequences)")
         return "; ".join(parts)
 
     def save(self, folder: str | Path) -> None:
