@@ -45,7 +45,6 @@ def test_fk_beats_constant_predictor_on_held_out_sequences(quick_ds, tmp_path):
     np.testing.assert_allclose(norm["outputs"]["lo"], MinMax.fit(poses[split.train]).lo)
 
 
-@pytest.mark.slow
 def test_history_beats_memoryless_model_on_a_snapping_sequence(tmp_path):
     """Between the two snaps of a full rotation the robot is bistable: the same joints give two poses
     (forward and backward branch). Any memoryless predictor errs by at least half the gap on average
