@@ -26,6 +26,7 @@ from ctrkin.evaluation.scales import SCALES, get_scale
 )
 @robot_option
 @click.option("--robot-seed", default=0, show_default=True, help="The virtual hardware draw.")
+@click.option("--workers", default=2, show_default=True, help="Models trained in parallel (one thread each).")
 @click.option(
     "--out",
     "out_dir",
@@ -34,12 +35,17 @@ from ctrkin.evaluation.scales import SCALES, get_scale
     type=click.Path(file_okay=False),
     help="Output folder.",
 )
-def reproduce_cmd(scale: str, robot_spec: str, robot_seed: int, out_dir: str) -> None:
+def reproduce_cmd(scale: str, robot_spec: str, robot_seed: int, workers: int, out_dir: str) -> None:
     """Collect data, train the models, run every experiment of the paper, write the report."""
     from ctrkin.evaluation.reproduce import reproduce
 
     results = reproduce(
-        get_robot(robot_spec), get_scale(scale), out_dir, robot_seed=robot_seed, log=click.echo
+        get_robot(robot_spec),
+        get_scale(scale),
+        out_dir,
+        robot_seed=robot_seed,
+        workers=workers,
+        log=click.echo,
     )
     fk, ik = results["fk"], results["ik"]["lstm_mlp"]
     click.echo(

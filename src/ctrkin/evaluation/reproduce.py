@@ -36,8 +36,14 @@ NOTES = [
 
 
 def reproduce(
-    robot: Robot, scale: ReproScale, out: str | Path, robot_seed: int = 0, log: Callable[[str], None] = print
+    robot: Robot,
+    scale: ReproScale,
+    out: str | Path,
+    robot_seed: int = 0,
+    workers: int = 2,
+    log: Callable[[str], None] = print,
 ) -> dict[str, Any]:
+    """Run the whole reproduction into `out`; workers: trainings run in parallel (one thread each)."""
     out = Path(out)
     figures = out / "figures"
     figures.mkdir(parents=True, exist_ok=True)
@@ -55,7 +61,7 @@ def reproduce(
     done()
 
     done = stage("train models")
-    models = train_all(data.paper, scale, out / "models", log=log)
+    models = train_all(out / "data" / "paper", scale, out / "models", workers=workers, log=log)
     done()
 
     done = stage("fit the TCM baseline's registration on training rows")

@@ -8,6 +8,8 @@ on the same held-out sequences. Grid and comparison models may see fewer trainin
 
 from __future__ import annotations
 
+import multiprocessing as mp
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -19,6 +21,7 @@ from ctrkin.evaluation.scales import Budget, ReproScale
 from ctrkin.inference import Kinematics
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.loop import train
+from ctrkin.util.progress import progress_bar
 
 BASELINES = ("mlp", "lstm", "cnn", "tcn", "resnet")
 ABLATION = "lstm_mlp_no_delta"
@@ -61,29 +64,54 @@ def plan_runs(scale: ReproScale) -> list[Run]:
     return runs
 
 
-def with_fewer_sequences(ds: Dataset, n_sequences: int | None) -> Dataset:
-    """The same dataset and split, but only the first n training sequences used for training."""
+def with_fewer_sequences(ds: Dataset, n_sequences: int | None, seed: int = 0) -> Dataset:
+    """The same dataset and split, but only n training sequences (a seeded draw, so every level of
+    the protocol is represented) used for training."""
     split = ds.get_split()
     if n_sequences is None:
         return ds
     sid = ds.frame["sequence_id"].to_numpy()
-    train_seqs = np.unique(sid[split.train])[:n_sequences]
-    train = split.train[np.isin(sid[split.train], train_seqs)]
-    small = replace(split, train=train)
+    seqs = np.unique(sid[split.train])
+    keep = np.random.default_rng(seed).choice(seqs, size=min(n_sequences, len(seqs)), replace=False)
+    small = replace(split, train=split.train[np.isin(sid[split.train], keep)])
     return Dataset(ds.frame, ds.robot, ds.meta, split=small)
 
 
-def train_all(ds: Dataset, scale: ReproScale, out: Path, log=print) -> dict[str, Kinematics]:
-    """Train (or resume / reuse) every run into out/<name>; returns the loaded models."""
-    models: dict[str, Kinematics] = {}
+def _train_run(dataset_dir: str, n_sequences: int | None, cfg: dict[str, Any], out: str) -> str:
+    """One run in a worker process (loads the dataset itself: workers are spawned, not forked,
+    because a forked torch/OpenMP runtime can hang)."""
+    ds = Dataset.load(dataset_dir)
+    data = with_fewer_sequences(ds, n_sequences)
+    train(data, TrainConfig.from_dict(cfg), out, overwrite=False, progress=False, log=None)
+    return out
+
+
+def train_all(
+    dataset_dir: Path, scale: ReproScale, out: Path, workers: int = 2, log: Callable[[str], None] = print
+) -> dict[str, Kinematics]:
+    """Train (or resume / reuse) every run into out/<name>, `workers` runs at a time with one torch
+    thread each (two single-threaded runs use two cores better than one run with two threads);
+    returns the loaded models. dataset_dir: the saved paper dataset with its split."""
     runs = plan_runs(scale)
-    small = with_fewer_sequences(ds, scale.grid_sequences)
-    for k, run in enumerate(runs, 1):
-        data = ds if run.role == "main" else small
-        log(
-            f"[{k}/{len(runs)}] train {run.name} ({run.config.task}, {run.config.model}, "
-            f"IB {run.config.ib}, up to {run.config.max_epochs} epochs)"
-        )
-        train(data, run.config, out / run.name, overwrite=False, progress=True, log=None)
-        models[run.name] = Kinematics.load(out / run.name)
-    return models
+    jobs = []
+    for run in runs:
+        cfg = replace(run.config, threads=1).to_dict()
+        n_seq = None if run.role == "main" else scale.grid_sequences
+        jobs.append((str(dataset_dir), n_seq, cfg, str(out / run.name)))
+    with progress_bar(total=len(runs), desc="train models", unit="model") as bar:
+        if workers <= 1:
+            for run, job in zip(runs, jobs, strict=True):
+                _train_run(*job)
+                bar.update(1)
+                log(f"trained {run.name}")
+        else:
+            ctx = mp.get_context("spawn")
+            with ctx.Pool(workers) as pool:
+                pending = {
+                    run.name: pool.apply_async(_train_run, job) for run, job in zip(runs, jobs, strict=True)
+                }
+                for name, res in pending.items():
+                    res.get()
+                    bar.update(1)
+                    log(f"trained {name}")
+    return {run.name: Kinematics.load(out / run.name) for run in runs}
