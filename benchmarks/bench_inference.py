@@ -57,16 +57,18 @@ def _default_models(root: Path) -> tuple[Path, Path]:
 
 
 def _inputs(kin: Kinematics, n: int) -> np.ndarray:
-    """A long continuous input sequence: a full inner rotation back and forth at 1°, repeated."""
+    """A long continuous input sequence. FK: a full inner rotation back and forth at 1°, repeated;
+    IK: the model's training targets in recorded order (continuous paths inside the workspace)."""
     t = np.arange(n)
     a1 = 180.0 - 180.0 * np.cos(2 * np.pi * t / 720.0)
     if kin.task == "fk":
         q = np.zeros((n, 4))
         q[:, 0], q[:, 2] = a1, -14.0
         return q
-    lo, hi = kin.bundle.x_norm.lo[:6], kin.bundle.x_norm.hi[:6]
-    s = 0.5 + 0.3 * np.sin(np.radians(a1))[:, None] * np.linspace(0.5, 1.0, 6)[None, :]
-    return lo + s * (hi - lo)
+    ws = kin.workspace                          # IK targets: the training targets, in recorded order
+    assert ws is not None
+    pts = ws.norm.inverse(ws.points)
+    return pts[np.arange(n) % len(pts)]
 
 
 def main() -> None:
@@ -91,6 +93,10 @@ def main() -> None:
             if name == "ik":
                 kin.reset()
                 r["stream_step_no_workspace_check"] = _latency(lambda x, k=kin: k.step(x, check=False), xs)
+                far = xs.copy()
+                far[:, 0] += 3.0 * kin.bundle.x_norm.span[0]     # far outside: flagged by the range test
+                kin.reset()
+                r["stream_step_outside_workspace"] = _latency(kin.step, far[:3000])
             win = torch.rand(1, kin.ib, kin.layout.n_inputs)
             with torch.inference_mode():
                 r["torch_module_single_window"] = _latency(lambda _x, w=win, k=kin: k.net(w), xs[:3000])
@@ -120,6 +126,9 @@ def main() -> None:
         if "stream_step_no_workspace_check" in r:
             s2 = r["stream_step_no_workspace_check"]
             print(f"   without workspace check: median {s2['median_us']:.1f} µs, p95 {s2['p95_us']:.1f} µs")
+            s3 = r["stream_step_outside_workspace"]
+            print(f"   target outside the workspace: median {s3['median_us']:.1f} µs, "
+                  f"p95 {s3['p95_us']:.1f} µs")
         t = r["torch_module_single_window"]
         print(f"   torch module call on one window: median {t['median_us']:.1f} µs")
         print(f"   batch predict(): {r['batch_predictions_per_s_1_threads']:,.0f} /s (1 thread), "

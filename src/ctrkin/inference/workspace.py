@@ -54,13 +54,16 @@ class Workspace:
 
     def check(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
         """poses: (T, 6) raw targets -> (in_workspace (T,) bool, distance (T,) normalised, reasons),
-        reasons[t] = "" when in the workspace. distance is inf where no training target lies within
-        the threshold (the search stops there: far targets would otherwise cost a full tree walk)."""
+        reasons[t] = "" when in the workspace. distance is the nearest training target's, or inf where
+        none lies within the threshold or the range test already failed (the tree search is bounded:
+        far targets would otherwise cost a full tree walk)."""
         p = np.atleast_2d(np.asarray(poses, dtype=np.float64))
         z = self.norm.transform(p)
-        dist, _ = self._tree.query(z, k=1, distance_upper_bound=self.threshold * (1 + 1e-9))
-        out_lo, out_hi = z < -self.margin, z > 1 + self.margin
-        bad_range = (out_lo | out_hi).any(axis=1)
+        bad_range = ((z < -self.margin) | (z > 1 + self.margin)).any(axis=1)
+        dist = np.full(len(p), np.inf)          # not searched where the range test already failed
+        if (~bad_range).any():
+            dist[~bad_range] = self._tree.query(z[~bad_range], k=1,
+                                                distance_upper_bound=self.threshold * (1 + 1e-9))[0]
         far = dist > self.threshold
         reasons = [""] * len(p)
         for t in np.nonzero(bad_range | far)[0]:
@@ -73,8 +76,7 @@ class Workspace:
         is inside. Returns (in_workspace, reason, new hint)."""
         z = (pose - self.norm.lo) / self.norm.span
         if not (np.all(z >= -self.margin) and np.all(z <= 1 + self.margin)):
-            d, _ = self._tree.query(z, k=1, distance_upper_bound=self.threshold * (1 + 1e-9))
-            return False, self._reason(pose, z, float(d)), hint
+            return False, self._reason(pose, z, np.inf), hint
         diff = z - self.points[hint]
         if float(diff @ diff) <= self.threshold * self.threshold:
             return True, "", hint
@@ -89,7 +91,7 @@ class Workspace:
             lo, hi = self.norm.lo[k], self.norm.hi[k]
             parts.append(f"{POSE_NAMES[k]} = {p[k]:.4g}{_UNITS[k]} is outside the training range "
                          f"[{lo:.4g}, {hi:.4g}]{_UNITS[k]}")
-        if dist > self.threshold:
+        if dist > self.threshold and not parts:
             parts.append(f"no training target within {self.threshold:.3g} (normalised 6-D pose distance, "
                          f"calibrated on held-out sequences)")
         return "; ".join(parts)
