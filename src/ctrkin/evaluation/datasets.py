@@ -16,6 +16,7 @@ from ctrkin.errors import DatasetError
 from ctrkin.evaluation.scales import ReproScale
 from ctrkin.robots.robot import Robot
 from ctrkin.virtual import VirtualConfig, VirtualRobot
+from ctrkin.virtual.truth import tracker_truth
 
 # noise seeds: training and each test experiment see independent measurement noise
 SEEDS = {"paper": 0, "sweeps": 1, "random-points": 2, "arbitrary": 3, "square": 4, "triangle": 5}
@@ -35,23 +36,12 @@ class ReproData:
     triangle: np.ndarray
 
 
-def virtual_from_meta(ds: Dataset) -> VirtualRobot:
-    """Rebuild the virtual robot a dataset was recorded on (its hardware draw is seeded)."""
-    vr = ds.meta.get("virtual_robot")
-    if not isinstance(vr, dict) or "seed" not in vr or "config" not in vr:
-        raise DatasetError("this dataset was not recorded on the virtual robot (no virtual_robot in meta)")
-    virtual = VirtualRobot(ds.robot, VirtualConfig.from_dict(vr["config"]), seed=int(vr["seed"]))
-    recorded = np.asarray(vr["tracker"]["registration_rotation"], float)
-    if not np.allclose(recorded, virtual.tracker.rotation, atol=1e-12):
-        raise DatasetError("the dataset's virtual robot cannot be rebuilt with this ctrkin version")
-    return virtual
-
-
 def registered_truth(ds: Dataset, virtual: VirtualRobot | None = None) -> np.ndarray:
-    """(T, 6) true poses seen by the tracker without noise: the reference a model trained on
-    measurements should reach (its frame and sensor offset are the tracker's)."""
-    v = virtual or virtual_from_meta(ds)
-    return v.tracker.registered(ds.poses(true=True))
+    """(T, 6) noise-free tracker view of the true poses (see ctrkin.virtual.truth)."""
+    truth = tracker_truth(ds, virtual)
+    if truth is None:
+        raise DatasetError("this dataset has no virtual-robot truth (true_* columns and virtual_robot meta)")
+    return truth
 
 
 def collect(

@@ -25,5 +25,15 @@ class KinematicsNet(nn.Module):
         self.n_inputs, self.n_outputs, self.ib = n_inputs, n_outputs, ib
         self.output_activation = output_activation
 
+    def init_output_bias(self) -> None:
+        """Start every output unit at the middle of the normalised target range [0, 1] (bias 0.5).
+        Under the paper's final ReLU (eq. 7) a unit whose pre-activation starts negative for all
+        inputs gets no gradient and stays dead, predicting the minimum of its target for ever (seen on
+        the quick reproduction: a constant quaternion component, 60° orientation RMSE)."""
+        out = getattr(self, "out", None)
+        if isinstance(out, nn.Linear) and out.bias is not None:
+            with torch.no_grad():
+                out.bias.fill_(0.5)
+
     def finish(self, y: torch.Tensor) -> torch.Tensor:
         return torch.relu(y) if self.output_activation == "relu" else y

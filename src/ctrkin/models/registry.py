@@ -84,4 +84,6 @@ def build_model(name: str, n_inputs: int, n_outputs: int, ib: int, output_activa
                 options: dict[str, Any] | None = None) -> KinematicsNet:
     """A fresh (randomly initialised, seed it with torch.manual_seed) network by registry name."""
     entry = get_entry(name)
-    return entry.build(n_inputs, n_outputs, ib, output_activation, **resolve_options(name, options))
+    net = entry.build(n_inputs, n_outputs, ib, output_activation, **resolve_options(name, options))
+    net.init_output_bias()
+    return net

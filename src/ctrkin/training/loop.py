@@ -30,6 +30,7 @@ from ctrkin.training.data import Prepared, data_signature, prepare
 from ctrkin.training.metrics import joint_errors, pose_errors
 from ctrkin.util.files import atomic_path, atomic_write_text
 from ctrkin.util.progress import progress_bar
+from ctrkin.virtual.truth import tracker_truth
 
 CHECKPOINT = "checkpoint.pt"
 
@@ -171,6 +172,7 @@ def evaluate(bundle: ModelBundle, ds: Dataset, prep: Prepared) -> dict[str, Any]
     """Loss (normalised MAE) and physical errors on the validation and test rows."""
     res: dict[str, Any] = {}
     n = ds.n_tubes
+    truth = tracker_truth(ds) if prep.layout.task == "fk" and prep_pose_source(bundle) == "measured" else None
     for part in ("val", "test"):
         rows = prep.rows[part]
         if len(rows) == 0:
@@ -180,12 +182,19 @@ def evaluate(bundle: ModelBundle, ds: Dataset, prep: Prepared) -> dict[str, Any]
         pred = postprocess(prep.layout, prep.y_norm.inverse(yn))
         if prep.layout.task == "fk":
             m["vs_measured"] = pose_errors(pred, ds.poses()[rows])
-            if ds.has_truth:
+            if truth is not None:  # the truth as the tracker sees it: the model's frame and sensor point
+                m["vs_true"] = pose_errors(pred, truth[rows])
+            elif ds.has_truth:
                 m["vs_true"] = pose_errors(pred, ds.poses(true=True)[rows])
         else:
             m["joints"] = joint_errors(pred, ds.joints()[rows], n)
         res[part] = m
     return res
+
+
+def prep_pose_source(bundle: ModelBundle) -> str:
+    """Which pose columns the model learned from ("measured" or "true")."""
+    return str(bundle.config.get("pose_source", "measured"))
 
 
 def _write_history(path: Path, history: list[dict[str, float]]) -> None:
