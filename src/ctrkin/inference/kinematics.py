@@ -26,12 +26,12 @@ import numpy as np
 import torch
 
 from ctrkin.data.dataset import Dataset
+from ctrkin.data.schema import sequence_bounds
 from ctrkin.errors import ModelError
 from ctrkin.inference.batch import padded_rows, seqnet_predict
 from ctrkin.inference.engine import StreamingEngine
 from ctrkin.inference.workspace import WORKSPACE_FILE, Workspace
 from ctrkin.models.features import (
-    bounds_from_ids,
     check_raw,
     postprocess,
     sequence_features,
@@ -146,7 +146,7 @@ class Kinematics:
         sid = np.asarray(sequence_id)
         if sid.shape != (len(raw),):
             raise ModelError(f"sequence_id must have shape ({len(raw)},), got {sid.shape}")
-        return raw, bounds_from_ids(sid)
+        return raw, sequence_bounds(sid)
 
     def feature_windows(self, data: Dataset | np.ndarray, sequence_id: np.ndarray | None = None
                         ) -> np.ndarray:

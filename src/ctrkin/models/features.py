@@ -17,7 +17,6 @@ cross a sequence boundary: the start of a sequence is padded by repeating its fi
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -186,15 +185,6 @@ def window_index(bounds: list[tuple[int, int]], ib: int) -> np.ndarray:
 def windows(features: np.ndarray, bounds: list[tuple[int, int]], ib: int) -> np.ndarray:
     """features: (T, F) -> (T, IB, F) input buffers that never cross a sequence boundary."""
     return features[window_index(bounds, ib)]
-
-
-def bounds_from_ids(sequence_id: np.ndarray) -> list[tuple[int, int]]:
-    """[(start, stop)) of the runs of equal ids (sequences must be contiguous)."""
-    sid = np.asarray(sequence_id)
-    if len(sid) == 0:
-        return []
-    edges = np.r_[0, np.nonzero(sid[1:] != sid[:-1])[0] + 1, len(sid)]
-    return [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
 
 
 def postprocess(layout: FeatureLayout, y: np.ndarray) -> np.ndarray:
