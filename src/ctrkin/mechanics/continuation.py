@@ -21,9 +21,9 @@ from ctrkin.mechanics.pointwise import (
     _newton,
     _prepare,
     _search,
-    _solve_prepared,
     _stable,
     _twisted_guesses,
+    cold_solution,
     solve,
 )
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS, SolverSettings
@@ -101,12 +101,10 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
         # fold: no stable equilibrium near the current one, however small the step
         guesses = [x, *_twisted_guesses(pb, x), *_twisted_guesses(pb, np.zeros_like(x))]
         found = [c for c in _search(pb, guesses, settings) if _stable(c)]
-        if not found:
-            eq = _solve_prepared(pb, None, settings)
-            found_x = eq.x
-            sol = _newton(pb, found_x, settings)
-        else:
+        if found:
             sol = min(found, key=lambda c: _distance(c[0], x, pb.arrays.lengths))
+        else:
+            sol = cold_solution(pb, settings)
         # a fold was crossed: that is a snap unless the search only re-found the same branch
         snapped = snapped or _distance(sol[0], x, pb.arrays.lengths) > SAME_BRANCH_RAD
         x, det, t, last = sol[0], sol[4], t_try, (pb, sol)

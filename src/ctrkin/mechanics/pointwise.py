@@ -233,16 +233,22 @@ def _solve_prepared(pb: _Problem, guess: Equilibrium | np.ndarray | None,
         if x0.shape != (n,):
             raise ValueError(f"guess must have shape ({n},) (uz(0) per tube, rad/mm)")
         return _finish(pb, _newton(pb, x0, settings))
+    return _finish(pb, cold_solution(pb, settings))
+
+
+def cold_solution(pb: _Problem, settings: SolverSettings
+                  ) -> tuple[np.ndarray, bool, int, float, float, float]:
+    """Newton from untwisted tubes; if that is not stable, the stable solution of least energy
+    among twisted starts (else the least-energy converged one, else the first attempt)."""
+    n = pb.alpha.shape[0]
     first = _newton(pb, np.zeros(n), settings)
     if _stable(first) or n == 1:
-        return _finish(pb, first)
+        return first
     cands = _search(pb, [first[0], *_twisted_guesses(pb, np.zeros(n))], settings)
-    stable = [c for c in cands if _stable(c)]
-    pool = stable or cands
+    pool = [c for c in cands if _stable(c)] or cands
     if not pool:
-        return _finish(pb, first)
-    best = min(pool, key=lambda c: _energy(pb, c[0]))
-    return _finish(pb, best)
+        return first
+    return min(pool, key=lambda c: _energy(pb, c[0]))
 
 
 def _energy(pb: _Problem, x: np.ndarray) -> float:
