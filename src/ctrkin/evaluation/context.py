@@ -10,7 +10,6 @@ from typing import Any
 import numpy as np
 
 from ctrkin.data.dataset import Dataset
-from ctrkin.data.schema import sequence_bounds
 from ctrkin.evaluation.datasets import ReproData, registered_truth
 from ctrkin.evaluation.metrics import pose_errors
 from ctrkin.evaluation.tcm_baseline import TCMBaseline
@@ -49,10 +48,6 @@ def valid_rows(ds: Dataset, rows: np.ndarray | None = None) -> np.ndarray:
     """Rows (of `rows`, default all) whose joints are not encoder glitches (the paper removed them)."""
     idx = np.arange(len(ds.frame)) if rows is None else np.asarray(rows)
     return idx[~ds.frame["outlier"].to_numpy()[idx]]
-
-
-def bounds(ds: Dataset) -> list[tuple[int, int]]:
-    return sequence_bounds(ds.frame["sequence_id"].to_numpy())
 
 
 def summary(

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ctrkin.evaluation.context import Context, bounds, summary, valid_rows
+from ctrkin.evaluation.context import Context, summary, valid_rows
 from ctrkin.evaluation.metrics import azimuth_series, snap_score, snap_window, timing_stats
 from ctrkin.evaluation.training_runs import ABLATION, BASELINES
 from ctrkin.pose import position_error
@@ -22,7 +22,7 @@ def fk_comparison(ctx: Context) -> dict[str, Any]:
     ds = ctx.data.paper
     rows = valid_rows(ds, ds.get_split().test)
     measured, truth = ds.poses(), ctx.truth(ds)
-    b = bounds(ds)
+    b = ds.sequence_bounds()
     near_snap = snap_window(ds.frame["snap"].to_numpy(), b)
     level = ds.frame["level"].to_numpy() if "level" in ds.frame else np.zeros(len(ds.frame), int)
     levels = [lv["relative_translation_mm"] for lv in ds.meta.get("levels", [])] or [0.0]
@@ -77,7 +77,7 @@ def sweeps(ctx: Context) -> dict[str, Any]:
     """Full inner rotations at five relative translations: hysteresis and snaps (Fig. 10a)."""
     ds = ctx.data.sweeps
     rows = valid_rows(ds)
-    b = bounds(ds)
+    b = ds.sequence_bounds()
     n = ds.n_tubes
     joints, measured, truth = ds.joints(), ds.poses(), ctx.truth(ds)
     model = ctx.fk("fk_lstm_mlp", ds)

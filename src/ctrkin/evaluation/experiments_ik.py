@@ -10,7 +10,7 @@ import numpy as np
 
 from ctrkin.acquisition.plan import move
 from ctrkin.data.schema import sequence_bounds
-from ctrkin.evaluation.context import Context, bounds, summary, valid_rows
+from ctrkin.evaluation.context import Context, summary, valid_rows
 from ctrkin.evaluation.metrics import joint_errors
 from ctrkin.virtual import VirtualRobot
 from ctrkin.virtual.transmission import clip_to_valid
@@ -44,7 +44,8 @@ def drive(
 
 def _ik_checks(
     ctx: Context, joints_pred: np.ndarray, targets: np.ndarray, b: list[tuple[int, int]]
-) -> tuple[dict[str, Any], np.ndarray, np.ndarray, int]:
+) -> tuple[dict[str, Any], np.ndarray, np.ndarray]:
+    """Errors of the tips reached through the FK model and by driving the robot, and those tips."""
     fk = ctx.models["fk_lstm_mlp"]
     sid = np.concatenate([np.full(y - x, k) for k, (x, y) in enumerate(b)])
     Qv = clip_to_valid(ctx.data.virtual.nominal, joints_pred)
@@ -58,7 +59,6 @@ def _ik_checks(
         },
         via_fk,
         via_robot,
-        clipped,
     )
 
 
@@ -71,7 +71,7 @@ def ik_heldout(ctx: Context) -> dict[str, Any]:
     je = joint_errors(res.joints[rows], ds.joints()[rows], ds.n_tubes)
     sid = ds.frame["sequence_id"].to_numpy()[rows]
     b = sequence_bounds(sid)
-    checks, _, _, _ = _ik_checks(ctx, res.joints[rows], ds.poses()[rows], b)
+    checks, _, _ = _ik_checks(ctx, res.joints[rows], ds.poses()[rows], b)
     return {
         "joint_rmse_mm": je["beta_mm"]["rmse"],
         "joint_rmse_deg": je["alpha_deg"]["rmse"],
@@ -93,7 +93,7 @@ def ik_random(ctx: Context) -> dict[str, Any]:
     rows = valid_rows(ds, np.nonzero(is_t)[0])
     je = joint_errors(res.joints[rows], ds.joints()[rows], ds.n_tubes)
     # the robot is driven along the predicted joints of the whole run, and looked at on the targets
-    b = bounds(ds)
+    b = ds.sequence_bounds()
     via_robot_all, clipped = drive(ctx.data.virtual, res.joints, [(b[0][0], b[-1][1])])
     fk = ctx.models["fk_lstm_mlp"]
     via_fk_all = np.asarray(
@@ -129,7 +129,7 @@ def ik_path(ctx: Context, shape: str) -> dict[str, Any]:
     targets = getattr(ctx.data, shape)
     ik = ctx.models["ik_lstm_mlp"]
     res = ik.predict(targets)
-    checks, via_fk, via_robot, _ = _ik_checks(ctx, res.joints, targets, [(0, len(targets))])
+    checks, via_fk, via_robot = _ik_checks(ctx, res.joints, targets, [(0, len(targets))])
     out = {
         **checks,
         "position_rmse_mm": checks["via_robot"]["position_rmse_mm"],
