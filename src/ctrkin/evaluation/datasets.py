@@ -57,9 +57,10 @@ def collect(
 
     def get(name: str, **kw: object) -> Dataset:
         folder = out / name
+        key = _key(name, scale, robot_seed, kw)
         if (folder / "meta.json").is_file():
             ds = Dataset.load(folder, robot=robot)
-            if ds.meta.get("reproduce_key") == _key(name, scale, robot_seed, kw):
+            if ds.meta.get("reproduce_key") == key:
                 return ds
         plan = protocols.build(
             name,
@@ -74,7 +75,7 @@ def collect(
             seed=SEEDS[name],
             workers=workers,
             progress=progress,
-            meta={"reproduce_key": _key(name, scale, robot_seed, kw)},
+            meta={"reproduce_key": key},
         )
         ds.save(folder)
         return Dataset.load(folder, robot=robot)
