@@ -74,6 +74,20 @@ class Robot:
         n = self.n_tubes
         return [f"alpha_{i + 1}" for i in range(n)] + [f"beta_{i + 1}" for i in range(n)]
 
+    def project_joints(self, Q: np.ndarray) -> np.ndarray:
+        """Project joints (T, 2N) onto the valid set by moving translations only, as the mechanical
+        stops would: βN ≤ 0, βN + LN ≥ 0, then outward-in βi ≤ βi+1 and βi + Li ≥ βi+1 + Li+1.
+        Rotations are unlimited and unchanged."""
+        out = np.array(Q, dtype=float, copy=True)
+        n = self.n_tubes
+        lengths = self.lengths
+        out[:, 2 * n - 1] = np.clip(out[:, 2 * n - 1], -lengths[-1], 0.0)
+        for i in range(n - 2, -1, -1):
+            outer = out[:, n + i + 1]
+            lo = outer + lengths[i + 1] - lengths[i]
+            out[:, n + i] = np.clip(out[:, n + i], lo, np.maximum(outer, lo))
+        return out
+
     def check_joints(self, q: np.ndarray) -> np.ndarray:
         """Validate joints q: (2N,) or (T, 2N) in (deg, mm); returns them as float arrays.
 

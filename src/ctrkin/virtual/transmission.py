@@ -78,14 +78,5 @@ def play(motor: np.ndarray, width: np.ndarray, start: np.ndarray, out: np.ndarra
 
 
 def clip_to_valid(robot: Robot, Q: np.ndarray) -> np.ndarray:
-    """Project joints (T, 2N) onto the valid set by moving translations only, as the mechanical
-    stops would: βN ≤ 0, βN + LN ≥ 0, then outward-in βi ≤ βi+1 and βi + Li ≥ βi+1 + Li+1."""
-    out = np.array(Q, dtype=float, copy=True)
-    n = robot.n_tubes
-    lengths = robot.lengths
-    out[:, 2 * n - 1] = np.clip(out[:, 2 * n - 1], -lengths[-1], 0.0)
-    for i in range(n - 2, -1, -1):
-        outer = out[:, n + i + 1]
-        lo = outer + lengths[i + 1] - lengths[i]
-        out[:, n + i] = np.clip(out[:, n + i], lo, np.maximum(outer, lo))
-    return out
+    """Project joints (T, 2N) onto the valid set as the mechanical stops would (Robot.project_joints)."""
+    return robot.project_joints(Q)
