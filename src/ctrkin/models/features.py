@@ -5,7 +5,10 @@ Forward kinematics (FK), N tubes, per step n:
                                    Δα0(n) = α0(n) − α0(n−1), 0 at a sequence start   (eq. 2)
 For the paper's two tubes this is exactly (α1, α2, β1, β2, α0, Δα0). Angles are the unwrapped degrees
 of the dataset (min-max on unwrapped angles is the paper's choice); `angle_encoding="sincos"` replaces
-each angle αi and α0 by (sin, cos) — Δα0 stays in degrees.
+each angle αi and α0 by (sin, cos) — Δα0 stays in degrees; `angle_encoding="phase"` keeps the paper's
+features and adds (sin α0, cos α0): the relative rotation modulo a turn, which is what decides where a
+two-tube pair's bistable band lies (centred at α0 = 180°, DESIGN.md: Mechanics), whatever the
+unwrapped α0 of the sequence.
 
 Inverse kinematics (IK), per step: the tip pose (x, y, z, q0, qx, qy) and, by default, its step change
 (Δx .. Δqy, 0 at a sequence start): the IK analogue of Δα0, it tells the model which way the robot is
@@ -25,7 +28,8 @@ import numpy as np
 from ctrkin.errors import ModelError
 
 Task = Literal["fk", "ik"]
-AngleEncoding = Literal["minmax", "sincos"]
+AngleEncoding = Literal["minmax", "sincos", "phase"]
+ANGLE_ENCODINGS = ("minmax", "sincos", "phase")
 POSE_NAMES = ("x", "y", "z", "q0", "qx", "qy")
 
 
@@ -35,7 +39,7 @@ class FeatureLayout:
 
     task: "fk" (joints -> tip pose) or "ik" (tip poses -> joints); n_tubes: N; ib: input buffer length
     (current + IB−1 previous steps, 1..5 in the paper); delta: include Δα0 (FK) or the pose deltas (IK);
-    angle_encoding: "minmax" (paper) or "sincos" (FK inputs only).
+    angle_encoding: "minmax" (paper), "sincos" or "phase" (FK inputs only; module docstring).
     """
 
     task: Task = "fk"
@@ -53,10 +57,11 @@ class FeatureLayout:
             raise ModelError(f"n_tubes must be a positive integer, got {self.n_tubes!r}")
         if not isinstance(self.ib, int) or not 1 <= self.ib <= 32:
             raise ModelError(f"input buffer ib must be an integer in 1..32 (paper: 1..5), got {self.ib!r}")
-        if self.angle_encoding not in ("minmax", "sincos"):
-            raise ModelError(f"angle_encoding must be 'minmax' or 'sincos', got {self.angle_encoding!r}")
+        if self.angle_encoding not in ANGLE_ENCODINGS:
+            raise ModelError(f"angle_encoding must be one of {ANGLE_ENCODINGS}, got {self.angle_encoding!r}")
         if self.task == "ik" and self.angle_encoding != "minmax":
-            raise ModelError("angle_encoding='sincos' applies to FK inputs only; use 'minmax' for IK")
+            raise ModelError(f"angle_encoding={self.angle_encoding!r} applies to FK inputs only; use "
+                             "'minmax' for IK")
         n = self.n_tubes
         alphas = [f"alpha_{i + 1}" for i in range(n)]
         betas = [f"beta_{i + 1}" for i in range(n)]
@@ -66,6 +71,8 @@ class FeatureLayout:
                 ins += ["sin_alpha_0", "cos_alpha_0"]
             else:
                 ins = [*alphas, *betas, "alpha_0"]
+                if self.angle_encoding == "phase":
+                    ins += ["sin_alpha_0", "cos_alpha_0"]
             if self.delta:
                 ins.append("delta_alpha_0")
             outs = list(POSE_NAMES)
@@ -138,6 +145,17 @@ def sequence_features(layout: FeatureLayout, raw: np.ndarray, bounds: list[tuple
     return _features(layout, raw, prev)
 
 
+def pair_features(layout: FeatureLayout, cur: np.ndarray, prev: np.ndarray) -> np.ndarray:
+    """Features (K, F) of K candidate steps cur (K, 2N | 6) that would follow prev (K, 2N | 6)."""
+    return _features(layout, np.atleast_2d(np.asarray(cur, float)), np.atleast_2d(np.asarray(prev, float)))
+
+
+def delta_columns(layout: FeatureLayout) -> np.ndarray:
+    """Indices of the step-change features (Δα0, Δx..Δqy): the model only knows the step sizes of its
+    training data, so callers clip these to the trained range (direction kept, size bounded)."""
+    return np.array([i for i, n in enumerate(layout.input_names) if n.startswith("delta_")], dtype=np.int64)
+
+
 def _features(layout: FeatureLayout, cur: np.ndarray, prev: np.ndarray) -> np.ndarray:
     n = layout.n_tubes
     if layout.task == "ik":
@@ -152,6 +170,9 @@ def _features(layout: FeatureLayout, cur: np.ndarray, prev: np.ndarray) -> np.nd
         cols_ = [sc[:, : 2 * n], beta, sc[:, 2 * n:]]
     else:
         cols_ = [alpha, beta, a0[:, None]]
+        if layout.angle_encoding == "phase":
+            r = np.radians(a0)[:, None]
+            cols_ += [np.sin(r), np.cos(r)]
     if layout.delta:
         a0_prev = prev[:, 0] - prev[:, n - 1]
         cols_.append((a0 - a0_prev)[:, None])                # eq. (2)

@@ -4,8 +4,9 @@
     net = build_model("lstm_mlp", n_inputs=6, n_outputs=6, ib=2)               # paper default
     net = build_model("lstm_mlp", 6, 6, 3, options={"structure": "S3"})        # Table III grid
 
-Each entry says which options it takes and whether it forces a feature layout setting (the Δα0
-ablation of Fig. 5b is the LSTM-MLP without the delta feature).
+Each entry says which options it takes and which training settings it fixes (the Δα0 ablation of
+Fig. 5b is the LSTM-MLP without the delta feature; the snap-aware model uses the phase features and
+a linear output).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import Any
 
 from ctrkin.errors import ModelError
 from ctrkin.models.base import KinematicsNet
+from ctrkin.models.branch import BranchNet
 from ctrkin.models.conv import CNN, TCN
 from ctrkin.models.resnet import ResNet
 from ctrkin.models.seqnet import SeqNet
@@ -27,7 +29,8 @@ class ModelEntry:
     description: str
     build: Callable[..., KinematicsNet]
     options: dict[str, Any]                      # option -> default
-    layout: dict[str, Any] = field(default_factory=dict)   # forced FeatureLayout fields
+    forced: dict[str, Any] = field(default_factory=dict)   # TrainConfig fields the entry fixes
+    stateful: bool = False                                  # carries a branch state (BranchNet)
 
 
 def _seq(structure: str, pooling: str) -> Callable[..., KinematicsNet]:
@@ -35,6 +38,11 @@ def _seq(structure: str, pooling: str) -> Callable[..., KinematicsNet]:
               structure: str = structure) -> KinematicsNet:
         return SeqNet(n_inputs, n_outputs, ib, structure, pooling, output_activation)
     return build
+
+
+def _branch(n_inputs: int, n_outputs: int, ib: int, output_activation: str, structure: str = "paper",
+            gate_units: int = 32) -> KinematicsNet:
+    return BranchNet(n_inputs, n_outputs, ib, structure, output_activation, int(gate_units))
 
 
 def _conv(cls: type[CNN] | type[TCN]) -> Callable[..., KinematicsNet]:
@@ -54,6 +62,12 @@ MODELS: dict[str, ModelEntry] = {e.name: e for e in [
                "structure: paper | S1..S5 | spec", _seq("paper", "flatten"), {"structure": "paper"}),
     ModelEntry("lstm_mlp_no_delta", "ablation of Fig. 5b: LSTM-MLP without the directional feature",
                _seq("paper", "flatten"), {"structure": "paper"}, {"delta": False}),
+    ModelEntry("lstm_mlp_branch", "snap-aware LSTM-MLP: a learned branch state (hysteron) selects "
+               "one of two heads, so snaps are sharp (ctrkin.models.branch); FK only, sin/cos α0 "
+               "inputs, poses learned in the outer tube's frame (ctrkin.models.frame)",
+               _branch, {"structure": "paper", "gate_units": 32},
+               {"angle_encoding": "phase", "output_activation": "linear", "task": "fk",
+                "target_frame": "outer"}, stateful=True),
     ModelEntry("mlp", "baseline: MLP on the flattened buffer, Dense 128, 64 ReLU",
                _seq("|D128,D64", "flatten"), {"structure": "|D128,D64"}),
     ModelEntry("lstm", "baseline: LSTM(128), last step -> out", _seq("L128|", "last"),

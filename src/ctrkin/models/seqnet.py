@@ -92,20 +92,28 @@ class SeqNet(KinematicsNet):
                 self.seq.append(nn.Linear(width, units))
             width = units
         width = width * ib if pooling == "flatten" else width
+        self.trunk_width: int = width
         self.head = nn.ModuleList()
         for units in self.structure.head:
             self.head.append(nn.Linear(width, units))
             width = units
         self.out = nn.Linear(width, n_outputs)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def trunk(self, x: torch.Tensor) -> torch.Tensor:
+        """x: (B, IB, F) -> (B, trunk_width): the per-step layers, flattened (or the last step)."""
         h = x
         for layer in self.seq:
             if isinstance(layer, nn.LSTM):
                 h, _ = layer(h)                              # eq. (3), (4)
             else:
                 h = torch.relu(layer(h))
-        h = h.flatten(1) if self.pooling == "flatten" else h[:, -1]   # eq. (5)
+        return h.flatten(1) if self.pooling == "flatten" else h[:, -1]   # eq. (5)
+
+    def head_out(self, h: torch.Tensor, state: torch.Tensor | None = None) -> torch.Tensor:
+        """h: (B, trunk_width) -> (B, O): Dense ReLU layers and the output (state: BranchNet only)."""
         for layer in self.head:
             h = torch.relu(layer(h))                         # eq. (6)
         return self.finish(self.out(h))                      # eq. (7)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.head_out(self.trunk(x))

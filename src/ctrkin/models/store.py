@@ -9,6 +9,7 @@
     metrics.json        losses and errors in mm / deg      (written by training)
     history.csv, curves.png   loss curves (paper Fig. 9)   (written by training)
     workspace.npz       IK only: training targets and distance threshold (ctrkin.inference.workspace)
+    frame.json          FK in the outer tube's frame only: the registration (ctrkin.models.frame)
     checkpoint.pt       last epoch, optimiser and RNG state, to resume training
 """
 
@@ -25,6 +26,7 @@ from ctrkin import __version__
 from ctrkin.errors import ModelError
 from ctrkin.models.base import KinematicsNet
 from ctrkin.models.features import FeatureLayout
+from ctrkin.models.frame import OuterFrame
 from ctrkin.models.normalize import MinMax
 from ctrkin.models.registry import build_model
 from ctrkin.robots.robot import Robot
@@ -32,6 +34,7 @@ from ctrkin.util.files import atomic_path, atomic_write_text
 
 CONFIG, FEATURES, NORMALIZATION, ROBOT, WEIGHTS = ("config.json", "features.json", "normalization.json",
                                                    "robot.json", "weights.pt")
+FRAME = "frame.json"
 REQUIRED = (CONFIG, FEATURES, NORMALIZATION, ROBOT, WEIGHTS)
 
 
@@ -61,14 +64,16 @@ class ModelBundle:
     robot: Robot
     net: KinematicsNet
     extra: dict[str, Any] = field(default_factory=dict)
+    frame: OuterFrame | None = None
 
     @classmethod
     def create(cls, config: dict[str, Any], layout: FeatureLayout, x_norm: MinMax, y_norm: MinMax,
-               robot: Robot, extra: dict[str, Any] | None = None) -> ModelBundle:
+               robot: Robot, extra: dict[str, Any] | None = None, frame: OuterFrame | None = None
+               ) -> ModelBundle:
         """A fresh network (seed torch first) for this configuration."""
         net = build_model(config["model"], layout.n_inputs, layout.n_outputs, layout.ib,
                           config["output_activation"], config["options"])
-        return cls(config, layout, x_norm, y_norm, robot, net, dict(extra or {}))
+        return cls(config, layout, x_norm, y_norm, robot, net, dict(extra or {}), frame)
 
     def save(self, folder: str | Path) -> Path:
         out = Path(folder)
@@ -77,6 +82,8 @@ class ModelBundle:
         write_json(out / FEATURES, self.layout.to_dict())
         write_json(out / NORMALIZATION, {"inputs": self.x_norm.to_dict(), "outputs": self.y_norm.to_dict()})
         write_json(out / ROBOT, {"robot": self.robot.to_dict(), "fingerprint": self.robot.fingerprint()})
+        if self.frame is not None:
+            write_json(out / FRAME, self.frame.to_dict())
         with atomic_path(out / WEIGHTS) as tmp:
             torch.save(self.net.state_dict(), tmp)
         return out
@@ -102,7 +109,12 @@ class ModelBundle:
         if robot.fingerprint() != rob.get("fingerprint"):
             raise ModelError(f"{src / ROBOT}: the robot description does not match its stored "
                              f"fingerprint (edited by hand?)")
-        bundle = cls.create(config, layout, x_norm, y_norm, robot, cfg_file)
+        frame = None
+        if config.get("target_frame", "tracker") == "outer":
+            if not (src / FRAME).is_file():
+                raise ModelError(f"{src} learned poses in the outer tube's frame but lacks {FRAME}")
+            frame = OuterFrame.from_dict(read_json(src / FRAME))
+        bundle = cls.create(config, layout, x_norm, y_norm, robot, cfg_file, frame)
         try:
             state = torch.load(src / WEIGHTS, map_location="cpu", weights_only=True)
             bundle.net.load_state_dict(state)

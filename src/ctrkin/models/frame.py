@@ -1,0 +1,99 @@
+"""Learn tip poses in the outer tube's frame: rotation equivariance by construction.
+
+Turning every tube by the same angle turns the whole robot about its insertion axis (no gravity in
+the TCM; DESIGN.md: Frames). A network that predicts tracker-frame poses from αN has to learn that
+rotation from the outer angles in its data, and a by-sequence split holds some of those angles out
+entirely. Here the FK target is the pose expressed in a frame that turns with the outer tube:
+
+    p_local = Rz(−αN) · Rᵀ (p_tracker − t)           (tangent: Rz(−αN) · Rᵀ · tangent)
+
+where (R, t) is the rigid registration robot -> tracker, fitted once on training rows against the
+nominal TCM (point-wise solves; paper IV.A maps TCM and model coordinates the same way). The network
+then learns a function of the relative joints, and the residual dependence on αN that a real robot
+has (imperfections, registration error) from αN itself, which stays an input. Predictions are turned
+back exactly, so the model's outputs are tracker-frame poses like any other FK model's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ctrkin.errors import ModelError
+from ctrkin.pose import Registration, quat_from_tangent, tangent_from_quat
+
+FRAMES = ("tracker", "outer")
+
+
+@dataclass(frozen=True, eq=False)
+class OuterFrame:
+    """registration: robot base -> tracker (p_tracker = R p_robot + t)."""
+
+    registration: Registration
+
+    @classmethod
+    def fit(cls, robot: object, joints: np.ndarray, poses: np.ndarray, max_points: int = 400,
+            seed: int = 0) -> OuterFrame:
+        """Fit the registration on up to `max_points` rows: joints (M, 2N), measured poses (M, 6)."""
+        from ctrkin.mechanics import solve
+        from ctrkin.robots.robot import Robot
+
+        if not isinstance(robot, Robot):
+            raise ModelError("OuterFrame.fit needs the dataset's Robot")
+        J, P = np.asarray(joints, float), np.asarray(poses, float)
+        idx = np.random.default_rng(seed).choice(len(J), size=min(max_points, len(J)), replace=False)
+        tips = np.array([solve(robot, q).tip_pose[:3] for q in J[idx]])
+        return cls(Registration.fit(tips, P[idx, :3]))
+
+    def to_local(self, poses: np.ndarray, alpha_outer_deg: np.ndarray) -> np.ndarray:
+        """poses (T, 6) tracker frame, αN (T,) deg -> (T, 6) poses in the outer tube's frame."""
+        R, t = self.registration.rotation, self.registration.translation
+        p = np.asarray(poses, float)
+        pos = (p[:, :3] - t) @ R
+        tan = tangent_from_quat(p[:, 3:6]) @ R
+        return np.concatenate([_rot_z(pos, -np.asarray(alpha_outer_deg, float)),
+                               quat_from_tangent(_rot_z(tan, -np.asarray(alpha_outer_deg, float)))], axis=1)
+
+    def to_world(self, local: np.ndarray, alpha_outer_deg: np.ndarray) -> np.ndarray:
+        """Inverse of to_local: (T, 6) local poses -> (T, 6) tracker-frame poses."""
+        R, t = self.registration.rotation, self.registration.translation
+        y = np.asarray(local, float)
+        a = np.asarray(alpha_outer_deg, float)
+        pos = _rot_z(y[:, :3], a) @ R.T + t
+        tan = _rot_z(tangent_from_quat(y[:, 3:6]), a) @ R.T
+        return np.concatenate([pos, quat_from_tangent(tan)], axis=1)
+
+    def to_world_one(self, y: np.ndarray, alpha_outer_deg: float) -> np.ndarray:
+        """to_world of one (6,) pose, in scalar arithmetic (the streaming path)."""
+        c, s = math.cos(math.radians(alpha_outer_deg)), math.sin(math.radians(alpha_outer_deg))
+        R, t = self.registration.rotation, self.registration.translation
+        w, x, yq = y[3], y[4], y[5]
+        n = math.sqrt(w * w + x * x + yq * yq) or 1.0
+        w, x, yq = w / n, x / n, yq / n
+        tl = (2 * w * yq, -2 * w * x, 1 - 2 * (x * x + yq * yq))          # tangent of (w, x, y, 0)
+        pos = R @ np.array([c * y[0] - s * y[1], s * y[0] + c * y[1], y[2]]) + t
+        tan = R @ np.array([c * tl[0] - s * tl[1], s * tl[0] + c * tl[1], tl[2]])
+        out = np.empty(6)
+        out[:3] = pos
+        out[3:] = quat_from_tangent(tan)
+        return out
+
+    def to_dict(self) -> dict[str, object]:
+        return {"frame": "outer", **self.registration.to_dict()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> OuterFrame:
+        try:
+            return cls(Registration(np.array(d["rotation"], float), np.array(d["translation_mm"], float),
+                                    float(d.get("rms_mm", float("nan")))))
+        except (KeyError, ValueError) as e:
+            raise ModelError(f"bad outer-frame entry: {e}") from None
+
+
+def _rot_z(v: np.ndarray, deg: np.ndarray) -> np.ndarray:
+    """Rotate vectors v (T, 3) about z by deg (T,)."""
+    a = np.radians(deg)
+    c, s = np.cos(a), np.sin(a)
+    return np.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], axis=1)
