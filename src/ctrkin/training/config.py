@@ -9,10 +9,12 @@ from typing import Any
 from ctrkin.errors import ModelError
 from ctrkin.models.base import OUTPUT_ACTIVATIONS
 from ctrkin.models.features import FeatureLayout
+from ctrkin.models.frame import FRAMES
 from ctrkin.models.registry import get_entry, resolve_options
 
 SPLITS = ("dataset", "sequence", "random")
 POSE_SOURCES = ("measured", "true")
+LR_SCHEDULES = ("constant", "cosine")
 
 
 @dataclass(frozen=True)
@@ -27,7 +29,11 @@ class TrainConfig:
     split: "dataset" (the dataset's saved split, else by sequence), "sequence", or "random" (the paper's
     70:15:15 shuffle); lr, batch_size, max_epochs: Adam 1e-3, 32, 500 (paper); patience: early stopping
     epochs without a val-loss improvement of min_delta; threads: torch CPU threads; drop_outliers:
-    rows flagged `outlier` are not used as targets.
+    rows flagged `outlier` are not used as targets; target_frame: FK poses learned in the "tracker"
+    frame (paper) or in the "outer" tube's frame (ctrkin.models.frame); lr_schedule: "constant"
+    (paper) or "cosine" (decay to lr/50 over max_epochs); gate_weight, unknown_prob: branch models
+    only (ctrkin.models.branch): weight of the gate's cross-entropy beside the MAE loss, and how
+    often the previous state is hidden.
     """
 
     task: str = "fk"
@@ -48,15 +54,20 @@ class TrainConfig:
     seed: int = 0
     threads: int = 2
     drop_outliers: bool = True
+    target_frame: str = "tracker"
+    lr_schedule: str = "constant"
+    gate_weight: float = 0.1
+    unknown_prob: float = 0.1
 
     def __post_init__(self) -> None:
         if self.task not in ("fk", "ik"):
             raise ModelError(f"task must be 'fk' or 'ik', got {self.task!r}")
         entry = get_entry(self.model)
         object.__setattr__(self, "options", resolve_options(self.model, self.options))
-        forced = entry.layout.get("delta")
-        if forced is not None and forced != self.delta:
-            object.__setattr__(self, "delta", forced)   # the ablation entry fixes delta
+        for key, value in entry.forced.items():
+            if key == "task" and self.task != value:
+                raise ModelError(f"model {self.model!r} is for task {value!r}, not {self.task!r}")
+            object.__setattr__(self, key, value)        # e.g. the ablation entry fixes delta
         if self.output_activation not in OUTPUT_ACTIVATIONS:
             raise ModelError(f"output_activation must be one of {OUTPUT_ACTIVATIONS}")
         if self.pose_source not in POSE_SOURCES:
@@ -69,6 +80,14 @@ class TrainConfig:
                 raise ModelError(f"{name} must be an integer >= {lo}, got {v!r}")
         if not self.lr > 0:
             raise ModelError(f"lr must be positive, got {self.lr}")
+        if self.target_frame not in FRAMES:
+            raise ModelError(f"target_frame must be one of {FRAMES}, got {self.target_frame!r}")
+        if self.target_frame != "tracker" and self.task != "fk":
+            raise ModelError("target_frame='outer' applies to FK models only")
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise ModelError(f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
+        if not (self.gate_weight >= 0 and 0 <= self.unknown_prob <= 1):
+            raise ModelError("gate_weight must be >= 0 and unknown_prob in [0, 1]")
         if self.min_delta < 0:
             raise ModelError(f"min_delta must be >= 0, got {self.min_delta}")
         self.layout(2)   # validates ib and angle_encoding
@@ -83,7 +102,7 @@ class TrainConfig:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> TrainConfig:
         names = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - names)
+        unknown = sorted(set(d) - names)   # fields added later take their defaults in older files
         if unknown:
             raise ModelError(f"unknown training config keys {unknown}")
         return cls(**d)

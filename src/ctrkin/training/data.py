@@ -10,7 +10,9 @@ import numpy as np
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.splits import Split, random_split, split_by_sequence
 from ctrkin.errors import ModelError
+from ctrkin.models.branch_labels import branch_labels, previous_labels
 from ctrkin.models.features import FeatureLayout, sequence_features, windows
+from ctrkin.models.frame import OuterFrame
 from ctrkin.models.normalize import MinMax
 from ctrkin.training.config import TrainConfig
 
@@ -18,7 +20,9 @@ from ctrkin.training.config import TrainConfig
 @dataclass(eq=False)
 class Prepared:
     """X: (T, IB, F) float32 normalised windows, Y: (T, O) float32 normalised targets, for every row;
-    raw_in: (T, 2N | 6) raw inputs, target: (T, O) raw targets; rows: split -> usable row indices."""
+    raw_in: (T, 2N | 6) raw inputs, target: (T, O) raw targets; rows: split -> usable row indices;
+    branch models only (else None): state (T,) branch labels, state_prev (T,) the previous row's
+    (0.5 at a sequence start), forced (T,) rows whose label does not depend on history."""
 
     layout: FeatureLayout
     x_norm: MinMax
@@ -30,6 +34,17 @@ class Prepared:
     split: Split
     rows: dict[str, np.ndarray]
     bounds: list[tuple[int, int]]
+    state: np.ndarray | None = None
+    state_prev: np.ndarray | None = None
+    forced: np.ndarray | None = None
+    frame: OuterFrame | None = None
+
+    def to_world(self, pred: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """Predicted (len(rows), O) targets in the frame users see (tracker frame for FK)."""
+        if self.frame is None:
+            return pred
+        n = self.layout.n_tubes
+        return self.frame.to_world(pred, self.raw_in[rows, n - 1])
 
 
 def inputs_and_targets(ds: Dataset, task: str, pose_source: str) -> tuple[np.ndarray, np.ndarray]:
@@ -57,7 +72,9 @@ def data_signature(ds: Dataset) -> str:
     return h.hexdigest()[:16]
 
 
-def prepare(ds: Dataset, cfg: TrainConfig) -> Prepared:
+def prepare(ds: Dataset, cfg: TrainConfig, branches: bool = False) -> Prepared:
+    """Features, windows, split and normalisation of `ds` for `cfg`; branches: also the branch
+    labels of a snap-aware model (ctrkin.models.branch_labels, from the `snap` column)."""
     layout = cfg.layout(ds.n_tubes)
     raw_in, target = inputs_and_targets(ds, cfg.task, cfg.pose_source)
     bounds = ds.sequence_bounds()
@@ -71,8 +88,20 @@ def prepare(ds: Dataset, cfg: TrainConfig) -> Prepared:
     if len(rows["train"]) == 0 or len(rows["val"]) == 0:
         raise ModelError(f"the split leaves {len(rows['train'])} training and {len(rows['val'])} validation "
                          f"rows; record more sequences (a by-sequence split needs at least 3)")
+    frame = None
+    if cfg.target_frame == "outer":     # FK targets in the outer tube's frame (ctrkin.models.frame)
+        n = ds.n_tubes
+        frame = OuterFrame.fit(ds.robot, raw_in[rows["train"]], target[rows["train"]], seed=cfg.seed)
+        target = frame.to_local(target, raw_in[:, n - 1])
     x_norm = MinMax.fit(feats[rows["train"]])
     y_norm = MinMax.fit(target[rows["train"]])
     X = windows(x_norm.transform(feats), bounds, layout.ib).astype(np.float32)
     Y = y_norm.transform(target).astype(np.float32)
-    return Prepared(layout, x_norm, y_norm, X, Y, raw_in, target, split, rows, bounds)
+    prep = Prepared(layout, x_norm, y_norm, X, Y, raw_in, target, split, rows, bounds, frame=frame)
+    if branches:
+        n = ds.n_tubes
+        joints = ds.joints()
+        labels, forced = branch_labels(joints[:, 0] - joints[:, n - 1], ds.frame["snap"].to_numpy(), bounds)
+        prep.state, prep.forced = labels, forced
+        prep.state_prev = previous_labels(labels, bounds)
+    return prep

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,7 +23,9 @@ from tqdm.auto import tqdm
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import ModelError
 from ctrkin.inference.workspace import Workspace
+from ctrkin.models.branch import UNKNOWN_STATE, BranchNet
 from ctrkin.models.features import postprocess
+from ctrkin.models.registry import get_entry
 from ctrkin.models.store import ModelBundle, write_json
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.curves import plot_curves
@@ -42,9 +45,12 @@ class TrainResult:
     history: list[dict[str, float]]
 
 
-def predict_normalised(net: torch.nn.Module, X: np.ndarray, rows: np.ndarray, batch: int = 8192
-                       ) -> np.ndarray:
-    """Network outputs (len(rows), O) for the windows X[rows] (normalised space)."""
+def predict_normalised(net: torch.nn.Module, X: np.ndarray, rows: np.ndarray, batch: int = 8192,
+                       bounds: list[tuple[int, int]] | None = None) -> np.ndarray:
+    """Network outputs (len(rows), O) for the windows X[rows] (normalised space). A BranchNet carries
+    its state through the whole sequences that hold `rows` (bounds: the dataset's sequences)."""
+    if isinstance(net, BranchNet):
+        return _branch_predict(net, X, rows, bounds or [(0, len(X))])
     outs = []
     net.eval()
     with torch.inference_mode():
@@ -53,14 +59,75 @@ def predict_normalised(net: torch.nn.Module, X: np.ndarray, rows: np.ndarray, ba
     return np.concatenate(outs) if outs else np.zeros((0, net.n_outputs), np.float32)  # type: ignore
 
 
+def _branch_predict(net: BranchNet, X: np.ndarray, rows: np.ndarray, bounds: list[tuple[int, int]]
+                    ) -> np.ndarray:
+    """Decode the whole sequences that contain `rows` (the state needs their history), return rows."""
+    starts = np.array([a for a, _ in bounds])
+    seqs = np.unique(np.searchsorted(starts, rows, side="right") - 1)
+    idx = np.concatenate([np.arange(*bounds[k]) for k in seqs]) if len(seqs) else np.zeros(0, np.int64)
+    local, pos = [], 0
+    for k in seqs:
+        a, b = bounds[k]
+        local.append((pos, pos + b - a))
+        pos += b - a
+    net.eval()
+    with torch.inference_mode():
+        h = torch.cat([net.trunk(torch.from_numpy(X[idx[a:a + 8192]])) for a in range(0, len(idx), 8192)]) \
+            if len(idx) else torch.zeros((0, net.trunk_width))
+        y, _ = net.decode(h, local)
+    where = np.full(len(X), -1, dtype=np.int64)
+    where[idx] = np.arange(len(idx))
+    return y[where[rows]]
+
+
+@dataclass(eq=False)
+class _BranchBatch:
+    """Branch labels of the training rows (teacher forcing) and the augmentation of the gate input."""
+
+    state: torch.Tensor          # (M,) labels
+    state_prev: torch.Tensor     # (M,) previous labels, 0.5 at sequence starts
+    forced: torch.Tensor         # (M,) label independent of history
+    gate_rows: torch.Tensor      # (M,) per-row weight of the gate loss
+    unknown_prob: float
+    weight: float
+
+    def loss(self, net: BranchNet, x: torch.Tensor, y: torch.Tensor, idx: torch.Tensor,
+             gen: torch.Generator) -> torch.Tensor:
+        s, prev, forced = self.state[idx], self.state_prev[idx].clone(), self.forced[idx]
+        u = torch.rand((len(idx), 2), generator=gen)
+        flip = forced & (u[:, 0] < 0.5) & (prev != UNKNOWN_STATE)     # a wrong state must recover
+        prev = torch.where(flip, 1.0 - prev, prev)
+        prev = torch.where(u[:, 1] < self.unknown_prob, torch.full_like(prev, UNKNOWN_STATE), prev)
+        h = net.trunk(x)
+        pose_loss = torch.nn.functional.l1_loss(net.head_out(h, s), y)          # MAE (paper IV.A)
+        gate_loss = torch.nn.functional.binary_cross_entropy_with_logits(
+            net.gate_logit(h, prev), s, weight=self.gate_rows[idx])
+        return pose_loss + self.weight * gate_loss
+
+
+def _near_switch(state: np.ndarray, bounds: list[tuple[int, int]], width: int = 5, boost: float = 10.0
+                 ) -> np.ndarray:
+    """(T,) float32 gate-loss weights: `boost` within `width` rows of a change of branch (where the
+    switching point is learned; a few rows per sequence), 1 elsewhere."""
+    w = np.ones(len(state), dtype=np.float32)
+    for a, b in bounds:
+        for t in np.nonzero(np.diff(state[a:b]))[0] + a + 1:
+            w[max(a, t - width):min(b, t + width + 1)] = boost
+    return w
+
+
 def _epoch(net: torch.nn.Module, opt: torch.optim.Optimizer, X: torch.Tensor, Y: torch.Tensor,
-           batch: int, gen: torch.Generator) -> float:
+           batch: int, gen: torch.Generator, branch: _BranchBatch | None = None) -> float:
     net.train()
     perm = torch.randperm(len(X), generator=gen)
     total, count = 0.0, 0
     for a in range(0, len(perm), batch):
         idx = perm[a:a + batch]
-        loss = torch.nn.functional.l1_loss(net(X[idx]), Y[idx])     # MAE loss (paper IV.A)
+        if branch is not None:
+            assert isinstance(net, BranchNet)
+            loss = branch.loss(net, X[idx], Y[idx], idx, gen)
+        else:
+            loss = torch.nn.functional.l1_loss(net(X[idx]), Y[idx])     # MAE loss (paper IV.A)
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
@@ -71,8 +138,16 @@ def _epoch(net: torch.nn.Module, opt: torch.optim.Optimizer, X: torch.Tensor, Y:
 
 def _val_loss(net: torch.nn.Module, prep: Prepared, part: str) -> float:
     rows = prep.rows[part]
-    pred = predict_normalised(net, prep.X, rows)
+    pred = predict_normalised(net, prep.X, rows, bounds=prep.bounds)
     return float(np.mean(np.abs(pred - prep.Y[rows])))
+
+
+def _learning_rate(cfg: TrainConfig, epoch: int) -> float:
+    """The learning rate of epoch `epoch` (0-based): constant (paper) or cosine from lr to lr/50."""
+    if cfg.lr_schedule == "constant":
+        return cfg.lr
+    low = cfg.lr / 50.0
+    return low + (cfg.lr - low) * 0.5 * (1.0 + math.cos(math.pi * min(epoch / cfg.max_epochs, 1.0)))
 
 
 def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = False, progress: bool = True,
@@ -85,13 +160,14 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
     say = log or (lambda _m: None)
     out = Path(out)
     torch.set_num_threads(cfg.threads)
-    prep = prepare(ds, cfg)
+    stateful = get_entry(cfg.model).stateful
+    prep = prepare(ds, cfg, branches=stateful)
     signature = data_signature(ds)
     torch.manual_seed(cfg.seed)
     bundle = ModelBundle.create(cfg.to_dict(), prep.layout, prep.x_norm, prep.y_norm, ds.robot,
                                 {"data": {"signature": signature, "samples": len(ds.frame),
                                           "source": str(ds.meta.get("path", "")),
-                                          "protocol": ds.meta.get("protocol")}})
+                                          "protocol": ds.meta.get("protocol")}}, frame=prep.frame)
     net = bundle.net
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     gen = torch.Generator().manual_seed(cfg.seed)
@@ -116,14 +192,25 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
         if state["done"] and cfg.max_epochs > state["epoch"] and state["since_best"] < cfg.patience:
             state["done"] = False
         say(f"resuming {out} after epoch {state['epoch']}")
-    Xt, Yt = torch.from_numpy(prep.X[prep.rows["train"]]), torch.from_numpy(prep.Y[prep.rows["train"]])
+    train_rows = prep.rows["train"]
+    Xt, Yt = torch.from_numpy(prep.X[train_rows]), torch.from_numpy(prep.Y[train_rows])
+    branch = None
+    if stateful:
+        assert prep.state is not None and prep.state_prev is not None and prep.forced is not None
+        branch = _BranchBatch(torch.from_numpy(prep.state[train_rows].astype(np.float32)),
+                              torch.from_numpy(prep.state_prev[train_rows]),
+                              torch.from_numpy(prep.forced[train_rows]),
+                              torch.from_numpy(_near_switch(prep.state, prep.bounds)[train_rows]),
+                              cfg.unknown_prob, cfg.gate_weight)
 
     bar = (progress_bar(total=cfg.max_epochs, desc=f"train {cfg.task} {cfg.model}", initial=state["epoch"])
            if progress else tqdm(disable=True))
     try:
         while not state["done"] and state["epoch"] < cfg.max_epochs:
             t0 = time.perf_counter()
-            train_loss = _epoch(net, opt, Xt, Yt, cfg.batch_size, gen)
+            for group in opt.param_groups:
+                group["lr"] = _learning_rate(cfg, state["epoch"])
+            train_loss = _epoch(net, opt, Xt, Yt, cfg.batch_size, gen, branch)
             val_loss = _val_loss(net, prep, "val")
             state["seconds"] += time.perf_counter() - t0
             state["epoch"] += 1
@@ -160,7 +247,8 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
     if cfg.task == "ik":
         pose_cols = slice(0, 6)
         norm = type(prep.x_norm)(prep.x_norm.lo[pose_cols], prep.x_norm.span[pose_cols])
-        Workspace.fit(prep.raw_in[prep.rows["train"]], prep.raw_in[prep.rows["val"]], norm).save(out)
+        Workspace.fit(prep.raw_in[prep.rows["train"]], prep.raw_in[prep.rows["val"]], norm,
+                      train_joints=prep.target[prep.rows["train"]]).save(out)
     write_json(out / "metrics.json", metrics)
     _write_history(out / "history.csv", state["history"])
     plot_curves(state["history"], out / "curves.png",
@@ -177,9 +265,9 @@ def evaluate(bundle: ModelBundle, ds: Dataset, prep: Prepared) -> dict[str, Any]
         rows = prep.rows[part]
         if len(rows) == 0:
             continue
-        yn = predict_normalised(bundle.net, prep.X, rows)
+        yn = predict_normalised(bundle.net, prep.X, rows, bounds=prep.bounds)
         m: dict[str, Any] = {"loss": float(np.mean(np.abs(yn - prep.Y[rows]))), "rows": len(rows)}
-        pred = postprocess(prep.layout, prep.y_norm.inverse(yn))
+        pred = prep.to_world(postprocess(prep.layout, prep.y_norm.inverse(yn)), rows)
         if prep.layout.task == "fk":
             m["vs_measured"] = pose_errors(pred, ds.poses()[rows])
             if truth is not None:  # the truth as the tracker sees it: the model's frame and sensor point
