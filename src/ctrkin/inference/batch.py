@@ -10,6 +10,8 @@ per-call overhead. Equal to `net(windows)` up to float32 round-off (tested).
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 import torch
 from torch import nn
@@ -80,9 +82,25 @@ def _lstm_positions(weights: tuple[torch.Tensor, torch.Tensor, torch.Tensor], in
 def seqnet_predict(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: int = 1024) -> np.ndarray:
     """padded: (P, F) normalised features with sequence-start padding; starts: (T,) window starts.
     Returns (T, O) normalised outputs, equal to net(windows)."""
+    out = np.empty((len(starts), net.n_outputs), dtype=np.float32)
+    for sl, h in _trunk_chunks(net, padded, starts, chunk):
+        out[sl] = net.head_out(h).numpy()
+    return out
+
+
+@torch.inference_mode()
+def seqnet_trunk(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: int = 1024) -> torch.Tensor:
+    """(T, trunk_width) trunk features (net.trunk of every window), by chains; arguments as
+    `seqnet_predict`."""
+    parts = [h for _, h in _trunk_chunks(net, padded, starts, chunk)]
+    return torch.cat(parts) if parts else torch.zeros((0, net.trunk_width))
+
+
+def _trunk_chunks(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: int
+                  ) -> Iterator[tuple[slice, torch.Tensor]]:
+    """Yield (slice of rows, trunk features (rows, W)) chunk by chunk."""
     ib = net.ib
     x_all = torch.from_numpy(np.ascontiguousarray(padded, dtype=np.float32))
-    out = np.empty((len(starts), net.n_outputs), dtype=np.float32)
     s_all = torch.from_numpy(np.asarray(starts, dtype=np.int64))
     weights = {id(m): _scaled_lstm_weights(m) for m in net.seq if isinstance(m, nn.LSTM)}
     done = 0
@@ -109,9 +127,5 @@ def seqnet_predict(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: i
             first = False
         h = torch.cat(inputs, dim=1) if net.pooling == "flatten" else inputs[-1]
         sel = s_all[done:done + n_here] - lo
-        h = h[sel]
-        for lin in net.head:
-            h = torch.relu(lin(h))
-        out[done:done + n_here] = net.finish(net.out(h)).numpy()
+        yield slice(done, done + n_here), h[sel]
         done += n_here
-    return out

@@ -24,6 +24,7 @@ import torch
 from torch import nn
 
 from ctrkin.errors import ModelError
+from ctrkin.models.branch import UNKNOWN_STATE, BranchNet
 from ctrkin.models.seqnet import SeqNet
 
 _LN2_HI, _LN2_LO, _INV_LN2 = 0.693147180369123816490, 1.90821492927058770002e-10, 1.4426950408889634
@@ -96,6 +97,40 @@ def _lstm_rows(inp: np.ndarray, shared: bool, w_ih: np.ndarray, w_hh: np.ndarray
 
 
 @numba.njit(cache=True, fastmath=True)
+def _lstm_from(inp: np.ndarray, w_ih: np.ndarray, w_hh: np.ndarray, b: np.ndarray, h0: np.ndarray,
+               c0: np.ndarray, fresh: bool, h_new: np.ndarray, g: np.ndarray, t: np.ndarray,
+               bits: np.ndarray) -> None:
+    """One LSTM cell update of K candidate inputs inp (K, in) from one shared state (h0, c0) (H,), or
+    from zero state if `fresh`; weights as in _lstm_rows. Writes h_new (K, H); scratch g (K, 4H),
+    t (K, H), bits (K·4H,)."""
+    k_count, hid = h_new.shape
+    base = b.copy()
+    if not fresh:
+        for k in range(4 * hid):
+            s = 0.0
+            for m in range(hid):
+                s += w_hh[k, m] * h0[m]
+            base[k] += s
+    for r in range(k_count):
+        for k in range(4 * hid):
+            s = base[k]
+            for m in range(inp.shape[1]):
+                s += w_ih[k, m] * inp[r, m]
+            g[r, k] = s
+    _sigmoid_inplace(g.reshape(-1), bits)
+    for r in range(k_count):
+        for u in range(hid):
+            c = g[r, u] * (2.0 * g[r, 2 * hid + u] - 1.0)
+            if not fresh:
+                c += g[r, hid + u] * c0[u]
+            t[r, u] = 2.0 * c
+    _sigmoid_inplace(t.reshape(-1), bits)
+    for r in range(k_count):
+        for u in range(hid):
+            h_new[r, u] = g[r, 3 * hid + u] * (2.0 * t[r, u] - 1.0)
+
+
+@numba.njit(cache=True, fastmath=True)
 def _dense_rows(inp: np.ndarray, w: np.ndarray, b: np.ndarray, out: np.ndarray, relu: bool) -> None:
     """out = act(inp @ w.T + b); inp: (R, in), w: (O, in), out: (R, O)."""
     for r in range(inp.shape[0]):
@@ -137,6 +172,13 @@ class StreamingEngine:
                 width = layer.out_features
         self.head = [(_f64(lin.weight), _f64(lin.bias)) for lin in net.head]
         self.out = (_f64(net.out.weight), _f64(net.out.bias))
+        # a BranchNet: the gate MLP, and the state appended to the first layer after pooling
+        self.gate, self.heads = [], [(self.head, self.out)]
+        if isinstance(net, BranchNet):
+            self.gate = [(_f64(lin.weight), _f64(lin.bias)) for lin in net.gate]
+            self.heads.append(([(_f64(lin.weight), _f64(lin.bias)) for lin in net.head1],
+                               (_f64(net.out1.weight), _f64(net.out1.bias))))
+        self.state = UNKNOWN_STATE
         ib = self.ib
         self._h = [np.zeros((ib, w[1].shape[1])) if kind == "lstm" else np.zeros(0)
                    for kind, w in self.seq]
@@ -150,6 +192,7 @@ class StreamingEngine:
                       for kind, w in self.seq]
         self._hist = np.zeros((ib, ib, width))    # chain j's outputs at positions 0..j
         self._head_bufs = [np.zeros((1, w.shape[0])) for w, _ in self.head]
+        self._gate_bufs = [np.zeros((1, w.shape[0])) for w, _ in self.gate]
         self._y = np.zeros((1, self.out[0].shape[0]))
         self._x = np.zeros((1, net.n_inputs))
         self._fresh = True
@@ -157,6 +200,7 @@ class StreamingEngine:
     def reset(self) -> None:
         """Start a new sequence: the next step is its first (and is repeated to fill the buffer)."""
         self._fresh = True
+        self.state = UNKNOWN_STATE
 
     def step(self, x: np.ndarray) -> np.ndarray:
         """x: (F,) normalised features of the current step -> (O,) normalised outputs."""
@@ -165,7 +209,95 @@ class StreamingEngine:
             self._fresh = False
             for _ in range(self.ib - 1):
                 self._advance()
-        return self._advance()
+        return self._head(self._advance())
+
+    def probe(self, xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Outputs (K, O) and branch states (K,) that `step` would return for each of K candidate
+        feature rows xs (K, F) at the next step, without changing the engine (IK refinement asks
+        the learned FK "where would the tip be if the next joints were these?")."""
+        xs = np.ascontiguousarray(xs, dtype=np.float64)
+        k_count = len(xs)
+        if self._fresh:          # the window would be the candidate repeated: run each one aside
+            return self._probe_fresh(xs)
+        ib, inp = self.ib, xs
+        for k, (kind, w) in enumerate(self.seq):
+            if kind == "lstm":
+                hid = w[1].shape[1]
+                out = np.empty((k_count, hid))
+                g, t = np.empty((k_count, 4 * hid)), np.empty((k_count, hid))
+                row = max(ib - 2, 0)    # the chain that becomes the full window at this step
+                _lstm_from(inp, w[0], w[1], w[2], self._h[k][row], self._c[k][row], ib == 1, out, g, t,
+                           np.empty(g.size, dtype=np.int64))
+            else:
+                out = np.empty((k_count, w[0].shape[0]))
+                _dense_rows(inp, w[0], w[1], out, True)
+            inp = out
+        width = inp.shape[1]
+        if self.pooling == "flatten":
+            h = np.empty((k_count, ib * width))
+            h[:, : (ib - 1) * width] = self._hist[ib - 2, : ib - 1].reshape(-1) if ib > 1 else 0.0
+            h[:, (ib - 1) * width:] = inp
+        else:
+            h = inp
+        return self._head_rows(h)
+
+    def _probe_fresh(self, xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        saved = (self._fresh, self.state)
+        ys, ss = [], []
+        for x in xs:
+            self._fresh, self.state = saved
+            keep = [a.copy() for a in (*self._h, *self._c, self._hist)]
+            ys.append(self.step(x))
+            ss.append(self.state)
+            for dst, src in zip([*self._h, *self._c, self._hist], keep, strict=True):
+                dst[...] = src
+        self._fresh, self.state = saved
+        return np.array(ys), np.array(ss)
+
+    def _head_rows(self, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """_head for K rows at once from the current state, without updating it."""
+        k_count = len(h)
+        states = np.full(k_count, self.state)
+        if self.gate:
+            z = np.empty((k_count, h.shape[1] + 1))
+            z[:, :-1] = h
+            z[:, -1] = self.state
+            g1 = np.empty((k_count, self.gate[0][0].shape[0]))
+            g2 = np.empty((k_count, 1))
+            _dense_rows(z, self.gate[0][0], self.gate[0][1], g1, True)
+            _dense_rows(g1, self.gate[1][0], self.gate[1][1], g2, False)
+            states = np.where(g2[:, 0] > 0, 1.0, 0.0)
+        y = np.empty((k_count, self.out[0].shape[0]))
+        for branch, (head, out) in enumerate(self.heads):
+            rows = np.nonzero(states == branch)[0] if self.gate else np.arange(k_count)
+            if len(rows) == 0:
+                continue
+            x = h[rows]
+            for hw, hb in head:
+                buf = np.empty((len(rows), hw.shape[0]))
+                _dense_rows(x, hw, hb, buf, True)
+                x = buf
+            yb = np.empty((len(rows), out[0].shape[0]))
+            _dense_rows(x, out[0], out[1], yb, self.relu_out)
+            y[rows] = yb
+        return y, states
+
+    def _head(self, h: np.ndarray) -> np.ndarray:
+        """h: (1, W) trunk features -> (O,) outputs; a BranchNet first updates its state."""
+        head, out = self.head, self.out
+        if self.gate:
+            z = np.empty((1, h.shape[1] + 1))
+            z[0, :-1] = h[0]
+            z[0, -1] = self.state
+            _dense_rows(z, self.gate[0][0], self.gate[0][1], self._gate_bufs[0], True)
+            _dense_rows(self._gate_bufs[0], self.gate[1][0], self.gate[1][1], self._gate_bufs[1], False)
+            self.state = 1.0 if self._gate_bufs[1][0, 0] > 0 else 0.0
+            head, out = self.heads[int(self.state)]
+        for (hw, hb), buf in zip(head, self._head_bufs, strict=True):
+            _dense_rows(h, hw, hb, buf, True)
+            h = buf
+        _dense_rows(h, out[0], out[1], self._y, self.relu_out)
+        return self._y[0].copy()
 
     def _advance(self) -> np.ndarray:
         inp: np.ndarray = self._x
@@ -190,9 +322,4 @@ class StreamingEngine:
         for j in range(self.ib):
             hist[j, j] = inp[0] if shared else inp[j]
         window = hist[self.ib - 1]                       # retiring chain: the full window
-        h = window.reshape(1, -1) if self.pooling == "flatten" else window[-1:].copy()
-        for (hw, hb), buf in zip(self.head, self._head_bufs, strict=True):
-            _dense_rows(h, hw, hb, buf, True)
-            h = buf
-        _dense_rows(h, self.out[0], self.out[1], self._y, self.relu_out)
-        return self._y[0].copy()
+        return window.reshape(1, -1) if self.pooling == "flatten" else window[-1:].copy()

@@ -28,11 +28,15 @@ import torch
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.schema import sequence_bounds
 from ctrkin.errors import ModelError
-from ctrkin.inference.batch import padded_rows, seqnet_predict
+from ctrkin.inference.batch import padded_rows, seqnet_predict, seqnet_trunk
 from ctrkin.inference.engine import StreamingEngine
+from ctrkin.inference.refine import FKResidual, RefineSettings, refine
 from ctrkin.inference.workspace import WORKSPACE_FILE, Workspace
+from ctrkin.models.branch import BranchNet
 from ctrkin.models.features import (
     check_raw,
+    delta_columns,
+    pair_features,
     postprocess,
     sequence_features,
     step_features,
@@ -42,16 +46,27 @@ from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle, read_json
 from ctrkin.robots.robot import Robot
 
+REFINE_FILE, REFINE_FK = "refine.json", "fk"
+JUMP_DEG, JUMP_TARGET_MM = 20.0, 1.0    # an α change this large between targets this close is flagged
+
 
 @dataclass(eq=False)
 class IKResult:
-    """joints: (T, 2N) (deg, mm); in_workspace: (T,) whether each target lies in the trained workspace;
-    distance: (T,) normalised distance to the nearest training target; reasons: why not, per step."""
+    """joints: (T, 2N) (deg, mm), always within the robot's joint limits; in_workspace: (T,) whether
+    each target lies in the trained workspace; distance: (T,) normalised distance to the nearest
+    training target; reasons: why not, per step; projected: (T,) the network's joints were outside
+    the limits and were projected onto them; residual_mm: (T,) tip distance from the target that the
+    learned FK predicts for the joints (refined IK; NaN otherwise); jump: (T,) some α changed by more
+    than 20° from the previous step although the target moved less than 1 mm (a switch between
+    solutions, not a continuous path)."""
 
     joints: np.ndarray
     in_workspace: np.ndarray
     distance: np.ndarray
     reasons: list[str]
+    projected: np.ndarray | None = None
+    residual_mm: np.ndarray | None = None
+    jump: np.ndarray | None = None
 
     @property
     def all_in_workspace(self) -> bool:
@@ -62,6 +77,9 @@ class IKStep(NamedTuple):
     joints: np.ndarray     # (2N,) deg, mm
     in_workspace: bool
     reason: str
+    projected: bool = False
+    residual_mm: float = math.nan
+    jump: bool = False
 
 
 def robot_differences(a: Robot, b: Robot) -> list[str]:
@@ -91,6 +109,7 @@ class Kinematics:
         self.layout = bundle.layout
         self.robot = bundle.robot
         self.config = bundle.config
+        self.frame = bundle.frame
         self.net = bundle.net.eval()
         self.workspace = workspace
         self.metrics = metrics or {}
@@ -101,7 +120,11 @@ class Kinematics:
         self._window: deque[np.ndarray] = deque(maxlen=self.layout.ib)
         self._prev: np.ndarray | None = None
         self._ws_hint = 0      # nearest training target of the previous IK step (Workspace.check_one)
-        self._fast_fk = self.layout.task == "fk" and self.layout.angle_encoding == "minmax"
+        self._dcols = delta_columns(self.layout)
+        self._dlo, self._dhi = bundle.x_norm.lo[self._dcols], bundle.x_norm.hi[self._dcols]
+        self.refiner: tuple[Kinematics, RefineSettings, FKResidual] | None = None
+        self._ik_prev: tuple[np.ndarray, np.ndarray] | None = None   # previous (target, joints)
+        self._fast_fk = self.layout.task == "fk" and self.layout.angle_encoding in ("minmax", "phase")
 
     # --- loading ---------------------------------------------------------------------------------
     @classmethod
@@ -113,7 +136,30 @@ class Kinematics:
         if bundle.layout.task == "ik" and ws is None:
             raise ModelError(f"{src} is an IK model without {WORKSPACE_FILE}; retrain it with ctrkin train")
         metrics = read_json(src / "metrics.json") if (src / "metrics.json").is_file() else {}
-        return cls(bundle, ws, metrics, src)
+        kin = cls(bundle, ws, metrics, src)
+        if (src / REFINE_FILE).is_file():
+            if bundle.layout.task != "ik" or not (src / REFINE_FK).is_dir():
+                raise ModelError(f"{src / REFINE_FILE} needs an IK model with its FK model in "
+                                 f"{src / REFINE_FK}")
+            settings = RefineSettings.from_dict(read_json(src / REFINE_FILE))
+            kin.attach_fk(Kinematics.load(src / REFINE_FK), settings)
+        return kin
+
+    def attach_fk(self, fk: Kinematics, settings: RefineSettings | None = None) -> None:
+        """Refine this IK model's answers on the learned FK `fk` (ctrkin.inference.refine)."""
+        if self.task != "ik":
+            raise ModelError("only an IK model can be refined on an FK model")
+        if fk.robot.fingerprint() != self.robot.fingerprint():
+            raise ModelError("the FK model was trained on another robot than this IK model")
+        settings = settings or RefineSettings()
+        if "nearest" in settings.starts and (self.workspace is None or self.workspace.joints is None):
+            raise ModelError("the 'nearest' start needs the training joints in workspace.npz; retrain the "
+                             "IK model or drop 'nearest' from RefineSettings.starts")
+        self.refiner = (fk, settings, FKResidual(fk, settings.tangent_weight_mm))
+
+    @property
+    def refined(self) -> bool:
+        return self.refiner is not None
 
     @property
     def task(self) -> str:
@@ -150,9 +196,10 @@ class Kinematics:
 
     def feature_windows(self, data: Dataset | np.ndarray, sequence_id: np.ndarray | None = None
                         ) -> np.ndarray:
-        """(T, IB, F) un-normalised feature windows: the input of the exported ONNX model."""
+        """(T, IB, F) un-normalised feature windows, step changes clipped to their training range as
+        in `predict`: the input of the exported ONNX model."""
         raw, bounds = self._raw_from(data, sequence_id)
-        feats = sequence_features(self.layout, raw, bounds)
+        feats = self._clip_deltas(sequence_features(self.layout, raw, bounds))
         return feats[window_index(bounds, self.ib)]
 
     def predict_normalised(self, Xn: np.ndarray, batch: int = 65536) -> np.ndarray:
@@ -173,29 +220,79 @@ class Kinematics:
         IKResult for IK (with strict=True, targets outside the trained workspace raise ModelError).
         """
         raw, bounds = self._raw_from(data, sequence_id)
-        feats = (sequence_features(self.layout, raw, bounds) - self._xlo) / self._xspan
-        if isinstance(self.net, SeqNet):        # by chains: about half the work of windows at IB = 2
+        if self.task == "ik" and self.refiner is not None:
+            return self._predict_refined(raw, bounds, strict)
+        feats = (self._clip_deltas(sequence_features(self.layout, raw, bounds)) - self._xlo) / self._xspan
+        if isinstance(self.net, BranchNet):     # the branch state is carried through each sequence
+            yn, _ = self.net.decode(seqnet_trunk(self.net, *padded_rows(feats, bounds, self.ib)), bounds)
+        elif isinstance(self.net, SeqNet):      # by chains: about half the work of windows at IB = 2
             yn = seqnet_predict(self.net, *padded_rows(feats, bounds, self.ib))
         else:
             yn = self.predict_normalised(feats[window_index(bounds, self.ib)])
         y = postprocess(self.layout, yn * self._yspan + self._ylo)
         if self.task == "fk":
-            return y
+            return y if self.frame is None else self.frame.to_world(y, raw[:, self.layout.n_tubes - 1])
+        ok, dist, reasons = self._workspace_check(raw, strict)
+        joints = self.robot.project_joints(y)
+        projected = np.any(np.abs(joints - y) > 1e-9, axis=1)
+        return IKResult(joints, ok, dist, reasons, projected, np.full(len(y), np.nan),
+                        _jumps(raw, joints, bounds, self.layout.n_tubes))
+
+    def _workspace_check(self, raw: np.ndarray, strict: bool) -> tuple[np.ndarray, np.ndarray, list[str]]:
         assert self.workspace is not None
         ok, dist, reasons = self.workspace.check(raw)
         if strict and not ok.all():
             bad = np.nonzero(~ok)[0]
             raise ModelError(f"{len(bad)} IK target(s) outside the trained workspace, first at step "
                              f"{bad[0]}: {reasons[bad[0]]}")
-        return IKResult(y, ok, dist, reasons)
+        return ok, dist, reasons
+
+    def _predict_refined(self, raw: np.ndarray, bounds: list[tuple[int, int]], strict: bool) -> IKResult:
+        """Refined IK runs step by step (each step starts from the previous solution and advances the
+        FK model's history), one sequence after another."""
+        ok, dist, reasons = self._workspace_check(raw, strict)
+        n2 = 2 * self.layout.n_tubes
+        joints, resid = np.empty((len(raw), n2)), np.empty(len(raw))
+        projected, jump = np.zeros(len(raw), bool), np.zeros(len(raw), bool)
+        for a, b in bounds:
+            self.reset()
+            for t in range(a, b):
+                st = self.step(raw[t], check=False)
+                joints[t], resid[t], projected[t], jump[t] = st.joints, st.residual_mm, st.projected, st.jump
+        self.reset()
+        return IKResult(joints, ok, dist, reasons, projected, resid, jump)
+
+    def _clip_deltas(self, feats: np.ndarray) -> np.ndarray:
+        """Step-change features clipped to their training range (the model knows only the step sizes
+        it was trained on; a coarser path keeps its direction)."""
+        if len(self._dcols):
+            feats[..., self._dcols] = np.clip(feats[..., self._dcols], self._dlo, self._dhi)
+        return feats
+
+    def probe(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """FK only: the poses (K, 6) and branch states (K,) that `step` would return for each of K
+        candidate joints Q (K, 2N) as the next step of the current sequence; nothing is advanced."""
+        if self.task != "fk" or self._engine is None:
+            raise ModelError("probe() needs an FK model of the LSTM-MLP family")
+        Q = np.atleast_2d(np.asarray(Q, float))
+        prev = Q if self._prev is None else np.broadcast_to(self._prev, Q.shape)
+        xn = (self._clip_deltas(pair_features(self.layout, Q, prev)) - self._xlo) / self._xspan
+        yn, states = self._engine.probe(xn)
+        y = postprocess(self.layout, yn * self._yspan + self._ylo)
+        if self.frame is not None:
+            y = self.frame.to_world(y, Q[:, self.layout.n_tubes - 1])
+        return y, states
 
     # --- streaming -------------------------------------------------------------------------------
     def reset(self) -> None:
         """Start a new sequence: the next step() is its first."""
         self._prev = None
+        self._ik_prev = None
         self._window.clear()
         if self._engine is not None:
             self._engine.reset()
+        if self.refiner is not None:
+            self.refiner[0].reset()
 
     def step(self, x: np.ndarray, check: bool = True, strict: bool = False) -> Any:
         """One step of the current sequence. x: (2N,) joints (FK) or (6,) target pose (IK).
@@ -211,11 +308,18 @@ class Kinematics:
             feat = np.empty(self.layout.n_inputs)
             feat[: 2 * n] = raw
             feat[2 * n] = a0
+            k = 2 * n + 1
+            if self.layout.angle_encoding == "phase":
+                r = math.radians(a0)
+                feat[k], feat[k + 1] = math.sin(r), math.cos(r)
+                k += 2
             if self.layout.delta:
-                feat[2 * n + 1] = 0.0 if self._prev is None else a0 - (self._prev[0] - self._prev[n - 1])
+                feat[k] = 0.0 if self._prev is None else a0 - (self._prev[0] - self._prev[n - 1])
         else:
             feat = step_features(self.layout, raw, self._prev)
         self._prev = raw
+        if len(self._dcols):
+            feat[self._dcols] = np.minimum(np.maximum(feat[self._dcols], self._dlo), self._dhi)
         xn = (feat - self._xlo) / self._xspan
         if self._engine is not None:
             yn = self._engine.step(xn)
@@ -227,14 +331,59 @@ class Kinematics:
                 yn = self.net(torch.tensor(np.array(self._window)[None], dtype=torch.float32))[0].numpy()
         y = yn * self._yspan + self._ylo
         if self.task == "fk":
+            if self.frame is not None:
+                return self.frame.to_world_one(y, float(raw[self.layout.n_tubes - 1]))
             nq = math.sqrt(y[3] * y[3] + y[4] * y[4] + y[5] * y[5])
             if nq > 1e-12:
                 y[3:6] /= nq
             return y
-        if not check:
-            return IKStep(y, True, "")
-        assert self.workspace is not None
-        ok, reason, self._ws_hint = self.workspace.check_one(raw, self._ws_hint)
-        if strict and not ok:
-            raise ModelError(f"IK target outside the trained workspace: {reason}")
-        return IKStep(y, ok, reason)
+        ok, reason = True, ""
+        if check:
+            assert self.workspace is not None
+            ok, reason, self._ws_hint = self.workspace.check_one(raw, self._ws_hint)
+            if strict and not ok:
+                raise ModelError(f"IK target outside the trained workspace: {reason}")
+        q = self.robot.project_joints(y[None])[0]
+        projected = bool(np.any(np.abs(q - y) > 1e-9))
+        residual = math.nan
+        if self.refiner is not None:
+            q, residual = self._refine(raw, q)
+        jump = False
+        if self._ik_prev is not None:
+            n = self.layout.n_tubes
+            moved = float(np.linalg.norm(raw[:3] - self._ik_prev[0][:3]))
+            turned = np.abs((q[:n] - self._ik_prev[1][:n] + 180.0) % 360.0 - 180.0)
+            jump = bool(moved < JUMP_TARGET_MM and turned.max() > JUMP_DEG)
+        self._ik_prev = (raw, q)
+        return IKStep(q, ok, reason, projected, residual, jump)
+
+    def _refine(self, target: np.ndarray, direct: np.ndarray) -> tuple[np.ndarray, float]:
+        assert self.refiner is not None
+        fk, settings, residual = self.refiner
+        previous = None if self._ik_prev is None else self._ik_prev[1]
+        starts: list[tuple[str, np.ndarray]] = []
+        if "direct" in settings.starts:
+            starts.append(("direct", direct))
+        if "previous" in settings.starts and previous is not None:
+            starts.append(("previous", previous))
+        if "nearest" in settings.starts:
+            assert self.workspace is not None
+            starts.append(("nearest", self.workspace.nearest_joints(target)))
+        if not starts:
+            starts.append(("direct", direct))
+        best = refine(residual, starts, target, previous, settings, self.robot.project_joints)
+        fk.step(best.joints)                 # the FK history moves on with the joints we send
+        return best.joints, best.residual_mm
+
+
+def _jumps(targets: np.ndarray, joints: np.ndarray, bounds: list[tuple[int, int]], n: int) -> np.ndarray:
+    """(T,) the IKStep.jump flag for a batch: α changed > JUMP_DEG while the target moved
+    < JUMP_TARGET_MM since the previous step of the same sequence."""
+    out = np.zeros(len(targets), dtype=bool)
+    for a, b in bounds:
+        if b - a < 2:
+            continue
+        moved = np.linalg.norm(np.diff(targets[a:b, :3], axis=0), axis=1)
+        turned = np.abs((np.diff(joints[a:b, :n], axis=0) + 180.0) % 360.0 - 180.0).max(axis=1)
+        out[a + 1:b] = (moved < JUMP_TARGET_MM) & (turned > JUMP_DEG)
+    return out

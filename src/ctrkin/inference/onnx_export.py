@@ -6,7 +6,9 @@
 The ONNX graph maps "window": (B, IB, F) float32 raw features (Kinematics.feature_windows: the
 layout's input_names, un-normalised, oldest step first) to "output": (B, O) float32 in user units
 (FK: tip pose with unit quaternion; IK: joints). Metadata props record the task, IB, feature and output
-names and the robot fingerprint.
+names and the robot fingerprint. A snap-aware model (BranchNet) has a second input "state": (B,)
+float32, the previous branch state (0.5 at a sequence start), and a second output "state_out": the
+new one, to be fed back at the next step.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from torch import nn
 
 from ctrkin.errors import ModelError
 from ctrkin.inference.kinematics import Kinematics
+from ctrkin.models.branch import BranchNet
 from ctrkin.util.files import atomic_path
 
 
@@ -39,13 +42,45 @@ class ExportWrapper(nn.Module):
         self.register_buffer("ylo", f32(kin.bundle.y_norm.lo))
         self.register_buffer("yspan", f32(kin.bundle.y_norm.span))
         self.fk = kin.task == "fk"
+        self.frame = kin.frame is not None
+        self.rot: torch.Tensor
+        self.trans: torch.Tensor
+        reg = kin.frame.registration if kin.frame is not None else None
+        self.register_buffer("rot", f32(reg.rotation if reg is not None else torch.eye(3).numpy()))
+        self.register_buffer("trans", f32(reg.translation if reg is not None else torch.zeros(3).numpy()))
+        n = kin.layout.n_tubes
+        self.alpha_col = 2 * (n - 1) if kin.layout.angle_encoding == "sincos" else n - 1
+        self.sincos = kin.layout.angle_encoding == "sincos"
 
-    def forward(self, window: torch.Tensor) -> torch.Tensor:
-        y = self.net((window - self.xlo) / self.xspan) * self.yspan + self.ylo
+    def forward(self, window: torch.Tensor, state: torch.Tensor | None = None
+                ) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
+        x = (window - self.xlo) / self.xspan
+        if isinstance(self.net, BranchNet):
+            assert state is not None
+            h = self.net.trunk(x)
+            new_state = (self.net.gate_logit(h, state) > 0).to(h.dtype)
+            return self._finish(self.net.head_out(h, new_state), window), new_state
+        return self._finish(self.net(x), window)
+
+    def _finish(self, yn: torch.Tensor, window: torch.Tensor) -> torch.Tensor:
+        y = yn * self.yspan + self.ylo
         if self.fk:
             q = y[:, 3:6]
-            norm = torch.linalg.vector_norm(q, dim=1, keepdim=True).clamp_min(1e-12)
-            y = torch.cat([y[:, :3], q / norm], 1)
+            q = q / torch.linalg.vector_norm(q, dim=1, keepdim=True).clamp_min(1e-12)
+            if self.frame:      # outer-tube frame -> tracker frame (ctrkin.models.frame)
+                last = window[:, -1]
+                a = torch.atan2(last[:, self.alpha_col], last[:, self.alpha_col + 1]) if self.sincos \
+                    else torch.deg2rad(last[:, self.alpha_col])
+                c, s = torch.cos(a), torch.sin(a)
+                w, qx, qy = q[:, 0], q[:, 1], q[:, 2]
+                tan = torch.stack([2 * w * qy, -2 * w * qx, 1 - 2 * (qx * qx + qy * qy)], 1)
+                pos, tan = (torch.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], 1)
+                            for v in (y[:, :3], tan))
+                pos, tan = pos @ self.rot.T + self.trans, tan @ self.rot.T
+                q = torch.stack([1.0 + tan[:, 2], -tan[:, 1], tan[:, 0]], 1)   # pose.quat_from_tangent
+                q = q / torch.linalg.vector_norm(q, dim=1, keepdim=True).clamp_min(1e-12)
+                return torch.cat([pos, q], 1)
+            y = torch.cat([y[:, :3], q], 1)
         return y
 
 
@@ -54,15 +89,21 @@ def export_onnx(kin: Kinematics, path: str | Path, opset: int = 17) -> Path:
     import onnx
 
     wrapper = ExportWrapper(kin).eval()
-    example = torch.zeros(2, kin.ib, kin.layout.n_inputs)
+    example: tuple[torch.Tensor, ...] = (torch.zeros(2, kin.ib, kin.layout.n_inputs),)
+    names, outputs = ["window"], ["output"]
+    axes = {"window": {0: "batch"}, "output": {0: "batch"}}
+    if isinstance(kin.net, BranchNet):
+        example += (torch.full((2,), 0.5),)
+        names.append("state")
+        outputs.append("state_out")
+        axes.update({"state": {0: "batch"}, "state_out": {0: "batch"}})
     out = Path(path)
     with atomic_path(out) as tmp:
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")   # legacy-exporter deprecation, tracer and LSTM notes
-                torch.onnx.export(wrapper, (example,), str(tmp), input_names=["window"],
-                                  output_names=["output"], opset_version=opset, dynamo=False,
-                                  dynamic_axes={"window": {0: "batch"}, "output": {0: "batch"}})
+                torch.onnx.export(wrapper, example, str(tmp), input_names=names, output_names=outputs,
+                                  opset_version=opset, dynamo=False, dynamic_axes=axes)
         except Exception as e:  # the exporter raises many types
             raise ModelError(f"ONNX export failed for model {kin.config['model']!r}: {e}") from None
         model = onnx.load(str(tmp))

@@ -34,15 +34,26 @@ class Workspace:
     norm: MinMax
     threshold: float
     margin: float = 0.05
+    joints: np.ndarray | None = None     # (M, 2N) the joints of each training target (IK starts)
 
     def __post_init__(self) -> None:
         self.points = np.ascontiguousarray(self.points, dtype=np.float64)
         self._tree = cKDTree(self.points)
+        if self.joints is not None and len(self.joints) != len(self.points):
+            raise ModelError(f"workspace joints ({len(self.joints)}) and targets ({len(self.points)}) differ")
+
+    def nearest_joints(self, pose: np.ndarray) -> np.ndarray:
+        """(2N,) joints of the training target nearest to `pose` (6,) (normalised 6-D distance)."""
+        if self.joints is None:
+            raise ModelError("this workspace holds no training joints (retrain the IK model)")
+        _, k = self._tree.query(self.norm.transform(np.asarray(pose, float)), k=1)
+        return np.array(self.joints[int(k)], dtype=np.float64)
 
     @classmethod
     def fit(cls, train_poses: np.ndarray, val_poses: np.ndarray, norm: MinMax, factor: float = 1.5,
-            quantile: float = 0.99) -> Workspace:
-        """train_poses, val_poses: (M, 6) raw poses (mm, unit quaternion); norm: their min-max."""
+            quantile: float = 0.99, train_joints: np.ndarray | None = None) -> Workspace:
+        """train_poses, val_poses: (M, 6) raw poses (mm, unit quaternion); norm: their min-max;
+        train_joints: (M, 2N) the joints at train_poses (kept for IK refinement starts)."""
         pts = norm.transform(train_poses)
         tree = cKDTree(pts)
         if len(val_poses):
@@ -50,7 +61,7 @@ class Workspace:
         else:  # no held-out data: nearest-other-point spacing of the training set
             d = tree.query(pts, k=2)[0][:, 1]
         thr = float(factor * np.quantile(d, quantile))
-        return cls(pts, norm, max(thr, 1e-6))
+        return cls(pts, norm, max(thr, 1e-6), joints=train_joints)
 
     def check(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
         """poses: (T, 6) raw targets -> (in_workspace (T,) bool, distance (T,) normalised, reasons),
@@ -99,15 +110,20 @@ class Workspace:
     def save(self, folder: str | Path) -> None:
         with atomic_path(Path(folder) / WORKSPACE_FILE) as tmp:
             with open(tmp, "wb") as fh:
-                np.savez_compressed(fh, points=self.points.astype(np.float32), lo=self.norm.lo,
-                                    span=self.norm.span, threshold=self.threshold, margin=self.margin)
+                arrays: dict[str, object] = dict(
+                    points=self.points.astype(np.float32), lo=self.norm.lo, span=self.norm.span,
+                    threshold=self.threshold, margin=self.margin)
+                if self.joints is not None:
+                    arrays["joints"] = np.asarray(self.joints, np.float32)
+                np.savez_compressed(fh, **arrays)  # type: ignore[arg-type]
 
     @classmethod
     def load(cls, folder: str | Path) -> Workspace:
         path = Path(folder) / WORKSPACE_FILE
         try:
             with np.load(path) as z:
+                joints = z["joints"].astype(np.float64) if "joints" in z.files else None
                 return cls(z["points"].astype(np.float64), MinMax(z["lo"], z["span"]),
-                           float(z["threshold"]), float(z["margin"]))
+                           float(z["threshold"]), float(z["margin"]), joints)
         except (OSError, KeyError, ValueError) as e:
             raise ModelError(f"cannot read the IK workspace {path}: {e}") from None
