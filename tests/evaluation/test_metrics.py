@@ -10,6 +10,8 @@ from ctrkin.evaluation.metrics import (
     error_stats,
     joint_errors,
     pose_errors,
+    rotation_direction,
+    snap_report,
     snap_score,
     snap_steps,
     snap_window,
@@ -19,7 +21,8 @@ from ctrkin.pose import quat_from_tangent
 
 def test_error_stats_hand_computed() -> None:
     s = error_stats(np.array([3.0, -4.0]))
-    assert s == {"rmse": pytest.approx(np.sqrt(12.5)), "mae": 3.5, "max": 4.0, "n": 2}
+    assert s == {"rmse": pytest.approx(np.sqrt(12.5)), "mae": 3.5, "max": 4.0, "median": 3.5,
+                 "n": 2}
     assert np.isnan(error_stats(np.array([1.0, np.nan]))["rmse"])  # a failure is not hidden
 
 
@@ -87,3 +90,20 @@ def test_snap_window_marks_two_steps_inside_sequence() -> None:
     snap[[2, 4]] = True
     w = snap_window(snap, [(0, 5), (5, 8)])
     assert list(np.nonzero(w)[0]) == [2, 3, 4]
+
+
+def test_snap_report_splits_events_by_direction_of_rotation() -> None:
+    """A forward-and-back turn: the forward snap matched, the backward one missed."""
+    a0 = np.r_[np.arange(0, 361, 1.0), np.arange(359, -1, -1.0)]
+    joints = np.c_[a0, np.zeros_like(a0), np.full((len(a0), 2), -10.0)]
+    bounds = [(0, len(a0))]
+    ref = np.where(a0 < 200, 0.0, 40.0)
+    ref[361:] = np.where(a0[361:] > 150, 40.0, 0.0)
+    pred = ref.copy()
+    pred[361:] = 40.0                                                 # never snaps back
+    direction = rotation_direction(joints, 2, bounds)
+    assert direction[0] == 0 and direction[10] == 1 and direction[400] == -1
+    r = snap_report(pred, ref, bounds, direction)
+    assert r["n_reference"] == 2 and r["recall"] == 0.5
+    assert r["forward"]["recall"] == 1.0 and r["forward"]["precision"] == 1.0
+    assert r["backward"]["recall"] == 0.0 and r["backward"]["n_reference"] == 1

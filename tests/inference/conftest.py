@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from ctrkin.inference.refine_folder import assemble_refined
 from ctrkin.robots import paper_robot
 from ctrkin.training import TrainConfig, train
 from ctrkin.training.demo import sweep_dataset
@@ -24,7 +25,10 @@ def model_dirs(sweeps, tmp_path_factory):
         "ik": TrainConfig(task="ik", ib=3, max_epochs=3, threads=1, options={"structure": "L16|D16"}),
         "fk_cnn": TrainConfig(task="fk", model="cnn", max_epochs=1, threads=1, options={"channels": 8}),
         "fk_default": TrainConfig(task="fk", max_epochs=1, threads=1),
+        "fk_branch": TrainConfig(task="fk", model="lstm_mlp_branch", max_epochs=3, threads=1,
+                                 options={"structure": "L16|D16", "gate_units": 8}),
     }.items():
         train(sweeps, cfg, root / name, progress=False)
         dirs[name] = root / name
+    dirs["ik_refined"] = assemble_refined(dirs["ik"], dirs["fk_branch"], root / "ik_refined")
     return dirs

@@ -26,7 +26,7 @@ def _stream(kin, raw, bounds):
     return np.array(out)
 
 
-@pytest.mark.parametrize("name", ["fk", "fk_default", "fk_cnn"])
+@pytest.mark.parametrize("name", ["fk", "fk_default", "fk_cnn", "fk_branch"])
 def test_fk_batch_equals_streaming(model_dirs, sweeps, name):
     kin = ctrkin.Kinematics.load(model_dirs[name])
     batch = kin.predict(sweeps)
@@ -110,6 +110,57 @@ def test_onnx_equals_pytorch(model_dirs, sweeps, tmp_path, name):
         if kin.task == "ik":     # the graph gives the network's joints; predict projects them on the limits
             out = kin.robot.project_joints(out.astype(np.float64))
         assert np.abs((out - ref[:n]) / scale).max() < ONNX_TOL
+
+
+def test_onnx_branch_model_carries_its_state(model_dirs, sweeps, tmp_path):
+    """The snap-aware model's graph takes the previous branch state and returns the new one; fed
+    back step by step it gives predict's poses (in the tracker frame: the outer frame is in the graph)."""
+    kin = Kinematics.load(model_dirs["fk_branch"])
+    assert kin.frame is not None
+    sess = ort.InferenceSession(str(export_onnx(kin, tmp_path / "b.onnx")), providers=["CPUExecutionProvider"])
+    windows = kin.feature_windows(sweeps).astype(np.float32)
+    ref = kin.predict(sweeps)
+    out = np.empty_like(ref)
+    for a, b in sweeps.sequence_bounds():
+        state = np.array([0.5], np.float32)
+        for t in range(a, b):
+            y, state = sess.run(None, {"window": windows[t:t + 1], "state": state})
+            out[t] = y[0]
+    assert np.abs(out - ref).max() < ONNX_TOL
+
+
+def test_probe_equals_step(model_dirs, sweeps):
+    """probe(K candidates) returns what step would for each, and advances nothing."""
+    kin = Kinematics.load(model_dirs["fk_branch"])
+    q = sweeps.joints()[:40]
+    kin.reset()
+    for row in q[:20]:
+        kin.step(row)
+    cands = q[20:25]
+    poses, _ = kin.probe(cands)
+    for k, c in enumerate(cands):
+        twin = Kinematics.load(model_dirs["fk_branch"])
+        twin.reset()
+        for row in q[:20]:
+            twin.step(row)
+        np.testing.assert_allclose(twin.step(c), poses[k], atol=1e-9)
+    np.testing.assert_allclose(kin.step(q[20]), poses[0], atol=1e-9)   # probe left the stream as it was
+
+
+def test_branch_states_override_the_gate(model_dirs, sweeps):
+    kin = Kinematics.load(model_dirs["fk_branch"])
+    n = len(sweeps.frame)
+    zero = kin.predict(sweeps, branch_states=np.zeros(n))
+    one = kin.predict(sweeps, branch_states=np.ones(n))
+    gated = kin.predict(sweeps)
+    assert np.abs(zero - one).max() > 1e-6          # two heads
+    from_heads = np.where(np.all(np.isclose(gated, zero), axis=1) | np.all(np.isclose(gated, one), axis=1),
+                          True, False)
+    assert from_heads.all()                          # the gate only chooses between them
+    with pytest.raises(ModelError, match="shape"):
+        kin.predict(sweeps, branch_states=np.zeros(3))
+    with pytest.raises(ModelError, match="branch model"):
+        Kinematics.load(model_dirs["fk"]).predict(sweeps, branch_states=np.zeros(n))
 
 
 def test_batch_predict_accepts_sequence_ids(model_dirs, sweeps):

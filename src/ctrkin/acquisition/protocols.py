@@ -17,6 +17,10 @@ Protocols (each returns a `Plan`; every random draw comes from `seed`):
                  d = 4, 12, 20 mm × 4 angles × 721 = 8,652 samples. Each level is one run (parallel).
   sweeps         Fig. 2b, 6, 10a: the outer tube fixed at α = 0, βN = 0; the inner tube turns
                  0 → 360 → 0° at d = 4, 8, 12, 16, 20 mm (the paper's β12 = 15..55), one run.
+  snap-turns     ctrkin's test of snap prediction off the protocol grid: full inner turns
+                 0 → 360 → 0° at full curved overlap (d = 20 mm) at outer angles and translations the
+                 paper protocol never records (αN = 10, 70, …, 310°, βN alternating −1.25 / −3.75 mm),
+                 each its own run from rest.
   random-points  Fig. 10b: N random configurations (α uniform in [0, 360)°, d in [4, 20] mm, βN in
                  [−5, 0] mm), each reached by a joint-space move from the previous one; one sequence
                  per move, the target its last sample (is_target).
@@ -199,8 +203,27 @@ def arbitrary(robot: Robot, scale: Scale = "full", seed: int = 0, samples: int =
                           "alpha1 360 -> 0 deg (paper encoder units)"})
 
 
+SNAP_TURN_OUTER_ANGLES_DEG = (10.0, 70.0, 130.0, 190.0, 250.0, 310.0)
+SNAP_TURN_OUTER_BETAS_MM = (-1.25, -3.75)
+
+
+def snap_turns(robot: Robot, scale: Scale = "full", seed: int = 0, d: float = 20.0,
+               step_deg: float = 1.0) -> Plan:
+    """Full inner turns at relative translation d (default: full overlap on the paper robot) at outer
+    angles and translations off the paper protocol's grid; one run (from rest) per turn."""
+    _check_scale(scale)
+    n = robot.n_tubes
+    _check_levels(robot, (d,), SNAP_TURN_OUTER_BETAS_MM)
+    runs = tuple(
+        Run((Segment(inner_turn(n, ao, SNAP_TURN_OUTER_BETAS_MM[k % 2], d, step_deg), level=0),))
+        for k, ao in enumerate(SNAP_TURN_OUTER_ANGLES_DEG))
+    return Plan("snap-turns", runs, ({"relative_translation_mm": d},),
+                {"scale": scale, "d_mm": d, "outer_angles_deg": list(SNAP_TURN_OUTER_ANGLES_DEG),
+                 "outer_betas_mm": list(SNAP_TURN_OUTER_BETAS_MM), "inner_step_deg": step_deg})
+
+
 PROTOCOLS: dict[str, Any] = {"paper": paper, "sweeps": sweeps, "random-points": random_points,
-                             "arbitrary": arbitrary}
+                             "arbitrary": arbitrary, "snap-turns": snap_turns}
 
 
 def build(name: str, robot: Robot, scale: Scale = "full", seed: int = 0, **kw: Any) -> Plan:

@@ -13,7 +13,19 @@ from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.datasets import ReproData, registered_truth
 from ctrkin.evaluation.metrics import pose_errors
 from ctrkin.evaluation.tcm_baseline import TCMBaseline
+from ctrkin.evaluation.training_runs import FK_BRANCH, FK_PAPER, IK_PAPER, IK_REFINED
 from ctrkin.inference import Kinematics
+from ctrkin.models.branch_labels import branch_labels
+
+# learned rows of every FK / IK experiment: results name -> model folder. The recommended model's
+# figures are also written under the headline name "lstm_mlp" (results.json keeps its keys).
+FK_ROWS = {"lstm_mlp_paper": FK_PAPER, "lstm_mlp_branch": FK_BRANCH}
+IK_ROWS = {"lstm_mlp_paper": IK_PAPER, "lstm_mlp_refined": IK_REFINED}
+RECOMMENDED = {"fk": "lstm_mlp_branch", "ik": "lstm_mlp_refined"}
+# ablation row: the snap-aware model's heads, branch state from the nominal TCM continued along the
+# same joint path (physics gate; batch evaluation only, not a streaming model)
+TCM_GATED = "lstm_mlp_branch_tcm_gate"
+HEADLINE = "lstm_mlp"
 
 
 @dataclass(eq=False)
@@ -36,6 +48,33 @@ class Context:
         key = (name, id(ds))
         if key not in self._cache:
             self._cache[key] = np.asarray(self.models[name].predict(ds), float)
+        return self._cache[key]
+
+    def fk_rows(self, ds: Dataset) -> dict[str, np.ndarray]:
+        """(T, 6) predictions of every learned FK row (FK_ROWS) over ds."""
+        out = {name: self.fk(folder, ds) for name, folder in FK_ROWS.items()}
+        out[TCM_GATED] = self.fk_tcm_gated(ds)
+        return out
+
+    def tcm_continued(self, ds: Dataset) -> np.ndarray:
+        """(T, 6) the nominal TCM followed along every sequence of ds (tracker frame)."""
+        key = ("tcm_continued", id(ds))
+        if key not in self._cache:
+            poses, snaps = self.tcm.predict_continued(ds.joints(), ds.sequence_bounds())
+            self._cache[key], self._cache[("tcm_snaps", id(ds))] = poses, snaps
+        return self._cache[key]
+
+    def fk_tcm_gated(self, ds: Dataset) -> np.ndarray:
+        """(T, 6) the snap-aware FK model with its branch state taken from the continued TCM (its
+        snaps labelled by the training rule, ctrkin.models.branch_labels) instead of its gate."""
+        key = ("fk_tcm_gated", id(ds))
+        if key not in self._cache:
+            self.tcm_continued(ds)
+            snaps = self._cache[("tcm_snaps", id(ds))]
+            n = ds.n_tubes
+            q = ds.joints()
+            states, _ = branch_labels(q[:, 0] - q[:, n - 1], snaps, ds.sequence_bounds())
+            self._cache[key] = np.asarray(self.models[FK_BRANCH].predict(ds, branch_states=states), float)
         return self._cache[key]
 
     def tcm_rows(self, ds: Dataset, rows: np.ndarray, desc: str) -> tuple[np.ndarray, np.ndarray]:
@@ -68,3 +107,9 @@ def summary(
         out["position_rmse_true_mm"] = t["position_mm"]["rmse"]
         out["orientation_rmse_true_deg"] = t["orientation_deg"]["rmse"]
     return out
+
+
+def with_headline(rows: dict[str, Any], task: str) -> dict[str, Any]:
+    """rows plus the recommended model's entry again under HEADLINE, naming the model it is."""
+    name = RECOMMENDED[task]
+    return {HEADLINE: {**rows[name], "model": name}, **rows}

@@ -19,13 +19,15 @@ from ctrkin.virtual import VirtualConfig, VirtualRobot
 from ctrkin.virtual.truth import tracker_truth
 
 # noise seeds: training and each test experiment see independent measurement noise
-SEEDS = {"paper": 0, "sweeps": 1, "random-points": 2, "arbitrary": 3, "square": 4, "triangle": 5}
+SEEDS = {"paper": 0, "sweeps": 1, "random-points": 2, "arbitrary": 3, "square": 4, "triangle": 5,
+         "snap-turns": 6}
 
 
 @dataclass(eq=False)
 class ReproData:
     """paper: training data; sweeps, random_points, arbitrary: test experiments (Fig. 10);
-    square, triangle: IK target poses (P, 6) in the tracker frame (Fig. 12)."""
+    square, triangle: IK target poses (P, 6) in the tracker frame (Fig. 12); snap_turns: full turns
+    at full overlap off the training grid (ctrkin.acquisition.protocols.snap_turns)."""
 
     virtual: VirtualRobot
     paper: Dataset
@@ -34,6 +36,7 @@ class ReproData:
     arbitrary: Dataset
     square: np.ndarray
     triangle: np.ndarray
+    snap_turns: Dataset
 
 
 def registered_truth(ds: Dataset, virtual: VirtualRobot | None = None) -> np.ndarray:
@@ -98,6 +101,7 @@ def collect(
         arbitrary=get("arbitrary"),
         square=shapes["square"],
         triangle=shapes["triangle"],
+        snap_turns=get("snap-turns"),
     )
 
 

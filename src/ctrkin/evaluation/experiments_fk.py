@@ -1,6 +1,8 @@
 """Forward-kinematics experiments: model comparison and Δα0 ablation on held-out sequences (Fig. 5),
-rotation sweeps with hysteresis and snaps (Fig. 10a), 20 random points (Fig. 10b) and the arbitrary
-trajectory (Fig. 10c). Each compares the TCM, the learned models and the measurement (and truth)."""
+rotation sweeps with hysteresis and snaps (Fig. 10a), full turns at full overlap off the training
+grid (snap turns), 20 random points (Fig. 10b) and the arbitrary trajectory (Fig. 10c). Each
+compares the TCM, the learned models (the paper's LSTM-MLP and the snap-aware model) and the
+measurement (and truth)."""
 
 from __future__ import annotations
 
@@ -8,13 +10,28 @@ from typing import Any
 
 import numpy as np
 
-from ctrkin.evaluation.context import Context, summary, valid_rows
-from ctrkin.evaluation.metrics import azimuth_series, snap_score, snap_window, timing_stats
+from ctrkin.data.dataset import Dataset
+from ctrkin.evaluation.context import (
+    FK_ROWS,
+    HEADLINE,
+    RECOMMENDED,
+    Context,
+    summary,
+    valid_rows,
+    with_headline,
+)
+from ctrkin.evaluation.metrics import (
+    azimuth_series,
+    rotation_direction,
+    snap_report,
+    snap_window,
+    timing_stats,
+)
 from ctrkin.evaluation.training_runs import ABLATION, BASELINES
 from ctrkin.pose import position_error
 from ctrkin.viz import experiments as fig
 
-FK_MODELS = ("lstm_mlp", *BASELINES, ABLATION)
+PAPER_ROW = "lstm_mlp_paper"
 
 
 def fk_comparison(ctx: Context) -> dict[str, Any]:
@@ -26,7 +43,8 @@ def fk_comparison(ctx: Context) -> dict[str, Any]:
     near_snap = snap_window(ds.frame["snap"].to_numpy(), b)
     level = ds.frame["level"].to_numpy() if "level" in ds.frame else np.zeros(len(ds.frame), int)
     levels = [lv["relative_translation_mm"] for lv in ds.meta.get("levels", [])] or [0.0]
-    preds = {m: ctx.fk(f"fk_{m}", ds)[rows] for m in FK_MODELS}
+    preds = {name: p[rows] for name, p in ctx.fk_rows(ds).items()}
+    preds |= {m: ctx.fk(f"fk_{m}", ds)[rows] for m in (*BASELINES, ABLATION)}
     tcm_pred, tcm_times = ctx.tcm_rows(ds, rows, "TCM on test rows")
     preds["tcm"] = tcm_pred
     out: dict[str, Any] = {}
@@ -43,12 +61,12 @@ def fk_comparison(ctx: Context) -> dict[str, Any]:
         }
         out[name] = r
     out["tcm"]["timing"] = timing_stats(tcm_times)
-    groups = list(out["lstm_mlp"]["position_mae_by_level_mm"])
+    groups = list(out[PAPER_ROW]["position_mae_by_level_mm"])
     fig.grouped_bars(
         [f"d = {g} mm" for g in groups],
         {
             m: [out[m]["position_mae_by_level_mm"].get(g, np.nan) for g in groups]
-            for m in ("lstm_mlp", *BASELINES, "tcm")
+            for m in (*FK_ROWS, *BASELINES, "tcm")
         },
         "position MAE on test sequences (mm)",
         ctx.figures / "fig5a_model_comparison.png",
@@ -57,19 +75,55 @@ def fk_comparison(ctx: Context) -> dict[str, Any]:
     fig.grouped_bars(
         [f"d = {g} mm" for g in groups],
         {
-            "with Δα0": [out["lstm_mlp"]["position_mae_by_level_mm"].get(g, np.nan) for g in groups],
+            "with Δα0": [out[PAPER_ROW]["position_mae_by_level_mm"].get(g, np.nan) for g in groups],
             "without Δα0": [out[ABLATION]["position_mae_by_level_mm"].get(g, np.nan) for g in groups],
         },
         "position MAE on test sequences (mm)",
         ctx.figures / "fig5b_delta_ablation.png",
-        "Directional parameter Δα0 (Fig. 5b)",
+        "Directional parameter Δα0 (Fig. 5b), the paper's LSTM-MLP",
     )
-    with_d, without = out["lstm_mlp"]["position_mae_mm"], out[ABLATION]["position_mae_mm"]
+    with_d, without = out[PAPER_ROW]["position_mae_mm"], out[ABLATION]["position_mae_mm"]
     out["ablation"] = {
         "position_mae_with_delta_mm": with_d,
         "position_mae_without_delta_mm": without,
         "mae_decrease_pct": 100.0 * (without - with_d) / without if without > 0 else 0.0,
     }
+    return with_headline(out, "fk")
+
+
+def _turn_predictions(ctx: Context, ds: Dataset) -> dict[str, np.ndarray]:
+    """Every predictor of a turn experiment: learned rows, point-wise and continued TCM."""
+    preds = dict(ctx.fk_rows(ds))
+    preds["tcm"], _ = ctx.tcm_rows(ds, np.arange(len(ds.frame)), "TCM")
+    preds["tcm_continued"] = ctx.tcm_continued(ds)
+    return preds
+
+
+def _snap_turn_scores(ctx: Context, ds: Dataset, preds: dict[str, np.ndarray]) -> dict[str, Any]:
+    """Per predictor: snap events vs truth (headline) and vs measured, per direction; position
+    error vs truth on the two steps at each true snap and away from them."""
+    b = ds.sequence_bounds()
+    n = ds.n_tubes
+    joints, measured, truth = ds.joints(), ds.poses(), ctx.truth(ds)
+    rows = np.zeros(len(ds.frame), bool)
+    rows[valid_rows(ds)] = True
+    az_truth = azimuth_series(truth, joints, n, b)
+    az_meas = azimuth_series(measured, joints, n, b)
+    direction = rotation_direction(joints, n, b)
+    true_snap = np.zeros(len(ds.frame), bool)
+    for a, c in b:
+        true_snap[a + 1:c] = np.abs(np.diff(az_truth[a:c])) > 10.0
+    near = snap_window(true_snap, b)
+    out: dict[str, Any] = {}
+    for name, p in preds.items():
+        az = azimuth_series(p, joints, n, b)
+        e = position_error(p, truth)
+        out[name] = {
+            **snap_report(az, az_truth, b, direction),
+            "vs_measured": snap_report(az, az_meas, b, direction),
+            "position_at_snap_true_mm": float(np.mean(e[rows & near])) if (rows & near).any() else None,
+            "position_away_from_snap_true_mm": float(np.mean(e[rows & ~near])),
+        }
     return out
 
 
@@ -80,63 +134,64 @@ def sweeps(ctx: Context) -> dict[str, Any]:
     b = ds.sequence_bounds()
     n = ds.n_tubes
     joints, measured, truth = ds.joints(), ds.poses(), ctx.truth(ds)
-    model = ctx.fk("fk_lstm_mlp", ds)
-    tcm, tcm_times = ctx.tcm_rows(ds, np.arange(len(ds.frame)), "TCM on sweeps")
-    az = {
-        k: azimuth_series(p, joints, n, b)
-        for k, p in (("measured", measured), ("truth", truth), ("model", model), ("tcm", tcm))
-    }
+    preds = _turn_predictions(ctx, ds)
+    az = {k: azimuth_series(p, joints, n, b) for k, p in preds.items()}
+    az |= {k: azimuth_series(p, joints, n, b) for k, p in (("measured", measured), ("truth", truth))}
     snap = ds.frame["snap"].to_numpy()
     near = snap_window(snap, b)
     levels = [lv["relative_translation_mm"] for lv in ds.meta.get("levels", [])]
-    out: dict[str, Any] = {
-        "lstm_mlp": summary(model[rows], measured[rows], truth[rows]),
-        "tcm": summary(tcm[rows], measured[rows], truth[rows]),
-    }
-    out["position_rmse_mm"] = out["lstm_mlp"]["position_rmse_mm"]
+    out: dict[str, Any] = {k: summary(p[rows], measured[rows], truth[rows]) for k, p in preds.items()}
+    out = with_headline(out, "fk")
+    out["position_rmse_mm"] = out[HEADLINE]["position_rmse_mm"]
     by_level, panels = {}, []
     lev = ds.frame["level"].to_numpy()
+    in_rows = np.isin(np.arange(len(ds.frame)), rows)
     for k, d in enumerate(levels):
-        m = np.isin(np.arange(len(ds.frame)), rows) & (lev == k)
-        entry = {
-            "lstm_mlp": summary(model, measured, truth, m),
-            "tcm": summary(tcm, measured, truth, m),
-            "snap_samples": int(snap[lev == k].sum()),
-        }
+        m = in_rows & (lev == k)
+        entry: dict[str, Any] = {name: summary(p, measured, truth, m) for name, p in preds.items()}
+        entry["snap_samples"] = int(snap[lev == k].sum())
         if (snap & (lev == k)).any():
-            entry["lstm_mlp_away_from_snap"] = summary(model, measured, truth, m & ~near)
-            entry["lstm_mlp_at_snap"] = summary(model, measured, truth, m & near)
+            for name in FK_ROWS:
+                entry[f"{name}_away_from_snap"] = summary(preds[name], measured, truth, m & ~near)
+                entry[f"{name}_at_snap"] = summary(preds[name], measured, truth, m & near)
         by_level[f"{d:g}"] = entry
         sel = lev == k
-        panels.append(
-            {
-                "label": f"d = {d:g} mm",
-                "alpha0": joints[sel, 0] - joints[sel, n - 1],
-                "measured": az["measured"][sel],
-                "model": az["model"][sel],
-                "tcm": az["tcm"][sel],
-                "truth": az["truth"][sel],
-                "snaps": snap[sel],
-            }
-        )
+        panels.append({"label": f"d = {d:g} mm", "alpha0": joints[sel, 0] - joints[sel, n - 1],
+                       "snaps": snap[sel], **{key: series[sel] for key, series in az.items()}})
     out["by_level"] = by_level
     if snap.any():
         out["snapping_levels"] = {
-            "lstm_mlp_away_from_snap": summary(
-                model,
-                measured,
-                truth,
-                np.isin(np.arange(len(ds.frame)), rows) & _snapping_sequences(ds) & ~near,
-            ),
-            "lstm_mlp_at_snap": summary(model, measured, truth, near),
+            f"{name}_{where}": summary(preds[name], measured, truth,
+                                       (in_rows & _snapping_sequences(ds) & ~near)
+                                       if where == "away_from_snap" else near)
+            for name in FK_ROWS for where in ("away_from_snap", "at_snap")
         }
-    out["snap_prediction"] = {
-        "lstm_mlp_vs_measured": snap_score(az["model"], az["measured"], b).to_dict(),
-        "lstm_mlp_vs_truth": snap_score(az["model"], az["truth"], b).to_dict(),
-        "tcm_vs_measured": snap_score(az["tcm"], az["measured"], b).to_dict(),
-    }
-    out["tcm"]["timing"] = timing_stats(tcm_times)
+    out["snap_prediction"] = _snap_turn_scores(ctx, ds, preds)
     fig.sweeps_figure(panels, ctx.figures / "fig10a_sweeps.png")
+    return out
+
+
+def snap_turns(ctx: Context) -> dict[str, Any]:
+    """Full turns at full overlap at outer angles and translations the training never recorded."""
+    ds = ctx.data.snap_turns
+    preds = _turn_predictions(ctx, ds)
+    b = ds.sequence_bounds()
+    n = ds.n_tubes
+    joints, truth, measured = ds.joints(), ctx.truth(ds), ds.poses()
+    rows = valid_rows(ds)
+    out: dict[str, Any] = {k: summary(p[rows], measured[rows], truth[rows]) for k, p in preds.items()}
+    out = with_headline(out, "fk")
+    out["snap_prediction"] = _snap_turn_scores(ctx, ds, preds)
+    out["outer_angles_deg"] = ds.meta.get("protocol_params", {}).get("outer_angles_deg")
+    panels = []
+    az = {k: azimuth_series(p, joints, n, b) for k, p in preds.items()}
+    az |= {k: azimuth_series(p, joints, n, b) for k, p in (("measured", measured), ("truth", truth))}
+    for a, c in b:
+        panels.append({"label": f"αN = {joints[a, n - 1]:.0f}°, βN = {joints[a, 2 * n - 1]:.2f} mm",
+                       "alpha0": joints[a:c, 0] - joints[a:c, n - 1],
+                       "snaps": ds.frame["snap"].to_numpy()[a:c],
+                       **{key: series[a:c] for key, series in az.items()}})
+    fig.sweeps_figure(panels, ctx.figures / "snap_turns.png")
     return out
 
 
@@ -147,22 +202,29 @@ def _snapping_sequences(ds: Any) -> np.ndarray:
     return np.isin(sid, snapped)
 
 
+def _point_rows(ctx: Context, ds: Dataset, rows: np.ndarray, desc: str) -> dict[str, Any]:
+    """Learned rows and the TCM at `rows` of ds: summaries (headline included) and predictions."""
+    measured, truth = ds.poses(), ctx.truth(ds)
+    preds = {name: p[rows] for name, p in ctx.fk_rows(ds).items()}
+    tcm, times = ctx.tcm_rows(ds, rows, desc)
+    preds["tcm"] = tcm
+    out: dict[str, Any] = {k: summary(p, measured[rows], truth[rows]) for k, p in preds.items()}
+    out["tcm"]["timing"] = timing_stats(times)
+    out = with_headline(out, "fk")
+    out["position_rmse_mm"] = out[HEADLINE]["position_rmse_mm"]
+    return {"results": out, "preds": preds}
+
+
 def random_points(ctx: Context) -> dict[str, Any]:
     """20 random configurations, each reached from the previous one (Fig. 10b): errors at targets."""
     ds = ctx.data.random_points
     is_t = ds.frame["is_target"].to_numpy() if "is_target" in ds.frame else np.ones(len(ds.frame), bool)
     rows = valid_rows(ds, np.nonzero(is_t)[0])
-    measured, truth = ds.poses(), ctx.truth(ds)
-    model = ctx.fk("fk_lstm_mlp", ds)[rows]
-    tcm, times = ctx.tcm_rows(ds, rows, "TCM on random points")
-    out: dict[str, Any] = {
-        "lstm_mlp": summary(model, measured[rows], truth[rows]),
-        "tcm": summary(tcm, measured[rows], truth[rows]),
-        "n_points": len(rows),
-    }
-    out["tcm"]["timing"] = timing_stats(times)
-    out["position_rmse_mm"] = out["lstm_mlp"]["position_rmse_mm"]
-    fig.points_figure(measured[rows], model, tcm, ctx.figures / "fig10b_random_points.png")
+    r = _point_rows(ctx, ds, rows, "TCM on random points")
+    out, preds = r["results"], r["preds"]
+    out["n_points"] = len(rows)
+    fig.points_figure(ds.poses()[rows], preds[RECOMMENDED["fk"]], preds["tcm"],
+                      ctx.figures / "fig10b_random_points.png")
     return out
 
 
@@ -170,19 +232,13 @@ def arbitrary(ctx: Context) -> dict[str, Any]:
     """The paper's simultaneous path (Fig. 10c): errors along it and their distribution."""
     ds = ctx.data.arbitrary
     rows = valid_rows(ds)
-    measured, truth = ds.poses(), ctx.truth(ds)
-    model = ctx.fk("fk_lstm_mlp", ds)[rows]
-    tcm, times = ctx.tcm_rows(ds, rows, "TCM on the arbitrary path")
-    out = {
-        "lstm_mlp": summary(model, measured[rows], truth[rows]),
-        "tcm": summary(tcm, measured[rows], truth[rows]),
-    }
-    out["tcm"]["timing"] = timing_stats(times)
-    out["position_rmse_mm"] = out["lstm_mlp"]["position_rmse_mm"]
-    for name, p in (("lstm_mlp", model), ("tcm", tcm)):
-        e = position_error(p, measured[rows])
-        out[name]["position_error_percentiles_mm"] = {
-            f"p{q}": float(np.percentile(e, q)) for q in (50, 90, 99)
-        }
-    fig.trajectory_figure(measured[rows], model, tcm, ctx.figures / "fig10c_arbitrary.png")
+    measured = ds.poses()[rows]
+    r = _point_rows(ctx, ds, rows, "TCM on the arbitrary path")
+    out, preds = r["results"], r["preds"]
+    for name, p in preds.items():
+        e = position_error(p, measured)
+        out[name]["position_error_percentiles_mm"] = {f"p{q}": float(np.percentile(e, q))
+                                                      for q in (50, 90, 99)}
+    fig.trajectory_figure(measured, preds[RECOMMENDED["fk"]], preds["tcm"],
+                          ctx.figures / "fig10c_arbitrary.png")
     return out

@@ -1,6 +1,7 @@
 """Inverse-kinematics experiments: held-out sequences, 20 random poses (Fig. 11) and the square and
-triangle paths (Fig. 12). Predicted joints are checked two ways: through the learned FK model (as
-the paper did) and by driving the virtual robot to them (what hardware would do)."""
+triangle paths (Fig. 12), for every IK row (the paper's LSTM-MLP, and the same network refined on the
+snap-aware FK, ctrkin.inference.refine). Predicted joints are checked two ways: through the learned
+FK model (as the paper did) and by driving the virtual robot to them (what hardware would do)."""
 
 from __future__ import annotations
 
@@ -10,8 +11,18 @@ import numpy as np
 
 from ctrkin.acquisition.plan import move
 from ctrkin.data.schema import sequence_bounds
-from ctrkin.evaluation.context import Context, summary, valid_rows
+from ctrkin.evaluation.context import (
+    HEADLINE,
+    IK_ROWS,
+    RECOMMENDED,
+    Context,
+    summary,
+    valid_rows,
+    with_headline,
+)
 from ctrkin.evaluation.metrics import joint_errors
+from ctrkin.evaluation.training_runs import FK_BRANCH
+from ctrkin.inference.kinematics import IKResult
 from ctrkin.virtual import VirtualRobot
 from ctrkin.virtual.transmission import clip_to_valid
 from ctrkin.viz import experiments as fig
@@ -42,20 +53,35 @@ def drive(
     return out, clipped
 
 
+def _within(reached: np.ndarray, targets: np.ndarray, mm: float = 1.0) -> np.ndarray:
+    return np.linalg.norm(reached[:, :3] - targets[:, :3], axis=1) < mm
+
+
 def _ik_checks(
-    ctx: Context, joints_pred: np.ndarray, targets: np.ndarray, b: list[tuple[int, int]]
+    ctx: Context, res: IKResult, targets: np.ndarray, b: list[tuple[int, int]]
 ) -> tuple[dict[str, Any], np.ndarray, np.ndarray]:
-    """Errors of the tips reached through the FK model and by driving the robot, and those tips."""
-    fk = ctx.models["fk_lstm_mlp"]
+    """Errors of the tips reached through the recommended FK model and by driving the robot, the
+    flags of the result, and those tips."""
+    fk = ctx.models[FK_BRANCH]
+    joints = res.joints
     sid = np.concatenate([np.full(y - x, k) for k, (x, y) in enumerate(b)])
-    Qv = clip_to_valid(ctx.data.virtual.nominal, joints_pred)
+    Qv = clip_to_valid(ctx.data.virtual.nominal, joints)
     via_fk = np.asarray(fk.predict(Qv, sequence_id=sid), float)
-    via_robot, clipped = drive(ctx.data.virtual, joints_pred, b)
+    via_robot, clipped = drive(ctx.data.virtual, joints, b)
+    flags = {
+        "joints_projected_to_valid": clipped,
+        "flagged_projected": int(np.sum(res.projected)) if res.projected is not None else 0,
+        "flagged_jumps": int(np.sum(res.jump)) if res.jump is not None else 0,
+        "unflagged_outside_limits": int(np.sum(np.any(np.abs(Qv - joints) > 1e-9, axis=1)
+                                               & ~(res.projected if res.projected is not None
+                                                   else np.zeros(len(joints), bool)))),
+    }
     return (
         {
             "via_fk_model": summary(via_fk, targets, None),
             "via_robot": summary(via_robot, targets, None),
-            "joints_projected_to_valid": clipped,
+            "within_1mm_fraction": float(np.mean(_within(via_robot, targets))),
+            **flags,
         },
         via_fk,
         via_robot,
@@ -65,81 +91,87 @@ def _ik_checks(
 def ik_heldout(ctx: Context) -> dict[str, Any]:
     """IK on the paper dataset's test sequences: joint errors, and the tip the joints reach."""
     ds = ctx.data.paper
-    ik = ctx.models["ik_lstm_mlp"]
-    res = ik.predict(ds)
     rows = valid_rows(ds, ds.get_split().test)
-    je = joint_errors(res.joints[rows], ds.joints()[rows], ds.n_tubes)
-    sid = ds.frame["sequence_id"].to_numpy()[rows]
-    b = sequence_bounds(sid)
-    checks, _, _ = _ik_checks(ctx, res.joints[rows], ds.poses()[rows], b)
-    return {
-        "joint_rmse_mm": je["beta_mm"]["rmse"],
-        "joint_rmse_deg": je["alpha_deg"]["rmse"],
-        "joint_mae_mm": je["beta_mm"]["mae"],
-        "joint_mae_deg": je["alpha_deg"]["mae"],
-        "tip_error_mm": checks["via_robot"]["position_rmse_mm"],
-        "tip_error_via_fk_mm": checks["via_fk_model"]["position_rmse_mm"],
-        "in_workspace_fraction": float(np.mean(res.in_workspace[rows])),
-        **checks,
-    }
+    sid = ds.frame["sequence_id"].to_numpy()
+    b = sequence_bounds(sid[rows])
+    out: dict[str, Any] = {}
+    for name, folder in IK_ROWS.items():
+        res = ctx.models[folder].predict(ds.poses()[rows], sequence_id=sid[rows])
+        je = joint_errors(res.joints, ds.joints()[rows], ds.n_tubes)
+        checks, _, _ = _ik_checks(ctx, res, ds.poses()[rows], b)
+        out[name] = {
+            "model": folder,
+            "joint_rmse_mm": je["beta_mm"]["rmse"],
+            "joint_rmse_deg": je["alpha_deg"]["rmse"],
+            "joint_mae_mm": je["beta_mm"]["mae"],
+            "joint_mae_deg": je["alpha_deg"]["mae"],
+            "joint_alpha_median_deg": je["alpha_deg"]["median"],
+            "tip_error_mm": checks["via_robot"]["position_rmse_mm"],
+            "tip_error_via_fk_mm": checks["via_fk_model"]["position_rmse_mm"],
+            "in_workspace_fraction": float(np.mean(res.in_workspace)),
+            **checks,
+        }
+    return with_headline(out, "ik")
 
 
 def ik_random(ctx: Context) -> dict[str, Any]:
     """Fig. 11: IK at the 20 random poses (with the history of the moves between them)."""
     ds = ctx.data.random_points
-    ik = ctx.models["ik_lstm_mlp"]
-    res = ik.predict(ds)
     is_t = ds.frame["is_target"].to_numpy()
     rows = valid_rows(ds, np.nonzero(is_t)[0])
-    je = joint_errors(res.joints[rows], ds.joints()[rows], ds.n_tubes)
-    # the robot is driven along the predicted joints of the whole run, and looked at on the targets
     b = ds.sequence_bounds()
-    via_robot_all, clipped = drive(ctx.data.virtual, res.joints, [(b[0][0], b[-1][1])])
-    fk = ctx.models["fk_lstm_mlp"]
-    via_fk_all = np.asarray(
-        fk.predict(clip_to_valid(ds.robot, res.joints), sequence_id=ds.frame["sequence_id"].to_numpy()), float
-    )
+    whole = [(b[0][0], b[-1][1])]
     targets = ds.poses()[rows]
-    out: dict[str, Any] = {
-        "joint_rmse_mm": je["beta_mm"]["rmse"],
-        "joint_rmse_deg": je["alpha_deg"]["rmse"],
-        "via_fk_model": summary(via_fk_all[rows], targets, None),
-        "via_robot": summary(via_robot_all[rows], targets, None),
-        "in_workspace": int(res.in_workspace[rows].sum()),
-        "n_points": len(rows),
-        "joints_projected_to_valid": clipped,
-    }
-    out["position_rmse_mm"] = out["via_robot"]["position_rmse_mm"]
-    out["within_1mm_via_robot"] = int(
-        (np.linalg.norm(via_robot_all[rows, :3] - targets[:, :3], axis=1) < 1.0).sum()
-    )
-    fig.ik_points_figure(
-        ds.joints()[rows],
-        res.joints[rows],
-        targets,
-        via_fk_all[rows],
-        via_robot_all[rows],
-        ctx.figures / "fig11_ik_random.png",
-    )
+    out: dict[str, Any] = {}
+    for name, folder in IK_ROWS.items():
+        res = ctx.models[folder].predict(ds)
+        je = joint_errors(res.joints[rows], ds.joints()[rows], ds.n_tubes)
+        # the robot is driven along the predicted joints of the whole run, looked at on the targets
+        res_all = IKResult(res.joints, res.in_workspace, res.distance, res.reasons, res.projected,
+                           res.residual_mm, res.jump)
+        checks, via_fk, via_robot = _ik_checks(ctx, res_all, ds.poses(), whole)
+        out[name] = {
+            "model": folder,
+            "joint_rmse_mm": je["beta_mm"]["rmse"],
+            "joint_rmse_deg": je["alpha_deg"]["rmse"],
+            "via_fk_model": summary(via_fk[rows], targets, None),
+            "via_robot": summary(via_robot[rows], targets, None),
+            "in_workspace": int(res.in_workspace[rows].sum()),
+            "n_points": len(rows),
+            "joints_projected_to_valid": checks["joints_projected_to_valid"],
+            "within_1mm_via_robot": int(_within(via_robot[rows], targets).sum()),
+            "within_1mm_fraction": float(np.mean(_within(via_robot[rows], targets))),
+            "position_rmse_mm": summary(via_robot[rows], targets, None)["position_rmse_mm"],
+        }
+        if name == RECOMMENDED["ik"]:
+            fig.ik_points_figure(ds.joints()[rows], res.joints[rows], targets, via_fk[rows],
+                                 via_robot[rows], ctx.figures / "fig11_ik_random.png")
+    out = with_headline(out, "ik")
+    out["position_rmse_mm"] = out[HEADLINE]["position_rmse_mm"]
+    out["within_1mm_fraction"] = out[HEADLINE]["within_1mm_fraction"]
     return out
 
 
 def ik_path(ctx: Context, shape: str) -> dict[str, Any]:
     """Fig. 12: IK along a square or triangle of 10 target poses (tracker frame)."""
     targets = getattr(ctx.data, shape)
-    ik = ctx.models["ik_lstm_mlp"]
-    res = ik.predict(targets)
-    checks, via_fk, via_robot = _ik_checks(ctx, res.joints, targets, [(0, len(targets))])
-    out = {
-        **checks,
-        "position_rmse_mm": checks["via_robot"]["position_rmse_mm"],
-        "in_workspace": int(res.in_workspace.sum()),
-        "n_points": len(targets),
-        "outside_workspace_reasons": [
-            r for r, ok in zip(res.reasons, res.in_workspace, strict=True) if not ok
-        ],
-    }
-    fig.ik_path_figure(
-        targets, via_fk, via_robot, res.joints, ctx.figures / f"fig12_ik_{shape}.png", f"IK along a {shape}"
-    )
+    out: dict[str, Any] = {}
+    for name, folder in IK_ROWS.items():
+        res = ctx.models[folder].predict(targets)
+        checks, via_fk, via_robot = _ik_checks(ctx, res, targets, [(0, len(targets))])
+        out[name] = {
+            "model": folder,
+            **checks,
+            "position_rmse_mm": checks["via_robot"]["position_rmse_mm"],
+            "in_workspace": int(res.in_workspace.sum()),
+            "n_points": len(targets),
+            "outside_workspace_reasons": [r for r, ok in zip(res.reasons, res.in_workspace, strict=True)
+                                          if not ok],
+        }
+        if name == RECOMMENDED["ik"]:
+            fig.ik_path_figure(targets, via_fk, via_robot, res.joints, ctx.figures / f"fig12_ik_{shape}.png",
+                               f"IK along a {shape}")
+    out = with_headline(out, "ik")
+    out["position_rmse_mm"] = out[HEADLINE]["position_rmse_mm"]
+    out["within_1mm_fraction"] = out[HEADLINE]["within_1mm_fraction"]
     return out

@@ -7,9 +7,10 @@ from typing import Any
 
 import numpy as np
 
-from ctrkin.evaluation.context import Context, summary, valid_rows
+from ctrkin.evaluation.context import FK_ROWS, IK_ROWS, RECOMMENDED, Context, summary, valid_rows
 from ctrkin.evaluation.metrics import joint_errors, timing_stats
 from ctrkin.evaluation.scales import ReproScale
+from ctrkin.evaluation.training_runs import FK_PAPER, IK_PAPER
 from ctrkin.viz import experiments as fig
 
 
@@ -69,15 +70,18 @@ def grids(ctx: Context, scale: ReproScale) -> dict[str, Any]:
 
 
 def timing(ctx: Context, n_steps: int = 2000) -> dict[str, Any]:
-    """Streaming single-step latency of the FK and IK models over a held-out sequence (one step a
-    call, the control-loop case), in ms."""
+    """Streaming single-step latency over a held-out sequence (one step a call, the control-loop
+    case), in ms: "fk" / "ik" the recommended models (the IK with its refinement), "fk_paper" /
+    "ik_paper" the paper's LSTM-MLP."""
     ds = ctx.data.paper
     test = ds.get_split().test
     q = ds.joints()[test][:n_steps]
     p = ds.poses()[test][:n_steps]
     out: dict[str, Any] = {}
-    for name, x in (("fk", q), ("ik", p)):
-        model = ctx.models[f"{name}_lstm_mlp"]
+    models = {"fk": (FK_ROWS[RECOMMENDED["fk"]], q), "ik": (IK_ROWS[RECOMMENDED["ik"]], p),
+              "fk_paper": (FK_PAPER, q), "ik_paper": (IK_PAPER, p)}
+    for name, (folder, x) in models.items():
+        model = ctx.models[folder]
         model.reset()
         for v in x[:50]:  # warm-up (numba dispatch, caches)
             model.step(v)

@@ -8,6 +8,7 @@ Euclidean norm of the α error (deg) and of the β error (mm) (paper III.A), the
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -17,14 +18,16 @@ SNAP_THRESHOLD_DEG = 10.0  # paper II.B: a snap is a step where T(L) changes by 
 
 
 def error_stats(e: np.ndarray) -> dict[str, float]:
-    """RMSE, MAE and max of errors e (any shape); NaN entries count as failures (NaN result)."""
+    """RMSE, MAE, max and median of errors e (any shape); NaN entries count as failures (NaN result)."""
     e = np.abs(np.asarray(e, dtype=float).ravel())
     if e.size == 0:
-        return {"rmse": float("nan"), "mae": float("nan"), "max": float("nan"), "n": 0}
+        return {"rmse": float("nan"), "mae": float("nan"), "max": float("nan"), "median": float("nan"),
+                "n": 0}
     return {
         "rmse": float(np.sqrt(np.mean(e**2))),
         "mae": float(np.mean(e)),
         "max": float(np.max(e)),
+        "median": float(np.median(e)),
         "n": int(e.size),
     }
 
@@ -114,10 +117,14 @@ def snap_score(
     bounds: list[tuple[int, int]],
     tolerance_steps: int = 2,
     threshold: float = SNAP_THRESHOLD_DEG,
+    rows: np.ndarray | None = None,
 ) -> SnapScore:
-    """Match predicted snap events to reference events of the same sequence within ±tolerance."""
+    """Match predicted snap events to reference events of the same sequence within ±tolerance.
+    rows: (T,) bool, count only events at these rows (e.g. one direction of rotation)."""
     pred_ev = _events(snap_steps(pred_azimuth, bounds, threshold))
     ref_ev = _events(snap_steps(ref_azimuth, bounds, threshold))
+    if rows is not None:
+        pred_ev, ref_ev = pred_ev[rows[pred_ev]], ref_ev[rows[ref_ev]]
     seq_of = np.empty(bounds[-1][1] if bounds else 0, dtype=int)
     for k, (a, b) in enumerate(bounds):
         seq_of[a:b] = k
@@ -172,3 +179,22 @@ def timing_stats(seconds: np.ndarray) -> dict[str, float]:
         "us_median": float(np.median(t) * 1e6),
         "n": int(t.size),
     }
+
+
+def rotation_direction(joints: np.ndarray, n_tubes: int, bounds: list[tuple[int, int]]) -> np.ndarray:
+    """(T,) sign of the change of α0 = α1 − αN from the previous row (0 at sequence starts): +1 on
+    the forward half of a turn, −1 on the way back."""
+    a0 = joints[:, 0] - joints[:, n_tubes - 1]
+    out = np.zeros(len(a0))
+    for a, b in bounds:
+        out[a + 1:b] = np.sign(np.diff(a0[a:b]))
+    return out
+
+
+def snap_report(pred_azimuth: np.ndarray, ref_azimuth: np.ndarray, bounds: list[tuple[int, int]],
+                direction: np.ndarray) -> dict[str, Any]:
+    """Snap score over all events and per direction of rotation (`forward`, `backward`)."""
+    out: dict[str, Any] = snap_score(pred_azimuth, ref_azimuth, bounds).to_dict()
+    out["forward"] = snap_score(pred_azimuth, ref_azimuth, bounds, rows=direction > 0).to_dict()
+    out["backward"] = snap_score(pred_azimuth, ref_azimuth, bounds, rows=direction < 0).to_dict()
+    return out

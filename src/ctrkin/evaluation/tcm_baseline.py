@@ -1,6 +1,8 @@
 """The paper's TCM baseline as a predictor: nominal robot, point-wise solve from the default guess with
 no history (so it cannot know which branch a snapping robot is on), mapped to the tracker frame by a
-registration fitted on training data, and timed per point.
+registration fitted on training data, and timed per point. The continued TCM (`predict_continued`)
+is the second physics row: the same nominal robot followed along each sequence's joint path by
+continuation (ctrkin.follow), so it carries a branch and snaps where the nominal model folds.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ctrkin.evaluation.registration import Registration
-from ctrkin.mechanics import solve
+from ctrkin.mechanics import follow, solve
 from ctrkin.robots.robot import Robot
 from ctrkin.util.progress import progress_bar
 
@@ -55,3 +57,16 @@ class TCMBaseline:
         pred = self.predict_robot_frame(joints[idx], desc="TCM registration")
         self.registration = Registration.fit(pred[:, :3], np.asarray(measured, float)[idx, :3])
         return self.registration
+
+    def predict_continued(self, joints: np.ndarray, bounds: list[tuple[int, int]]
+                          ) -> tuple[np.ndarray, np.ndarray]:
+        """joints (T, 2N), sequences `bounds` -> (T, 6) tracker-frame poses of the nominal robot
+        followed along each sequence from a point-wise solve at its first row, and (T,) its snap
+        flags (a fold crossed on the way into the row)."""
+        Q = self.robot.check_joints(np.atleast_2d(joints))
+        out = np.empty((len(Q), 6))
+        snaps = np.zeros(len(Q), bool)
+        for a, b in bounds:
+            traj = follow(self.robot, Q[a:b])
+            out[a:b], snaps[a:b] = traj.tip_poses, traj.snaps
+        return self.registration.apply(out), snaps

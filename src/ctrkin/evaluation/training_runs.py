@@ -1,5 +1,7 @@
-"""Every model a reproduction trains: the LSTM-MLP FK and IK models, the baselines and the Δα0
-ablation (Fig. 5), and the input-buffer and structure grids (Tables II, III).
+"""Every model a reproduction trains: the paper's LSTM-MLP FK and IK models, the snap-aware FK
+model (lstm_mlp_branch), the baselines and the Δα0 ablation (Fig. 5), and the input-buffer and
+structure grids (Tables II, III). The refined IK (the IK model refined on the snap-aware FK,
+ctrkin.inference.refine) is assembled from two trained folders, not trained.
 
 All runs use the same by-sequence split of the paper dataset (saved in it), so every model is tested
 on the same held-out sequences. Grid and comparison models may see fewer training sequences
@@ -19,12 +21,15 @@ import numpy as np
 from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.scales import Budget, ReproScale
 from ctrkin.inference import Kinematics
+from ctrkin.inference.refine_folder import assemble_refined
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.loop import train
 from ctrkin.util.progress import progress_bar
 
 BASELINES = ("mlp", "lstm", "cnn", "tcn", "resnet")
 ABLATION = "lstm_mlp_no_delta"
+FK_PAPER, FK_BRANCH = "fk_lstm_mlp", "fk_lstm_mlp_branch"
+IK_PAPER, IK_REFINED = "ik_lstm_mlp", "ik_lstm_mlp_refined"
 
 
 @dataclass(frozen=True)
@@ -42,6 +47,8 @@ def plan_runs(scale: ReproScale) -> list[Run]:
             max_epochs=budget.epochs,
             patience=budget.patience,
             batch_size=budget.batch_size,
+            lr=budget.lr,
+            lr_schedule=budget.lr_schedule,
             split="dataset",
             **kw,
         )
@@ -49,6 +56,7 @@ def plan_runs(scale: ReproScale) -> list[Run]:
     runs = [
         Run("fk_lstm_mlp", "main", cfg(scale.main, task="fk")),
         Run("ik_lstm_mlp", "main", cfg(scale.main, task="ik")),
+        Run(FK_BRANCH, "main", cfg(scale.branch, task="fk", model="lstm_mlp_branch")),
     ]
     runs += [Run(f"fk_{m}", "compare", cfg(scale.compare, task="fk", model=m)) for m in BASELINES]
     runs += [Run(f"fk_{ABLATION}", "compare", cfg(scale.compare, task="fk", model=ABLATION))]
@@ -114,4 +122,7 @@ def train_all(
                     res.get()
                     bar.update(1)
                     log(f"trained {name}")
-    return {run.name: Kinematics.load(out / run.name) for run in runs}
+    models = {run.name: Kinematics.load(out / run.name) for run in runs}
+    assemble_refined(out / IK_PAPER, out / FK_BRANCH, out / IK_REFINED)
+    models[IK_REFINED] = Kinematics.load(out / IK_REFINED)
+    return models

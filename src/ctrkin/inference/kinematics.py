@@ -212,19 +212,31 @@ class Kinematics:
         return np.concatenate(outs) if outs else np.zeros((0, self.layout.n_outputs), np.float32)
 
     def predict(self, data: Dataset | np.ndarray, sequence_id: np.ndarray | None = None,
-                strict: bool = False) -> Any:
+                strict: bool = False, branch_states: np.ndarray | None = None) -> Any:
         """Predict every step of one or more sequences.
 
         data: a Dataset (its robot must be the model's), or an array (T, 2N) joints (FK) / (T, 6) tip
         poses (IK), one sequence unless `sequence_id` (T,) splits it. Returns (T, 6) poses for FK, an
         IKResult for IK (with strict=True, targets outside the trained workspace raise ModelError).
+        branch_states: (T,) {0, 1}, a branch model only: use these states (e.g. from the continued
+        TCM, ctrkin.models.branch_labels) instead of the learned gate's.
         """
         raw, bounds = self._raw_from(data, sequence_id)
         if self.task == "ik" and self.refiner is not None:
             return self._predict_refined(raw, bounds, strict)
         feats = (self._clip_deltas(sequence_features(self.layout, raw, bounds)) - self._xlo) / self._xspan
+        if branch_states is not None and not isinstance(self.net, BranchNet):
+            raise ModelError("branch_states needs a branch model (lstm_mlp_branch)")
         if isinstance(self.net, BranchNet):     # the branch state is carried through each sequence
-            yn, _ = self.net.decode(seqnet_trunk(self.net, *padded_rows(feats, bounds, self.ib)), bounds)
+            h = seqnet_trunk(self.net, *padded_rows(feats, bounds, self.ib))
+            if branch_states is None:
+                yn, _ = self.net.decode(h, bounds)
+            else:
+                states = np.asarray(branch_states, np.float32).reshape(-1)
+                if states.shape != (len(raw),):
+                    raise ModelError(f"branch_states must have shape ({len(raw)},), got {states.shape}")
+                with torch.inference_mode():
+                    yn = self.net.head_out(h, torch.from_numpy(states)).numpy()
         elif isinstance(self.net, SeqNet):      # by chains: about half the work of windows at IB = 2
             yn = seqnet_predict(self.net, *padded_rows(feats, bounds, self.ib))
         else:
@@ -373,7 +385,13 @@ class Kinematics:
             starts.append(("direct", direct))
         best = refine(residual, starts, target, previous, settings, self.robot.project_joints)
         fk.step(best.joints)                 # the FK history moves on with the joints we send
-        return best.joints, best.residual_mm
+        # α as the robot turns: the whole-turn representative nearest the previous command (the FK
+        # saw the one inside its training range; a full turn is the same shape but a real motion)
+        n = self.layout.n_tubes
+        ref = direct if previous is None else previous
+        joints = best.joints.copy()
+        joints[:n] = ref[:n] + (joints[:n] - ref[:n] + 180.0) % 360.0 - 180.0
+        return joints, best.residual_mm
 
 
 def _jumps(targets: np.ndarray, joints: np.ndarray, bounds: list[tuple[int, int]], n: int) -> np.ndarray:

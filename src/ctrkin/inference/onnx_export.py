@@ -14,6 +14,7 @@ new one, to be fed back at the next step.
 from __future__ import annotations
 
 import json
+import math
 import warnings
 from pathlib import Path
 
@@ -70,7 +71,7 @@ class ExportWrapper(nn.Module):
             if self.frame:      # outer-tube frame -> tracker frame (ctrkin.models.frame)
                 last = window[:, -1]
                 a = torch.atan2(last[:, self.alpha_col], last[:, self.alpha_col + 1]) if self.sincos \
-                    else torch.deg2rad(last[:, self.alpha_col])
+                    else last[:, self.alpha_col] * (math.pi / 180.0)
                 c, s = torch.cos(a), torch.sin(a)
                 w, qx, qy = q[:, 0], q[:, 1], q[:, 2]
                 tan = torch.stack([2 * w * qy, -2 * w * qx, 1 - 2 * (qx * qx + qy * qy)], 1)

@@ -15,7 +15,9 @@ three starts: the direct IK prediction, the previous solution (continuity along 
 joints of the nearest training pose. The best residual wins; among starts within `continuity_mm` of
 it, the one closest to the previous joints (so a path gets continuous joints where the pose alone
 does not fix α). Joints stay within the robot's limits (ctrkin.robots.Robot.project_joints) and
-within the FK model's training range of α; the FK history then advances with the chosen joints.
+within the FK model's training range (α by whole turns, β clipped); the FK history then advances
+with the chosen joints, and α is returned as the whole-turn representative nearest the previous
+command (a full turn is the same shape, but a real motion of the robot).
 """
 
 from __future__ import annotations
@@ -85,7 +87,8 @@ class FKResidual:
         self.w = tangent_weight_mm
         n = fk.layout.n_tubes
         lo, hi = fk.bundle.x_norm.lo, fk.bundle.x_norm.hi
-        self.alpha_lo, self.alpha_hi = lo[:n].copy(), hi[:n].copy()   # FK inputs start with α1..αN
+        self.alpha_lo, self.alpha_hi = lo[:n].copy(), hi[:n].copy()   # FK inputs start with α1..αN,
+        self.beta_lo, self.beta_hi = lo[n:2 * n].copy(), hi[n:2 * n].copy()    # then β1..βN
 
     def residual(self, Q: np.ndarray, target_p: np.ndarray, target_t: np.ndarray) -> np.ndarray:
         """Q: (K, 2N) -> (K, 6) residuals (mm)."""
@@ -154,8 +157,9 @@ def _wrap_diff(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
 
 
 def _clamp(res: FKResidual, project: object, Q: np.ndarray) -> np.ndarray:
-    """Onto the robot's valid joints, and α onto the FK model's training range (shifting by whole
-    turns first: the same configuration, inside the range the model knows)."""
+    """Onto the FK model's training range (α shifted by whole turns first: the same configuration,
+    inside the range the model knows; β clipped: the model knows nothing outside it), then onto the
+    robot's valid joints."""
     Q = np.array(Q, dtype=float, copy=True)
     n = len(res.alpha_lo)
     for i in range(n):
@@ -163,4 +167,5 @@ def _clamp(res: FKResidual, project: object, Q: np.ndarray) -> np.ndarray:
         mid = 0.5 * (res.alpha_lo[i] + res.alpha_hi[i])
         a = a - 360.0 * np.round((a - mid) / 360.0)
         Q[:, i] = np.clip(a, res.alpha_lo[i], res.alpha_hi[i])
+    Q[:, n:] = np.clip(Q[:, n:], res.beta_lo, res.beta_hi)
     return project(Q)  # type: ignore[operator]

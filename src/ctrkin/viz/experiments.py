@@ -24,26 +24,40 @@ def _save(fig: plt.Figure, path: str | Path) -> None:
     plt.close(fig)
 
 
+# T(L) curves of sweeps_figure: panel key -> (label, colour, line style, marker size)
+TURN_CURVES = {
+    "tcm": ("TCM (point-wise)", TCM, ".", 1.5),
+    "tcm_continued": ("TCM (continued)", "tab:green", "-", 0.8),
+    "measured": ("measured", MEAS, ".", 2.5),
+    "lstm_mlp_paper": ("LSTM-MLP (paper)", "tab:orange", ".", 1.5),
+    "lstm_mlp_branch": ("snap-aware LSTM-MLP", MODEL, "-", 1.0),
+    "lstm_mlp_branch_tcm_gate": ("snap-aware, TCM-gated", "tab:purple", "-", 0.8),
+    "truth": ("truth", TRUE, "--", 0.8),
+}
+
+
 def sweeps_figure(panels: Sequence[dict], path: str | Path) -> None:
-    """Fig. 10a: T(L) against α0 for each relative translation. panels: dicts with `label`,
-    `alpha0` (T,), `measured`, `model`, `tcm` (T,) T(L) in deg, optional `truth`, `snaps` (T,) bool."""
+    """Fig. 10a: T(L) against α0 for each relative translation (or each turn). panels: dicts with
+    `label`, `alpha0` (T,), any of the TURN_CURVES keys as (T,) T(L) in deg, `snaps` (T,) bool."""
     n = len(panels)
-    fig, axes = plt.subplots(1, n, figsize=(3.3 * n, 3.4), sharey=False, squeeze=False)
+    fig, axes = plt.subplots(1, n, figsize=(3.3 * n, 3.6), sharey=False, squeeze=False)
     for ax, p in zip(axes[0], panels, strict=True):
         a0 = np.asarray(p["alpha0"])
-        ax.plot(a0, p["tcm"], ".", color=TCM, ms=1.5, label="TCM")
-        ax.plot(a0, p["measured"], ".", color=MEAS, ms=2.5, label="measured")
-        ax.plot(a0, p["model"], ".", color=MODEL, ms=1.5, label="LSTM-MLP")
-        if p.get("truth") is not None:
-            ax.plot(a0, p["truth"], "--", color=TRUE, lw=0.8, label="truth")
+        for key, (label, colour, style, size) in TURN_CURVES.items():
+            if p.get(key) is None:
+                continue
+            if style == ".":
+                ax.plot(a0, p[key], ".", color=colour, ms=size, label=label)
+            else:
+                ax.plot(a0, p[key], style, color=colour, lw=size, label=label)
         sn = np.asarray(p.get("snaps", np.zeros(len(a0), bool)), bool)
-        if sn.any():
+        if sn.any() and p.get("measured") is not None:
             ax.plot(a0[sn], np.asarray(p["measured"])[sn], "x", color="k", ms=7, label="snap")
         ax.set_title(p["label"], fontsize=9)
         ax.set_xlabel("α0 (deg)")
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("T(L) (deg)")
-    axes[0][0].legend(fontsize=7, markerscale=3)
+    axes[0][0].legend(fontsize=6, markerscale=3)
     _save(fig, path)
 
 

@@ -1,0 +1,39 @@
+"""A refined IK model folder: an IK model folder with the FK model it is refined on in `fk/` and the
+refinement settings in `refine.json` (ctrkin.inference.refine). `Kinematics.load` opens it like any
+model folder and refines every answer."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tempfile
+from pathlib import Path
+
+from ctrkin.errors import ModelError
+from ctrkin.inference.kinematics import REFINE_FILE, REFINE_FK, Kinematics
+from ctrkin.inference.refine import RefineSettings
+from ctrkin.util.files import replace_folder
+
+
+def assemble_refined(ik_dir: str | Path, fk_dir: str | Path, out: str | Path,
+                     settings: RefineSettings | None = None) -> Path:
+    """Write `out`: a copy of IK model `ik_dir` refined on FK model `fk_dir` (both trained on the
+    same robot). Built beside `out` and swapped in, so a failure leaves the previous folder."""
+    ik_src, fk_src, target = Path(ik_dir), Path(fk_dir), Path(out)
+    ik, fk = Kinematics.load(ik_src), Kinematics.load(fk_src)
+    if ik.refined:
+        raise ModelError(f"{ik_src} is already a refined IK model")
+    ik.attach_fk(fk, settings)          # checks task, robot and the workspace's training joints
+    target.parent.mkdir(parents=True, exist_ok=True)
+    build = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+    try:
+        shutil.copytree(ik_src, build, dirs_exist_ok=True,
+                        ignore=shutil.ignore_patterns("checkpoint*", ".lock", "*.tmp"))
+        shutil.copytree(fk_src, build / REFINE_FK,
+                        ignore=shutil.ignore_patterns("checkpoint*", ".lock", "*.tmp"))
+        (build / REFINE_FILE).write_text(json.dumps((settings or RefineSettings()).to_dict(), indent=2))
+        replace_folder(build, target)
+    finally:
+        if build.exists():
+            shutil.rmtree(build)
+    return target
