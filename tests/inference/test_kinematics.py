@@ -117,7 +117,8 @@ def test_onnx_branch_model_carries_its_state(model_dirs, sweeps, tmp_path):
     back step by step it gives predict's poses (in the tracker frame: the outer frame is in the graph)."""
     kin = Kinematics.load(model_dirs["fk_branch"])
     assert kin.frame is not None
-    sess = ort.InferenceSession(str(export_onnx(kin, tmp_path / "b.onnx")), providers=["CPUExecutionProvider"])
+    path = export_onnx(kin, tmp_path / "b.onnx")
+    sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     windows = kin.feature_windows(sweeps).astype(np.float32)
     ref = kin.predict(sweeps)
     out = np.empty_like(ref)
