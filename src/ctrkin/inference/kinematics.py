@@ -30,6 +30,7 @@ from ctrkin.data.schema import sequence_bounds
 from ctrkin.errors import ModelError
 from ctrkin.inference.batch import padded_rows, seqnet_predict, seqnet_trunk
 from ctrkin.inference.engine import StreamingEngine
+from ctrkin.models.frame import local_tips_to_world
 from ctrkin.inference.refine import FKResidual, RefineSettings, refine
 from ctrkin.inference.workspace import WORKSPACE_FILE, Workspace
 from ctrkin.models.branch import BranchNet
@@ -281,6 +282,22 @@ class Kinematics:
             feats[..., self._dcols] = np.clip(feats[..., self._dcols], self._dlo, self._dhi)
         return feats
 
+    def probe_tips(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """FK only, the refinement's inner loop: tip positions (K, 3) and unit tangents (K, 3) in the
+        tracker frame that `step` would give for each of K candidate joints Q (K, 2N); nothing is
+        advanced (`probe` without the quaternion round trip)."""
+        if self.task != "fk" or self._engine is None:
+            raise ModelError("probe_tips() needs an FK model of the LSTM-MLP family")
+        Q = np.ascontiguousarray(np.atleast_2d(np.asarray(Q, float)))
+        prev = Q if self._prev is None else np.broadcast_to(self._prev, Q.shape)
+        xn = (self._clip_deltas(pair_features(self.layout, Q, prev)) - self._xlo) / self._xspan
+        yn, _ = self._engine.probe(xn)
+        y = yn * self._yspan + self._ylo
+        if self.frame is not None:
+            reg = self.frame.registration
+            return local_tips_to_world(y, Q[:, self.layout.n_tubes - 1], reg.rotation, reg.translation)
+        return local_tips_to_world(y, np.zeros(len(Q)), np.eye(3), np.zeros(3))
+
     def probe(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """FK only: the poses (K, 6) and branch states (K,) that `step` would return for each of K
         candidate joints Q (K, 2N) as the next step of the current sequence; nothing is advanced."""
@@ -374,10 +391,10 @@ class Kinematics:
         fk, settings, residual = self.refiner
         previous = None if self._ik_prev is None else self._ik_prev[1]
         starts: list[tuple[str, np.ndarray]] = []
-        if "direct" in settings.starts:
-            starts.append(("direct", direct))
         if "previous" in settings.starts and previous is not None:
             starts.append(("previous", previous))
+        if "direct" in settings.starts:
+            starts.append(("direct", direct))
         if "nearest" in settings.starts:
             assert self.workspace is not None
             starts.append(("nearest", self.workspace.nearest_joints(target)))

@@ -36,15 +36,18 @@ class RefineSettings:
     """iterations: LM steps per start; tangent_weight_mm: mm of residual per radian of tangent error;
     fd_deg, fd_mm: finite-difference steps; tolerance_mm: stop a start below this residual;
     continuity_mm: residual margin within which the start nearest the previous joints is preferred;
-    starts: which starts to use ("direct", "previous", "nearest")."""
+    starts: which starts to use ("direct", "previous", "nearest"), tried previous first;
+    accept_mm: a start that ends below this residual is taken without trying the others (along a
+    path the previous solution usually is, which keeps a step to a few FK evaluations)."""
 
-    iterations: int = 4
+    iterations: int = 3
     tangent_weight_mm: float = 10.0
     fd_deg: float = 0.2
     fd_mm: float = 0.02
-    tolerance_mm: float = 0.02
+    tolerance_mm: float = 0.1
     continuity_mm: float = 0.3
     starts: tuple[str, ...] = ("direct", "previous", "nearest")
+    accept_mm: float = 0.5
 
     def __post_init__(self) -> None:
         if self.iterations < 0 or self.tangent_weight_mm < 0 or self.fd_deg <= 0 or self.fd_mm <= 0:
@@ -92,9 +95,11 @@ class FKResidual:
 
     def residual(self, Q: np.ndarray, target_p: np.ndarray, target_t: np.ndarray) -> np.ndarray:
         """Q: (K, 2N) -> (K, 6) residuals (mm)."""
-        y, _ = self.fk.probe(Q)
-        t = tangent_from_quat(y[:, 3:6])
-        return np.concatenate([y[:, :3] - target_p, self.w * (t - target_t)], axis=1)
+        pos, tan = self.fk.probe_tips(Q)
+        out = np.empty((len(pos), 6))
+        out[:, :3] = pos - target_p
+        out[:, 3:] = self.w * (tan - target_t)
+        return out
 
 
 def refine(res: FKResidual, starts: list[tuple[str, np.ndarray]], target: np.ndarray,
@@ -140,6 +145,8 @@ def refine(res: FKResidual, starts: list[tuple[str, np.ndarray]], target: np.nda
             if not accepted:
                 break
         results.append((name, q, math.sqrt(cost)))
+        if math.sqrt(cost) <= settings.accept_mm:
+            break
     best = min(r[2] for r in results)
     close = [r for r in results if r[2] <= best + settings.continuity_mm]
     if previous is not None and len(close) > 1:

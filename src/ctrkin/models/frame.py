@@ -20,6 +20,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ctrkin.errors import ModelError
 from ctrkin.pose import Registration, quat_from_tangent, tangent_from_quat
@@ -66,18 +67,17 @@ class OuterFrame:
         return np.concatenate([pos, quat_from_tangent(tan)], axis=1)
 
     def to_world_one(self, y: np.ndarray, alpha_outer_deg: float) -> np.ndarray:
-        """to_world of one (6,) pose, in scalar arithmetic (the streaming path)."""
-        c, s = math.cos(math.radians(alpha_outer_deg)), math.sin(math.radians(alpha_outer_deg))
-        R, t = self.registration.rotation, self.registration.translation
-        w, x, yq = y[3], y[4], y[5]
-        n = math.sqrt(w * w + x * x + yq * yq) or 1.0
-        w, x, yq = w / n, x / n, yq / n
-        tl = (2 * w * yq, -2 * w * x, 1 - 2 * (x * x + yq * yq))          # tangent of (w, x, y, 0)
-        pos = R @ np.array([c * y[0] - s * y[1], s * y[0] + c * y[1], y[2]]) + t
-        tan = R @ np.array([c * tl[0] - s * tl[1], s * tl[0] + c * tl[1], tl[2]])
+        """to_world of one (6,) pose in scalar arithmetic (the streaming path)."""
+        pos, tan = local_tips_to_world(np.asarray(y, np.float64)[None], np.array([alpha_outer_deg]),
+                                       self.registration.rotation, self.registration.translation)
         out = np.empty(6)
-        out[:3] = pos
-        out[3:] = quat_from_tangent(tan)
+        out[:3] = pos[0]
+        t0, t1, t2 = tan[0]
+        nt = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+        t0, t1, t2 = t0 / nt, t1 / nt, t2 / nt
+        q0, q1, q2 = 1.0 + t2, -t1, t0                # pose.quat_from_tangent
+        nq = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
+        out[3:] = (0.0, 1.0, 0.0) if nq < 1e-12 else (q0 / nq, q1 / nq, q2 / nq)
         return out
 
     def to_dict(self) -> dict[str, object]:
@@ -97,3 +97,29 @@ def _rot_z(v: np.ndarray, deg: np.ndarray) -> np.ndarray:
     a = np.radians(deg)
     c, s = np.cos(a), np.sin(a)
     return np.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], axis=1)
+
+
+@njit(cache=True)
+def local_tips_to_world(y: np.ndarray, alpha_outer_deg: np.ndarray, R: np.ndarray, t: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """y (K, ≥6) poses in the outer tube's frame (quaternion need not be unit), αN (K,) deg ->
+    positions (K, 3) and unit tangents (K, 3) in the tracker frame (R, t: the frame's registration;
+    identity and αN = 0 for tracker-frame poses). Scalar loops: K is a handful of candidates."""
+    k_count = y.shape[0]
+    pos = np.empty((k_count, 3))
+    tan = np.empty((k_count, 3))
+    for k in range(k_count):
+        a = math.radians(alpha_outer_deg[k])
+        c, s = math.cos(a), math.sin(a)
+        w, qx, qy = y[k, 3], y[k, 4], y[k, 5]
+        nq = math.sqrt(w * w + qx * qx + qy * qy)
+        if nq < 1e-12:
+            nq = 1.0
+        w, qx, qy = w / nq, qx / nq, qy / nq
+        tl0, tl1, tl2 = 2 * w * qy, -2 * w * qx, 1 - 2 * (qx * qx + qy * qy)   # R(q) e3
+        p0, p1, p2 = c * y[k, 0] - s * y[k, 1], s * y[k, 0] + c * y[k, 1], y[k, 2]
+        v0, v1, v2 = c * tl0 - s * tl1, s * tl0 + c * tl1, tl2
+        for i in range(3):
+            pos[k, i] = R[i, 0] * p0 + R[i, 1] * p1 + R[i, 2] * p2 + t[i]
+            tan[k, i] = R[i, 0] * v0 + R[i, 1] * v1 + R[i, 2] * v2
+    return pos, tan

@@ -1,0 +1,69 @@
+"""Streaming step latency of a reproduction's learned models (issue 8, goal 4): the paper's LSTM-MLP
+FK and IK, the snap-aware FK (lstm_mlp_branch) and the IK refined on it (ik_lstm_mlp_refined).
+
+    python benchmarks/bench_streaming.py --run out/reproduce      # after `ctrkin reproduce`
+
+Inputs are the held-out test sequences of the run's paper dataset, fed one step a call (the
+control-loop case), one thread. Goals: FK step median <= 30 µs; IK step including the refinement
+<= 300 µs (paper: 0.831 ms FK, 0.816 ms IK). Prints a table and ends with one JSON line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ctrkin.data.dataset import Dataset
+from ctrkin.inference import Kinematics
+
+MODELS = {"fk_paper": "fk_lstm_mlp", "fk_branch": "fk_lstm_mlp_branch", "ik_paper": "ik_lstm_mlp",
+          "ik_refined": "ik_lstm_mlp_refined"}
+
+
+def _latency_us(kin: Kinematics, xs: np.ndarray, warmup: int = 200) -> np.ndarray:
+    kin.reset()
+    for x in xs[:warmup]:
+        kin.step(x)
+    kin.reset()
+    ns = np.empty(len(xs))
+    clock = time.perf_counter_ns
+    for k, x in enumerate(xs):
+        t0 = clock()
+        kin.step(x)
+        ns[k] = clock() - t0
+    return ns / 1e3
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--run", type=Path, default=Path("out/reproduce"), help="a `ctrkin reproduce` folder")
+    ap.add_argument("--steps", type=int, default=3000, help="steps per model (IK refined: a fifth)")
+    args = ap.parse_args()
+    if not (args.run / "models").is_dir():
+        raise SystemExit(f"{args.run}/models not found: run `ctrkin reproduce --out {args.run}` first")
+    torch.set_num_threads(1)
+    ds = Dataset.load(args.run / "data" / "paper")
+    test = ds.get_split().test
+    inputs = {"fk": ds.joints()[test], "ik": ds.poses()[test]}
+    figures: dict[str, float] = {}
+    print(f"{'model':28s} {'median µs':>10s} {'p95 µs':>10s} {'steps':>7s}")
+    for key, folder in MODELS.items():
+        if not (args.run / "models" / folder).is_dir():
+            print(f"{folder:28s} (not in this run)")
+            continue
+        kin = Kinematics.load(args.run / "models" / folder)
+        n = args.steps // 5 if kin.refined else args.steps
+        us = _latency_us(kin, inputs[kin.task][:n])
+        figures[f"{key}_step_us_median"] = float(np.median(us))
+        figures[f"{key}_step_us_p95"] = float(np.quantile(us, 0.95))
+        print(f"{folder:28s} {np.median(us):10.1f} {np.quantile(us, 0.95):10.1f} {n:7d}")
+    print(json.dumps(figures))
+
+
+if __name__ == "__main__":
+    main()
