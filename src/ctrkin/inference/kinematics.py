@@ -30,7 +30,6 @@ from ctrkin.data.schema import sequence_bounds
 from ctrkin.errors import ModelError
 from ctrkin.inference.batch import padded_rows, seqnet_predict, seqnet_trunk
 from ctrkin.inference.engine import StreamingEngine
-from ctrkin.models.frame import local_tips_to_world
 from ctrkin.inference.refine import FKResidual, RefineSettings, refine
 from ctrkin.inference.workspace import WORKSPACE_FILE, Workspace
 from ctrkin.models.branch import BranchNet
@@ -43,6 +42,7 @@ from ctrkin.models.features import (
     step_features,
     window_index,
 )
+from ctrkin.models.frame import local_tips_to_world
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle, read_json
 from ctrkin.robots.robot import Robot
