@@ -10,7 +10,7 @@ import numpy as np
 from ctrkin.evaluation.context import FK_ROWS, IK_ROWS, RECOMMENDED, Context, summary, valid_rows
 from ctrkin.evaluation.metrics import joint_errors, timing_stats
 from ctrkin.evaluation.scales import ReproScale
-from ctrkin.evaluation.training_runs import FK_PAPER, IK_PAPER
+from ctrkin.evaluation.training_runs import FK_PAPER, IK_PAPER, IK_REFINED
 from ctrkin.viz import experiments as fig
 
 
@@ -72,14 +72,14 @@ def grids(ctx: Context, scale: ReproScale) -> dict[str, Any]:
 def timing(ctx: Context, n_steps: int = 2000) -> dict[str, Any]:
     """Streaming single-step latency over a held-out sequence (one step a call, the control-loop
     case), in ms: "fk" / "ik" the recommended models (the IK with its refinement), "fk_paper" /
-    "ik_paper" the paper's LSTM-MLP."""
+    "ik_paper" the paper's LSTM-MLP, "ik_refined" the IK refined on the learned FK (300 steps)."""
     ds = ctx.data.paper
     test = ds.get_split().test
     q = ds.joints()[test][:n_steps]
     p = ds.poses()[test][:n_steps]
     out: dict[str, Any] = {}
     models = {"fk": (FK_ROWS[RECOMMENDED["fk"]], q), "ik": (IK_ROWS[RECOMMENDED["ik"]], p),
-              "fk_paper": (FK_PAPER, q), "ik_paper": (IK_PAPER, p)}
+              "fk_paper": (FK_PAPER, q), "ik_paper": (IK_PAPER, p), "ik_refined": (IK_REFINED, p[:300])}
     for name, (folder, x) in models.items():
         model = ctx.models[folder]
         model.reset()

@@ -101,8 +101,8 @@ def write_report(r: dict[str, Any], path: Path) -> None:
     rec = r.get("recommended", {})
     s += ["", "## Headline", "",
           f"Learned figures come from the recommended models: FK `{rec.get('fk')}` (the snap-aware "
-          f"LSTM-MLP), IK `{rec.get('ik')}` (the paper's IK network refined on that FK); the paper's "
-          "own LSTM-MLP has its rows below (`lstm_mlp_paper`).", ""]
+          f"LSTM-MLP; the paper's own FK LSTM-MLP is the `lstm_mlp_paper` row below), IK "
+          f"`{rec.get('ik')}` (the IK refined on the learned FK is the `lstm_mlp_refined` row).", ""]
     s.append(
         _table(
             ["quantity", "paper", "ours (vs measured)", "ours (vs truth)"],

@@ -132,6 +132,7 @@ def reproduce(
                 "fk_us_median": lat["fk"]["us_median"],
                 "fk_paper_us_median": lat["fk_paper"]["us_median"],
                 "ik_paper_us_median": lat["ik_paper"]["us_median"],
+                "ik_refined_us_median": lat["ik_refined"]["us_median"],
                 "ik_ms_mean": lat["ik"]["ms_mean"],
                 "ik_ms_std": lat["ik"]["ms_std"],
                 "ik_us_median": lat["ik"]["us_median"],
