@@ -166,7 +166,9 @@ def _snapping(experiments: dict[str, Any]) -> dict[str, Any]:
         "rule": "T(L) step > 10 deg, matched within 2 steps, vs the noise-free truth, sweeps "
                 "(per model also per direction, vs measured, and on the snap turns)",
     }
-    out |= sweeps
+    for model, score in sweeps.items():
+        out[model] = {**score, "precision": _zero_if_undefined(score["precision"], score["n_predicted"]),
+                      "recall": _zero_if_undefined(score["recall"], score["n_reference"])}
     out["snap_turns"] = experiments["snap_turns"]["snap_prediction"]
     return out
 
