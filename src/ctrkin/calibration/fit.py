@@ -113,7 +113,8 @@ def calibrate(ds: Dataset, robot: Robot | None = None, groups: tuple[str, ...] =
     except np.linalg.LinAlgError:
         std = np.full(p, np.nan)
     lo, hi = ps.bounds()
-    at_bound = (np.abs(x - lo) < 1e-6 * np.maximum(1, np.abs(lo))) | (np.abs(x - hi) < 1e-6 * np.maximum(1, np.abs(hi)))
+    at_bound = ((np.abs(x - lo) < 1e-6 * np.maximum(1, np.abs(lo)))
+                | (np.abs(x - hi) < 1e-6 * np.maximum(1, np.abs(hi))))
     model = ps.model(x)
     err = np.linalg.norm(model.predict(joints)[:, :3] - measured, axis=1)
     nominal = ParameterSet(robot, ("registration",))

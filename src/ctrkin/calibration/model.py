@@ -78,7 +78,8 @@ class CalibratedTCM:
         cal = tomllib.loads(Path(path).read_text()).get("calibration", {})
         try:
             reg = cal.get("registration")
-            registration = (Registration(np.array(reg["rotation"], float), np.array(reg["translation_mm"], float))
+            registration = (Registration(np.array(reg["rotation"], float),
+                                         np.array(reg["translation_mm"], float))
                             if reg else Registration.identity())
             offsets = np.array(cal.get("joint_offsets", np.zeros(robot.n_joints)), float)
         except (KeyError, TypeError, ValueError) as e:

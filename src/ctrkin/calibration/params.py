@@ -106,7 +106,8 @@ class ParameterSet:
             offsets[i] = v.get(f"alpha_offset_{i + 1}", 0.0)
             offsets[n + i] = v.get(f"beta_offset_{i + 1}", 0.0)
         if "registration" in self.groups:
-            reg = Registration(Rotation.from_rotvec([v["reg_rot_x"], v["reg_rot_y"], v["reg_rot_z"]]).as_matrix(),
+            rotvec = [v["reg_rot_x"], v["reg_rot_y"], v["reg_rot_z"]]
+            reg = Registration(Rotation.from_rotvec(rotvec).as_matrix(),
                                np.array([v["reg_t_x"], v["reg_t_y"], v["reg_t_z"]]))
         else:
             reg = registration or Registration.identity()

@@ -147,7 +147,7 @@ class _Log:
         self.origins = origins
         if raw is not None:
             self.raw = raw.reset_index(drop=True)
-            self.field_names = {}
+            self.field_names: dict[str, str] = {}
             if len(self.raw) == 0:
                 raise DatasetError(f"{path}: no data rows")
             self.columns = self._resolve()
@@ -166,7 +166,7 @@ class _Log:
         while tail > 0 and blank[tail - 1]:
             tail -= 1
         self.raw = raw.iloc[:tail]
-        self.field_names: dict[str, str] = {}
+        self.field_names = {}
         if len(self.raw) == 0:
             raise DatasetError(f"{path} has a header but no data rows")
         self.columns = self._resolve()
@@ -224,7 +224,8 @@ class _Log:
         bad = np.isnan(vals) & ~empty
         if bad.any():
             r = int(np.argmax(bad))
-            what = "a complex number; this field must be real" if _looks_complex(text.iloc[r]) else "not a number"
+            what = ("a complex number; this field must be real" if _looks_complex(text.iloc[r])
+                    else "not a number")
             raise DatasetError(f"{self.where(r)}, {self.line_col(fld)}: {text.iloc[r]!r} is {what}")
         return vals
 

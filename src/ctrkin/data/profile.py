@@ -246,7 +246,8 @@ def parse_profile(text: str, n_tubes: int, source: str = "profile") -> Profile:
         for key, value in ref_raw.items():
             w = where("reference", key)
             if key not in REFERENCE_FIELDS:
-                raise DatasetError(f"{w}: unknown field {key!r}; a reference body has {list(REFERENCE_FIELDS)}")
+                raise DatasetError(f"{w}: unknown field {key!r}; a reference body has "
+                                   f"{list(REFERENCE_FIELDS)}")
             reference[key] = _spec(value, w, beta=False)
         missing = [f for f in REFERENCE_FIELDS if f not in reference]
         if missing:

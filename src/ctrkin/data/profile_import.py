@@ -114,7 +114,8 @@ def read_file(path: Path, profile: Profile, robot: Robot, label: str
     vals = {k: f.numbers(s, k) for k, s in profile.columns.items()}
     ref = {k: f.numbers(s, f"reference {k}") for k, s in profile.reference.items()}
     if profile.drop_all_zero:
-        numeric = pd.DataFrame({c: pd.to_numeric(f.raw[c].str.strip(), errors="coerce") for c in f.raw.columns})
+        numeric = pd.DataFrame({c: pd.to_numeric(f.raw[c].str.strip(), errors="coerce")
+                                for c in f.raw.columns})
         used = numeric.loc[:, numeric.notna().any(axis=0)]
         zero = (used.fillna(0.0) == 0).all(axis=1).to_numpy()
         counts["rows_all_zero"] = int((zero & keep).sum())
@@ -179,8 +180,8 @@ def import_with_profile(paths: list[str | Path], profile: Profile, robot: Robot,
     base = config or ImportConfig()
     cfg = ImportConfig(
         position_only=profile.orientation != "tangent", sequence_gap=None,
-        drop_invalid_joints=base.drop_invalid_joints, drop_incomplete=base.drop_incomplete,
-        unwrap=base.unwrap, cleaning=base.cleaning,
+        drop_invalid_joints=bool(base.drop_invalid_joints), drop_incomplete=bool(base.drop_incomplete),
+        unwrap=bool(base.unwrap), cleaning=base.cleaning,
         quaternion_columns=("qw", "qx", "qy", "qz") if profile.orientation == "tangent" else ())
     if profile.group_count == 0 and not profile.joints_unchanged:
         # every row its own sample: a fresh step per row stops the importer merging equal joints
@@ -193,6 +194,6 @@ def import_with_profile(paths: list[str | Path], profile: Profile, robot: Robot,
     ds.meta["protocol_params"] = {"source": [r["file"] for r in report], "files": report,
                                   "profile": profile.to_dict()}
     ds.meta["cleaning"]["profile_drops"] = {
-        "rows_all_zero": sum(r["rows_all_zero"] for r in report),
-        "rows_status": sum(r["rows_status"] for r in report)}
+        "rows_all_zero": sum(int(str(r["rows_all_zero"])) for r in report),
+        "rows_status": sum(int(str(r["rows_status"])) for r in report)}
     return ds

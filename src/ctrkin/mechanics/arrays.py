@@ -13,7 +13,8 @@ from ctrkin.robots.robot import Robot
 @dataclass(frozen=True, eq=False)
 class RobotArrays:
     """k, gj: (N,) bending and torsional stiffness (N·mm²); lengths (N,) mm;
-    sec_len, sec_kap: (N, S) sections base to tip (mm, 1/mm); n_sec (N,); rigid transmission flag; extra (N,) mm: Robot.transmission_length."""
+    sec_len, sec_kap: (N, S) sections base to tip (mm, 1/mm); n_sec (N,); rigid transmission flag;
+    extra (N,) mm: Robot.transmission_length."""
 
     k: np.ndarray
     gj: np.ndarray
