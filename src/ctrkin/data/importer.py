@@ -375,7 +375,9 @@ def import_frame(log: _Log, robot: Robot, cfg: ImportConfig, src: str) -> Datase
     pose_out = np.zeros(len(first), dtype=bool)
     for a, b in schema.sequence_bounds(s_seq):
         glitch[a:b] = cleaning.glitch_mask(s_joints[a:b], n, cc)
-        pose_out[a:b] = cleaning.pose_outlier_mask(s_pos[a:b], s_tan[a:b], cc) & ~glitch[a:b]
+        for c, d in cleaning.continuous_runs(s_joints[a:b], n, cc):
+            pose_out[a + c:a + d] = cleaning.pose_outlier_mask(s_pos[a + c:a + d], s_tan[a + c:a + d], cc)
+        pose_out[a:b] &= ~glitch[a:b]
     outlier = glitch | pose_out
     keep_s = ~outlier if cc.outliers == "drop" else np.ones(len(first), dtype=bool)
     idx = np.nonzero(keep_s)[0]
