@@ -14,11 +14,14 @@ QUARTERS = (0.25, 0.5, 0.75, 1.0)
 
 class QuarterLog:
     """The tqdm calls ctrkin uses (update, set_postfix, close, context manager), printing one line
-    to stderr when 25, 50, 75 and 100 % of `total` are reached (and nothing without a total)."""
+    to stderr when 25, 50, 75 and 100 % of `total` are reached, and on close a last line if the work
+    ended early (early stopping); nothing without a total."""
 
     def __init__(self, total: int | None = None, desc: str = "", initial: int = 0, **_: Any) -> None:
         self.total, self.desc, self.n = total, desc, initial
         self.postfix = ""
+        self._printed = initial
+        self._closed = False
         self._next = 0
         while self.total and self._next < len(QUARTERS) and self.n >= QUARTERS[self._next] * self.total:
             self._next += 1
@@ -28,9 +31,12 @@ class QuarterLog:
         if not self.total:
             return
         while self._next < len(QUARTERS) and self.n >= QUARTERS[self._next] * self.total:
-            print(f"{self.desc}: {self.n}/{self.total} ({QUARTERS[self._next]:.0%}){self.postfix}",
-                  file=sys.stderr, flush=True)
+            self._line(f"{QUARTERS[self._next]:.0%}")
             self._next += 1
+
+    def _line(self, what: str) -> None:
+        print(f"{self.desc}: {self.n}/{self.total} ({what}){self.postfix}", file=sys.stderr, flush=True)
+        self._printed = self.n
 
     def set_postfix(self, ordered_dict: Any = None, refresh: bool = True, **kw: Any) -> None:
         items = dict(ordered_dict or {}, **kw)
@@ -43,7 +49,9 @@ class QuarterLog:
         pass
 
     def close(self) -> None:
-        pass
+        if self.total and not self._closed and self.n > self._printed:
+            self._line("stopped")
+        self._closed = True
 
     def __enter__(self) -> QuarterLog:
         return self
