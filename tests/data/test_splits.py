@@ -108,3 +108,11 @@ def test_test_sequences_by_name_or_index_and_ratio_warning():
     assert any(w.startswith("test has 328") for w in warnings)
     with pytest.raises(DatasetError, match="no such sequence"):
         split_with_test(sid, labels, ["zz"])
+
+
+def test_test_sequence_with_two_left_gives_a_validation_sequence():
+    from ctrkin.data.splits import split_with_test
+
+    sid = np.repeat([0, 1, 2], [21, 158, 328])
+    split = split_with_test(sid, ["random", "sweep45", "sweep90"], ["sweep45"])
+    assert set(sid[split.test]) == {1} and set(sid[split.val]) == {0} and set(sid[split.train]) == {2}

@@ -155,8 +155,13 @@ def split_with_test(sequence_id: np.ndarray, labels: list[str], test: list[str],
     tv = fractions[0] + fractions[1]
     inner = split_by_sequence(sid[~test_rows], (fractions[0] / tv, fractions[1] / tv, 0.0), seed=seed)
     idx = np.nonzero(~test_rows)[0]
-    val = np.sort(np.r_[idx[inner.val], idx[inner.test]])
-    return Split(np.sort(idx[inner.train]), val, np.nonzero(test_rows)[0], kind="sequence", seed=seed,
+    train, val = idx[inner.train], np.sort(np.r_[idx[inner.val], idx[inner.test]])
+    if len(val) == 0 and fractions[1] > 0:
+        # few sequences: validation gets the one whose size is closest to its target
+        ids, counts = np.unique(sid[train], return_counts=True)
+        pick = ids[int(np.argmin(np.abs(counts - fractions[1] / tv * len(train))))]
+        val, train = train[sid[train] == pick], train[sid[train] != pick]
+    return Split(np.sort(train), val, np.nonzero(test_rows)[0], kind="sequence", seed=seed,
                  fractions=fractions, n_rows=len(sid))
 
 
