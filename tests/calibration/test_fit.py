@@ -81,3 +81,22 @@ def test_calibrate_cli_writes_a_normal_robot_file(tmp_path, virtual):
     assert r.exit_code == 0, r.output
     assert "orientation: not measured" in r.output
     assert (tmp_path / "ev" / "0" / "tips.png").is_file()
+
+
+def test_analytic_registration_and_marker_columns_match_finite_differences(virtual):
+    from ctrkin.calibration.fit import _Jacobian, initial_registration
+
+    ds, ps = virtual
+    joints, meas = ds.joints()[:20], ds.poses()[:20, :3]
+    problem = _Jacobian(ps, joints, meas, initial_registration(ps.robot, joints, meas))
+    x = np.array([TRUE[k] for k in ps.names]) + 0.01
+    jac = problem.jacobian(x)
+    for k, name in enumerate(ps.names):
+        if not (name.startswith("reg_") or name == "marker_mm"):
+            continue
+        h = 1e-5
+        xp, xm = x.copy(), x.copy()
+        xp[k] += h
+        xm[k] -= h
+        fd = (problem.residuals(xp) - problem.residuals(xm)) / (2 * h)
+        np.testing.assert_allclose(jac[:, k], fd, atol=1e-4, err_msg=name)

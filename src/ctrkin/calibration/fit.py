@@ -2,10 +2,15 @@
 
 Residuals: measured minus predicted marker position (mm) of every sample, the TCM solved point-wise
 with no history. Orientation is not fitted (the comet-lab markers do not measure the tip tangent;
-evaluation still reports it where a dataset has it). The Jacobian is by finite differences of the
-point-wise TCM (each column one set of T solves, ≈0.1 ms a solve): the kernels integrate the
-variational equations for the shooting unknowns only, not for the robot parameters, so no analytic
-parameter Jacobian is available yet.
+evaluation still reports it where a dataset has it).
+
+Jacobian (`_Jacobian`): the registration and marker columns are analytic, from the robot-frame
+solution at x (∂p/∂t = I, ∂p/∂θk = (∂R/∂θk) m, ∂p/∂d = R t_tip; ∂R/∂θk of the rotation vector by a
+central difference of the 3 × 3 matrix, no solve); the mechanics columns (precurvature, stiffness
+ratio, offsets, transmission length) are forward differences of the point-wise TCM, one set of T
+solves each (≈0.1 ms a solve). The kernels integrate the variational equations for the shooting
+unknowns only, not for the robot parameters, so the TCM's own parameter Jacobian is not analytic
+yet.
 
 Uncertainties: standard errors from the Gauss-Newton covariance σ² (JᵀJ)⁻¹, σ² = SSR / (m − p),
 at the solution; parameters on a bound are reported with it. Leave-one-sequence-out (LOSO): each
@@ -66,17 +71,68 @@ def _positions(ds: Dataset, rows: np.ndarray | None = None) -> tuple[np.ndarray,
     return (j, p) if rows is None else (j[rows], p[rows])
 
 
-def _residuals(ps: ParameterSet, x: np.ndarray, joints: np.ndarray, measured: np.ndarray,
-               registration: Registration | None) -> np.ndarray:
-    pred = ps.model(x, registration).predict(joints)[:, :3]
-    r = measured - pred
-    return np.where(np.isfinite(r), r, NAN_PENALTY_MM).ravel()
-
-
 def initial_registration(robot: Robot, joints: np.ndarray, measured: np.ndarray) -> Registration:
     """Kabsch fit of the nominal robot's tips to the measured positions (the starting point)."""
     pred, _ = CalibratedTCM(robot).robot_frame(joints)
     return Registration.fit(pred, measured)
+
+
+class _Jacobian:
+    """Residual function and Jacobian of one fit, sharing the solve at the current x."""
+
+    def __init__(self, ps: ParameterSet, joints: np.ndarray, measured: np.ndarray,
+                 registration: Registration, step: float = 1e-4) -> None:
+        self.ps, self.joints, self.measured, self.reg, self.step = ps, joints, measured, registration, step
+        self.lo, self.hi = ps.bounds()
+        self._key: bytes | None = None
+        self._cache: tuple[np.ndarray, np.ndarray, CalibratedTCM] | None = None
+
+    def _at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, CalibratedTCM]:
+        key = np.asarray(x, float).tobytes()
+        if key != self._key or self._cache is None:
+            model = self.ps.model(x, self.reg)
+            pos, tan = model.robot_frame(self.joints)
+            self._key, self._cache = key, (pos, tan, model)
+        return self._cache
+
+    def _tracker(self, pos: np.ndarray, model: CalibratedTCM) -> np.ndarray:
+        return pos @ model.registration.rotation.T + model.registration.translation
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        pos, _, model = self._at(x)
+        r = self.measured - self._tracker(pos, model)
+        return np.where(np.isfinite(r), r, NAN_PENALTY_MM).ravel()
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        from scipy.spatial.transform import Rotation
+
+        pos, tan, model = self._at(x)
+        base = self._tracker(pos, model)
+        rot = model.registration.rotation
+        names = self.ps.names
+        jac = np.zeros((pos.shape[0], 3, len(names)))
+        for k, name in enumerate(names):
+            if name.startswith("reg_t_"):
+                jac[:, "xyz".index(name[-1]), k] = 1.0
+            elif name.startswith("reg_rot_"):
+                rv = np.array([x[names.index(f"reg_rot_{a}")] for a in "xyz"], float)
+                e = np.zeros(3)
+                e["xyz".index(name[-1])] = 1e-6
+                d_rot = (Rotation.from_rotvec(rv + e).as_matrix()
+                         - Rotation.from_rotvec(rv - e).as_matrix()) / 2e-6
+                jac[:, :, k] = pos @ d_rot.T
+            elif name == "marker_mm":
+                jac[:, :, k] = tan @ rot.T
+            else:
+                h = self.step * max(1.0, abs(float(x[k])))
+                if x[k] + h > self.hi[k]:
+                    h = -h
+                xp = np.array(x, float)
+                xp[k] += h
+                mp = self.ps.model(xp, self.reg)
+                jac[:, :, k] = (self._tracker(mp.robot_frame(self.joints)[0], mp) - base) / h
+        jac = np.where(np.isfinite(jac), jac, 0.0)
+        return -jac.reshape(-1, len(names))     # residual = measured − predicted
 
 
 def _fit(ps: ParameterSet, joints: np.ndarray, measured: np.ndarray, max_nfev: int
@@ -86,11 +142,9 @@ def _fit(ps: ParameterSet, joints: np.ndarray, measured: np.ndarray, max_nfev: i
     lo, hi = ps.bounds()
     x0 = np.clip(x0, lo, hi)
 
-    def fun(x: np.ndarray) -> np.ndarray:
-        return _residuals(ps, x, joints, measured, reg0)
-
-    sol = least_squares(fun, x0, bounds=(lo, hi), x_scale="jac", diff_step=1e-4, max_nfev=max_nfev,
-                        method="trf")
+    problem = _Jacobian(ps, joints, measured, reg0)
+    sol = least_squares(problem.residuals, x0, jac=problem.jacobian, bounds=(lo, hi), x_scale="jac",
+                        max_nfev=max_nfev, method="trf")
     return sol.x, sol
 
 
