@@ -215,7 +215,8 @@ def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | 
     else:
         ds = import_csv(log_files[0], robot, cfg)
     ds.save(out)
-    print_summary(summarize(ds), title=f"imported {', '.join(log_files)} -> {out}")
+    names = ", ".join(Path(f).name for f in log_files)
+    print_summary(summarize(ds), title=f"imported {names} -> {out}")
     for w in ds.meta["cleaning"]["warnings"]:
         click.echo(f"warning: {w}", err=True)
 

@@ -436,7 +436,7 @@ def import_frame(log: _Log, robot: Robot, cfg: ImportConfig, src: str) -> Datase
         "cleaning": report,
         "noise": {"source": "spread of repeated readings about their mean",
                   "position_std_mm": _finite_or_none(samples.position_std_mm),
-                  "tangent_std_deg": _finite_or_none(samples.tangent_std_deg)},
+                  "tangent_std_deg": None if mode == "absent" else _finite_or_none(samples.tangent_std_deg)},
     }
     return Dataset(frame=frame, robot=robot, meta=meta)
 

@@ -191,8 +191,8 @@ def import_with_profile(paths: list[str | Path], profile: Profile, robot: Robot,
     label = ", ".join(str(p) for p in paths)
     log = _Log(Path(paths[0]), robot, cfg, raw=raw, origins=origins)
     ds = import_frame(log, robot, cfg, label)
-    ds.meta["protocol_params"] = {"source": [r["file"] for r in report], "files": report,
-                                  "profile": profile.to_dict()}
+    ds.meta["protocol_params"] = {"source": [r["file"] for r in report], "profile": profile.source}
+    ds.meta["import"].update(profile=profile.to_dict(), files=report)
     ds.meta["cleaning"]["profile_drops"] = {
         "rows_all_zero": sum(int(str(r["rows_all_zero"])) for r in report),
         "rows_status": sum(int(str(r["rows_status"])) for r in report)}
