@@ -9,7 +9,7 @@ says so and exits 0. Reports, for each set: samples after cleaning; the nominal 
 registration only, and the calibrated TCM (registration, precurvature, stiffness ratio, α/β offsets,
 transmission length, marker offset), both leave-one-sequence-out (each file predicted by a fit to
 the others); for OptiTrack also the learned FK (LSTM-MLP) trained on the −90..90° sweep and the random
-points and tested on the held-out −45..45° sweep. Goals: OptiTrack calibrated ≤ 0.8 mm, FK ≤ 0.5 mm,
+points (validation: 15 % of their rows) and tested on the held-out −45..45° sweep. Goals: OptiTrack calibrated ≤ 0.8 mm, FK ≤ 0.5 mm,
 NDI calibrated ≤ 4 mm (mean tip distance). Ends with one JSON line.
 """
 
@@ -26,7 +26,7 @@ import numpy as np
 from ctrkin.calibration import leave_one_sequence_out
 from ctrkin.data.profile import load_profile
 from ctrkin.data.profile_import import import_with_profile
-from ctrkin.data.splits import split_with_test
+from ctrkin.data.splits import Split, split_with_test
 from ctrkin.robots.robot import Robot
 
 REPO = Path(__file__).resolve().parents[1]
@@ -53,7 +53,14 @@ def learned_fk(ds, out: Path, max_epochs: int) -> float:
     from ctrkin.training import TrainConfig, train
 
     labels = list(ds.meta["sequence_labels"])
-    ds.split = split_with_test(ds.frame["sequence_id"].to_numpy(), labels, [HELD_OUT_SWEEP])
+    by_seq = split_with_test(ds.frame["sequence_id"].to_numpy(), labels, [HELD_OUT_SWEEP])
+    # validation (early stopping only): 15 % of the other sequences' rows, seeded. A whole validation
+    # sequence would be the 21 random points, unlike the sweep tested on, and stop training early.
+    rest = np.sort(np.r_[by_seq.train, by_seq.val])
+    perm = np.random.default_rng(0).permutation(rest)
+    n_val = round(0.15 * len(rest))
+    ds.split = Split(np.sort(perm[n_val:]), np.sort(perm[:n_val]), by_seq.test, kind="random", seed=0,
+                     fractions=(0.7, 0.15, 0.15), n_rows=len(ds.frame))
     cfg = TrainConfig(task="fk", model="lstm_mlp", split="dataset", max_epochs=max_epochs, patience=60,
                       lr_schedule="cosine", seed=0, threads=2)
     folder = out / "fk_optitrack"
