@@ -8,9 +8,11 @@ The logs are read where they lie (never copied into the repository); without the
 says so and exits 0. Reports, for each set: samples after cleaning; the nominal TCM with a fitted
 registration only, and the calibrated TCM (registration, precurvature, stiffness ratio, α/β offsets,
 transmission length, marker offset), both leave-one-sequence-out (each file predicted by a fit to
-the others); for OptiTrack also the learned FK (LSTM-MLP) trained on the −90..90° sweep and the random
-points (validation: 15 % of their rows) and tested on the held-out −45..45° sweep. Goals: OptiTrack calibrated ≤ 0.8 mm, FK ≤ 0.5 mm,
-NDI calibrated ≤ 4 mm (mean tip distance). Ends with one JSON line.
+the others); for OptiTrack also the learned FK (LSTM-MLP) trained on the −90..90° sweep and the
+random points (validation: 15 % of their rows) and tested on the held-out −45..45° sweep.
+Calibration uses its default prior about the nominal values (ctrkin.calibration.params). Goals:
+OptiTrack calibrated ≤ 0.8 mm, FK ≤ 0.5 mm, NDI calibrated ≤ 4 mm (mean tip distance). Ends with one
+JSON line.
 """
 
 from __future__ import annotations

@@ -45,7 +45,7 @@ def virtual():
 
 def test_calibration_recovers_known_parameters(virtual):
     ds, _ = virtual
-    res = calibrate(ds, groups=GROUPS, max_nfev=40)
+    res = calibrate(ds, groups=GROUPS, max_nfev=40, prior=False)   # the prior assumes ~1 mm errors
     got = dict(zip(res.params.names, res.x, strict=True))
     for name, tol in TOL.items():
         assert abs(got[name] - TRUE[name]) < tol, (name, got[name], TRUE[name])
@@ -56,7 +56,7 @@ def test_calibration_recovers_known_parameters(virtual):
 
 def test_leave_one_sequence_out_is_near_the_noise_floor(virtual):
     ds, _ = virtual
-    loso = leave_one_sequence_out(ds, groups=GROUPS, max_nfev=30)
+    loso = leave_one_sequence_out(ds, groups=GROUPS, max_nfev=30, prior=False)
     assert set(loso["per_sequence"]) == {"a", "b", "c"}
     assert loso["mean_mm"] < 0.3
 
@@ -66,7 +66,7 @@ def test_calibrate_cli_writes_a_normal_robot_file(tmp_path, virtual):
     ds.save(tmp_path / "ds")
     out = tmp_path / "cal.toml"
     r = CliRunner().invoke(cli, ["calibrate", "--data", str(tmp_path / "ds"), "--out", str(out),
-                                 "--fit", ",".join(GROUPS), "--max-evaluations", "30"])
+                                 "--fit", ",".join(GROUPS), "--max-evaluations", "30", "--no-prior"])
     assert r.exit_code == 0, r.output
     assert "curvature_scale_1" in r.output
     from ctrkin.robots.robot import Robot
@@ -100,3 +100,17 @@ def test_analytic_registration_and_marker_columns_match_finite_differences(virtu
         xm[k] -= h
         fd = (problem.residuals(xp) - problem.residuals(xm)) / (2 * h)
         np.testing.assert_allclose(jac[:, k], fd, atol=1e-4, err_msg=name)
+
+
+def test_prior_rows_pull_physical_parameters_only(virtual):
+    from ctrkin.calibration.fit import PRIOR_SCALE_MM, _Jacobian, initial_registration
+
+    ds, ps = virtual
+    sigma = ps.prior_sigma()
+    assert np.all(np.isinf(sigma[:6])) and np.all(np.isfinite(sigma[6:]))
+    joints, meas = ds.joints()[:5], ds.poses()[:5, :3]
+    problem = _Jacobian(ps, joints, meas, initial_registration(ps.robot, joints, meas))
+    x = ps.nominal() + 1.0
+    r = problem.residuals(x)
+    assert r.shape == (15 + len(x),)
+    np.testing.assert_allclose(r[15:], PRIOR_SCALE_MM / sigma)    # 0 for the registration

@@ -12,9 +12,13 @@ solves each (≈0.1 ms a solve). The kernels integrate the variational equations
 unknowns only, not for the robot parameters, so the TCM's own parameter Jacobian is not analytic
 yet.
 
-Uncertainties: standard errors from the Gauss-Newton covariance σ² (JᵀJ)⁻¹, σ² = SSR / (m − p),
-at the solution; parameters on a bound are reported with it. Leave-one-sequence-out (LOSO): each
-sequence in turn is predicted by a calibration fitted to the others, starting from nominal values.
+With the prior (params.py), residuals (x − x_nominal) / σ_prior · PRIOR_SCALE_MM are appended:
+a maximum a posteriori fit for a position error of about PRIOR_SCALE_MM per coordinate.
+
+Uncertainties: standard errors from the Gauss-Newton covariance σ² (JᵀJ)⁻¹ (prior rows included),
+σ² = SSR / (m − p) of the position residuals, at the solution; parameters on a bound are reported
+with it. Leave-one-sequence-out (LOSO): each sequence in turn is predicted by a calibration fitted
+to the others, starting from nominal values.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from ctrkin.pose import Registration
 from ctrkin.robots.robot import Robot
 
 NAN_PENALTY_MM = 100.0   # residual of a sample whose TCM solve did not converge
+PRIOR_SCALE_MM = 1.0     # position error per coordinate the prior is weighed against
 
 
 @dataclass(eq=False)
@@ -85,6 +90,8 @@ class _Jacobian:
         self.ps, self.joints, self.measured, self.reg, self.step = ps, joints, measured, registration, step
         self.lo, self.hi = ps.bounds()
         self._key: bytes | None = None
+        self.x_nominal = ps.nominal()
+        self.prior_weight = PRIOR_SCALE_MM / ps.prior_sigma()    # 0 where no prior
         self._cache: tuple[np.ndarray, np.ndarray, CalibratedTCM] | None = None
 
     def _at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, CalibratedTCM]:
@@ -101,7 +108,8 @@ class _Jacobian:
     def residuals(self, x: np.ndarray) -> np.ndarray:
         pos, _, model = self._at(x)
         r = self.measured - self._tracker(pos, model)
-        return np.where(np.isfinite(r), r, NAN_PENALTY_MM).ravel()
+        r = np.where(np.isfinite(r), r, NAN_PENALTY_MM).ravel()
+        return np.r_[r, self.prior_weight * (np.asarray(x, float) - self.x_nominal)]
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         from scipy.spatial.transform import Rotation
@@ -132,7 +140,8 @@ class _Jacobian:
                 mp = self.ps.model(xp, self.reg)
                 jac[:, :, k] = (self._tracker(mp.robot_frame(self.joints)[0], mp) - base) / h
         jac = np.where(np.isfinite(jac), jac, 0.0)
-        return -jac.reshape(-1, len(names))     # residual = measured − predicted
+        return np.r_[-jac.reshape(-1, len(names)),      # residual = measured − predicted
+                     np.diag(self.prior_weight)]
 
 
 def _fit(ps: ParameterSet, joints: np.ndarray, measured: np.ndarray, max_nfev: int
@@ -149,18 +158,19 @@ def _fit(ps: ParameterSet, joints: np.ndarray, measured: np.ndarray, max_nfev: i
 
 
 def calibrate(ds: Dataset, robot: Robot | None = None, groups: tuple[str, ...] = GROUPS,
-              rows: np.ndarray | None = None, max_nfev: int = 60) -> CalibrationResult:
-    """Fit `groups` (params.py) of `robot` (default: the dataset's) to the dataset's positions."""
+              rows: np.ndarray | None = None, max_nfev: int = 60, prior: bool = True) -> CalibrationResult:
+    """Fit `groups` (params.py) of `robot` (default: the dataset's) to the dataset's positions;
+    prior: the Gaussian prior about the nominal values (params.py)."""
     robot = robot or ds.robot
     if robot.n_tubes != ds.n_tubes:
         raise CtrkinError(f"robot has {robot.n_tubes} tubes but the dataset {ds.n_tubes}")
     joints, measured = _positions(ds, rows)
     if len(joints) < 10:
         raise CtrkinError(f"calibration needs at least 10 samples, got {len(joints)}")
-    ps = ParameterSet(robot, tuple(groups))
+    ps = ParameterSet(robot, tuple(groups), prior=prior)
     x, sol = _fit(ps, joints, measured, max_nfev)
-    m, p = sol.fun.size, x.size
-    ssr = float(sol.fun @ sol.fun)
+    m, p = 3 * len(joints), x.size
+    ssr = float(sol.fun[:m] @ sol.fun[:m])
     try:
         cov = np.linalg.pinv(sol.jac.T @ sol.jac) * ssr / max(m - p, 1)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
@@ -179,7 +189,7 @@ def calibrate(ds: Dataset, robot: Robot | None = None, groups: tuple[str, ...] =
 
 
 def leave_one_sequence_out(ds: Dataset, robot: Robot | None = None, groups: tuple[str, ...] = GROUPS,
-                           max_nfev: int = 60) -> dict[str, Any]:
+                           max_nfev: int = 60, prior: bool = True) -> dict[str, Any]:
     """Per sequence: fit `groups` on the other sequences, report the mean tip distance (mm) on it.
     Returns {"per_sequence": {label: mm}, "mean_mm": sample-weighted mean, "samples": n}."""
     robot = robot or ds.robot
@@ -189,7 +199,7 @@ def leave_one_sequence_out(ds: Dataset, robot: Robot | None = None, groups: tupl
     if len(uniq) < 2:
         raise CtrkinError("leave-one-sequence-out needs at least 2 sequences")
     joints, measured = _positions(ds)
-    ps = ParameterSet(robot, tuple(groups))
+    ps = ParameterSet(robot, tuple(groups), prior=prior)
     per, errs = {}, []
     for k in uniq:
         train, test = np.nonzero(sid != k)[0], np.nonzero(sid == k)[0]
@@ -200,4 +210,4 @@ def leave_one_sequence_out(ds: Dataset, robot: Robot | None = None, groups: tupl
         errs.append(e)
     all_e = np.concatenate(errs)
     return {"per_sequence": per, "mean_mm": float(np.nanmean(all_e)), "samples": int(all_e.size),
-            "groups": list(groups)}
+            "groups": list(groups), "prior": prior}

@@ -34,16 +34,18 @@ from ctrkin.util.files import atomic_write_text
 @click.option("--loso", is_flag=True, help="Also report leave-one-sequence-out error (one refit per "
               "sequence).")
 @click.option("--max-evaluations", default=60, show_default=True, help="Least-squares evaluations.")
+@click.option("--no-prior", is_flag=True, help="Fit without the prior about the nominal values "
+              "(ctrkin.calibration.params.PRIOR_SIGMA).")
 def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str, loso: bool,
-                  max_evaluations: int) -> None:
+                  max_evaluations: int, no_prior: bool) -> None:
     """Fit registration and TCM parameters (precurvature, stiffness ratio, α/β offsets, transmission
     length, marker offset) by bounded least squares; print them with standard errors."""
     ds = Dataset.load(data_dir)
     robot = get_robot(robot_spec) if robot_spec else ds.robot
     groups = tuple(g.strip() for g in fit.split(",") if g.strip())
-    res = calibrate(ds, robot, groups, max_nfev=max_evaluations)
+    res = calibrate(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior)
     if loso:
-        res.loso = leave_one_sequence_out(ds, robot, groups, max_nfev=max_evaluations)
+        res.loso = leave_one_sequence_out(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior)
     d = res.model.robot.to_dict()
     d["name"] = f"{robot.name}-calibrated"
     d["calibration"] = {**res.model.to_dict(), "dataset": str(data_dir),
