@@ -77,7 +77,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
     ap.add_argument("--out", type=Path, default=REPO / "out" / "bench_realdata")
-    ap.add_argument("--epochs", type=int, default=300, help="FK training epochs (early stopping on)")
+    ap.add_argument("--epochs", type=int, default=600, help="FK training epochs (early stopping on)")
     args = ap.parse_args()
     if not (args.data / "optitrack-2tube").is_dir() or not (args.data / "ndi-2tube").is_dir():
         print(f"skipped: the comet-lab logs are not at {args.data} (expected optitrack-2tube/ and "
