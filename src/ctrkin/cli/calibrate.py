@@ -22,7 +22,10 @@ from ctrkin.data.dataset import Dataset
 from ctrkin.util.files import atomic_write_text
 
 
-@click.command("calibrate")
+@click.command("calibrate", epilog="""\b
+Example:
+  ctrkin calibrate --data data/optitrack --robot examples/robots/comet_nylon_optitrack.toml \\
+      --out robots/optitrack_cal.toml --loso""")
 @click.option("--data", "data_dir", required=True, type=click.Path(exists=True, file_okay=False),
               help="Dataset folder (ctrkin dataset import).")
 @click.option("--robot", "robot_spec", default=None,

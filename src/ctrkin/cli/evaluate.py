@@ -13,7 +13,11 @@ from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.real import evaluate
 
 
-@click.command("evaluate")
+@click.command("evaluate", epilog="""\b
+Examples:
+  ctrkin evaluate --data data/optitrack --predictor tcm --out out/eval_tcm
+  ctrkin evaluate --data data/optitrack --predictor robots/optitrack_cal.toml --out out/eval_cal
+  ctrkin evaluate --data data/optitrack --predictor models/fk_optitrack --out out/eval_fk""")
 @click.option("--data", "data_dir", required=True, type=click.Path(exists=True, file_okay=False),
               help="Dataset folder.")
 @click.option("--predictor", "predictors", required=True, multiple=True,
