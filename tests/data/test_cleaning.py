@@ -106,3 +106,21 @@ def test_snaps_follow_the_papers_10_degree_definition():
 def test_cleaning_config_is_validated(kw, msg):
     with pytest.raises(DatasetError, match=msg):
         CleaningConfig(**kw)
+
+
+def test_pose_rule_does_not_reach_across_joint_jumps():
+    """Two sweeps in one sequence, the second starting far away: no sample of either is an outlier
+    (the window of a sweep's last samples would otherwise mix the two motions)."""
+    from ctrkin.data.cleaning import CleaningConfig, continuous_runs, pose_outlier_mask
+
+    a = np.arange(-45.0, 50.0, 5.0)
+    joints = np.zeros((2 * len(a), 4))
+    joints[:, 0] = np.r_[a, a]
+    joints[len(a):, 2] = 5.0
+    ang = np.radians(joints[:, 0])
+    pos = np.column_stack([20 * np.cos(ang), 20 * np.sin(ang), 100 + 10 * (joints[:, 2] > 0)])
+    cfg = CleaningConfig()
+    runs = continuous_runs(joints, 2, cfg)
+    assert runs == [(0, len(a)), (len(a), 2 * len(a))]
+    assert not any(pose_outlier_mask(pos[r0:r1], np.tile([0, 0, 1.0], (r1 - r0, 1)), cfg).any()
+                   for r0, r1 in runs)

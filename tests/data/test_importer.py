@@ -303,3 +303,22 @@ def test_short_row_is_named(tmp_path):
     path.write_text("alpha_1,alpha_2,beta_1,beta_2,x,y,z,q0,qx,qy\n0,0,-10,0,1,2,50,1,0,0\n1,0,-10,0,1,2,50\n")
     with pytest.raises(DatasetError, match=r"line 3, column 'q0' \(q0\) is empty"):
         import_csv(path, _robot())
+
+
+def test_step_beyond_float_precision_is_an_error(tmp_path, log):
+    """2^53 + 1 and 2^53 are the same float64: two samples would silently be averaged together."""
+    df = log.copy()
+    df["step"] = np.repeat(np.arange(len(df) // 5), 5).astype(object)
+    df.loc[:4, "step"] = 2**53 + 1
+    df.loc[5:, "step"] = [2**53 + 2 + k for k in range(len(df) - 5)]
+    path = tmp_path / "big.csv"
+    df.to_csv(path, index=False)
+    with pytest.raises(DatasetError, match=r"line 2, column 'step'.*2\^53"):
+        import_csv(path, _robot())
+
+
+def test_complex_joint_value_is_named(tmp_path, log):
+    df = log.astype({"alpha_1": object})
+    df.loc[7, "alpha_1"] = "(3+2j)"
+    with pytest.raises(DatasetError, match=r"line 9, column 'alpha_1'.*complex number"):
+        import_csv(_write(df, tmp_path / "c.csv"), _robot())

@@ -92,3 +92,27 @@ def test_split_file_round_trip_and_errors(tmp_path):
         Split.load(tmp_path / "split.json")
     with pytest.raises(DatasetError, match="split kind must be one of"):
         Split(np.arange(2), np.arange(0), np.arange(0), kind="time", seed=0, fractions=(1, 0, 0))
+
+
+def test_test_sequences_by_name_or_index_and_ratio_warning():
+    from ctrkin.data.splits import split_warnings, split_with_test
+
+    sid = np.repeat([0, 1, 2, 3], [162, 21, 328, 40])
+    labels = ["a", "b", "c", "d"]
+    by_name = split_with_test(sid, labels, ["c"])
+    by_index = split_with_test(sid, labels, ["2"])
+    np.testing.assert_array_equal(by_name.test, np.nonzero(sid == 2)[0])
+    np.testing.assert_array_equal(by_name.test, by_index.test)
+    assert set(np.unique(sid[by_name.train])) | set(np.unique(sid[by_name.val])) == {0, 1, 3}
+    warnings = split_warnings(by_name, (0.7, 0.15, 0.15))
+    assert any(w.startswith("test has 328") for w in warnings)
+    with pytest.raises(DatasetError, match="no such sequence"):
+        split_with_test(sid, labels, ["zz"])
+
+
+def test_test_sequence_with_two_left_gives_a_validation_sequence():
+    from ctrkin.data.splits import split_with_test
+
+    sid = np.repeat([0, 1, 2], [21, 158, 328])
+    split = split_with_test(sid, ["random", "sweep45", "sweep90"], ["sweep45"])
+    assert set(sid[split.test]) == {1} and set(sid[split.val]) == {0} and set(sid[split.train]) == {2}

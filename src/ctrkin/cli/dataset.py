@@ -10,7 +10,12 @@
         --map px=x --map py=y --map pz=z --map stamp=time --map run=sequence_id \\
         --quaternion ox,oy,oz,ow --quat-order xyzw --units rad,m
 
+    # logs in a lab's own format, described once by an import profile (docs/real_robot.md)
+    ctrkin dataset import logs/*.csv --profile examples/profiles/comet_optitrack.toml \
+        --robot examples/robots/comet_nylon_optitrack.toml --out data/optitrack
+
     ctrkin dataset split data/mylog --kind random --seed 0 --fractions 0.7,0.15,0.15
+    ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate   # test sequence by name
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ from ctrkin.cli.common import get_robot, parse_floats, robot_option
 from ctrkin.data.cleaning import CleaningConfig
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
-from ctrkin.data.splits import random_split, split_by_sequence
+from ctrkin.data.splits import random_split, split_by_sequence, split_warnings, split_with_test
 from ctrkin.data.summary import summarize
 
 
@@ -147,8 +152,12 @@ def parse_gap(text: str) -> float | str | None:
 
 
 @dataset_group.command("import")
-@click.argument("log_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("log_files", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
 @robot_option
+@click.option("--profile", "profile_file", default=None, type=click.Path(exists=True, dir_okay=False),
+              help="Import profile (TOML: columns by position or name, scales, travel zero, groups, "
+                   "drops, reference body, orientation). With a profile, several files make one "
+                   "dataset, one sequence per file, and --map/--units/--quaternion are not used.")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Dataset folder to write.")
 @click.option("--map", "maps", multiple=True, metavar="LOG_COLUMN=FIELD",
@@ -175,13 +184,14 @@ def parse_gap(text: str) -> float | str | None:
 @click.option("--unwrap", is_flag=True, help="Unwrap alpha (for logs wrapping angles to ±180°).")
 @click.option("--delimiter", default=",", show_default=True, help="CSV field separator.")
 @click.option("--force", is_flag=True, help="Replace the --out folder if it exists.")
-def import_cmd(log_file: str, robot_spec: str, out_dir: str, maps: tuple[str, ...], units: tuple[str, ...],
+def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | None, out_dir: str,
+               maps: tuple[str, ...], units: tuple[str, ...],
                quat_cols: str | None, quat_order: str, gap_text: str, drop_invalid: bool,
                drop_incomplete: bool, keep_outliers: bool, no_average: bool, unwrap: bool,
                delimiter: str, force: bool) -> None:
-    """Import a robot log LOG_FILE (CSV, one row a tracker reading) into a cleaned dataset: repeated
-    readings averaged, encoder glitches and pose outliers removed, snaps detected (see
-    docs/data.md)."""
+    """Import robot logs LOG_FILES (CSV, one row a tracker reading) into one cleaned dataset: repeated
+    readings averaged, encoder glitches and pose outliers removed, snaps detected (see docs/data.md,
+    and docs/real_robot.md for import profiles). Without --profile, one file."""
     out = Path(out_dir)
     if out.exists() and not force:
         raise click.UsageError(f"{out} exists; pass --force to replace it")
@@ -194,9 +204,19 @@ def import_cmd(log_file: str, robot_spec: str, out_dir: str, maps: tuple[str, ..
         delimiter=delimiter,
         cleaning=CleaningConfig(average_repeats=not no_average, outliers="flag" if keep_outliers else "drop"),
         **cast(Any, parse_units(units)))
-    ds = import_csv(log_file, robot, cfg)
+    if profile_file is not None:
+        from ctrkin.data.profile import load_profile
+        from ctrkin.data.profile_import import import_with_profile
+
+        ds = import_with_profile(list(log_files), load_profile(profile_file, robot.n_tubes), robot, cfg)
+    elif len(log_files) != 1:
+        raise click.UsageError("several log files need --profile (one sequence per file); without a "
+                               "profile import one file")
+    else:
+        ds = import_csv(log_files[0], robot, cfg)
     ds.save(out)
-    print_summary(summarize(ds), title=f"imported {log_file} -> {out}")
+    names = ", ".join(Path(f).name for f in log_files)
+    print_summary(summarize(ds), title=f"imported {names} -> {out}")
     for w in ds.meta["cleaning"]["warnings"]:
         click.echo(f"warning: {w}", err=True)
 
@@ -210,14 +230,22 @@ def import_cmd(log_file: str, robot_spec: str, out_dir: str, maps: tuple[str, ..
 @click.option("--seed", default=0, show_default=True, help="Seed of the shuffle.")
 @click.option("--fractions", default="0.7,0.15,0.15", show_default=True,
               help="Train, validation, test fractions.")
-def split_cmd(folder: str, kind: str, seed: int, fractions: str) -> None:
-    """Make a train/validation/test split of the dataset in FOLDER and save it as split.json."""
+@click.option("--test", "test_seqs", default=None, metavar="NAMES|INDICES",
+              help="Sequences for the test part, by name (file stem for imported logs) or index, "
+                   "comma-separated; the rest is split into train and validation by --fractions.")
+def split_cmd(folder: str, kind: str, seed: int, fractions: str, test_seqs: str | None) -> None:
+    """Make a train/validation/test split of the dataset in FOLDER and save it as split.json. Warns
+    when the parts are far from the requested fractions (few, unequal sequences)."""
     f = parse_floats(fractions, "--fractions")
     if len(f) != 3:
         raise click.BadParameter(f"three fractions needed, got {f}", param_hint="--fractions")
     ds = Dataset.load(folder)
     frac = (f[0], f[1], f[2])
-    if kind == "sequence":
+    if test_seqs is not None:
+        labels = [str(v) for v in ds.meta.get("sequence_labels") or []]
+        split = split_with_test(ds.frame["sequence_id"].to_numpy(), labels,
+                                [t.strip() for t in test_seqs.split(",") if t.strip()], frac, seed=seed)
+    elif kind == "sequence":
         split = split_by_sequence(ds.frame["sequence_id"].to_numpy(), frac, seed=seed)
     else:
         split = random_split(len(ds.frame), frac, seed=seed)
@@ -225,3 +253,5 @@ def split_cmd(folder: str, kind: str, seed: int, fractions: str) -> None:
     sizes = split.sizes()
     click.echo(f"{folder}: {kind} split, seed {seed}: train {sizes['train']}, val {sizes['val']}, "
                f"test {sizes['test']} samples -> {Path(folder) / 'split.json'}")
+    for w in split_warnings(split, frac):
+        click.echo(f"warning: {w}", err=True)

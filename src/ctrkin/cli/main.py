@@ -12,8 +12,10 @@ import sys
 import click
 
 from ctrkin import __version__
+from ctrkin.cli.calibrate import calibrate_cmd
 from ctrkin.cli.collect import collect_cmd
 from ctrkin.cli.dataset import dataset_group
+from ctrkin.cli.evaluate import evaluate_cmd
 from ctrkin.cli.export import export_cmd
 from ctrkin.cli.mechanics import solve_cmd, sweep_cmd
 from ctrkin.cli.predict import predict_cmd
@@ -36,6 +38,8 @@ cli.add_command(export_cmd)
 cli.add_command(predict_cmd)
 cli.add_command(dataset_group)
 cli.add_command(reproduce_cmd)
+cli.add_command(calibrate_cmd)
+cli.add_command(evaluate_cmd)
 
 
 def main() -> None:

@@ -15,6 +15,12 @@ errors. Here, on (R,) readings grouped into samples and then per sequence:
 3. Pose outliers (Hampel filter): a sample whose position (or tip tangent) lies farther from the
    centred moving median of its sequence than max(k·1.4826·MAD of those distances, floor). A moving
    median keeps steps, so a snap (the tip jumping to another branch and staying) is never removed.
+   The window never reaches across a commanded joint jump (|Δα| > pose_break_deg or |Δβ| >
+   pose_break_mm, e.g. from the end of one sweep to the start of the next, or between random
+   points): there the neighbours are not the same motion, and a coordinate-wise median of two
+   different motions is a point neither visited; runs shorter than the window are not tested, nor
+   the first and last window // 2 samples of a run (their window is one-sided: on a moving tip its
+   median lags by a step and would flag the run's ends).
 4. Snaps: |ΔT(L)| > 10° between consecutive samples (the paper's definition), counted only where the
    joints moved by less than the threshold themselves (a large joint step, as between random points,
    says nothing about snapping) and the tip is off the axis (T(L) is undefined on the z axis).
@@ -22,6 +28,7 @@ errors. Here, on (R,) readings grouped into samples and then per sequence:
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import asdict, dataclass
 from typing import Literal
 
@@ -47,13 +54,16 @@ class CleaningConfig:
     pose_window: int = 5              # samples in the centred moving median (odd, >= 3)
     pose_floor_mm: float = 1.0        # positions closer than this to the moving median are kept
     pose_floor_deg: float = 5.0       # tangents closer than this to the moving median are kept
+    pose_break_deg: float = 10.0      # a joint jump larger than this ends a run of the pose rule ...
+    pose_break_mm: float = 2.0        # ... or than this for a translation
     outliers: Literal["drop", "flag"] = "drop"   # drop (the paper) or keep with outlier = True
     snap_threshold_deg: float = 10.0  # the paper's snap definition: |ΔT(L)| above this
     snap_min_radius_mm: float = 2.0   # T(L) is only defined with the tip this far off the z axis
 
     def __post_init__(self) -> None:
         positive = ("repeat_tol", "mad_k", "glitch_factor", "glitch_floor_deg", "glitch_floor_mm",
-                    "pose_floor_mm", "pose_floor_deg", "snap_threshold_deg")
+                    "pose_floor_mm", "pose_floor_deg", "snap_threshold_deg", "pose_break_deg",
+                    "pose_break_mm")
         for name in positive:
             v = getattr(self, name)
             if not (isinstance(v, int | float) and np.isfinite(v) and v > 0):
@@ -180,7 +190,21 @@ def pose_outlier_mask(position: np.ndarray, tangent: np.ndarray, cfg: CleaningCo
         d = _hampel_distance(values, cfg.pose_window, angular)
         thr = max(cfg.mad_k * MAD_TO_SIGMA * float(np.median(d)), floor)
         out |= d > thr
+    half = cfg.pose_window // 2
+    out[:half] = False
+    out[len(out) - half:] = False
     return out
+
+
+def continuous_runs(joints: np.ndarray, n_tubes: int, cfg: CleaningConfig) -> list[tuple[int, int]]:
+    """[start, end) runs of one sequence (joints (S, 2N) deg/mm) without a commanded joint jump."""
+    if len(joints) == 0:
+        return []
+    step = np.abs(np.diff(joints, axis=0))
+    jump = ((step[:, :n_tubes] > cfg.pose_break_deg).any(axis=1)
+            | (step[:, n_tubes:] > cfg.pose_break_mm).any(axis=1))
+    cuts = np.r_[0, np.nonzero(jump)[0] + 1, len(joints)]
+    return [(int(a), int(b)) for a, b in itertools.pairwise(cuts)]
 
 
 def snap_mask(joints: np.ndarray, position: np.ndarray, n_tubes: int, cfg: CleaningConfig) -> np.ndarray:

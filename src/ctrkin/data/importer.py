@@ -62,7 +62,10 @@ class ImportConfig:
     a full quaternion in `quaternion_order` (shorthand for mapping qw, qx, qy, qz); sequence_gap:
     None (never split), "auto" or a time gap in the log's time unit; drop_invalid_joints /
     drop_incomplete: drop rows with joints outside the robot's limits / with empty or NaN cells
-    instead of failing; unwrap: unwrap the alpha columns (for logs that wrap angles to ±180°)."""
+    instead of failing; unwrap: unwrap the alpha columns (for logs that wrap angles to ±180°);
+    position_only: the log has no tip orientation (or one that is not the tip tangent, such as a
+    marker body's): the dataset keeps a placeholder orientation (base z) and meta["orientation"] =
+    "absent", and orientation metrics are skipped."""
 
     mapping: tuple[tuple[str, str], ...] = ()
     angle_unit: AngleUnit = "deg"
@@ -75,6 +78,7 @@ class ImportConfig:
     drop_incomplete: bool = False
     unwrap: bool = False
     delimiter: str = ","
+    position_only: bool = False
     cleaning: CleaningConfig = field(default_factory=CleaningConfig)
 
     def __post_init__(self) -> None:
@@ -120,7 +124,8 @@ class ImportConfig:
                 "position_unit": self.position_unit, "quaternion_columns": list(self.quaternion_columns),
                 "quaternion_order": self.quaternion_order, "sequence_gap": self.sequence_gap,
                 "drop_invalid_joints": self.drop_invalid_joints, "drop_incomplete": self.drop_incomplete,
-                "unwrap": self.unwrap, "delimiter": self.delimiter, "cleaning": self.cleaning.to_dict()}
+                "unwrap": self.unwrap, "delimiter": self.delimiter, "position_only": self.position_only,
+                "cleaning": self.cleaning.to_dict()}
 
 
 def _line(row: int) -> int:
@@ -128,11 +133,25 @@ def _line(row: int) -> int:
     return row + 2
 
 
+MAX_EXACT_STEP = 2**53  # integers at or above this are not exact as float64: distinct steps would merge
+
+
 class _Log:
     """The raw CSV with its field -> column resolution; errors name the file, line and column."""
 
-    def __init__(self, path: Path, robot: Robot, cfg: ImportConfig) -> None:
+    def __init__(self, path: Path, robot: Robot, cfg: ImportConfig, raw: pd.DataFrame | None = None,
+                 origins: list[tuple[str, int]] | None = None) -> None:
+        """raw: the log's cells as text, already read (an import profile reads them); origins: the
+        (file, line) of each of its rows, for messages."""
         self.path, self.robot, self.cfg = path, robot, cfg
+        self.origins = origins
+        if raw is not None:
+            self.raw = raw.reset_index(drop=True)
+            self.field_names: dict[str, str] = {}
+            if len(self.raw) == 0:
+                raise DatasetError(f"{path}: no data rows")
+            self.columns = self._resolve()
+            return
         try:
             raw = pd.read_csv(path, sep=cfg.delimiter, dtype=str, keep_default_na=False,
                               skipinitialspace=True, skip_blank_lines=False)
@@ -147,7 +166,7 @@ class _Log:
         while tail > 0 and blank[tail - 1]:
             tail -= 1
         self.raw = raw.iloc[:tail]
-        self.field_names: dict[str, str] = {}
+        self.field_names = {}
         if len(self.raw) == 0:
             raise DatasetError(f"{path} has a header but no data rows")
         self.columns = self._resolve()
@@ -177,7 +196,7 @@ class _Log:
             self.field_names["qw"] = "q0"  # errors use the name the user gave
         required = [*schema.joint_columns(n), "x", "y", "z"]
         missing = [f for f in required if f not in columns]
-        if self.orientation_mode(columns) is None:
+        if self.orientation_mode(columns) is None and not self.cfg.position_only:
             missing.append("orientation: q0,qx,qy (5-DOF) or qw,qx,qy,qz or tx,ty,tz")
         if missing:
             raise DatasetError(f"{self.path}: missing column(s) for {missing}. The log's columns are "
@@ -205,9 +224,20 @@ class _Log:
         bad = np.isnan(vals) & ~empty
         if bad.any():
             r = int(np.argmax(bad))
-            raise DatasetError(f"{self.path}: line {_line(r)}, {self.line_col(fld)}: "
-                               f"{text.iloc[r]!r} is not a number")
+            what = ("a complex number; this field must be real" if _looks_complex(text.iloc[r])
+                    else "not a number")
+            raise DatasetError(f"{self.where(r)}, {self.line_col(fld)}: {text.iloc[r]!r} is {what}")
         return vals
+
+    def where(self, row: int) -> str:
+        """'file: line N' of data row `row` (0-based, before any drop)."""
+        if self.origins is not None:
+            name, line = self.origins[row]
+            return f"{name}: line {line}"
+        return f"{self.path}: line {_line(row)}"
+
+    def file_line(self, row: int) -> int:
+        return self.origins[row][1] if self.origins is not None else _line(row)
 
     def line_col(self, fld: str) -> str:
         return f"column {self.columns[fld]!r} ({self.field_names.get(fld, fld)})"
@@ -221,12 +251,19 @@ def import_csv(path: str | Path, robot: Robot, config: ImportConfig | None = Non
     """
     cfg = config or ImportConfig()
     src = Path(path)
-    log = _Log(src, robot, cfg)
+    ds = import_frame(_Log(src, robot, cfg), robot, cfg, str(src))
+    ds.meta["protocol_params"] = {"source": src.name, "sha256": _sha256(src)}
+    return ds
+
+
+def import_frame(log: _Log, robot: Robot, cfg: ImportConfig, src: str) -> Dataset:
+    """The rows of `log` (read from a CSV, or made by an import profile) -> a cleaned Dataset;
+    src names the log(s) in messages."""
     n = robot.n_tubes
     cols = log.columns
-    mode = log.orientation_mode(cols)
+    mode = "absent" if cfg.position_only else log.orientation_mode(cols)
     pose_fields = ["x", "y", "z"] + {"quaternion": ["qw", "qx", "qy", "qz"], "tangent": ["tx", "ty", "tz"],
-                                     "5dof": ["qw", "qx", "qy"]}[str(mode)]
+                                     "5dof": ["qw", "qx", "qy"], "absent": []}[str(mode)]
     numeric = schema.joint_columns(n) + pose_fields + [f for f in ("time", "step", "snap") if f in cols]
     values = {f: log.numbers(f) for f in numeric}
     rows_read = len(log.raw)
@@ -240,7 +277,7 @@ def import_csv(path: str | Path, robot: Robot, config: ImportConfig | None = Non
         col_nan = ~np.isfinite(values[f])
         if col_nan.any() and not cfg.drop_incomplete:
             r = int(np.argmax(col_nan))
-            raise DatasetError(f"{src}: line {_line(r)}, {log.line_col(f)} is empty, NaN or inf; fix "
+            raise DatasetError(f"{log.where(r)}, {log.line_col(f)} is empty, NaN or inf; fix "
                                "the log or pass --drop-incomplete to skip such rows")
         nan |= col_nan
     if "snap" in values:
@@ -250,7 +287,7 @@ def import_csv(path: str | Path, robot: Robot, config: ImportConfig | None = Non
         empty_label = labels == ""
         if empty_label.any() and not cfg.drop_incomplete:
             r = int(np.argmax(empty_label))
-            raise DatasetError(f"{src}: line {_line(r)}, {log.line_col('sequence_id')} is empty; fix the "
+            raise DatasetError(f"{log.where(r)}, {log.line_col('sequence_id')} is empty; fix the "
                                "log or pass --drop-incomplete")
         nan |= empty_label
     keep = ~nan
@@ -276,7 +313,7 @@ def import_csv(path: str | Path, robot: Robot, config: ImportConfig | None = Non
             reason = str(e).split(" (q = ")[0]
         beta_cols = [cols[c] for c in schema.beta_columns(n)]
         read = {cols[c]: float(values[c][r]) for c in schema.beta_columns(n)}
-        raise DatasetError(f"{src}: line {_line(line[r])}: joints outside the limits of robot "
+        raise DatasetError(f"{log.where(line[r])}: joints outside the limits of robot "
                            f"{robot.name!r}: {reason}; columns {beta_cols} read {read} "
                            f"({cfg.beta_unit}). Fix the log, check --units and --map, or pass "
                            "--drop-invalid to drop such rows")
@@ -295,10 +332,17 @@ def import_csv(path: str | Path, robot: Robot, config: ImportConfig | None = Non
     # --- sequences and time order -------------------------------------------------------------------
     sequence, seq_labels = _sequences(labels, values.get("time"), line, cfg, log, src)
     if "step" in values:
+        big = np.abs(values["step"]) >= MAX_EXACT_STEP
+        if big.any():
+            r = int(np.argmax(big))
+            raise DatasetError(f"{log.where(line[r])}, {log.line_col('step')}: {values['step'][r]:.17g} is "
+                               "at least 2^53, where float64 can no longer tell neighbouring integers apart "
+                               "(distinct samples would be averaged together); renumber the steps, e.g. "
+                               "from 0, or leave step unmapped")
         frac = values["step"] != np.round(values["step"])
         if frac.any():
             r = int(np.argmax(frac))
-            raise DatasetError(f"{src}: line {_line(line[r])}, {log.line_col('step')}: "
+            raise DatasetError(f"{log.where(line[r])}, {log.line_col('step')}: "
                                f"{values['step'][r]:g} is not an integer sample index")
     for f in ("time", "step"):
         if f in values:
@@ -306,7 +350,7 @@ def import_csv(path: str | Path, robot: Robot, config: ImportConfig | None = Non
             back = (sequence[1:] == sequence[:-1]) & (v[1:] < v[:-1])
             if back.any():
                 r = int(np.argmax(back)) + 1
-                raise DatasetError(f"{src}: line {_line(line[r])}, {log.line_col(f)}: {v[r]:g} comes "
+                raise DatasetError(f"{log.where(line[r])}, {log.line_col(f)}: {v[r]:g} comes "
                                    f"after {v[r - 1]:g}; the log must be sorted by {f} within each "
                                    "sequence")
     if cfg.unwrap:
@@ -331,7 +375,9 @@ def import_csv(path: str | Path, robot: Robot, config: ImportConfig | None = Non
     pose_out = np.zeros(len(first), dtype=bool)
     for a, b in schema.sequence_bounds(s_seq):
         glitch[a:b] = cleaning.glitch_mask(s_joints[a:b], n, cc)
-        pose_out[a:b] = cleaning.pose_outlier_mask(s_pos[a:b], s_tan[a:b], cc) & ~glitch[a:b]
+        for c, d in cleaning.continuous_runs(s_joints[a:b], n, cc):
+            pose_out[a + c:a + d] = cleaning.pose_outlier_mask(s_pos[a + c:a + d], s_tan[a + c:a + d], cc)
+        pose_out[a:b] &= ~glitch[a:b]
     outlier = glitch | pose_out
     keep_s = ~outlier if cc.outliers == "drop" else np.ones(len(first), dtype=bool)
     idx = np.nonzero(keep_s)[0]
@@ -363,7 +409,7 @@ def import_csv(path: str | Path, robot: Robot, config: ImportConfig | None = Non
     if "time" in values:
         frame["time"] = values["time"][first][idx]
     frame["n_readings"] = samples.n_readings[idx]
-    frame["source_line"] = np.array([_line(r) for r in s_line], dtype=np.int64)
+    frame["source_line"] = np.array([log.file_line(r) for r in s_line], dtype=np.int64)
     kept_labels = [seq_labels[k] for k in np.unique(s_seq)]
     report = {
         "rows_read": rows_read,
@@ -382,27 +428,30 @@ def import_csv(path: str | Path, robot: Robot, config: ImportConfig | None = Non
     }
     meta = {
         "protocol": "import",
-        "protocol_params": {"source": src.name, "sha256": _sha256(src)},
+        "protocol_params": {},
         "seed": None,
         "sequence_labels": kept_labels,
         "import": cfg.to_dict(),
+        "orientation": "absent" if mode == "absent" else "measured",
         "cleaning": report,
         "noise": {"source": "spread of repeated readings about their mean",
                   "position_std_mm": _finite_or_none(samples.position_std_mm),
-                  "tangent_std_deg": _finite_or_none(samples.tangent_std_deg)},
+                  "tangent_std_deg": None if mode == "absent" else _finite_or_none(samples.tangent_std_deg)},
     }
     return Dataset(frame=frame, robot=robot, meta=meta)
 
 
 def _tangents(values: dict[str, np.ndarray], mode: str | None, line: np.ndarray, log: _Log,
-              src: Path) -> np.ndarray:
-    """(R, 3) unit tip tangents from the log's orientation columns."""
+              src: str) -> np.ndarray:
+    """(R, 3) unit tip tangents from the log's orientation columns (base z when absent)."""
+    if mode == "absent":
+        return np.tile([0.0, 0.0, 1.0], (len(line), 1))
     if mode == "tangent":
         t = np.column_stack([values[c] for c in ("tx", "ty", "tz")])
         norm = np.linalg.norm(t, axis=1)
         if (norm == 0).any():
             r = int(np.argmax(norm == 0))
-            raise DatasetError(f"{src}: line {_line(line[r])}: the tangent (tx, ty, tz) is zero")
+            raise DatasetError(f"{log.where(line[r])}: the tangent (tx, ty, tz) is zero")
         return t / norm[:, None]
     names = ["qw", "qx", "qy", "qz"] if mode == "quaternion" else ["qw", "qx", "qy"]
     q = np.column_stack([values[c] for c in names])
@@ -412,7 +461,7 @@ def _tangents(values: dict[str, np.ndarray], mode: str | None, line: np.ndarray,
         r = int(np.argmax(off))
         used = [log.columns[c] for c in names]
         extra = "" if mode == "quaternion" else " (a 5-DOF quaternion needs qz = 0)"
-        raise DatasetError(f"{src}: line {_line(line[r])}: the quaternion in columns {used} has norm "
+        raise DatasetError(f"{log.where(line[r])}: the quaternion in columns {used} has norm "
                            f"{norm[r]:.4f}, not 1{extra}; check --map, --quaternion and --quat-order")
     q = q / norm[:, None]
     w, x, y = q[:, 0], q[:, 1], q[:, 2]
@@ -422,7 +471,7 @@ def _tangents(values: dict[str, np.ndarray], mode: str | None, line: np.ndarray,
 
 
 def _sequences(labels: np.ndarray | None, time: np.ndarray | None, line: np.ndarray, cfg: ImportConfig,
-               log: _Log, src: Path) -> tuple[np.ndarray, list[str]]:
+               log: _Log, src: str) -> tuple[np.ndarray, list[str]]:
     """(R,) sequence index 0..K-1 in file order, and the K labels."""
     r_count = len(line)
     if labels is not None:
@@ -434,7 +483,7 @@ def _sequences(labels: np.ndarray | None, time: np.ndarray | None, line: np.ndar
             if start[r]:
                 if labels[r] in seen:
                     raise DatasetError(
-                        f"{src}: line {_line(line[r])}, {log.line_col('sequence_id')}: sequence "
+                        f"{log.where(line[r])}, {log.line_col('sequence_id')}: sequence "
                         f"{labels[r]!r} starts again after other sequences; the rows of a sequence "
                         "must be contiguous (sort the log by sequence, then time)")
                 k += 1
@@ -460,6 +509,14 @@ def _sha256(path: Path) -> str:
         for chunk in iter(lambda: f.read(1 << 20), b""):
             h.update(chunk)
     return h.hexdigest()
+
+
+def _looks_complex(text: str) -> bool:
+    try:
+        complex(text.strip().replace(" ", ""))
+    except ValueError:
+        return False
+    return True
 
 
 def _finite_or_none(v: float) -> float | None:

@@ -127,3 +127,53 @@ def random_split(n_rows: int, fractions: tuple[float, float, float] = (0.7, 0.15
     a, b = n_train, n_train + n_val
     return Split(np.sort(perm[:a]), np.sort(perm[a:b]), np.sort(perm[b:]), kind="random",
                  seed=seed, fractions=fractions, n_rows=n_rows)
+
+
+FAR_FROM_RATIO = 0.10   # a part this far (absolute fraction of the samples) from its request is reported
+
+
+def split_with_test(sequence_id: np.ndarray, labels: list[str], test: list[str],
+                    fractions: tuple[float, float, float] = (0.7, 0.15, 0.15), seed: int = 0) -> Split:
+    """Test part = the sequences named in `test` (labels, e.g. imported file stems, or indices); the
+    other sequences go to train and validation in the ratio fractions[0] : fractions[1]."""
+    fractions = _check_fractions(fractions)
+    sid = np.asarray(sequence_id)
+    uniq = np.unique(sid)
+    chosen = []
+    for t in test:
+        if t in labels:
+            chosen.append(labels.index(t))
+        elif t.lstrip("-").isdigit() and int(t) in uniq:
+            chosen.append(int(t))
+        else:
+            raise DatasetError(f"--test {t!r}: no such sequence; names {labels or '(none)'}, indices "
+                               f"{uniq.tolist()}")
+    test_rows = np.isin(sid, chosen)
+    rest = [k for k in uniq if k not in chosen]
+    if len(rest) < 2:
+        raise DatasetError(f"--test leaves {len(rest)} sequence(s) for train and validation; need 2")
+    tv = fractions[0] + fractions[1]
+    inner = split_by_sequence(sid[~test_rows], (fractions[0] / tv, fractions[1] / tv, 0.0), seed=seed)
+    idx = np.nonzero(~test_rows)[0]
+    train, val = idx[inner.train], np.sort(np.r_[idx[inner.val], idx[inner.test]])
+    if len(val) == 0 and fractions[1] > 0:
+        # few sequences: validation gets the one whose size is closest to its target
+        ids, counts = np.unique(sid[train], return_counts=True)
+        pick = ids[int(np.argmin(np.abs(counts - fractions[1] / tv * len(train))))]
+        val, train = train[sid[train] == pick], train[sid[train] != pick]
+    return Split(np.sort(train), val, np.nonzero(test_rows)[0], kind="sequence", seed=seed,
+                 fractions=fractions, n_rows=len(sid))
+
+
+def split_warnings(split: Split, fractions: tuple[float, float, float]) -> list[str]:
+    """Messages for parts more than FAR_FROM_RATIO away from the requested fractions."""
+    sizes = split.sizes()
+    total = max(sum(sizes.values()), 1)
+    out = []
+    for name, want in zip(("train", "val", "test"), fractions, strict=True):
+        got = sizes[name] / total
+        if abs(got - want) > FAR_FROM_RATIO:
+            out.append(f"{name} has {sizes[name]} samples ({got:.0%}) where {want:.0%} was asked: whole "
+                       "sequences cannot match the ratio; choose the test sequences with --test, or "
+                       "record more, shorter sequences")
+    return out

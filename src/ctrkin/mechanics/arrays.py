@@ -13,7 +13,8 @@ from ctrkin.robots.robot import Robot
 @dataclass(frozen=True, eq=False)
 class RobotArrays:
     """k, gj: (N,) bending and torsional stiffness (N·mm²); lengths (N,) mm;
-    sec_len, sec_kap: (N, S) sections base to tip (mm, 1/mm); n_sec (N,); rigid transmission flag."""
+    sec_len, sec_kap: (N, S) sections base to tip (mm, 1/mm); n_sec (N,); rigid transmission flag;
+    extra (N,) mm: Robot.transmission_length."""
 
     k: np.ndarray
     gj: np.ndarray
@@ -22,6 +23,7 @@ class RobotArrays:
     sec_kap: np.ndarray
     n_sec: np.ndarray
     rigid: bool
+    extra: np.ndarray
 
 
 @functools.lru_cache(maxsize=64)
@@ -40,7 +42,8 @@ def robot_arrays(robot: Robot) -> RobotArrays:
         k=np.array([t.bending_stiffness for t in robot.tubes]),
         gj=np.array([t.torsional_stiffness for t in robot.tubes]),
         lengths=robot.lengths, sec_len=sec_len, sec_kap=sec_kap, n_sec=n_sec,
-        rigid=robot.transmission == "rigid")
-    for a in (arrs.k, arrs.gj, arrs.lengths, arrs.sec_len, arrs.sec_kap, arrs.n_sec):
+        rigid=robot.transmission == "rigid",
+        extra=np.array(robot.transmission_length or [0.0] * n, dtype=float))
+    for a in (arrs.k, arrs.gj, arrs.lengths, arrs.sec_len, arrs.sec_kap, arrs.n_sec, arrs.extra):
         a.setflags(write=False)
     return arrs

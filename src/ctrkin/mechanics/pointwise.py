@@ -87,7 +87,7 @@ class Equilibrium:
         n = self.x.shape[0]
         if self._problem.arrays.rigid:
             return np.zeros(n)
-        return np.degrees(-self.q[n:] * self.x)
+        return np.degrees(-self._problem.beta * self.x)
 
     def to_dict(self) -> dict[str, object]:
         return {
@@ -107,7 +107,7 @@ class _Problem:
     arrays: RobotArrays
     q: np.ndarray
     alpha: np.ndarray  # rad
-    beta: np.ndarray
+    beta: np.ndarray   # mm, for the kernels' transmission: βi − extra transmission length
     tips: np.ndarray
     grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
@@ -128,7 +128,8 @@ def _prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: boo
     beta = qa[n:].copy()
     grid = kernels.build_grid(beta, arr.lengths, arr.sec_len, arr.sec_kap, arr.n_sec,
                               settings.step)
-    return _Problem(arr, qa, np.radians(qa[:n]), beta, beta + arr.lengths, grid)
+    # the kernels read β only as the twisting length −β of the compliant transmission (M4)
+    return _Problem(arr, qa, np.radians(qa[:n]), beta - arr.extra, beta + arr.lengths, grid)
 
 
 def _newton(pb: _Problem, x0: np.ndarray, settings: SolverSettings

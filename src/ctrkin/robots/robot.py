@@ -29,15 +29,23 @@ JOINT_TOL = 1e-9  # mm: slack on the joint inequalities for round-off
 @dataclass(frozen=True)
 class Robot:
     """tubes: innermost first. transmission: "compliant" (the part s < 0 is straight but twists,
-    DESIGN.md Mechanics) or "rigid" (the tube base angle is αi at s = 0)."""
+    DESIGN.md Mechanics) or "rigid" (the tube base angle is αi at s = 0). transmission_length: (N,)
+    mm of extra twisting length between each tube's actuator and its carriage, beyond the −βi inside
+    the actuation unit (a calibrated parameter; empty = zeros)."""
 
     tubes: tuple[Tube, ...]
     transmission: Transmission = "compliant"
     name: str = "robot"
+    transmission_length: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         tubes = tuple(self.tubes)
         object.__setattr__(self, "tubes", tubes)
+        tl = tuple(float(v) for v in self.transmission_length)
+        object.__setattr__(self, "transmission_length", tl)
+        if tl and (len(tl) != len(tubes) or not all(math.isfinite(v) and v >= 0 for v in tl)):
+            raise RobotDescriptionError(f"Robot.transmission_length needs {len(tubes)} finite values >= 0 mm "
+                                        f"(one per tube), got {list(tl)}")
         if len(tubes) < 1:
             raise RobotDescriptionError("Robot needs at least one tube")
         for k, t in enumerate(tubes):
@@ -151,8 +159,11 @@ class Robot:
 
     # --- serialisation -------------------------------------------------------------------------
     def to_dict(self) -> dict[str, object]:
-        return {"name": self.name, "transmission": self.transmission,
-                "tubes": [t.to_dict() for t in self.tubes]}
+        d: dict[str, object] = {"name": self.name, "transmission": self.transmission}
+        if any(self.transmission_length):
+            d["transmission_length"] = list(self.transmission_length)
+        d["tubes"] = [t.to_dict() for t in self.tubes]
+        return d
 
     @classmethod
     def from_dict(cls, d: dict[str, object], source: str = "robot description") -> Robot:
@@ -191,8 +202,11 @@ class Robot:
                 raise RobotDescriptionError(f"{source}: tubes[{k}]: {e}") from None
             except (TypeError, KeyError) as e:
                 raise RobotDescriptionError(f"{source}: tubes[{k}]: {e}") from None
+        tl = d.get("transmission_length", ())
+        if not isinstance(tl, list | tuple):
+            raise RobotDescriptionError(f"{source}: transmission_length must be a list (mm, one per tube)")
         return cls(tubes=tuple(tubes), transmission=d.get("transmission", "compliant"),  # type: ignore[arg-type]
-                   name=str(d.get("name", "robot")))
+                   name=str(d.get("name", "robot")), transmission_length=tuple(tl))
 
     def to_toml(self, path: str | Path) -> None:
         atomic_write_text(path, tomli_w.dumps(self.to_dict()))

@@ -66,7 +66,9 @@ class Tube:
                 f"Tube.youngs_modulus must be > 0 GPa, got {self.youngs_modulus}")
         if not 0 <= self.poisson_ratio < 0.5:
             raise RobotDescriptionError(
-                f"Tube.poisson_ratio must satisfy 0 <= nu < 0.5, got {self.poisson_ratio}")
+                f"Tube.poisson_ratio must satisfy 0 <= nu < 0.5, got {self.poisson_ratio} (sets the "
+                "bending-to-torsion stiffness ratio EI/GJ = 1 + nu; a code using G = E/4 means nu = 1, "
+                "which no isotropic material has: use the material's nu, or let ctrkin calibrate fit it)")
         if not self.sections:
             secs = tuple(s for s in (Section(float(self.straight_length), 0.0),
                                      Section(float(self.curved_length), float(self.curvature)))

@@ -21,6 +21,7 @@ import torch
 from tqdm.auto import tqdm
 
 from ctrkin.data.dataset import Dataset
+from ctrkin.data.splits import split_warnings
 from ctrkin.errors import ModelError
 from ctrkin.inference.workspace import Workspace
 from ctrkin.models.branch import UNKNOWN_STATE, BranchNet
@@ -162,6 +163,9 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
     torch.set_num_threads(cfg.threads)
     stateful = get_entry(cfg.model).stateful
     prep = prepare(ds, cfg, branches=stateful)
+    if prep.split.kind == "sequence":
+        for w in split_warnings(prep.split, prep.split.fractions):
+            say(f"warning: {w}")
     signature = data_signature(ds)
     torch.manual_seed(cfg.seed)
     bundle = ModelBundle.create(cfg.to_dict(), prep.layout, prep.x_norm, prep.y_norm, ds.robot,

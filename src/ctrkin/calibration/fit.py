@@ -1,0 +1,213 @@
+"""Least-squares calibration (scipy.optimize.least_squares, trust-region reflective, bounded).
+
+Residuals: measured minus predicted marker position (mm) of every sample, the TCM solved point-wise
+with no history. Orientation is not fitted (the comet-lab markers do not measure the tip tangent;
+evaluation still reports it where a dataset has it).
+
+Jacobian (`_Jacobian`): the registration and marker columns are analytic, from the robot-frame
+solution at x (∂p/∂t = I, ∂p/∂θk = (∂R/∂θk) m, ∂p/∂d = R t_tip; ∂R/∂θk of the rotation vector by a
+central difference of the 3 × 3 matrix, no solve); the mechanics columns (precurvature, stiffness
+ratio, offsets, transmission length) are forward differences of the point-wise TCM, one set of T
+solves each (≈0.1 ms a solve). The kernels integrate the variational equations for the shooting
+unknowns only, not for the robot parameters, so the TCM's own parameter Jacobian is not analytic
+yet.
+
+With the prior (params.py), residuals (x − x_nominal) / σ_prior · PRIOR_SCALE_MM are appended:
+a maximum a posteriori fit for a position error of about PRIOR_SCALE_MM per coordinate.
+
+Uncertainties: standard errors from the Gauss-Newton covariance σ² (JᵀJ)⁻¹ (prior rows included),
+σ² = SSR / (m − p) of the position residuals, at the solution; parameters on a bound are reported
+with it. Leave-one-sequence-out (LOSO): each sequence in turn is predicted by a calibration fitted
+to the others, starting from nominal values.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ctrkin.calibration.model import CalibratedTCM
+from ctrkin.calibration.params import GROUPS, ParameterSet
+from ctrkin.data.dataset import Dataset
+from ctrkin.errors import CtrkinError
+from ctrkin.pose import Registration
+from ctrkin.robots.robot import Robot
+
+NAN_PENALTY_MM = 100.0   # residual of a sample whose TCM solve did not converge
+PRIOR_SCALE_MM = 1.0     # position error per coordinate the prior is weighed against
+
+
+@dataclass(eq=False)
+class CalibrationResult:
+    """params: the fitted set; x (P,) values, std (P,) standard errors, at_bound (P,) flags;
+    model: the calibrated predictor; rms_mm / mean_mm: fit error on all samples; nominal_mean_mm:
+    the nominal robot with a fitted registration; loso: per-sequence held-out errors (mm)."""
+
+    params: ParameterSet
+    x: np.ndarray
+    std: np.ndarray
+    at_bound: np.ndarray
+    model: CalibratedTCM
+    rms_mm: float
+    mean_mm: float
+    nominal_mean_mm: float
+    n_samples: int
+    nfev: int
+    loso: dict[str, Any] = field(default_factory=dict)
+
+    def table(self) -> list[dict[str, Any]]:
+        return [{"name": name, "unit": unit, "nominal": nom, "value": float(v), "std": float(s),
+                 "at_bound": bool(b)}
+                for (name, unit, nom, _, _), v, s, b in zip(self.params.layout(), self.x, self.std,
+                                                              self.at_bound, strict=True)]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"parameters": self.table(), "rms_mm": self.rms_mm, "mean_mm": self.mean_mm,
+                "nominal_mean_mm": self.nominal_mean_mm, "n_samples": self.n_samples,
+                "evaluations": self.nfev, "groups": list(self.params.groups), "loso": self.loso,
+                "method": "scipy least_squares (trf), finite-difference Jacobian, positions only"}
+
+
+def _positions(ds: Dataset, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    j, p = ds.joints(), ds.poses()[:, :3]
+    return (j, p) if rows is None else (j[rows], p[rows])
+
+
+def initial_registration(robot: Robot, joints: np.ndarray, measured: np.ndarray) -> Registration:
+    """Kabsch fit of the nominal robot's tips to the measured positions (the starting point)."""
+    pred, _ = CalibratedTCM(robot).robot_frame(joints)
+    return Registration.fit(pred, measured)
+
+
+class _Jacobian:
+    """Residual function and Jacobian of one fit, sharing the solve at the current x."""
+
+    def __init__(self, ps: ParameterSet, joints: np.ndarray, measured: np.ndarray,
+                 registration: Registration, step: float = 1e-4) -> None:
+        self.ps, self.joints, self.measured, self.reg, self.step = ps, joints, measured, registration, step
+        self.lo, self.hi = ps.bounds()
+        self._key: bytes | None = None
+        self.x_nominal = ps.nominal()
+        self.prior_weight = PRIOR_SCALE_MM / ps.prior_sigma()    # 0 where no prior
+        self._cache: tuple[np.ndarray, np.ndarray, CalibratedTCM] | None = None
+
+    def _at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, CalibratedTCM]:
+        key = np.asarray(x, float).tobytes()
+        if key != self._key or self._cache is None:
+            model = self.ps.model(x, self.reg)
+            pos, tan = model.robot_frame(self.joints)
+            self._key, self._cache = key, (pos, tan, model)
+        return self._cache
+
+    def _tracker(self, pos: np.ndarray, model: CalibratedTCM) -> np.ndarray:
+        return pos @ model.registration.rotation.T + model.registration.translation
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        pos, _, model = self._at(x)
+        r = self.measured - self._tracker(pos, model)
+        r = np.where(np.isfinite(r), r, NAN_PENALTY_MM).ravel()
+        return np.r_[r, self.prior_weight * (np.asarray(x, float) - self.x_nominal)]
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        from scipy.spatial.transform import Rotation
+
+        pos, tan, model = self._at(x)
+        base = self._tracker(pos, model)
+        rot = model.registration.rotation
+        names = self.ps.names
+        jac = np.zeros((pos.shape[0], 3, len(names)))
+        for k, name in enumerate(names):
+            if name.startswith("reg_t_"):
+                jac[:, "xyz".index(name[-1]), k] = 1.0
+            elif name.startswith("reg_rot_"):
+                rv = np.array([x[names.index(f"reg_rot_{a}")] for a in "xyz"], float)
+                e = np.zeros(3)
+                e["xyz".index(name[-1])] = 1e-6
+                d_rot = (Rotation.from_rotvec(rv + e).as_matrix()
+                         - Rotation.from_rotvec(rv - e).as_matrix()) / 2e-6
+                jac[:, :, k] = pos @ d_rot.T
+            elif name == "marker_mm":
+                jac[:, :, k] = tan @ rot.T
+            else:
+                h = self.step * max(1.0, abs(float(x[k])))
+                if x[k] + h > self.hi[k]:
+                    h = -h
+                xp = np.array(x, float)
+                xp[k] += h
+                mp = self.ps.model(xp, self.reg)
+                jac[:, :, k] = (self._tracker(mp.robot_frame(self.joints)[0], mp) - base) / h
+        jac = np.where(np.isfinite(jac), jac, 0.0)
+        return np.r_[-jac.reshape(-1, len(names)),      # residual = measured − predicted
+                     np.diag(self.prior_weight)]
+
+
+def _fit(ps: ParameterSet, joints: np.ndarray, measured: np.ndarray, max_nfev: int
+         ) -> tuple[np.ndarray, Any]:
+    reg0 = initial_registration(ps.robot, joints, measured)
+    x0 = ps.nominal(reg0)
+    lo, hi = ps.bounds()
+    x0 = np.clip(x0, lo, hi)
+
+    problem = _Jacobian(ps, joints, measured, reg0)
+    sol = least_squares(problem.residuals, x0, jac=problem.jacobian, bounds=(lo, hi), x_scale="jac",
+                        max_nfev=max_nfev, method="trf")
+    return sol.x, sol
+
+
+def calibrate(ds: Dataset, robot: Robot | None = None, groups: tuple[str, ...] = GROUPS,
+              rows: np.ndarray | None = None, max_nfev: int = 60, prior: bool = True) -> CalibrationResult:
+    """Fit `groups` (params.py) of `robot` (default: the dataset's) to the dataset's positions;
+    prior: the Gaussian prior about the nominal values (params.py)."""
+    robot = robot or ds.robot
+    if robot.n_tubes != ds.n_tubes:
+        raise CtrkinError(f"robot has {robot.n_tubes} tubes but the dataset {ds.n_tubes}")
+    joints, measured = _positions(ds, rows)
+    if len(joints) < 10:
+        raise CtrkinError(f"calibration needs at least 10 samples, got {len(joints)}")
+    ps = ParameterSet(robot, tuple(groups), prior=prior)
+    x, sol = _fit(ps, joints, measured, max_nfev)
+    m, p = 3 * len(joints), x.size
+    ssr = float(sol.fun[:m] @ sol.fun[:m])
+    try:
+        cov = np.linalg.pinv(sol.jac.T @ sol.jac) * ssr / max(m - p, 1)
+        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    except np.linalg.LinAlgError:
+        std = np.full(p, np.nan)
+    lo, hi = ps.bounds()
+    at_bound = ((np.abs(x - lo) < 1e-6 * np.maximum(1, np.abs(lo)))
+                | (np.abs(x - hi) < 1e-6 * np.maximum(1, np.abs(hi))))
+    model = ps.model(x)
+    err = np.linalg.norm(model.predict(joints)[:, :3] - measured, axis=1)
+    nominal = ParameterSet(robot, ("registration",))
+    xn, _ = _fit(nominal, joints, measured, max_nfev)
+    err_n = np.linalg.norm(nominal.model(xn).predict(joints)[:, :3] - measured, axis=1)
+    return CalibrationResult(ps, x, std, at_bound, model, float(np.sqrt(np.nanmean(err**2))),
+                             float(np.nanmean(err)), float(np.nanmean(err_n)), len(joints), int(sol.nfev))
+
+
+def leave_one_sequence_out(ds: Dataset, robot: Robot | None = None, groups: tuple[str, ...] = GROUPS,
+                           max_nfev: int = 60, prior: bool = True) -> dict[str, Any]:
+    """Per sequence: fit `groups` on the other sequences, report the mean tip distance (mm) on it.
+    Returns {"per_sequence": {label: mm}, "mean_mm": sample-weighted mean, "samples": n}."""
+    robot = robot or ds.robot
+    sid = ds.frame["sequence_id"].to_numpy()
+    labels = ds.meta.get("sequence_labels") or []
+    uniq = np.unique(sid)
+    if len(uniq) < 2:
+        raise CtrkinError("leave-one-sequence-out needs at least 2 sequences")
+    joints, measured = _positions(ds)
+    ps = ParameterSet(robot, tuple(groups), prior=prior)
+    per, errs = {}, []
+    for k in uniq:
+        train, test = np.nonzero(sid != k)[0], np.nonzero(sid == k)[0]
+        x, _ = _fit(ps, joints[train], measured[train], max_nfev)
+        e = np.linalg.norm(ps.model(x).predict(joints[test])[:, :3] - measured[test], axis=1)
+        name = str(labels[int(k)]) if int(k) < len(labels) else str(k)
+        per[name] = float(np.nanmean(e))
+        errs.append(e)
+    all_e = np.concatenate(errs)
+    return {"per_sequence": per, "mean_mm": float(np.nanmean(all_e)), "samples": int(all_e.size),
+            "groups": list(groups), "prior": prior}

@@ -1,0 +1,94 @@
+"""The calibrated TCM as a predictor: robot (precurvature, stiffness ratio, transmission length),
+joint offsets, tip-marker offset and tracker registration.
+
+    q_model = project(q_log + offsets)                         (mechanical stops, Robot.project_joints)
+    p_marker = p_tip + d · t_tip                               (marker d mm beyond the tip, along it)
+    p_tracker = R p_marker + t                                 (registration)
+
+A calibrated robot file (`ctrkin calibrate --out`) is a normal robot file: its `[calibration]` table
+(offsets, marker offset, registration, uncertainties, errors) is read here and ignored elsewhere.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import tomllib
+
+from ctrkin.errors import CtrkinError
+from ctrkin.mechanics.pointwise import _prepare, _solve_prepared
+from ctrkin.mechanics.settings import DEFAULT_SETTINGS
+from ctrkin.pose import Registration, quat_from_tangent
+from ctrkin.robots.robot import Robot
+
+
+@dataclass(eq=False)
+class CalibratedTCM:
+    """robot: the (calibrated) robot; joint_offsets (2N,) deg/mm added to logged joints; marker_mm:
+    marker distance beyond the tip along the tangent; registration: robot base -> tracker."""
+
+    robot: Robot
+    joint_offsets: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    marker_mm: float = 0.0
+    registration: Registration = field(default_factory=Registration.identity)
+
+    def __post_init__(self) -> None:
+        if self.joint_offsets.size == 0:
+            self.joint_offsets = np.zeros(self.robot.n_joints)
+
+    def model_joints(self, joints: np.ndarray) -> np.ndarray:
+        """(T, 2N) logged joints -> (T, 2N) joints the TCM sees (offsets, then the mechanical stops)."""
+        return self.robot.project_joints(np.atleast_2d(joints) + self.joint_offsets)
+
+    def robot_frame(self, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Point-wise TCM (no history, cold start): marker positions (T, 3) mm and unit tangents
+        (T, 3) in the robot base frame; NaN where no equilibrium converged."""
+        Q = self.model_joints(joints)
+        pos = np.full((len(Q), 3), np.nan)
+        tan = np.full((len(Q), 3), np.nan)
+        for i, q in enumerate(Q):
+            eq = _solve_prepared(_prepare(self.robot, q, DEFAULT_SETTINGS, checked=True), None,
+                                 DEFAULT_SETTINGS)
+            if eq.converged:
+                pos[i] = eq.tip_position + self.marker_mm * eq.tip_tangent
+                tan[i] = eq.tip_tangent
+        return pos, tan
+
+    def predict(self, joints: np.ndarray) -> np.ndarray:
+        """(T, 2N) logged joints (deg, mm) -> (T, 6) tip poses (x, y, z mm, q0, qx, qy) in the
+        tracker frame."""
+        pos, tan = self.robot_frame(joints)
+        safe = np.where(np.isfinite(tan), tan, [0.0, 0.0, 1.0])
+        poses = self.registration.apply(np.column_stack([pos, quat_from_tangent(safe)]))
+        poses[~np.isfinite(pos).all(axis=1)] = np.nan
+        return poses
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"joint_offsets": self.joint_offsets.tolist(), "marker_mm": self.marker_mm,
+                "registration": {"rotation": self.registration.rotation.tolist(),
+                                 "translation_mm": self.registration.translation.tolist()}}
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> CalibratedTCM:
+        """A robot file, with its [calibration] table if it has one (else nominal, identity)."""
+        robot = Robot.from_toml(path)
+        cal = tomllib.loads(Path(path).read_text()).get("calibration", {})
+        try:
+            reg = cal.get("registration")
+            registration = (Registration(np.array(reg["rotation"], float),
+                                         np.array(reg["translation_mm"], float))
+                            if reg else Registration.identity())
+            offsets = np.array(cal.get("joint_offsets", np.zeros(robot.n_joints)), float)
+        except (KeyError, TypeError, ValueError) as e:
+            raise CtrkinError(f"{path}: [calibration] table is malformed: {e}") from None
+        if offsets.shape != (robot.n_joints,):
+            raise CtrkinError(f"{path}: [calibration] joint_offsets needs {robot.n_joints} values")
+        return cls(robot, offsets, float(cal.get("marker_mm", 0.0)), registration)
+
+    @property
+    def has_registration(self) -> bool:
+        return not (np.allclose(self.registration.rotation, np.eye(3))
+                    and np.allclose(self.registration.translation, 0))

@@ -1,0 +1,77 @@
+"""`ctrkin calibrate`: fit the tracker registration and the TCM parameters of your robot to a dataset.
+
+    ctrkin dataset import logs/*.csv --profile examples/profiles/comet_optitrack.toml \\
+        --robot examples/robots/comet_nylon_optitrack.toml --out data/optitrack
+    ctrkin calibrate --data data/optitrack --robot examples/robots/comet_nylon_optitrack.toml \\
+        --out robots/optitrack_cal.toml --loso
+    ctrkin evaluate --data data/optitrack --predictor robots/optitrack_cal.toml --out out/eval_cal
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any, cast
+
+import click
+import tomli_w
+
+from ctrkin.calibration import calibrate, leave_one_sequence_out
+from ctrkin.calibration.params import GROUPS
+from ctrkin.cli.common import get_robot
+from ctrkin.data.dataset import Dataset
+from ctrkin.util.files import atomic_write_text
+
+
+@click.command("calibrate", epilog="""\b
+Example:
+  ctrkin calibrate --data data/optitrack --robot examples/robots/comet_nylon_optitrack.toml \\
+      --out robots/optitrack_cal.toml --loso""")
+@click.option("--data", "data_dir", required=True, type=click.Path(exists=True, file_okay=False),
+              help="Dataset folder (ctrkin dataset import).")
+@click.option("--robot", "robot_spec", default=None,
+              help="Nominal robot (name or TOML file); default: the dataset's robot.")
+@click.option("--out", "out_file", required=True, type=click.Path(dir_okay=False),
+              help="Calibrated robot file to write (a normal robot file plus a [calibration] table).")
+@click.option("--fit", "fit", default=",".join(GROUPS), show_default=True,
+              help="Parameter groups to fit, comma-separated.")
+@click.option("--loso", is_flag=True, help="Also report leave-one-sequence-out error (one refit per "
+              "sequence).")
+@click.option("--max-evaluations", default=60, show_default=True, help="Least-squares evaluations.")
+@click.option("--no-prior", is_flag=True, help="Fit without the prior about the nominal values "
+              "(ctrkin.calibration.params.PRIOR_SIGMA).")
+def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str, loso: bool,
+                  max_evaluations: int, no_prior: bool) -> None:
+    """Fit registration and TCM parameters (precurvature, stiffness ratio, α/β offsets, transmission
+    length, marker offset) by bounded least squares; print them with standard errors."""
+    ds = Dataset.load(data_dir)
+    robot = get_robot(robot_spec) if robot_spec else ds.robot
+    groups = tuple(g.strip() for g in fit.split(",") if g.strip())
+    res = calibrate(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior)
+    if loso:
+        res.loso = leave_one_sequence_out(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior)
+    d = res.model.robot.to_dict()
+    d["name"] = f"{robot.name}-calibrated"
+    d["calibration"] = {**res.model.to_dict(), "dataset": str(data_dir),
+                        "fit": json.loads(json.dumps(res.to_dict(), default=float, allow_nan=True)
+                                          .replace("NaN", "null"))}
+    atomic_write_text(out_file, tomli_w.dumps(cast(dict[str, Any], _drop_none(d))))
+    click.echo(f"{'parameter':24s} {'unit':5s} {'nominal':>10s} {'fitted':>10s} {'± std':>9s}")
+    for row in res.table():
+        flag = "  (at bound)" if row["at_bound"] else ""
+        click.echo(f"{row['name']:24s} {row['unit']:5s} {row['nominal']:10.4g} {row['value']:10.4g} "
+                   f"{row['std']:9.2g}{flag}")
+    click.echo(f"samples {res.n_samples}: nominal TCM (fitted registration) {res.nominal_mean_mm:.3f} mm, "
+               f"calibrated {res.mean_mm:.3f} mm mean tip distance (in-sample)")
+    if loso:
+        per = ", ".join(f"{k} {v:.3f}" for k, v in res.loso["per_sequence"].items())
+        click.echo(f"leave-one-sequence-out: {res.loso['mean_mm']:.3f} mm ({per})")
+    click.echo(f"wrote {out_file}")
+
+
+def _drop_none(d: object) -> object:
+    """TOML has no null: drop None entries (recursively)."""
+    if isinstance(d, dict):
+        return {k: _drop_none(v) for k, v in d.items() if v is not None}
+    if isinstance(d, list):
+        return [_drop_none(v) for v in d if v is not None]
+    return d

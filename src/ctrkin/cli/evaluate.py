@@ -1,0 +1,54 @@
+"""`ctrkin evaluate`: how good is a predictor on an imported dataset?
+
+    ctrkin evaluate --data data/optitrack --predictor tcm --out out/eval_tcm
+    ctrkin evaluate --data data/optitrack --predictor robots/optitrack_cal.toml --out out/eval_cal
+    ctrkin evaluate --data data/optitrack --predictor out/fk_model --out out/eval_fk
+"""
+
+from __future__ import annotations
+
+import click
+
+from ctrkin.data.dataset import Dataset
+from ctrkin.evaluation.real import evaluate
+
+
+@click.command("evaluate", epilog="""\b
+Examples:
+  ctrkin evaluate --data data/optitrack --predictor tcm --out out/eval_tcm
+  ctrkin evaluate --data data/optitrack --predictor robots/optitrack_cal.toml --out out/eval_cal
+  ctrkin evaluate --data data/optitrack --predictor models/fk_optitrack --out out/eval_fk""")
+@click.option("--data", "data_dir", required=True, type=click.Path(exists=True, file_okay=False),
+              help="Dataset folder.")
+@click.option("--predictor", "predictors", required=True, multiple=True,
+              help="tcm (nominal robot of the dataset, registration fitted here), a robot file "
+                   "(.toml, calibrated or not) or a trained FK model folder. Repeatable.")
+@click.option("--out", "out_dir", default=None, type=click.Path(file_okay=False),
+              help="Folder for results.json and plots (one sub-folder per predictor when several).")
+def evaluate_cmd(data_dir: str, predictors: tuple[str, ...], out_dir: str | None) -> None:
+    """Compare predictors with the measured tips: position (and orientation, where measured) errors
+    overall and per sequence; plots of predicted vs measured tips and of error against joints."""
+    ds = Dataset.load(data_dir)
+    for k, spec in enumerate(predictors):
+        out = None if out_dir is None else (out_dir if len(predictors) == 1 else f"{out_dir}/{k}")
+        res = evaluate(ds, spec, out)
+        o = res["overall"]
+        click.echo(f"{spec}: {o['samples']} samples, position mean {o['position_mean_mm']:.3f} mm, "
+                   f"RMSE {o['position_rmse_mm']:.3f} mm, max {o['position_max_mm']:.3f} mm"
+                   + (f", orientation mean {o['orientation_mean_deg']:.2f} deg"
+                      if "orientation_mean_deg" in o else ", orientation: not measured"))
+        if "registration" in res:
+            click.echo(f"  registration: {res['registration']}")
+        click.echo(f"  {'sequence':32s} {'samples':>7s} {'mean mm':>8s} {'rmse mm':>8s}")
+        for name, s in res["per_sequence"].items():
+            click.echo(f"  {name:32s} {s['samples']:7d} {s['position_mean_mm']:8.3f} "
+                       f"{s['position_rmse_mm']:8.3f}")
+        if res.get("out_of_range_samples"):
+            click.echo(f"  WARNING: {res['out_of_range_samples']} samples have joints outside the model's "
+                       "training range (beyond the margin); their predictions are extrapolations:", err=True)
+            for name, j in res["out_of_range"].items():
+                if j["count"]:
+                    click.echo(f"    {name}: {j['count']} samples outside [{j['lo']:.4g}, {j['hi']:.4g}] "
+                               f"± {j['margin']:.3g}", err=True)
+        if out is not None:
+            click.echo(f"  wrote {out}/results.json, tips.png, error_vs_joints.png")
