@@ -13,7 +13,11 @@ from ctrkin.robots.robot import Robot
 @dataclass(frozen=True, eq=False)
 class RobotArrays:
     """k, gj: (N,) bending and torsional stiffness (N·mm²); lengths (N,) mm;
-    sec_len, sec_kap: (N, S) sections base to tip (mm, 1/mm); n_sec (N,); rigid transmission flag."""
+    sec_len, sec_kap: (N, S) sections base to tip (mm, 1/mm); n_sec (N,); rigid transmission flag;
+    kappa_scale: κ* (1/mm), the fastest rate at which the state turns along s: the largest
+    precurvature, times √(1 + ν) for the torsion, whose rate on a shared curved stretch is
+    √c = √((1 + ν) κi κj) (ψ'' = c sin ψ, docs/mechanics.md). The RK4 step is at most
+    SolverSettings.angle_step / κ*."""
 
     k: np.ndarray
     gj: np.ndarray
@@ -22,6 +26,7 @@ class RobotArrays:
     sec_kap: np.ndarray
     n_sec: np.ndarray
     rigid: bool
+    kappa_scale: float
 
 
 @functools.lru_cache(maxsize=64)
@@ -40,7 +45,9 @@ def robot_arrays(robot: Robot) -> RobotArrays:
         k=np.array([t.bending_stiffness for t in robot.tubes]),
         gj=np.array([t.torsional_stiffness for t in robot.tubes]),
         lengths=robot.lengths, sec_len=sec_len, sec_kap=sec_kap, n_sec=n_sec,
-        rigid=robot.transmission == "rigid")
+        rigid=robot.transmission == "rigid",
+        kappa_scale=float(np.abs(sec_kap).max(initial=0.0)
+                          * np.sqrt(1.0 + max(t.poisson_ratio for t in robot.tubes))))
     for a in (arrs.k, arrs.gj, arrs.lengths, arrs.sec_len, arrs.sec_kap, arrs.n_sec):
         a.setflags(write=False)
     return arrs

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
+from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
 from ctrkin.mechanics.pointwise import (
     Equilibrium,
     _finish,
@@ -113,6 +115,31 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     return _finish(*last), snapped
 
 
+def _check_start(robot: Robot, start: Equilibrium) -> None:
+    """A start equilibrium must come from this robot (same tubes, same transmission): continuing
+    another robot's equilibrium would compute the whole trajectory on that robot."""
+    if not isinstance(start, Equilibrium):
+        raise TypeError(f"start must be an Equilibrium from solve() or follow(), got {type(start)}")
+    if start.x.shape != (robot.n_tubes,):
+        raise RobotDescriptionError(
+            f"start is an equilibrium of a {start.x.shape[0]}-tube robot; this robot has "
+            f"{robot.n_tubes} tubes: solve the start on the same robot")
+    if start._problem.arrays is not robot_arrays(robot) and not _same_arrays(
+            start._problem.arrays, robot_arrays(robot)):
+        raise RobotDescriptionError(
+            "start was solved on another robot (tubes or transmission differ): solve the start "
+            "on the robot you follow")
+    if not start.converged:
+        raise ConvergenceError("start is not a converged equilibrium (NaN pose): there is no state "
+                               "to continue from; follow without a start or solve it again")
+
+
+def _same_arrays(a: RobotArrays, b: RobotArrays) -> bool:
+    return bool(a.rigid == b.rigid and all(
+        np.array_equal(u, v) for u, v in ((a.k, b.k), (a.gj, b.gj), (a.lengths, b.lengths),
+                                          (a.sec_len, b.sec_len), (a.sec_kap, b.sec_kap))))
+
+
 def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
            settings: SolverSettings = DEFAULT_SETTINGS,
            progress: Callable[[int], None] | None = None) -> Trajectory:
@@ -123,6 +150,10 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     """
     Qa = robot.check_joints(np.atleast_2d(np.asarray(Q, dtype=float)))
     n_steps = Qa.shape[0]
+    if n_steps == 0:
+        raise JointError(f"follow needs at least one joint row, got Q of shape {Qa.shape}")
+    if start is not None:
+        _check_start(robot, start)
     eqs: list[Equilibrium] = []
     snaps = np.zeros(n_steps, dtype=bool)
     if start is None:

@@ -127,18 +127,40 @@ def _prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: boo
     n = arr.k.shape[0]
     beta = qa[n:].copy()
     grid = kernels.build_grid(beta, arr.lengths, arr.sec_len, arr.sec_kap, arr.n_sec,
-                              settings.step)
+                              rk4_step(arr, settings))
+    n_rk4 = int(grid[3].sum())
+    if n_rk4 > settings.max_rk4_steps:
+        raise ConvergenceError(
+            f"the TCM grid at q = {qa.tolist()} needs {n_rk4} RK4 steps (> SolverSettings."
+            f"max_rk4_steps = {settings.max_rk4_steps}): tube lengths {arr.lengths.tolist()} mm at "
+            f"a step of {rk4_step(arr, settings):.3g} mm; check the robot's lengths (mm) and "
+            "curvatures (1/mm) or raise max_rk4_steps")
     return _Problem(arr, qa, np.radians(qa[:n]), beta, beta + arr.lengths, grid)
+
+
+def rk4_step(arr: RobotArrays, settings: SolverSettings) -> float:
+    """Largest RK4 step (mm): SolverSettings.step, or less where the robot bends or twists faster
+    than SolverSettings.angle_step rad per step (curvature-and-torsion scale κ*, RobotArrays)."""
+    if arr.kappa_scale > 0.0:
+        return min(settings.step, settings.angle_step / arr.kappa_scale)
+    return settings.step
 
 
 def _newton(pb: _Problem, x0: np.ndarray, settings: SolverSettings
             ) -> tuple[np.ndarray, bool, int, float, float, float]:
     a = pb.arrays
     x = np.empty_like(x0)
-    conv, it, rn, det_j, det_h = kernels.newton(
-        np.asarray(x0, float), pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,
-        settings.tol, settings.max_iter, settings.max_step, x)
-    return x, bool(conv), int(it), float(rn), float(det_j), float(det_h)
+    x0 = np.asarray(x0, float)
+    if not np.isfinite(x0).all():
+        return x0.copy(), False, 0, math.inf, math.nan, math.nan
+    try:
+        conv, it, rn, det_j, det_h = kernels.newton(
+            x0, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,
+            settings.tol, settings.max_iter, settings.max_step, x)
+    except (np.linalg.LinAlgError, ZeroDivisionError, OverflowError, FloatingPointError):
+        return x0.copy(), False, 0, math.inf, math.nan, math.nan  # numerics broke down: no root
+    conv = bool(conv) and math.isfinite(rn) and rn < settings.tol and bool(np.isfinite(x).all())
+    return x, conv, int(it), float(rn), float(det_j), float(det_h)
 
 
 _NO_RECORD = (np.empty(1), np.empty((1, 3)), np.empty((1, 1)), np.empty((1, 1)))
@@ -160,9 +182,23 @@ def _integrate(pb: _Problem, x: np.ndarray, record: bool
     return tip, tan, float(energy), recs
 
 
+def sane(pb: _Problem, tip: np.ndarray, tan: np.ndarray, energy: float) -> bool:
+    """Sanity checks a converged equilibrium must pass: a finite tip no farther from the base than
+    the longest tube reaches (|tip| ≤ s_end, a backbone is never longer than itself; 1e-6 relative
+    slack for round-off), a finite unit tip tangent (so a unit quaternion) and a finite energy."""
+    s_end = float(max(pb.tips.max(), 0.0))
+    return bool(np.isfinite(tip).all() and np.isfinite(tan).all() and math.isfinite(energy)
+                and np.linalg.norm(tip) <= s_end * (1.0 + 1e-6) + 1e-9
+                and abs(np.linalg.norm(tan) - 1.0) < 1e-9)
+
+
 def _finish(pb: _Problem, sol: tuple[np.ndarray, bool, int, float, float, float]) -> Equilibrium:
     x, conv, it, rn, det_j, det_h = sol
-    tip, tan, energy, _ = _integrate(pb, x, record=False)
+    try:
+        tip, tan, energy, _ = _integrate(pb, x, record=False)
+    except (ZeroDivisionError, OverflowError, FloatingPointError):
+        tip, tan, energy = np.full(3, np.nan), np.full(3, np.nan), math.nan
+    conv = conv and sane(pb, tip, tan, energy)
     if not conv:
         tip = np.full(3, np.nan)
         tan = np.full(3, np.nan)

@@ -36,7 +36,11 @@ class Robot:
     name: str = "robot"
 
     def __post_init__(self) -> None:
-        tubes = tuple(self.tubes)
+        try:
+            tubes = tuple(self.tubes)
+        except TypeError:
+            raise RobotDescriptionError(
+                f"Robot.tubes must be a sequence of Tube, innermost first, got {self.tubes!r}") from None
         object.__setattr__(self, "tubes", tubes)
         if len(tubes) < 1:
             raise RobotDescriptionError("Robot needs at least one tube")
@@ -176,7 +180,7 @@ class Robot:
             try:
                 if "sections" in t and "straight_length" not in t and "curved_length" not in t:
                     tubes.append(Tube.from_sections(
-                        t["od"], t["id"], [tuple(s) for s in t["sections"]],
+                        t["od"], t["id"], t["sections"],
                         t.get("youngs_modulus", 58.0), t.get("poisson_ratio", 0.33)))
                 else:
                     missing = {"od", "id", "straight_length", "curved_length", "curvature"} - set(t)
@@ -191,8 +195,11 @@ class Robot:
                 raise RobotDescriptionError(f"{source}: tubes[{k}]: {e}") from None
             except (TypeError, KeyError) as e:
                 raise RobotDescriptionError(f"{source}: tubes[{k}]: {e}") from None
+        name = d.get("name", "robot")
+        if not isinstance(name, str):
+            raise RobotDescriptionError(f"{source}: 'name' must be a string, got {name!r}")
         return cls(tubes=tuple(tubes), transmission=d.get("transmission", "compliant"),  # type: ignore[arg-type]
-                   name=str(d.get("name", "robot")))
+                   name=name)
 
     def to_toml(self, path: str | Path) -> None:
         atomic_write_text(path, tomli_w.dumps(self.to_dict()))
@@ -206,6 +213,9 @@ class Robot:
             d = tomllib.loads(p.read_text())
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
             raise RobotDescriptionError(f"robot file {p} is not valid TOML: {e}") from None
+        except RecursionError:
+            raise RobotDescriptionError(f"robot file {p} is nested too deeply to be a robot "
+                                        "description ([[tubes]] tables of numbers)") from None
         return cls.from_dict(d, source=str(p))
 
     def fingerprint(self) -> str:
