@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import pandas as pd
@@ -212,3 +213,28 @@ def test_save_replaces_an_existing_dataset(tmp_path, small_dataset, robot):
 def test_get_split_defaults_to_sequences(small_dataset):
     split = small_dataset.get_split(seed=1)
     assert split.kind == "sequence" and small_dataset.get_split() is split
+
+
+def test_load_recovers_a_swap_interrupted_between_its_renames(tmp_path, small_dataset):
+    """Issue 9 item 8: a crash between the two renames left no dataset and the data in `.NAME.old-*`;
+    `load` neither recovered nor mentioned it."""
+    folder = small_dataset.save(tmp_path / "ds")
+    folder.rename(tmp_path / ".ds.old-1a2b3c4d")          # the first rename done, the second not
+    with pytest.warns(UserWarning, match="restored"):
+        back = Dataset.load(folder)
+    pd.testing.assert_frame_equal(back.frame, small_dataset.frame)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
+    # the swap finished but the old copy was not removed yet: the new dataset wins, the copy goes
+    shutil.copytree(folder, tmp_path / ".ds.old-5e6f7a8b")
+    Dataset.load(folder)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
+
+
+def test_edited_robot_in_meta_is_refused(tmp_path, small_dataset):
+    """Issue 9 item 8: an edited robot in meta.json loaded although the fingerprint did not match."""
+    folder = small_dataset.save(tmp_path / "ds")
+    meta = json.loads((folder / META_FILE).read_text())
+    meta["robot"]["tubes"][0]["curvature"] *= 1.1
+    (folder / META_FILE).write_text(json.dumps(meta))
+    with pytest.raises(DatasetError, match="does not match its stored fingerprint"):
+        Dataset.load(folder)
