@@ -303,3 +303,29 @@ def test_short_row_is_named(tmp_path):
     path.write_text("alpha_1,alpha_2,beta_1,beta_2,x,y,z,q0,qx,qy\n0,0,-10,0,1,2,50,1,0,0\n1,0,-10,0,1,2,50\n")
     with pytest.raises(DatasetError, match=r"line 3, column 'q0' \(q0\) is empty"):
         import_csv(path, _robot())
+
+
+def test_step_beyond_float_integers_is_an_error(tmp_path, log):
+    """Issue 9 item 9: steps >= 2^53 were merged (40 rows became 21 samples)."""
+    big = log.copy()
+    big["step"] = 2**53 + np.arange(len(big), dtype=np.int64) // 5   # odd ones round to even
+    with pytest.raises(DatasetError, match="below 2\\^53"):
+        import_csv(_write(big, tmp_path / "big.csv"), _robot(), ImportConfig())
+
+
+def test_complex_joints_are_errors(tmp_path, log):
+    """Issue 9 item 9: complex joints were truncated to their real part."""
+    from ctrkin.data import Dataset
+    from ctrkin.errors import JointError
+
+    cplx = log.astype({"alpha_1": object})
+    cplx.loc[3, "alpha_1"] = "(10+2j)"
+    with pytest.raises(DatasetError, match="not a number"):
+        import_csv(_write(cplx, tmp_path / "c.csv"), _robot(), ImportConfig())
+    with pytest.raises(JointError, match="complex"):
+        _robot().check_joints(np.array([1 + 2j, 0, -20, -5]))
+    ds = import_csv(_write(log, tmp_path / "ok.csv"), _robot(), ImportConfig())
+    frame = ds.frame.copy()
+    frame["alpha_1"] = frame["alpha_1"] + 1j
+    with pytest.raises(DatasetError, match="alpha_1"):
+        Dataset(frame=frame, robot=_robot())

@@ -46,7 +46,8 @@ def validate_frame(frame: pd.DataFrame, n_tubes: int, source: str = "dataset") -
     numeric = schema.joint_columns(n_tubes) + schema.POSE_COLUMNS
     numeric += [c for c in schema.TRUE_POSE_COLUMNS if c in frame.columns]
     for c in numeric:
-        if not pd.api.types.is_numeric_dtype(frame[c]) or pd.api.types.is_bool_dtype(frame[c]):
+        if (not pd.api.types.is_numeric_dtype(frame[c]) or pd.api.types.is_bool_dtype(frame[c])
+                or pd.api.types.is_complex_dtype(frame[c])):
             raise DatasetError(f"{source}: column {c!r} must hold numbers, got dtype {frame[c].dtype}")
         vals = frame[c].to_numpy(dtype=float)
         bad = ~np.isfinite(vals)

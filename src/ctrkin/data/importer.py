@@ -295,11 +295,12 @@ def import_csv(path: str | Path, robot: Robot, config: ImportConfig | None = Non
     # --- sequences and time order -------------------------------------------------------------------
     sequence, seq_labels = _sequences(labels, values.get("time"), line, cfg, log, src)
     if "step" in values:
-        frac = values["step"] != np.round(values["step"])
+        # a float holds integers exactly only below 2^53: larger steps would merge distinct samples
+        frac = (values["step"] != np.round(values["step"])) | (np.abs(values["step"]) >= 2.0**53)
         if frac.any():
             r = int(np.argmax(frac))
             raise DatasetError(f"{src}: line {_line(line[r])}, {log.line_col('step')}: "
-                               f"{values['step'][r]:g} is not an integer sample index")
+                               f"{values['step'][r]:g} is not an integer sample index below 2^53")
     for f in ("time", "step"):
         if f in values:
             v = values[f]

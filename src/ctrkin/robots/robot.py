@@ -97,7 +97,12 @@ class Robot:
 
         Raises JointError naming the violated condition (and the row for a trajectory).
         """
-        qa = np.asarray(q, dtype=float)
+        if np.iscomplexobj(q):
+            raise JointError("joints must be real numbers (deg, mm), got complex values")
+        try:
+            qa = np.asarray(q, dtype=float)
+        except (TypeError, ValueError) as e:
+            raise JointError(f"joints must be numbers (alpha deg, beta mm): {e}") from None
         n = self.n_tubes
         if qa.ndim == 1 and qa.shape[0] == 2 * n and self._valid_single(qa):
             return qa  # fast path for one valid configuration (the control-loop case)
