@@ -12,6 +12,7 @@ extrapolate (α = 1e5 and α mod 360 gave poses 28 mm apart).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -93,6 +94,16 @@ class FKGuard:
         out = raw - shift
         self.check_range(out)
         return out, shift
+
+
+def real_array(x: Any) -> np.ndarray:
+    """x as a float64 array; complex values are refused (ModelError), not truncated to their real part."""
+    if np.iscomplexobj(x):
+        raise ModelError("model inputs must be real numbers, got complex values")
+    try:
+        return np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise ModelError(f"model inputs must be numbers: {e}") from None
 
 
 def check_pose_step(raw: np.ndarray) -> None:

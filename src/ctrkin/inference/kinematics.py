@@ -30,7 +30,7 @@ from ctrkin.data.schema import sequence_bounds
 from ctrkin.errors import ModelError
 from ctrkin.inference.batch import padded_rows, seqnet_predict, seqnet_trunk
 from ctrkin.inference.engine import StreamingEngine
-from ctrkin.inference.guards import FKGuard, check_pose_step
+from ctrkin.inference.guards import FKGuard, check_pose_step, real_array
 from ctrkin.inference.refine import FKResidual, RefineSettings, refine
 from ctrkin.inference.workspace import WORKSPACE_FILE, Workspace
 from ctrkin.models.branch import BranchNet
@@ -309,7 +309,7 @@ class Kinematics:
 
         FK returns the (6,) tip pose; IK an IKStep(joints, in_workspace, reason) (check=False skips the
         workspace test, strict=True raises ModelError outside it)."""
-        raw = np.asarray(x, dtype=np.float64)
+        raw = real_array(x)
         if raw.shape != (self.layout.raw_width,):
             raise ModelError(f"step() expects shape ({self.layout.raw_width},), got {raw.shape}")
         if self._guard is not None:

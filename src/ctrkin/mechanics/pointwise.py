@@ -146,19 +146,23 @@ def rk4_step(arr: RobotArrays, settings: SolverSettings) -> float:
     return settings.step
 
 
-def _newton(pb: _Problem, x0: np.ndarray, settings: SolverSettings
+def _newton(pb: _Problem, x0: np.ndarray, settings: SolverSettings, work: list[int] | None = None
             ) -> tuple[np.ndarray, bool, int, float, float, float]:
+    """Damped Newton from x0 (kernels.newton); work, if given, gets the RK4 steps spent added to
+    work[0]."""
     a = pb.arrays
     x = np.empty_like(x0)
     x0 = np.asarray(x0, float)
     if not np.isfinite(x0).all():
         return x0.copy(), False, 0, math.inf, math.nan, math.nan
     try:
-        conv, it, rn, det_j, det_h = kernels.newton(
+        conv, it, rn, det_j, det_h, shoots = kernels.newton(
             x0, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,
             settings.tol, settings.max_iter, settings.max_step, x)
     except (np.linalg.LinAlgError, ZeroDivisionError, OverflowError, FloatingPointError):
         return x0.copy(), False, 0, math.inf, math.nan, math.nan  # numerics broke down: no root
+    if work is not None:
+        work[0] += int(shoots) * int(pb.grid[3].sum())
     conv = bool(conv) and math.isfinite(rn) and rn < settings.tol and bool(np.isfinite(x).all())
     return x, conv, int(it), float(rn), float(det_j), float(det_h)
 
@@ -228,10 +232,14 @@ def _twisted_guesses(pb: _Problem, around: np.ndarray) -> list[np.ndarray]:
 
 def _search(pb: _Problem, guesses: list[np.ndarray], settings: SolverSettings
             ) -> list[tuple[np.ndarray, bool, int, float, float, float]]:
-    """Distinct converged solutions from several guesses."""
+    """Distinct converged solutions from several guesses, tried in order until the RK4 steps spent
+    exceed SolverSettings.max_search_steps (a bound on the time of a multi-start search)."""
     found: list[tuple[np.ndarray, bool, int, float, float, float]] = []
+    work = [0]
     for g in guesses:
-        sol = _newton(pb, g, settings)
+        if work[0] > settings.max_search_steps:
+            break
+        sol = _newton(pb, g, settings, work)
         if not sol[1]:
             continue
         if all(np.abs(sol[0] - f[0]).max() * pb.length > 1e-6 for f in found):

@@ -14,7 +14,10 @@ class SolverSettings:
     `mechanics.arrays.RobotArrays.kappa_scale`); tol: shooting residual |uz(tip)|∞ (rad/mm);
     max_iter: Newton iterations; max_step: largest Newton update |Δuz(0)|∞ (rad/mm);
     max_rk4_steps: refuse a configuration whose grid needs more RK4 steps (a guard against
-    absurd lengths or step settings: ConvergenceError instead of a hang).
+    absurd lengths or step settings: ConvergenceError instead of a hang); max_search_steps: RK4
+    steps (Newton iterations × grid steps) after which a multi-start search (a solve without a
+    guess, a fold in follow) stops trying further starts and keeps the best found so far
+    (2e6 RK4 steps: about 2 s on one core for three tubes; a paper-robot solve needs < 1e4).
 
     RK4's error falls as step⁴: on the paper robot the tip is within 3e-5 mm of a tight-tolerance
     reference at the default 3 mm (5e-6 mm at 2 mm, 1.3e-3 mm at 8 mm); with the curvature rule a
@@ -27,6 +30,7 @@ class SolverSettings:
     max_step: float = 0.05
     angle_step: float = 0.15
     max_rk4_steps: int = 200_000
+    max_search_steps: int = 2_000_000
 
     def __post_init__(self) -> None:
         if not self.step > 0:
@@ -39,6 +43,8 @@ class SolverSettings:
             raise CtrkinError(f"SolverSettings.max_step must be > 0, got {self.max_step}")
         if not self.angle_step > 0:
             raise CtrkinError(f"SolverSettings.angle_step must be > 0 rad, got {self.angle_step}")
+        if self.max_search_steps < 0:
+            raise CtrkinError(f"SolverSettings.max_search_steps must be >= 0, got {self.max_search_steps}")
         if self.max_rk4_steps < 1:
             raise CtrkinError(f"SolverSettings.max_rk4_steps must be >= 1, got {self.max_rk4_steps}")
 

@@ -148,8 +148,12 @@ class Robot:
 
     def is_valid(self, q: np.ndarray) -> np.ndarray:
         """Boolean mask of valid rows for joints (T, 2N) (no exception)."""
+        if np.iscomplexobj(q):
+            raise JointError("joints must be real numbers (deg, mm), got complex values")
         rows = np.atleast_2d(np.asarray(q, dtype=float))
         n = self.n_tubes
+        if rows.ndim != 2 or rows.shape[1] != 2 * n:
+            raise JointError(f"joints must have shape (2N,) or (T, 2N) with 2N = {2 * n}, got {rows.shape}")
         beta = rows[:, n:]
         tips = beta + self.lengths
         ok = np.isfinite(rows).all(axis=1) & (beta[:, -1] <= JOINT_TOL) & (tips[:, -1] >= -JOINT_TOL)
