@@ -189,16 +189,18 @@ class Kinematics:
             self.check_robot(data.robot)
             true = self.config.get("pose_source") == "true" and data.has_truth
             raw = data.joints() if self.task == "fk" else data.poses(true=true)
-            raw, bounds = check_raw(self.layout, raw), data.sequence_bounds()
-        else:
-            raw = check_raw(self.layout, data)
-            if sequence_id is None:
-                bounds = [(0, len(raw))] if len(raw) else []
-            else:
-                sid = np.asarray(sequence_id)
-                if sid.shape != (len(raw),):
-                    raise ModelError(f"sequence_id must have shape ({len(raw)},), got {sid.shape}")
-                bounds = sequence_bounds(sid)
+            return self._guarded(check_raw(self.layout, raw), data.sequence_bounds())
+        raw = check_raw(self.layout, data)
+        if sequence_id is None:
+            return self._guarded(raw, [(0, len(raw))] if len(raw) else [])
+        sid = np.asarray(sequence_id)
+        if sid.shape != (len(raw),):
+            raise ModelError(f"sequence_id must have shape ({len(raw)},), got {sid.shape}")
+        return self._guarded(raw, sequence_bounds(sid))
+
+    def _guarded(self, raw: np.ndarray, bounds: list[tuple[int, int]]
+                 ) -> tuple[np.ndarray, list[tuple[int, int]]]:
+        """FK joints checked and shifted by whole turns per sequence (inference.guards)."""
         return (raw if self._guard is None else self._guard.prepare(raw, bounds)), bounds
 
     def feature_windows(self, data: Dataset | np.ndarray, sequence_id: np.ndarray | None = None
