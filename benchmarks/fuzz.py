@@ -2,6 +2,8 @@
 
     python benchmarks/fuzz.py                  # ≈ 21,000 seeded inputs, a few minutes on one core
     python benchmarks/fuzz.py --scale 0.02     # a CI-sized slice (tests/test_fuzz.py runs one)
+    python benchmarks/fuzz.py --isolate        # each input in a forked process killed at HANG_S
+                                               # (for code whose hangs sit in compiled kernels)
 
 Areas: solve, follow, Tube/Robot construction, robot TOML files, learned FK predict and step, IK
 predict and step, CSV log import, corrupted dataset folders, corrupted model folders. Every input is
@@ -28,6 +30,7 @@ import contextlib
 import io
 import json
 import math
+import os
 import shutil
 import signal
 import sys
@@ -42,6 +45,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import tomli_w
+import torch
 
 from ctrkin import Robot, Tube, follow, paper_robot, solve
 from ctrkin.data import Dataset
@@ -466,6 +470,7 @@ CASES: dict[str, Callable[[np.random.Generator, dict[str, Any]], str]] = {
 
 def setup(tmp: Path, seed: int) -> dict[str, Any]:
     """Small trained FK/IK models, a saved dataset and a CSV log of the paper robot (≈ 15 s)."""
+    torch.set_num_threads(1)        # also keeps forked children (--isolate) clear of thread pools
     robot = paper_robot()
     ds = sweep_dataset(robot, translations=(8, 16), outer_alphas=(0, 60), step_deg=6, noise_mm=0.02,
                        seed=seed)
@@ -494,17 +499,19 @@ def setup(tmp: Path, seed: int) -> dict[str, Any]:
     return ctx
 
 
-def run(scale: float, seed: int, log: Callable[[str], None] = print) -> dict[str, Counter[str]]:
+def run(scale: float, seed: int, log: Callable[[str], None] = print, isolate: bool = False
+        ) -> dict[str, Counter[str]]:
+    """Counts of outcomes per area; input i of area k draws from its own generator (seed, k, i)."""
     counts: dict[str, Counter[str]] = defaultdict(Counter)
     examples: dict[tuple[str, str], str] = {}
     old = signal.signal(signal.SIGALRM, _alarm)
     with tempfile.TemporaryDirectory() as d:
         ctx = setup(Path(d), seed)
         for k, (area, n) in enumerate(AREAS.items()):
-            rng = np.random.default_rng([seed, k])
             t0 = time.perf_counter()
-            for _ in range(max(1, round(n * scale))):
-                outcome, note = _one(CASES[area], rng, ctx)
+            for i in range(max(1, round(n * scale))):
+                rng = np.random.default_rng([seed, k, i])
+                outcome, note = (_isolated if isolate else _one)(CASES[area], rng, ctx)
                 counts[area][outcome] += 1
                 if outcome in ("crash", "silent", "hang"):
                     examples.setdefault((area, note[:60]), note)
@@ -539,6 +546,37 @@ def _one(fn: Callable[[np.random.Generator, dict[str, Any]], str], rng: np.rando
     return outcome, note
 
 
+def _isolated(fn: Callable[[np.random.Generator, dict[str, Any]], str], rng: np.random.Generator,
+              ctx: dict[str, Any]) -> tuple[str, str]:
+    """_one in a forked child, SIGKILLed after HANG_S: a hang inside a compiled kernel, which no
+    Python signal interrupts, is counted instead of stopping the campaign."""
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:                                   # child
+        os.close(r)
+        try:
+            res: tuple[str, str] = _one(fn, rng, ctx)
+        except BaseException as e:
+            res = ("crash", f"{type(e).__name__}")
+        os.write(w, json.dumps(res).encode()[:60000])
+        os._exit(0)
+    os.close(w)
+    deadline = time.monotonic() + HANG_S
+    while os.waitpid(pid, os.WNOHANG)[0] == 0:
+        if time.monotonic() > deadline:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            os.close(r)
+            return "hang", f"killed after {HANG_S:g} s"
+        time.sleep(0.001)
+    data = os.read(r, 65536)
+    os.close(r)
+    if not data:
+        return "crash", "the process died"
+    outcome, note = json.loads(data)
+    return str(outcome), str(note)
+
+
 def table(counts: dict[str, Counter[str]]) -> str:
     lines = [f"{'area':15s} " + " ".join(f"{o:>8s}" for o in OUTCOMES) + f" {'total':>8s}"]
     total: Counter[str] = Counter()
@@ -555,9 +593,10 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--scale", type=float, default=1.0, help="fraction of the default input counts")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--isolate", action="store_true", help="one forked process per input")
     args = ap.parse_args()
     t0 = time.perf_counter()
-    counts = run(args.scale, args.seed)
+    counts = run(args.scale, args.seed, isolate=args.isolate)
     print(table(counts))
     total: Counter[str] = Counter()
     for c in counts.values():

@@ -120,3 +120,14 @@ def test_follow_refuses_empty_trajectory_and_failed_start() -> None:
     assert not failed.converged
     with pytest.raises(ConvergenceError, match="not a converged"):
         follow(ROBOT, [[0.0, 0.0, -20.0, -5.0]], start=failed)
+
+
+def test_follow_step_work_is_bounded_and_reported():
+    """Found by benchmarks/fuzz.py: follow on an extreme robot (κ = 10/mm over 100 mm) ran for minutes.
+    A step whose continuation needs more than SolverSettings.max_search_steps RK4 steps is given up
+    and reported not converged (NaN pose), never a plausible-looking answer."""
+    tubes = (Tube(0.4, 0.2, 60.0, 60.0, 10.0), Tube(0.8, 0.5, 40.0, 50.0, 10.0))
+    robot = Robot(tubes)
+    Q = np.array([[0.0, 0.0, -30.0, -20.0], [90.0, 0.0, -30.0, -20.0]])
+    traj = follow(robot, Q, settings=SolverSettings(max_search_steps=1000))
+    assert not traj.converged[1] and not traj.stable[1] and np.isnan(traj.tip_poses[1]).all()

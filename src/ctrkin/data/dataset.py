@@ -22,7 +22,7 @@ from ctrkin.data import schema
 from ctrkin.data.splits import Split, split_by_sequence
 from ctrkin.errors import DatasetError, RobotDescriptionError
 from ctrkin.robots.robot import Robot
-from ctrkin.util.folders import folder_lock, recover, swap_in
+from ctrkin.util.folders import file_hash, folder_lock, recover, swap_in
 
 DATA_FILE = "data.parquet"
 META_FILE = "meta.json"
@@ -156,6 +156,7 @@ class Dataset:
             tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
             try:
                 self.frame.to_parquet(tmp / DATA_FILE, index=False)
+                meta["data_sha256"] = file_hash(tmp / DATA_FILE)
                 (tmp / META_FILE).write_text(json.dumps(meta, indent=2, default=_json_default))
                 if self.split is not None:
                     self.split.save(tmp / SPLIT_FILE)
@@ -204,6 +205,11 @@ class Dataset:
             raise DatasetError(f"{src} was recorded on robot {ds_robot.name!r} "
                                f"({ds_robot.fingerprint()}), not on {robot.name!r} "
                                f"({robot.fingerprint()})")
+        stored_hash = meta.get("data_sha256")
+        if stored_hash is not None and file_hash(src / DATA_FILE) != stored_hash:
+            raise DatasetError(f"{src / DATA_FILE} is not the file this dataset was saved with (its "
+                               f"SHA-256 differs from meta.json's data_sha256): corrupted or replaced; "
+                               "restore it or record the data again")
         try:
             frame = pd.read_parquet(src / DATA_FILE)
         except Exception as e:  # pyarrow raises several types for corrupt files

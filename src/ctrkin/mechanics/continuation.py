@@ -10,6 +10,7 @@ stable one (the basin the released twist falls into).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -83,17 +84,23 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     dt = 1.0
     snapped = False
     last = None
+    work = [0]      # RK4 steps spent on this step, bounded by settings.max_search_steps
     while t < 1.0:
         t_try = min(1.0, t + dt)
         q_try = q_from + (q_to - q_from) * t_try
         pb = _prepare(robot, q_try, settings, checked=True, arr=arr)
         guess = x if velocity is None else x + (t_try - t) * velocity
-        sol = _newton(pb, guess, settings)
+        sol = _newton(pb, guess, settings, work)
         if (_stable(sol) and _distance(sol[0], x, pb.arrays.lengths) <= JUMP_RAD
                 and abs(sol[4] - det) <= DET_SLACK + DET_RATE * det):
             x, det, t, last = sol[0], sol[4], t_try, (pb, sol)
             dt = min(2.0 * dt, 1.0)
             continue
+        if work[0] > settings.max_search_steps:
+            # continuation too costly (an extreme robot): give up this step, reported not converged
+            pb = _prepare(robot, q_to, settings, checked=True, arr=arr)
+            last = (pb, (x, False, 0, math.inf, det, math.nan))
+            break
         if velocity is not None:  # retry from the plain warm start before sub-stepping
             velocity = None
             continue
@@ -102,11 +109,11 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
             continue
         # fold: no stable equilibrium near the current one, however small the step
         guesses = [x, *_twisted_guesses(pb, x), *_twisted_guesses(pb, np.zeros_like(x))]
-        found = [c for c in _search(pb, guesses, settings) if _stable(c)]
+        found = [c for c in _search(pb, guesses, settings, work) if _stable(c)]
         if found:
             sol = min(found, key=lambda c: _distance(c[0], x, pb.arrays.lengths))
         else:
-            sol = cold_solution(pb, settings)
+            sol = cold_solution(pb, settings, work)
         # a fold was crossed: that is a snap unless the search only re-found the same branch
         snapped = snapped or _distance(sol[0], x, pb.arrays.lengths) > SAME_BRANCH_RAD
         x, det, t, last = sol[0], sol[4], t_try, (pb, sol)

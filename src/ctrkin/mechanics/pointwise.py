@@ -230,12 +230,13 @@ def _twisted_guesses(pb: _Problem, around: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def _search(pb: _Problem, guesses: list[np.ndarray], settings: SolverSettings
-            ) -> list[tuple[np.ndarray, bool, int, float, float, float]]:
+def _search(pb: _Problem, guesses: list[np.ndarray], settings: SolverSettings,
+            work: list[int] | None = None) -> list[tuple[np.ndarray, bool, int, float, float, float]]:
     """Distinct converged solutions from several guesses, tried in order until the RK4 steps spent
-    exceed SolverSettings.max_search_steps (a bound on the time of a multi-start search)."""
+    exceed SolverSettings.max_search_steps (a bound on the time of a multi-start search); work: a
+    counter shared with the caller (work[0], RK4 steps spent so far)."""
     found: list[tuple[np.ndarray, bool, int, float, float, float]] = []
-    work = [0]
+    work = [0] if work is None else work
     for g in guesses:
         if work[0] > settings.max_search_steps:
             break
@@ -280,15 +281,16 @@ def _solve_prepared(pb: _Problem, guess: Equilibrium | np.ndarray | None,
     return _finish(pb, cold_solution(pb, settings))
 
 
-def cold_solution(pb: _Problem, settings: SolverSettings
+def cold_solution(pb: _Problem, settings: SolverSettings, work: list[int] | None = None
                   ) -> tuple[np.ndarray, bool, int, float, float, float]:
     """Newton from untwisted tubes; if that is not stable, the stable solution of least energy
     among twisted starts (else the least-energy converged one, else the first attempt)."""
     n = pb.alpha.shape[0]
-    first = _newton(pb, np.zeros(n), settings)
+    work = [0] if work is None else work
+    first = _newton(pb, np.zeros(n), settings, work)
     if _stable(first) or n == 1:
         return first
-    cands = _search(pb, [first[0], *_twisted_guesses(pb, np.zeros(n))], settings)
+    cands = _search(pb, [first[0], *_twisted_guesses(pb, np.zeros(n))], settings, work)
     pool = [c for c in cands if _stable(c)] or cands
     if not pool:
         return first
