@@ -15,9 +15,11 @@ class SolverSettings:
     max_iter: Newton iterations; max_step: largest Newton update |Δuz(0)|∞ (rad/mm);
     max_rk4_steps: refuse a configuration whose grid needs more RK4 steps (a guard against
     absurd lengths or step settings: ConvergenceError instead of a hang); max_search_steps: RK4
-    steps (Newton iterations × grid steps) after which a multi-start search (a solve without a
-    guess, a fold in follow) stops trying further starts and keeps the best found so far
-    (2e6 RK4 steps: about 2 s on one core for three tubes; a paper-robot solve needs < 1e4).
+    steps (every integration of the shooting counted) after which a multi-start search (a solve
+    without a guess) stops trying further starts and keeps the best found so far, and after which
+    one continuation step of follow is given up (reported not converged)
+    (5e5 RK4 steps: about 0.5 s on one core for three tubes; a paper-robot solve needs < 1e4,
+    a continuation step of a paper-robot sweep, folds included, < 3e4).
 
     RK4's error falls as step⁴: on the paper robot the tip is within 3e-5 mm of a tight-tolerance
     reference at the default 3 mm (5e-6 mm at 2 mm, 1.3e-3 mm at 8 mm); with the curvature rule a
@@ -30,7 +32,7 @@ class SolverSettings:
     max_step: float = 0.05
     angle_step: float = 0.15
     max_rk4_steps: int = 200_000
-    max_search_steps: int = 2_000_000
+    max_search_steps: int = 500_000
 
     def __post_init__(self) -> None:
         if not self.step > 0:
