@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import pandas as pd
@@ -79,6 +80,9 @@ def test_corrupted_parquet_is_refused(tmp_path, small_dataset):
     folder = small_dataset.save(tmp_path / "ds")
     data = (folder / DATA_FILE).read_bytes()
     (folder / DATA_FILE).write_bytes(data[: len(data) // 2])
+    with pytest.raises(DatasetError, match=r"data\.parquet is not the file this dataset was saved with"):
+        Dataset.load(folder)
+    _edit_meta(folder, data_sha256=None)      # a folder written by another tool: no hash to check
     with pytest.raises(DatasetError, match=r"data.parquet cannot be read"):
         Dataset.load(folder)
 
@@ -105,7 +109,10 @@ def test_missing_files_are_refused(tmp_path, small_dataset):
 
 
 def _rewrite_frame(folder, frame):
+    """data.parquet written by hand or by another tool: without a data_sha256 in meta.json (the
+    validation below is what such folders get)."""
     frame.to_parquet(folder / DATA_FILE, index=False)
+    _edit_meta(folder, data_sha256=None)
 
 
 def test_missing_column_is_named(tmp_path, small_dataset):
@@ -212,3 +219,39 @@ def test_save_replaces_an_existing_dataset(tmp_path, small_dataset, robot):
 def test_get_split_defaults_to_sequences(small_dataset):
     split = small_dataset.get_split(seed=1)
     assert split.kind == "sequence" and small_dataset.get_split() is split
+
+
+def test_load_recovers_a_swap_interrupted_between_its_renames(tmp_path, small_dataset):
+    """Issue 9 item 8: a crash between the two renames left no dataset and the data in `.NAME.old-*`;
+    `load` neither recovered nor mentioned it."""
+    folder = small_dataset.save(tmp_path / "ds")
+    folder.rename(tmp_path / ".ds.old-1a2b3c4d")          # the first rename done, the second not
+    with pytest.warns(UserWarning, match="restored"):
+        back = Dataset.load(folder)
+    pd.testing.assert_frame_equal(back.frame, small_dataset.frame)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
+    # the swap finished but the old copy was not removed yet: the new dataset wins, the copy goes
+    shutil.copytree(folder, tmp_path / ".ds.old-5e6f7a8b")
+    Dataset.load(folder)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
+
+
+def test_edited_robot_in_meta_is_refused(tmp_path, small_dataset):
+    """Issue 9 item 8: an edited robot in meta.json loaded although the fingerprint did not match."""
+    folder = small_dataset.save(tmp_path / "ds")
+    meta = json.loads((folder / META_FILE).read_text())
+    meta["robot"]["tubes"][0]["curvature"] *= 1.1
+    (folder / META_FILE).write_text(json.dumps(meta))
+    with pytest.raises(DatasetError, match="does not match its stored fingerprint"):
+        Dataset.load(folder)
+
+
+def test_flipped_bits_in_the_parquet_file_are_refused(tmp_path, small_dataset):
+    """Found by benchmarks/fuzz.py: a few flipped bits in data.parquet loaded as other numbers (parquet
+    pages carry no checked CRC). meta.json now holds the file's SHA-256."""
+    folder = small_dataset.save(tmp_path / "ds")
+    raw = bytearray((folder / DATA_FILE).read_bytes())
+    raw[len(raw) // 3] ^= 0x04
+    (folder / DATA_FILE).write_bytes(bytes(raw))
+    with pytest.raises(DatasetError, match="SHA-256 differs"):
+        Dataset.load(folder)

@@ -322,3 +322,21 @@ def test_complex_joint_value_is_named(tmp_path, log):
     df.loc[7, "alpha_1"] = "(3+2j)"
     with pytest.raises(DatasetError, match=r"line 9, column 'alpha_1'.*complex number"):
         import_csv(_write(df, tmp_path / "c.csv"), _robot())
+
+
+def test_complex_joints_are_errors(tmp_path, log):
+    """Issue 9 item 9: complex joints were truncated to their real part."""
+    from ctrkin.data import Dataset
+    from ctrkin.errors import JointError
+
+    cplx = log.astype({"alpha_1": object})
+    cplx.loc[3, "alpha_1"] = "(10+2j)"
+    with pytest.raises(DatasetError, match="complex number"):
+        import_csv(_write(cplx, tmp_path / "c.csv"), _robot(), ImportConfig())
+    with pytest.raises(JointError, match="complex"):
+        _robot().check_joints(np.array([1 + 2j, 0, -20, -5]))
+    ds = import_csv(_write(log, tmp_path / "ok.csv"), _robot(), ImportConfig())
+    frame = ds.frame.copy()
+    frame["alpha_1"] = frame["alpha_1"] + 1j
+    with pytest.raises(DatasetError, match="alpha_1"):
+        Dataset(frame=frame, robot=_robot())

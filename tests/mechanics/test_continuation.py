@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ctrkin import follow, paper_robot, solve
+from ctrkin import Robot, SolverSettings, Tube, follow, paper_robot, solve
 from ctrkin.acquisition.trajectories import rotation_sweep
+from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 
 ROBOT = paper_robot()
 
@@ -89,3 +90,44 @@ def test_trajectory_arrays_are_consistent(d: float) -> None:
     assert traj.tip_poses.shape == (T, 6) and traj.snaps.shape == (T,) and traj.azimuth.shape == (T,)
     np.testing.assert_allclose(np.linalg.norm(traj.tip_poses[:, 3:], axis=1), 1.0)
     assert len(traj.equilibria) == T
+
+
+# --- issue 9 item 3: a start from another robot, an empty Q ----------------------------------
+
+def _other_robot(n_tubes: int = 2) -> Robot:
+    tubes = [Tube(0.4, 0.2, 57.0, 15.0, 1 / 20.0), Tube(0.635, 0.48, 37.0, 14.5, 1 / 24.0),
+             Tube(1.0, 0.8, 20.0, 10.0, 0.0)]
+    return Robot(tuple(tubes[:n_tubes]))
+
+
+def test_follow_refuses_start_from_another_robot() -> None:
+    """Was: the whole trajectory computed on the start's robot, 4.3 mm off, every step stable."""
+    q = np.array([0.0, 0.0, -20.0, -5.0])
+    with pytest.raises(RobotDescriptionError, match="another robot"):
+        follow(ROBOT, q[None], start=solve(_other_robot(), q))
+    with pytest.raises(RobotDescriptionError, match="3-tube robot"):
+        follow(ROBOT, q[None], start=solve(_other_robot(3), [0, 0, 0, -20.0, -10.0, -5.0]))
+    # an equal robot built again (another object, same description) is the same robot
+    same = solve(paper_robot(), q)
+    np.testing.assert_allclose(follow(ROBOT, q[None], start=same).tip_poses[0], same.tip_pose,
+                               atol=1e-9)
+
+
+def test_follow_refuses_empty_trajectory_and_failed_start() -> None:
+    with pytest.raises(JointError, match="at least one joint row"):
+        follow(ROBOT, np.zeros((0, 4)))
+    failed = solve(ROBOT, [90.0, 0.0, -20.0, -5.0], settings=SolverSettings(max_iter=1, tol=1e-30))
+    assert not failed.converged
+    with pytest.raises(ConvergenceError, match="not a converged"):
+        follow(ROBOT, [[0.0, 0.0, -20.0, -5.0]], start=failed)
+
+
+def test_follow_step_work_is_bounded_and_reported():
+    """Found by benchmarks/fuzz.py: follow on an extreme robot (κ = 10/mm over 100 mm) ran for minutes.
+    A step whose continuation needs more than SolverSettings.max_search_steps RK4 steps is given up
+    and reported not converged (NaN pose), never a plausible-looking answer."""
+    tubes = (Tube(0.4, 0.2, 60.0, 60.0, 10.0), Tube(0.8, 0.5, 40.0, 50.0, 10.0))
+    robot = Robot(tubes)
+    Q = np.array([[0.0, 0.0, -30.0, -20.0], [90.0, 0.0, -30.0, -20.0]])
+    traj = follow(robot, Q, settings=SolverSettings(max_search_steps=1000))
+    assert not traj.converged[1] and not traj.stable[1] and np.isnan(traj.tip_poses[1]).all()

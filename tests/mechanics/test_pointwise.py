@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ctrkin import Robot, SolverSettings, Tube, paper_robot, solve, solve_many
-from ctrkin.errors import ConvergenceError, JointError
+from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 from ctrkin.mechanics import kernels
 from ctrkin.mechanics.pointwise import _prepare
 
@@ -156,3 +156,60 @@ def test_solve_many_equals_solve(rng) -> None:
     many = solve_many(ROBOT, Q)
     for q, e in zip(Q, many, strict=True):
         np.testing.assert_array_equal(e.tip_pose, solve(ROBOT, q).tip_pose)
+
+
+# --- issue 9 items 4-6: step size from curvature, sanity checks, step-count guard --------------
+
+@pytest.mark.parametrize("kappa", [0.5, 1.0, 2.0, 10.0])
+def test_high_curvature_arc_is_accurate_at_default_settings(kappa: float) -> None:
+    """At 3 mm steps κ = 2/mm gave |tip| = 6.4e10 mm marked converged, κ = 0.5-1/mm 0.2-3.7 mm off
+    the exact arc. The step now follows κ* (SolverSettings.angle_step): docs/mechanics.md states
+    3e-6 mm per mm of curved length; here 20 mm of arc, so 6e-5 mm."""
+    from .test_analytic import arc_tip
+
+    robot = Robot((Tube(0.4, 0.2, 50.0, 20.0, kappa),))
+    eq = solve(robot, [0.0, 0.0])
+    assert eq.converged and eq.stable
+    np.testing.assert_allclose(eq.tip_position, arc_tip(kappa, 50.0, 20.0, 0.0), atol=6e-5)
+    assert np.linalg.norm(eq.tip_position) <= robot.lengths.max()
+
+
+def test_default_step_unchanged_on_paper_robot() -> None:
+    """The curvature rule must not slow down or change the paper robot (κ* = 0.048/mm)."""
+    from ctrkin.mechanics.arrays import robot_arrays
+    from ctrkin.mechanics.pointwise import rk4_step
+
+    assert rk4_step(robot_arrays(ROBOT), SolverSettings()) == 3.0
+    assert rk4_step(robot_arrays(Robot((Tube(0.4, 0.2, 50.0, 20.0, 2.0),))),
+                    SolverSettings()) == pytest.approx(0.15 / (2.0 * np.sqrt(1.33)))
+
+
+def test_insane_result_is_never_converged() -> None:
+    """A coarse step forced on a tightly curved tube: RK4 runs away; the tip is farther than the
+    robot is long, so the result must not be `converged` (was converged with |tip| = 6.4e10 mm)."""
+    robot = Robot((Tube(0.4, 0.2, 50.0, 20.0, 2.0),))
+    eq = solve(robot, [0.0, 0.0], settings=SolverSettings(step=3.0, angle_step=100.0))
+    assert not eq.converged and not eq.stable
+    assert np.isnan(eq.tip_pose).all()
+    with pytest.raises(ConvergenceError):
+        solve(robot, [0.0, 0.0], settings=SolverSettings(step=3.0, angle_step=100.0), strict=True)
+
+
+def test_step_count_guard_refuses_instead_of_hanging() -> None:
+    robot = Robot((Tube(1.0, 0.8, 5000.0, 5000.0, 0.01),))
+    with pytest.raises(ConvergenceError, match="max_rk4_steps"):
+        solve(robot, [0.0, 0.0], settings=SolverSettings(step=1e-3))
+
+
+def test_three_tubes_extreme_curvature_no_linalg_error() -> None:
+    """Curvature 1e300 on 3 tubes raised LinAlgError; now the tube refuses it, and the largest
+    allowed curvature solves or reports non-convergence without a numpy exception."""
+    with pytest.raises(RobotDescriptionError, match="1/mm"):
+        Tube(0.5, 0.4, 30.0, 20.0, 1e300)
+    tubes = (Tube(0.5, 0.4, 80.0, 20.0, 10.0), Tube(0.9, 0.7, 55.0, 20.0, 10.0),
+             Tube(1.3, 1.1, 30.0, 25.0, 10.0))
+    eq = solve(Robot(tubes), [0.0, 120.0, 240.0, -20.0, -10.0, 0.0])
+    assert isinstance(eq.converged, bool)
+    if eq.converged:
+        assert np.linalg.norm(eq.tip_position) <= 100.0 + 1e-6
+        assert abs(np.linalg.norm(eq.tip_pose[3:]) - 1.0) < 1e-9

@@ -56,6 +56,14 @@ def test_toml_round_trip(tmp_path) -> None:
     ("[[tubes]]\nod = 1.0\nid = 0.5\nstraight_length = 1\ncurved_length = 1\ncurvature = 0.1\n"
      "colour = 'red'\n", "unknown field"),
     ("[[tubes]]\nod = 1.0\nid = 1.5\nstraight_length = 1\ncurved_length = 1\ncurvature = 0.1\n", "id"),
+    # issue 9 item 6: each a RobotDescriptionError naming the field (was ValueError / RecursionError)
+    ("[[tubes]]\nod = 1.0\nid = 0.5\nsections = [[10.0]]\n", r"tubes\[0\].*sections\[0\] must be a pair"),
+    ("[[tubes]]\nod = 1.0\nid = 0.5\nsections = 3\n", r"tubes\[0\]"),
+    ("x = " + "[" * 5000 + "]" * 5000 + "\n", "nested too deeply|not valid TOML"),
+    ("name = 5\n[[tubes]]\nod = 1.0\nid = 0.5\nstraight_length = 1\ncurved_length = 1\n"
+     "curvature = 0.1\n", "'name' must be a string"),
+    ("[[tubes]]\nod = 1.0\nid = 0.5\nstraight_length = 1e10\ncurved_length = 1\ncurvature = 0.1\n",
+     r"straight_length must be <= 10000 mm"),
 ])
 def test_malformed_robot_file(tmp_path, text: str, message: str) -> None:
     path = tmp_path / "bad.toml"

@@ -30,6 +30,14 @@ def test_stiffness_formulas() -> None:
     ({"poisson_ratio": 0.5}, "poisson_ratio"),
     ({"curvature": float("nan")}, "curvature"),
     ({"straight_length": 0.0, "curved_length": 0.0}, "length"),
+    # issue 9 items 5, 6: physical bounds, the unit in the message (no hang, no OverflowError)
+    ({"straight_length": 1e10}, "straight_length must be <= 10000 mm"),
+    ({"od": 1e300, "id": 0.0}, r"od must be between .* mm"),
+    ({"od": 1e-300, "id": 0.0}, r"od must be between .* mm"),
+    ({"curvature": 610.0}, r"curvature must be between 0 and 10 1/mm"),
+    ({"curvature": 1e300}, r"curvature .* 1/mm"),
+    ({"youngs_modulus": 1e300}, r"youngs_modulus .* GPa"),
+    ({"od": 10**400}, "od must be a finite number"),
 ])
 def test_invalid_tube_names_the_field(kwargs: dict, field: str) -> None:
     base = {"od": 1.0, "id": 0.8, "straight_length": 10.0, "curved_length": 5.0, "curvature": 0.01}
@@ -48,3 +56,18 @@ def test_piecewise_sections() -> None:
     assert len(t.sections) == 4
     assert Tube(**{k: v for k, v in t.to_dict().items() if k != "sections"},
                 sections=t.sections) == t
+
+
+@pytest.mark.parametrize(("sections", "message"), [
+    ([[10.0]], r"sections\[0\] must be a pair"),
+    ([[10.0, 0.1, 3.0]], r"sections\[0\] must be a pair"),
+    ([["a", 0.1]], r"sections\[0\]\.length must be a finite number"),
+    ([[1e9 * 1e9, 0.0]], r"must be <= 10000 mm"),
+    ([[10.0, -1e3]], r"curvature must be .*10 1/mm"),
+    ([[10.0, 0.01], [5.0, -1e3]], r"sections\[1\]\.curvature must be within ±10 1/mm"),
+    (5.0, "list of"),
+])
+def test_malformed_sections_are_clear_errors(sections: object, message: str) -> None:
+    """Issue 9 item 6: `sections = [[10.0]]` gave an unpacking ValueError."""
+    with pytest.raises(RobotDescriptionError, match=message):
+        Tube.from_sections(1.0, 0.8, sections)  # type: ignore[arg-type]

@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import shutil
 import tempfile
-import uuid
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,6 +22,7 @@ from ctrkin.data import schema
 from ctrkin.data.splits import Split, split_by_sequence
 from ctrkin.errors import DatasetError, RobotDescriptionError
 from ctrkin.robots.robot import Robot
+from ctrkin.util.folders import file_hash, folder_lock, recover, swap_in
 
 DATA_FILE = "data.parquet"
 META_FILE = "meta.json"
@@ -45,7 +46,8 @@ def validate_frame(frame: pd.DataFrame, n_tubes: int, source: str = "dataset") -
     numeric = schema.joint_columns(n_tubes) + schema.POSE_COLUMNS
     numeric += [c for c in schema.TRUE_POSE_COLUMNS if c in frame.columns]
     for c in numeric:
-        if not pd.api.types.is_numeric_dtype(frame[c]) or pd.api.types.is_bool_dtype(frame[c]):
+        if (not pd.api.types.is_numeric_dtype(frame[c]) or pd.api.types.is_bool_dtype(frame[c])
+                or pd.api.types.is_complex_dtype(frame[c])):
             raise DatasetError(f"{source}: column {c!r} must hold numbers, got dtype {frame[c].dtype}")
         vals = frame[c].to_numpy(dtype=float)
         bad = ~np.isfinite(vals)
@@ -149,16 +151,19 @@ class Dataset:
                 "units": schema.UNITS, "samples": len(self.frame),
                 "sequences": int(self.frame["sequence_id"].nunique()),
                 "ctrkin_version": __version__}
-        tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
-        try:
-            self.frame.to_parquet(tmp / DATA_FILE, index=False)
-            (tmp / META_FILE).write_text(json.dumps(meta, indent=2, default=_json_default))
-            if self.split is not None:
-                self.split.save(tmp / SPLIT_FILE)
-            _swap_in(tmp, target)
-        finally:
-            if tmp.exists():
-                shutil.rmtree(tmp)
+        with folder_lock(target, DatasetError, "save"):
+            recover(target)
+            tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+            try:
+                self.frame.to_parquet(tmp / DATA_FILE, index=False)
+                meta["data_sha256"] = file_hash(tmp / DATA_FILE)
+                (tmp / META_FILE).write_text(json.dumps(meta, indent=2, default=_json_default))
+                if self.split is not None:
+                    self.split.save(tmp / SPLIT_FILE)
+                swap_in(tmp, target, DatasetError)
+            finally:
+                if tmp.exists():
+                    shutil.rmtree(tmp)
         self.meta = meta
         return target
 
@@ -166,6 +171,9 @@ class Dataset:
     def load(cls, folder: str | Path, robot: Robot | None = None) -> Dataset:
         """Read and validate a dataset folder. If `robot` is given it must be the dataset's robot."""
         src = Path(folder)
+        done = recover(src)     # a write interrupted between its two renames (ctrkin.util.folders)
+        if done is not None and done.startswith("restored"):
+            warnings.warn(done, stacklevel=2)
         if not (src / META_FILE).is_file() or not (src / DATA_FILE).is_file():
             raise DatasetError(f"{src} is not a ctrkin dataset: it needs {DATA_FILE} and {META_FILE}")
         try:
@@ -188,10 +196,20 @@ class Dataset:
             ds_robot = Robot.from_dict(meta["robot"], source=f"{src / META_FILE} robot")
         except RobotDescriptionError as e:
             raise DatasetError(str(e)) from None
+        stored = meta.get("robot_fingerprint")
+        if stored is not None and stored != ds_robot.fingerprint():
+            raise DatasetError(f"{src / META_FILE}: the robot description does not match its stored "
+                               f"fingerprint {stored!r} (now {ds_robot.fingerprint()!r}): it was edited "
+                               "after recording; restore it, or record the data again on the new robot")
         if robot is not None and robot.fingerprint() != ds_robot.fingerprint():
             raise DatasetError(f"{src} was recorded on robot {ds_robot.name!r} "
                                f"({ds_robot.fingerprint()}), not on {robot.name!r} "
                                f"({robot.fingerprint()})")
+        stored_hash = meta.get("data_sha256")
+        if stored_hash is not None and file_hash(src / DATA_FILE) != stored_hash:
+            raise DatasetError(f"{src / DATA_FILE} is not the file this dataset was saved with (its "
+                               f"SHA-256 differs from meta.json's data_sha256): corrupted or replaced; "
+                               "restore it or record the data again")
         try:
             frame = pd.read_parquet(src / DATA_FILE)
         except Exception as e:  # pyarrow raises several types for corrupt files
@@ -201,24 +219,6 @@ class Dataset:
         if split is not None:
             _check_split(split, len(frame), str(src / SPLIT_FILE))
         return cls(frame=frame, robot=ds_robot, meta=meta, split=split)
-
-
-def _swap_in(tmp: Path, target: Path) -> None:
-    """Replace folder `target` by `tmp`; the old folder is removed only after the swap."""
-    old = None
-    if target.exists():
-        if not target.is_dir():
-            raise DatasetError(f"{target} exists and is not a folder")
-        old = target.with_name(f".{target.name}.old-{uuid.uuid4().hex[:8]}")
-        target.rename(old)
-    try:
-        tmp.rename(target)
-    except OSError:
-        if old is not None:
-            old.rename(target)
-        raise
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
 
 
 def _json_default(o: object) -> object:

@@ -30,6 +30,7 @@ from ctrkin.data.schema import sequence_bounds
 from ctrkin.errors import ModelError
 from ctrkin.inference.batch import padded_rows, seqnet_predict, seqnet_trunk
 from ctrkin.inference.engine import StreamingEngine
+from ctrkin.inference.guards import FKGuard, check_pose_step, real_array
 from ctrkin.inference.refine import FKResidual, RefineSettings, refine
 from ctrkin.inference.workspace import WORKSPACE_FILE, Workspace
 from ctrkin.models.branch import BranchNet
@@ -126,6 +127,9 @@ class Kinematics:
         self.refiner: tuple[Kinematics, RefineSettings, FKResidual] | None = None
         self._ik_prev: tuple[np.ndarray, np.ndarray] | None = None   # previous (target, joints)
         self._fast_fk = self.layout.task == "fk" and self.layout.angle_encoding in ("minmax", "phase")
+        # FK input checks and whole-turn α shifts, the same in predict and step (inference.guards)
+        self._guard = FKGuard(self.robot, self.layout, bundle.x_norm) if self.layout.task == "fk" else None
+        self._shift: np.ndarray | None = None
 
     # --- loading ---------------------------------------------------------------------------------
     @classmethod
@@ -186,14 +190,19 @@ class Kinematics:
             self.check_robot(data.robot)
             true = self.config.get("pose_source") == "true" and data.has_truth
             raw = data.joints() if self.task == "fk" else data.poses(true=true)
-            return check_raw(self.layout, raw), data.sequence_bounds()
+            return self._guarded(check_raw(self.layout, raw), data.sequence_bounds())
         raw = check_raw(self.layout, data)
         if sequence_id is None:
-            return raw, [(0, len(raw))] if len(raw) else []
+            return self._guarded(raw, [(0, len(raw))] if len(raw) else [])
         sid = np.asarray(sequence_id)
         if sid.shape != (len(raw),):
             raise ModelError(f"sequence_id must have shape ({len(raw)},), got {sid.shape}")
-        return raw, sequence_bounds(sid)
+        return self._guarded(raw, sequence_bounds(sid))
+
+    def _guarded(self, raw: np.ndarray, bounds: list[tuple[int, int]]
+                 ) -> tuple[np.ndarray, list[tuple[int, int]]]:
+        """FK joints checked and shifted by whole turns per sequence (inference.guards)."""
+        return (raw if self._guard is None else self._guard.prepare(raw, bounds)), bounds
 
     def feature_windows(self, data: Dataset | np.ndarray, sequence_id: np.ndarray | None = None
                         ) -> np.ndarray:
@@ -304,6 +313,8 @@ class Kinematics:
         if self.task != "fk" or self._engine is None:
             raise ModelError("probe() needs an FK model of the LSTM-MLP family")
         Q = np.atleast_2d(np.asarray(Q, float))
+        if self._guard is not None and len(Q):
+            Q = Q - (self._shift if self._shift is not None else self._guard.shift(Q[0]))
         prev = Q if self._prev is None else np.broadcast_to(self._prev, Q.shape)
         xn = (self._clip_deltas(pair_features(self.layout, Q, prev)) - self._xlo) / self._xspan
         yn, states = self._engine.probe(xn)
@@ -317,6 +328,7 @@ class Kinematics:
         """Start a new sequence: the next step() is its first."""
         self._prev = None
         self._ik_prev = None
+        self._shift = None
         self._window.clear()
         if self._engine is not None:
             self._engine.reset()
@@ -328,9 +340,13 @@ class Kinematics:
 
         FK returns the (6,) tip pose; IK an IKStep(joints, in_workspace, reason) (check=False skips the
         workspace test, strict=True raises ModelError outside it)."""
-        raw = np.asarray(x, dtype=np.float64)
+        raw = real_array(x)
         if raw.shape != (self.layout.raw_width,):
             raise ModelError(f"step() expects shape ({self.layout.raw_width},), got {raw.shape}")
+        if self._guard is not None:
+            raw, self._shift = self._guard.step(raw, self._shift if self._prev is not None else None)
+        else:
+            check_pose_step(raw)
         if self._fast_fk:
             n = self.layout.n_tubes
             a0 = raw[0] - raw[n - 1]

@@ -10,6 +10,7 @@ Two checks on the target pose, min-max normalised with the model's input normali
 
 from __future__ import annotations
 
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -125,5 +126,5 @@ class Workspace:
                 joints = z["joints"].astype(np.float64) if "joints" in z.files else None
                 return cls(z["points"].astype(np.float64), MinMax(z["lo"], z["span"]),
                            float(z["threshold"]), float(z["margin"]), joints)
-        except (OSError, KeyError, ValueError) as e:
+        except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as e:
             raise ModelError(f"cannot read the IK workspace {path}: {e}") from None

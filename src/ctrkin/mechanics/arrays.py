@@ -14,7 +14,10 @@ from ctrkin.robots.robot import Robot
 class RobotArrays:
     """k, gj: (N,) bending and torsional stiffness (N·mm²); lengths (N,) mm;
     sec_len, sec_kap: (N, S) sections base to tip (mm, 1/mm); n_sec (N,); rigid transmission flag;
-    extra (N,) mm: Robot.transmission_length."""
+    extra (N,) mm: Robot.transmission_length; kappa_scale: κ* (1/mm), the fastest rate at which the
+    state turns along s: the largest precurvature, times √(1 + ν) for the torsion, whose rate on a
+    shared curved stretch is √c = √((1 + ν) κi κj) (ψ'' = c sin ψ, docs/mechanics.md). The RK4 step
+    is at most SolverSettings.angle_step / κ*."""
 
     k: np.ndarray
     gj: np.ndarray
@@ -24,6 +27,7 @@ class RobotArrays:
     n_sec: np.ndarray
     rigid: bool
     extra: np.ndarray
+    kappa_scale: float
 
 
 @functools.lru_cache(maxsize=64)
@@ -43,7 +47,9 @@ def robot_arrays(robot: Robot) -> RobotArrays:
         gj=np.array([t.torsional_stiffness for t in robot.tubes]),
         lengths=robot.lengths, sec_len=sec_len, sec_kap=sec_kap, n_sec=n_sec,
         rigid=robot.transmission == "rigid",
-        extra=np.array(robot.transmission_length or [0.0] * n, dtype=float))
+        extra=np.array(robot.transmission_length or [0.0] * n, dtype=float),
+        kappa_scale=float(np.abs(sec_kap).max(initial=0.0)
+                          * np.sqrt(1.0 + max(t.poisson_ratio for t in robot.tubes))))
     for a in (arrs.k, arrs.gj, arrs.lengths, arrs.sec_len, arrs.sec_kap, arrs.n_sec, arrs.extra):
         a.setflags(write=False)
     return arrs

@@ -10,11 +10,14 @@ stable one (the basin the released twist falls into).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
+from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
+from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
 from ctrkin.mechanics.pointwise import (
     Equilibrium,
     _finish,
@@ -81,17 +84,23 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     dt = 1.0
     snapped = False
     last = None
+    work = [0]      # RK4 steps spent on this step, bounded by settings.max_search_steps
     while t < 1.0:
         t_try = min(1.0, t + dt)
         q_try = q_from + (q_to - q_from) * t_try
         pb = _prepare(robot, q_try, settings, checked=True, arr=arr)
         guess = x if velocity is None else x + (t_try - t) * velocity
-        sol = _newton(pb, guess, settings)
+        sol = _newton(pb, guess, settings, work)
         if (_stable(sol) and _distance(sol[0], x, pb.arrays.lengths) <= JUMP_RAD
                 and abs(sol[4] - det) <= DET_SLACK + DET_RATE * det):
             x, det, t, last = sol[0], sol[4], t_try, (pb, sol)
             dt = min(2.0 * dt, 1.0)
             continue
+        if work[0] > settings.max_search_steps:
+            # continuation too costly (an extreme robot): give up this step, reported not converged
+            pb = _prepare(robot, q_to, settings, checked=True, arr=arr)
+            last = (pb, (x, False, 0, math.inf, det, math.nan))
+            break
         if velocity is not None:  # retry from the plain warm start before sub-stepping
             velocity = None
             continue
@@ -100,17 +109,42 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
             continue
         # fold: no stable equilibrium near the current one, however small the step
         guesses = [x, *_twisted_guesses(pb, x), *_twisted_guesses(pb, np.zeros_like(x))]
-        found = [c for c in _search(pb, guesses, settings) if _stable(c)]
+        found = [c for c in _search(pb, guesses, settings, work) if _stable(c)]
         if found:
             sol = min(found, key=lambda c: _distance(c[0], x, pb.arrays.lengths))
         else:
-            sol = cold_solution(pb, settings)
+            sol = cold_solution(pb, settings, work)
         # a fold was crossed: that is a snap unless the search only re-found the same branch
         snapped = snapped or _distance(sol[0], x, pb.arrays.lengths) > SAME_BRANCH_RAD
         x, det, t, last = sol[0], sol[4], t_try, (pb, sol)
         dt = 1.0 - t
     assert last is not None
     return _finish(*last), snapped
+
+
+def _check_start(robot: Robot, start: Equilibrium) -> None:
+    """A start equilibrium must come from this robot (same tubes, same transmission): continuing
+    another robot's equilibrium would compute the whole trajectory on that robot."""
+    if not isinstance(start, Equilibrium):
+        raise TypeError(f"start must be an Equilibrium from solve() or follow(), got {type(start)}")
+    if start.x.shape != (robot.n_tubes,):
+        raise RobotDescriptionError(
+            f"start is an equilibrium of a {start.x.shape[0]}-tube robot; this robot has "
+            f"{robot.n_tubes} tubes: solve the start on the same robot")
+    if start._problem.arrays is not robot_arrays(robot) and not _same_arrays(
+            start._problem.arrays, robot_arrays(robot)):
+        raise RobotDescriptionError(
+            "start was solved on another robot (tubes or transmission differ): solve the start "
+            "on the robot you follow")
+    if not start.converged:
+        raise ConvergenceError("start is not a converged equilibrium (NaN pose): there is no state "
+                               "to continue from; follow without a start or solve it again")
+
+
+def _same_arrays(a: RobotArrays, b: RobotArrays) -> bool:
+    return bool(a.rigid == b.rigid and all(
+        np.array_equal(u, v) for u, v in ((a.k, b.k), (a.gj, b.gj), (a.lengths, b.lengths),
+                                          (a.sec_len, b.sec_len), (a.sec_kap, b.sec_kap))))
 
 
 def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
@@ -123,6 +157,10 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     """
     Qa = robot.check_joints(np.atleast_2d(np.asarray(Q, dtype=float)))
     n_steps = Qa.shape[0]
+    if n_steps == 0:
+        raise JointError(f"follow needs at least one joint row, got Q of shape {Qa.shape}")
+    if start is not None:
+        _check_start(robot, start)
     eqs: list[Equilibrium] = []
     snaps = np.zeros(n_steps, dtype=bool)
     if start is None:

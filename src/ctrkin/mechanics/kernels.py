@@ -315,9 +315,10 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
            tol, max_iter, max_step, x_out):
     """Damped Newton on the shooting residual from x0 (rad/mm).
 
-    Writes the root to x_out. Returns (converged, iterations, |r|∞, det J, min det H) where
+    Writes the root to x_out. Returns (converged, iterations, |r|∞, det J, min det H, shoots) where
     J = ∂r/∂x at the root (Gilbert et al. 2016 stability measure) and det H is the conjugate-point
-    test (see shoot). max_step bounds |Δx|∞ per iteration (rad/mm).
+    test (see shoot) and shoots the number of integrations (the work, backtracking included).
+    max_step bounds |Δx|∞ per iteration (rad/mm).
     """
     n = x0.shape[0]
     x = x0.copy()
@@ -330,6 +331,7 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
     mdet = shoot(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, r, jac, True)
     rn = np.abs(r).max()
     it = 0
+    shoots = 1
     converged = rn < tol
     while not converged and it < max_iter:
         it += 1
@@ -345,6 +347,7 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
                 xt[i] = x[i] + t * dx[i]
             md = shoot(xt, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
                        rt, jt, True)
+            shoots += 1
             rnt = np.abs(rt).max()
             if rnt < (1.0 - 1e-4 * t) * rn or rnt < tol:
                 accepted = True
@@ -359,7 +362,7 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
         mdet = md
         converged = rn < tol
     x_out[:] = x
-    return converged, it, rn, _det(jac), mdet
+    return converged, it, rn, _det(jac), mdet, shoots
 
 
 @njit(cache=True)

@@ -127,19 +127,45 @@ def _prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: boo
     n = arr.k.shape[0]
     beta = qa[n:].copy()
     grid = kernels.build_grid(beta, arr.lengths, arr.sec_len, arr.sec_kap, arr.n_sec,
-                              settings.step)
+                              rk4_step(arr, settings))
+    n_rk4 = int(grid[3].sum())
+    if n_rk4 > settings.max_rk4_steps:
+        raise ConvergenceError(
+            f"the TCM grid at q = {qa.tolist()} needs {n_rk4} RK4 steps (> SolverSettings."
+            f"max_rk4_steps = {settings.max_rk4_steps}): tube lengths {arr.lengths.tolist()} mm at "
+            f"a step of {rk4_step(arr, settings):.3g} mm; check the robot's lengths (mm) and "
+            "curvatures (1/mm) or raise max_rk4_steps")
     # the kernels read β only as the twisting length −β of the compliant transmission (M4)
     return _Problem(arr, qa, np.radians(qa[:n]), beta - arr.extra, beta + arr.lengths, grid)
 
 
-def _newton(pb: _Problem, x0: np.ndarray, settings: SolverSettings
+def rk4_step(arr: RobotArrays, settings: SolverSettings) -> float:
+    """Largest RK4 step (mm): SolverSettings.step, or less where the robot bends or twists faster
+    than SolverSettings.angle_step rad per step (curvature-and-torsion scale κ*, RobotArrays)."""
+    if arr.kappa_scale > 0.0:
+        return min(settings.step, settings.angle_step / arr.kappa_scale)
+    return settings.step
+
+
+def _newton(pb: _Problem, x0: np.ndarray, settings: SolverSettings, work: list[int] | None = None
             ) -> tuple[np.ndarray, bool, int, float, float, float]:
+    """Damped Newton from x0 (kernels.newton); work, if given, gets the RK4 steps spent added to
+    work[0]."""
     a = pb.arrays
     x = np.empty_like(x0)
-    conv, it, rn, det_j, det_h = kernels.newton(
-        np.asarray(x0, float), pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,
-        settings.tol, settings.max_iter, settings.max_step, x)
-    return x, bool(conv), int(it), float(rn), float(det_j), float(det_h)
+    x0 = np.asarray(x0, float)
+    if not np.isfinite(x0).all():
+        return x0.copy(), False, 0, math.inf, math.nan, math.nan
+    try:
+        conv, it, rn, det_j, det_h, shoots = kernels.newton(
+            x0, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,
+            settings.tol, settings.max_iter, settings.max_step, x)
+    except (np.linalg.LinAlgError, ZeroDivisionError, OverflowError, FloatingPointError):
+        return x0.copy(), False, 0, math.inf, math.nan, math.nan  # numerics broke down: no root
+    if work is not None:
+        work[0] += int(shoots) * int(pb.grid[3].sum())
+    conv = bool(conv) and math.isfinite(rn) and rn < settings.tol and bool(np.isfinite(x).all())
+    return x, conv, int(it), float(rn), float(det_j), float(det_h)
 
 
 _NO_RECORD = (np.empty(1), np.empty((1, 3)), np.empty((1, 1)), np.empty((1, 1)))
@@ -161,9 +187,23 @@ def _integrate(pb: _Problem, x: np.ndarray, record: bool
     return tip, tan, float(energy), recs
 
 
+def sane(pb: _Problem, tip: np.ndarray, tan: np.ndarray, energy: float) -> bool:
+    """Sanity checks a converged equilibrium must pass: a finite tip no farther from the base than
+    the longest tube reaches (|tip| ≤ s_end, a backbone is never longer than itself; 1e-6 relative
+    slack for round-off), a finite unit tip tangent (so a unit quaternion) and a finite energy."""
+    s_end = float(max(pb.tips.max(), 0.0))
+    return bool(np.isfinite(tip).all() and np.isfinite(tan).all() and math.isfinite(energy)
+                and np.linalg.norm(tip) <= s_end * (1.0 + 1e-6) + 1e-9
+                and abs(np.linalg.norm(tan) - 1.0) < 1e-9)
+
+
 def _finish(pb: _Problem, sol: tuple[np.ndarray, bool, int, float, float, float]) -> Equilibrium:
     x, conv, it, rn, det_j, det_h = sol
-    tip, tan, energy, _ = _integrate(pb, x, record=False)
+    try:
+        tip, tan, energy, _ = _integrate(pb, x, record=False)
+    except (ZeroDivisionError, OverflowError, FloatingPointError):
+        tip, tan, energy = np.full(3, np.nan), np.full(3, np.nan), math.nan
+    conv = conv and sane(pb, tip, tan, energy)
     if not conv:
         tip = np.full(3, np.nan)
         tan = np.full(3, np.nan)
@@ -191,12 +231,17 @@ def _twisted_guesses(pb: _Problem, around: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def _search(pb: _Problem, guesses: list[np.ndarray], settings: SolverSettings
-            ) -> list[tuple[np.ndarray, bool, int, float, float, float]]:
-    """Distinct converged solutions from several guesses."""
+def _search(pb: _Problem, guesses: list[np.ndarray], settings: SolverSettings,
+            work: list[int] | None = None) -> list[tuple[np.ndarray, bool, int, float, float, float]]:
+    """Distinct converged solutions from several guesses, tried in order until the RK4 steps spent
+    exceed SolverSettings.max_search_steps (a bound on the time of a multi-start search); work: a
+    counter shared with the caller (work[0], RK4 steps spent so far)."""
     found: list[tuple[np.ndarray, bool, int, float, float, float]] = []
+    work = [0] if work is None else work
     for g in guesses:
-        sol = _newton(pb, g, settings)
+        if work[0] > settings.max_search_steps:
+            break
+        sol = _newton(pb, g, settings, work)
         if not sol[1]:
             continue
         if all(np.abs(sol[0] - f[0]).max() * pb.length > 1e-6 for f in found):
@@ -237,15 +282,16 @@ def _solve_prepared(pb: _Problem, guess: Equilibrium | np.ndarray | None,
     return _finish(pb, cold_solution(pb, settings))
 
 
-def cold_solution(pb: _Problem, settings: SolverSettings
+def cold_solution(pb: _Problem, settings: SolverSettings, work: list[int] | None = None
                   ) -> tuple[np.ndarray, bool, int, float, float, float]:
     """Newton from untwisted tubes; if that is not stable, the stable solution of least energy
     among twisted starts (else the least-energy converged one, else the first attempt)."""
     n = pb.alpha.shape[0]
-    first = _newton(pb, np.zeros(n), settings)
+    work = [0] if work is None else work
+    first = _newton(pb, np.zeros(n), settings, work)
     if _stable(first) or n == 1:
         return first
-    cands = _search(pb, [first[0], *_twisted_guesses(pb, np.zeros(n))], settings)
+    cands = _search(pb, [first[0], *_twisted_guesses(pb, np.zeros(n))], settings, work)
     pool = [c for c in cands if _stable(c)] or cands
     if not pool:
         return first

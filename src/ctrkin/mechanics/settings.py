@@ -9,17 +9,30 @@ from ctrkin.errors import CtrkinError
 
 @dataclass(frozen=True)
 class SolverSettings:
-    """step: largest RK4 step (mm); tol: shooting residual |uz(tip)|∞ (rad/mm);
-    max_iter: Newton iterations; max_step: largest Newton update |Δuz(0)|∞ (rad/mm).
+    """step: largest RK4 step (mm); angle_step: largest bending angle per RK4 step (rad): the step
+    is min(step, angle_step / κ*) with κ* the robot's curvature-and-torsion scale (1/mm, see
+    `mechanics.arrays.RobotArrays.kappa_scale`); tol: shooting residual |uz(tip)|∞ (rad/mm);
+    max_iter: Newton iterations; max_step: largest Newton update |Δuz(0)|∞ (rad/mm);
+    max_rk4_steps: refuse a configuration whose grid needs more RK4 steps (a guard against
+    absurd lengths or step settings: ConvergenceError instead of a hang); max_search_steps: RK4
+    steps (every integration of the shooting counted) after which a multi-start search (a solve
+    without a guess) stops trying further starts and keeps the best found so far, and after which
+    one continuation step of follow is given up (reported not converged)
+    (5e5 RK4 steps: about 0.5 s on one core for three tubes; a paper-robot solve needs < 1e4,
+    a continuation step of a paper-robot sweep, folds included, < 3e4).
 
     RK4's error falls as step⁴: on the paper robot the tip is within 3e-5 mm of a tight-tolerance
-    reference at the default 3 mm (5e-6 mm at 2 mm, 1.3e-3 mm at 8 mm);
-    benchmarks/bench_mechanics.py measures it."""
+    reference at the default 3 mm (5e-6 mm at 2 mm, 1.3e-3 mm at 8 mm); with the curvature rule a
+    single curved tube is within 3e-6 mm per mm of curved length of the exact arc at any curvature
+    (docs/mechanics.md); benchmarks/bench_mechanics.py measures it."""
 
     step: float = 3.0
     tol: float = 1e-10
     max_iter: int = 40
     max_step: float = 0.05
+    angle_step: float = 0.15
+    max_rk4_steps: int = 200_000
+    max_search_steps: int = 500_000
 
     def __post_init__(self) -> None:
         if not self.step > 0:
@@ -30,6 +43,12 @@ class SolverSettings:
             raise CtrkinError(f"SolverSettings.max_iter must be >= 1, got {self.max_iter}")
         if not self.max_step > 0:
             raise CtrkinError(f"SolverSettings.max_step must be > 0, got {self.max_step}")
+        if not self.angle_step > 0:
+            raise CtrkinError(f"SolverSettings.angle_step must be > 0 rad, got {self.angle_step}")
+        if self.max_search_steps < 0:
+            raise CtrkinError(f"SolverSettings.max_search_steps must be >= 0, got {self.max_search_steps}")
+        if self.max_rk4_steps < 1:
+            raise CtrkinError(f"SolverSettings.max_rk4_steps must be >= 1, got {self.max_rk4_steps}")
 
 
 DEFAULT_SETTINGS = SolverSettings()

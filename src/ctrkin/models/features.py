@@ -181,6 +181,8 @@ def _features(layout: FeatureLayout, cur: np.ndarray, prev: np.ndarray) -> np.nd
 
 def check_raw(layout: FeatureLayout, raw: np.ndarray) -> np.ndarray:
     """Validate a raw (T, 2N) joint or (T, 6) pose array for this layout."""
+    if np.iscomplexobj(raw):
+        raise ModelError("model inputs must be real numbers, got complex values")
     arr = np.asarray(raw, dtype=np.float64)
     what = f"joints (α1..α{layout.n_tubes} deg, β1..β{layout.n_tubes} mm)" if layout.task == "fk" \
         else "tip poses (x, y, z mm, q0, qx, qy)"

@@ -11,11 +11,19 @@
     workspace.npz       IK only: training targets and distance threshold (ctrkin.inference.workspace)
     frame.json          FK in the outer tube's frame only: the registration (ctrkin.models.frame)
     checkpoint.pt       last epoch, optimiser and RNG state, to resume training
+    manifest.json       SHA-256 of every file above but the checkpoint: loading refuses files that
+                        were not written together (ctrkin.util.folders)
+
+Training builds the folder aside and swaps it in whole (ctrkin.training.loop). weights.pt is
+byte-identical for equal weights (the archive is written from memory, so it stores no file name).
 """
 
 from __future__ import annotations
 
+import io
 import json
+import pickle
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -30,7 +38,8 @@ from ctrkin.models.frame import OuterFrame
 from ctrkin.models.normalize import MinMax
 from ctrkin.models.registry import build_model
 from ctrkin.robots.robot import Robot
-from ctrkin.util.files import atomic_path, atomic_write_text
+from ctrkin.util.files import atomic_write_bytes, atomic_write_text
+from ctrkin.util.folders import check_manifest, write_manifest
 
 CONFIG, FEATURES, NORMALIZATION, ROBOT, WEIGHTS = ("config.json", "features.json", "normalization.json",
                                                    "robot.json", "weights.pt")
@@ -84,8 +93,10 @@ class ModelBundle:
         write_json(out / ROBOT, {"robot": self.robot.to_dict(), "fingerprint": self.robot.fingerprint()})
         if self.frame is not None:
             write_json(out / FRAME, self.frame.to_dict())
-        with atomic_path(out / WEIGHTS) as tmp:
-            torch.save(self.net.state_dict(), tmp)
+        buf = io.BytesIO()      # in memory: the archive's inner name is fixed, not the temp file's
+        torch.save(self.net.state_dict(), buf)
+        atomic_write_bytes(out / WEIGHTS, buf.getvalue())
+        write_manifest(out, skip=("checkpoint.pt",))
         return out
 
     @classmethod
@@ -95,6 +106,7 @@ class ModelBundle:
         if missing:
             raise ModelError(f"{src} is not a trained ctrkin model folder: missing {missing} "
                              f"(train one with `ctrkin train --out {src}`)")
+        check_manifest(src, REQUIRED, ModelError)
         cfg_file = read_json(src / CONFIG)
         config = cfg_file.pop("train")
         cfg_file.pop("ctrkin_version", None)
@@ -118,7 +130,7 @@ class ModelBundle:
         try:
             state = torch.load(src / WEIGHTS, map_location="cpu", weights_only=True)
             bundle.net.load_state_dict(state)
-        except (RuntimeError, OSError, KeyError) as e:
+        except (RuntimeError, OSError, KeyError, EOFError, pickle.UnpicklingError, zipfile.BadZipFile) as e:
             raise ModelError(f"{src / WEIGHTS} does not fit model {config['model']!r}: {e}") from None
         bundle.net.eval()
         return bundle

@@ -39,7 +39,11 @@ class Robot:
     transmission_length: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
-        tubes = tuple(self.tubes)
+        try:
+            tubes = tuple(self.tubes)
+        except TypeError:
+            raise RobotDescriptionError(
+                f"Robot.tubes must be a sequence of Tube, innermost first, got {self.tubes!r}") from None
         object.__setattr__(self, "tubes", tubes)
         tl = tuple(float(v) for v in self.transmission_length)
         object.__setattr__(self, "transmission_length", tl)
@@ -101,7 +105,12 @@ class Robot:
 
         Raises JointError naming the violated condition (and the row for a trajectory).
         """
-        qa = np.asarray(q, dtype=float)
+        if np.iscomplexobj(q):
+            raise JointError("joints must be real numbers (deg, mm), got complex values")
+        try:
+            qa = np.asarray(q, dtype=float)
+        except (TypeError, ValueError) as e:
+            raise JointError(f"joints must be numbers (alpha deg, beta mm): {e}") from None
         n = self.n_tubes
         if qa.ndim == 1 and qa.shape[0] == 2 * n and self._valid_single(qa):
             return qa  # fast path for one valid configuration (the control-loop case)
@@ -147,8 +156,12 @@ class Robot:
 
     def is_valid(self, q: np.ndarray) -> np.ndarray:
         """Boolean mask of valid rows for joints (T, 2N) (no exception)."""
+        if np.iscomplexobj(q):
+            raise JointError("joints must be real numbers (deg, mm), got complex values")
         rows = np.atleast_2d(np.asarray(q, dtype=float))
         n = self.n_tubes
+        if rows.ndim != 2 or rows.shape[1] != 2 * n:
+            raise JointError(f"joints must have shape (2N,) or (T, 2N) with 2N = {2 * n}, got {rows.shape}")
         beta = rows[:, n:]
         tips = beta + self.lengths
         ok = np.isfinite(rows).all(axis=1) & (beta[:, -1] <= JOINT_TOL) & (tips[:, -1] >= -JOINT_TOL)
@@ -187,7 +200,7 @@ class Robot:
             try:
                 if "sections" in t and "straight_length" not in t and "curved_length" not in t:
                     tubes.append(Tube.from_sections(
-                        t["od"], t["id"], [tuple(s) for s in t["sections"]],
+                        t["od"], t["id"], t["sections"],
                         t.get("youngs_modulus", 58.0), t.get("poisson_ratio", 0.33)))
                 else:
                     missing = {"od", "id", "straight_length", "curved_length", "curvature"} - set(t)
@@ -205,8 +218,11 @@ class Robot:
         tl = d.get("transmission_length", ())
         if not isinstance(tl, list | tuple):
             raise RobotDescriptionError(f"{source}: transmission_length must be a list (mm, one per tube)")
+        name = d.get("name", "robot")
+        if not isinstance(name, str):
+            raise RobotDescriptionError(f"{source}: 'name' must be a string, got {name!r}")
         return cls(tubes=tuple(tubes), transmission=d.get("transmission", "compliant"),  # type: ignore[arg-type]
-                   name=str(d.get("name", "robot")), transmission_length=tuple(tl))
+                   name=name, transmission_length=tuple(tl))
 
     def to_toml(self, path: str | Path) -> None:
         atomic_write_text(path, tomli_w.dumps(self.to_dict()))
@@ -220,6 +236,9 @@ class Robot:
             d = tomllib.loads(p.read_text())
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
             raise RobotDescriptionError(f"robot file {p} is not valid TOML: {e}") from None
+        except RecursionError:
+            raise RobotDescriptionError(f"robot file {p} is nested too deeply to be a robot "
+                                        "description ([[tubes]] tables of numbers)") from None
         return cls.from_dict(d, source=str(p))
 
     def fingerprint(self) -> str:

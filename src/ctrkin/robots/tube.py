@@ -11,6 +11,13 @@ from dataclasses import dataclass, field
 
 from ctrkin.errors import RobotDescriptionError
 
+# Physical bounds (far outside any concentric tube robot, inside what the numerics handle: stiffness
+# od⁴ stays finite and non-zero, and a solve stays below SolverSettings.max_rk4_steps).
+OD_RANGE_MM = (1e-3, 100.0)
+MAX_LENGTH_MM = 10_000.0        # 10 m, per tube and per section
+MAX_CURVATURE_PER_MM = 10.0     # a 0.1 mm bending radius
+YOUNGS_RANGE_GPA = (1e-3, 1e3)
+
 
 @dataclass(frozen=True)
 class Section:
@@ -21,8 +28,25 @@ class Section:
 
 
 def _require_finite(owner: str, name: str, value: float) -> None:
-    if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+    try:
+        ok = ok and math.isfinite(value)
+    except OverflowError:       # an int beyond float range
+        ok = False
+    if not ok:
         raise RobotDescriptionError(f"{owner}.{name} must be a finite number, got {value!r}")
+
+
+def _section(k: int, s: object) -> Section:
+    """A Section from a Section or a (length mm, curvature 1/mm) pair, else a clear error."""
+    if isinstance(s, Section):
+        return s
+    if not isinstance(s, (tuple, list)) or len(s) != 2:
+        raise RobotDescriptionError(
+            f"Tube.sections[{k}] must be a pair [length mm, curvature 1/mm], got {s!r}")
+    for name, v in zip(("length", "curvature"), s, strict=True):
+        _require_finite("Tube", f"sections[{k}].{name}", v)
+    return Section(float(s[0]), float(s[1]))
 
 
 @dataclass(frozen=True)
@@ -49,8 +73,9 @@ class Tube:
         for name in ("od", "id", "straight_length", "curved_length", "curvature",
                      "youngs_modulus", "poisson_ratio"):
             _require_finite(owner, name, getattr(self, name))
-        if self.od <= 0:
-            raise RobotDescriptionError(f"Tube.od must be > 0 mm, got {self.od}")
+        if not OD_RANGE_MM[0] <= self.od <= OD_RANGE_MM[1]:
+            raise RobotDescriptionError(
+                f"Tube.od must be between {OD_RANGE_MM[0]} and {OD_RANGE_MM[1]} mm, got {self.od}")
         if not 0 <= self.id < self.od:
             raise RobotDescriptionError(
                 f"Tube.id must satisfy 0 <= id < od (= {self.od} mm), got {self.id}")
@@ -58,12 +83,18 @@ class Tube:
             raise RobotDescriptionError(
                 "Tube.straight_length and Tube.curved_length must be >= 0 mm, got "
                 f"{self.straight_length} and {self.curved_length}")
-        if self.curvature < 0:
+        for name in ("straight_length", "curved_length"):
+            if getattr(self, name) > MAX_LENGTH_MM:
+                raise RobotDescriptionError(
+                    f"Tube.{name} must be <= {MAX_LENGTH_MM:g} mm, got {getattr(self, name)}")
+        if not 0 <= self.curvature <= MAX_CURVATURE_PER_MM:
             raise RobotDescriptionError(
-                f"Tube.curvature must be >= 0 1/mm (1/radius), got {self.curvature}")
-        if self.youngs_modulus <= 0:
+                f"Tube.curvature must be between 0 and {MAX_CURVATURE_PER_MM:g} 1/mm (1/radius), "
+                f"got {self.curvature}")
+        if not YOUNGS_RANGE_GPA[0] <= self.youngs_modulus <= YOUNGS_RANGE_GPA[1]:
             raise RobotDescriptionError(
-                f"Tube.youngs_modulus must be > 0 GPa, got {self.youngs_modulus}")
+                f"Tube.youngs_modulus must be between {YOUNGS_RANGE_GPA[0]:g} and "
+                f"{YOUNGS_RANGE_GPA[1]:g} GPa, got {self.youngs_modulus}")
         if not 0 <= self.poisson_ratio < 0.5:
             raise RobotDescriptionError(
                 f"Tube.poisson_ratio must satisfy 0 <= nu < 0.5, got {self.poisson_ratio} (sets the "
@@ -75,13 +106,18 @@ class Tube:
                          if s.length > 0)
             object.__setattr__(self, "sections", secs)
         else:
-            secs = tuple(s if isinstance(s, Section) else Section(*s) for s in self.sections)
+            secs = tuple(_section(k, s) for k, s in enumerate(self.sections))
             for k, s in enumerate(secs):
                 _require_finite(owner, f"sections[{k}].length", s.length)
                 _require_finite(owner, f"sections[{k}].curvature", s.curvature)
-                if s.length < 0:
+                if not 0 <= s.length <= MAX_LENGTH_MM:
                     raise RobotDescriptionError(
-                        f"Tube.sections[{k}].length must be >= 0 mm, got {s.length}")
+                        f"Tube.sections[{k}].length must be between 0 and {MAX_LENGTH_MM:g} mm, "
+                        f"got {s.length}")
+                if abs(s.curvature) > MAX_CURVATURE_PER_MM:
+                    raise RobotDescriptionError(
+                        f"Tube.sections[{k}].curvature must be within ±{MAX_CURVATURE_PER_MM:g} "
+                        f"1/mm, got {s.curvature}")
             object.__setattr__(self, "sections", secs)
             total = sum(s.length for s in secs)
             if abs(total - (self.straight_length + self.curved_length)) > 1e-9 * max(1.0, total):
@@ -100,7 +136,10 @@ class Tube:
         sections: [(length mm, curvature 1/mm), ...] from base to tip. straight_length is set to
         the leading straight stretch, curved_length to the rest, curvature to the first non-zero one.
         """
-        secs = tuple(Section(float(length), float(kappa)) for length, kappa in sections)
+        if not isinstance(sections, (list, tuple)):
+            raise RobotDescriptionError(
+                f"Tube.sections must be a list of [length mm, curvature 1/mm] pairs, got {sections!r}")
+        secs = tuple(_section(k, s) for k, s in enumerate(sections))
         straight = 0.0
         for s in secs:
             if s.curvature != 0.0:

@@ -9,8 +9,11 @@ seeded, checkpointed after every epoch and resumable.
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import math
+import pickle
+import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +36,7 @@ from ctrkin.training.curves import plot_curves
 from ctrkin.training.data import Prepared, data_signature, prepare
 from ctrkin.training.metrics import joint_errors, pose_errors
 from ctrkin.util.files import atomic_path, atomic_write_text
+from ctrkin.util.folders import folder_lock, recover, swap_in, write_manifest
 from ctrkin.util.progress import progress_bar
 from ctrkin.virtual.truth import tracker_truth
 
@@ -151,15 +155,35 @@ def _learning_rate(cfg: TrainConfig, epoch: int) -> float:
     return low + (cfg.lr - low) * 0.5 * (1.0 + math.cos(math.pi * min(epoch / cfg.max_epochs, 1.0)))
 
 
+def split_signature(rows: dict[str, np.ndarray]) -> str:
+    """A short hash of the train/val/test rows: resuming on another split would leak the epochs
+    trained on the old training rows into the new test rows."""
+    h = hashlib.sha256()
+    for name in ("train", "val", "test"):
+        h.update(name.encode())
+        h.update(np.ascontiguousarray(rows[name], dtype=np.int64).tobytes())
+    return h.hexdigest()[:16]
+
+
 def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = False, progress: bool = True,
           log: Any = None) -> TrainResult:
     """Train `cfg` on `ds`, writing the model folder `out` (ctrkin.models.store).
 
-    If `out` holds a checkpoint of the same configuration and data, training resumes from it (a larger
-    max_epochs continues a finished run); a different one is refused unless `overwrite`.
+    If `out` holds a checkpoint of the same configuration, data and split, training resumes from it (a
+    larger max_epochs continues a finished run); a different one is refused unless `overwrite`.
+    The folder is built aside (`.NAME.build`, which also keeps the checkpoints of an unfinished run)
+    and swapped in whole at the end, under a lock: a kill leaves the previous model or the new one,
+    never a mix, and a second training into the same `out` is refused while one runs.
     """
-    say = log or (lambda _m: None)
     out = Path(out)
+    with folder_lock(out, ModelError, "train"):
+        recover(out)
+        return _train_locked(ds, cfg, out, overwrite, progress, log)
+
+
+def _train_locked(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, progress: bool,
+                  log: Any) -> TrainResult:
+    say = log or (lambda _m: None)
     torch.set_num_threads(cfg.threads)
     stateful = get_entry(cfg.model).stateful
     prep = prepare(ds, cfg, branches=stateful)
@@ -167,9 +191,11 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
         for w in split_warnings(prep.split, prep.split.fractions):
             say(f"warning: {w}")
     signature = data_signature(ds)
+    split_sig = split_signature(prep.rows)
     torch.manual_seed(cfg.seed)
     bundle = ModelBundle.create(cfg.to_dict(), prep.layout, prep.x_norm, prep.y_norm, ds.robot,
-                                {"data": {"signature": signature, "samples": len(ds.frame),
+                                {"data": {"signature": signature, "split_signature": split_sig,
+                                          "samples": len(ds.frame),
                                           "source": str(ds.meta.get("path", "")),
                                           "protocol": ds.meta.get("protocol")}}, frame=prep.frame)
     net = bundle.net
@@ -178,13 +204,18 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
     state: dict[str, Any] = {"epoch": 0, "best_val": float("inf"), "best_epoch": 0, "since_best": 0,
                              "history": [], "seconds": 0.0, "done": False}
     best_weights = {k: v.clone() for k, v in net.state_dict().items()}
-    ckpt = out / CHECKPOINT
-    if ckpt.is_file() and not overwrite:
-        saved = torch.load(ckpt, map_location="cpu", weights_only=True)
+    build = out.with_name(f".{out.name}.build")
+    if overwrite and build.exists():
+        shutil.rmtree(build)
+    previous = [p / CHECKPOINT for p in (build, out) if (p / CHECKPOINT).is_file()]
+    if previous and not overwrite:
+        saved = _load_checkpoint(previous[0])
         old = TrainConfig.from_dict(saved["config"])
         diffs = old.differences(cfg)
         if saved["data_signature"] != signature:
             diffs.append("the dataset differs")
+        if saved.get("split_signature") != split_sig:
+            diffs.append("the train/val/test split differs")
         if diffs:
             raise ModelError(f"{out} holds a training run with a different setup ({'; '.join(diffs)}); "
                              f"pass overwrite (--overwrite) or choose another --out")
@@ -196,6 +227,10 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
         if state["done"] and cfg.max_epochs > state["epoch"] and state["since_best"] < cfg.patience:
             state["done"] = False
         say(f"resuming {out} after epoch {state['epoch']}")
+    if build.exists() and not (build / CHECKPOINT).is_file():
+        shutil.rmtree(build)             # a build killed before its first checkpoint: nothing to keep
+    build.mkdir(parents=True, exist_ok=True)
+    ckpt = build / CHECKPOINT
     train_rows = prep.rows["train"]
     Xt, Yt = torch.from_numpy(prep.X[train_rows]), torch.from_numpy(prep.Y[train_rows])
     branch = None
@@ -227,9 +262,9 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
                 state["since_best"] += 1
             if state["since_best"] >= cfg.patience or state["epoch"] >= cfg.max_epochs:
                 state["done"] = True
-            out.mkdir(parents=True, exist_ok=True)
             with atomic_path(ckpt) as tmp:
-                torch.save({"config": cfg.to_dict(), "data_signature": signature, "net": net.state_dict(),
+                torch.save({"config": cfg.to_dict(), "data_signature": signature,
+                            "split_signature": split_sig, "net": net.state_dict(),
                             "opt": opt.state_dict(), "gen": gen.get_state(), "best": best_weights,
                             "state": state}, tmp)
             bar.update(1)
@@ -238,11 +273,13 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
         bar.close()
     if not state["history"]:
         raise ModelError(f"no epoch was trained (max_epochs = {cfg.max_epochs})")
+    if not ckpt.is_file():                 # resumed a finished run without training: keep its checkpoint
+        shutil.copy2(previous[0], ckpt)
 
     net.load_state_dict(best_weights)
     net.eval()
-    bundle.save(out)
-    prep.split.save(out / "split.json")
+    bundle.save(build)
+    prep.split.save(build / "split.json")
     metrics = evaluate(bundle, ds, prep)
     metrics["training"] = {"epochs": state["epoch"], "best_epoch": state["best_epoch"],
                            "best_val_loss": state["best_val"], "seconds": state["seconds"],
@@ -252,12 +289,24 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
         pose_cols = slice(0, 6)
         norm = type(prep.x_norm)(prep.x_norm.lo[pose_cols], prep.x_norm.span[pose_cols])
         Workspace.fit(prep.raw_in[prep.rows["train"]], prep.raw_in[prep.rows["val"]], norm,
-                      train_joints=prep.target[prep.rows["train"]]).save(out)
-    write_json(out / "metrics.json", metrics)
-    _write_history(out / "history.csv", state["history"])
-    plot_curves(state["history"], out / "curves.png",
+                      train_joints=prep.target[prep.rows["train"]]).save(build)
+    write_json(build / "metrics.json", metrics)
+    _write_history(build / "history.csv", state["history"])
+    plot_curves(state["history"], build / "curves.png",
                 f"{cfg.task.upper()} {cfg.model} (IB = {cfg.ib}): training and validation loss")
+    write_manifest(build, skip=(CHECKPOINT,))
+    swap_in(build, out, ModelError)
     return TrainResult(out, metrics, state["history"])
+
+
+def _load_checkpoint(path: Path) -> dict[str, Any]:
+    try:
+        saved = torch.load(path, map_location="cpu", weights_only=True)
+    except (RuntimeError, OSError, EOFError, pickle.UnpicklingError) as e:
+        raise ModelError(f"{path} cannot be read ({e}); pass overwrite (--overwrite) to start over") from None
+    if not isinstance(saved, dict) or not {"config", "data_signature", "net", "state"} <= set(saved):
+        raise ModelError(f"{path} is not a ctrkin checkpoint; pass overwrite (--overwrite) to start over")
+    return saved
 
 
 def evaluate(bundle: ModelBundle, ds: Dataset, prep: Prepared) -> dict[str, Any]:

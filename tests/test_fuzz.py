@@ -1,0 +1,28 @@
+"""A CI-sized slice of benchmarks/fuzz.py (issue 9): about 200 seeded inputs over every area, and no
+crash, silent wrong answer or hang among them."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+FUZZ = Path(__file__).resolve().parents[1] / "benchmarks" / "fuzz.py"
+
+
+@pytest.mark.slow
+def test_fuzz_slice_has_no_crash_silent_or_hang():
+    spec = importlib.util.spec_from_file_location("ctrkin_fuzz", FUZZ)
+    assert spec is not None and spec.loader is not None
+    fuzz = importlib.util.module_from_spec(spec)
+    sys.modules["ctrkin_fuzz"] = fuzz
+    spec.loader.exec_module(fuzz)
+    counts = fuzz.run(scale=0.01, seed=1, log=lambda _m: None)
+    assert set(counts) == set(fuzz.AREAS)
+    total = {o: sum(c[o] for c in counts.values()) for o in fuzz.OUTCOMES}
+    assert sum(total.values()) >= 200
+    assert total["clear"] > 0 and total["ok"] > 0          # the slice reaches both sides of the checks
+    bad = {a: {o: c[o] for o in ("crash", "silent", "hang") if c[o]} for a, c in counts.items()}
+    assert not any(bad.values()), bad
