@@ -38,3 +38,15 @@ def test_train_lists_models():
     r = CliRunner().invoke(cli, ["train", "--list-models"])
     assert r.exit_code == 0
     assert "lstm_mlp_no_delta" in r.output and "S3=L128,L128|D64" in r.output
+
+
+def test_train_snap_aware_model_with_cosine_schedule(sweeps, tmp_path):
+    data = sweeps.save(tmp_path / "data")
+    out = tmp_path / "fk_branch"
+    r = CliRunner().invoke(cli, ["train", "--task", "fk", "--model", "lstm_mlp_branch", "--data", str(data),
+                                 "--out", str(out), "--epochs", "1", "--structure", "L8|D8", "--threads", "1",
+                                 "--lr-schedule", "cosine"], env={"CTRKIN_NO_PROGRESS": "1"})
+    assert r.exit_code == 0, r.output
+    train_cfg = json.loads((out / "config.json").read_text())["train"]
+    assert train_cfg["lr_schedule"] == "cosine" and train_cfg["target_frame"] == "outer"
+    assert Kinematics.load(out).predict(sweeps).shape == (len(sweeps.frame), 6)
