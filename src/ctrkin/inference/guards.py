@@ -38,6 +38,8 @@ class FKGuard:
         if not self.periodic_only:
             self.lo = np.asarray(x_norm.lo, float)[cols]
             self.hi = np.asarray(x_norm.hi, float)[cols]
+            self._lo = (self.lo - RANGE_SLACK_DEG).tolist()     # scalar bounds of the fast path
+            self._hi = (self.hi + RANGE_SLACK_DEG).tolist()
 
     def check(self, raw: np.ndarray) -> None:
         """Raise JointError for joints the robot cannot take or absurd angles. raw: (T, 2N) or (2N,)."""
@@ -88,12 +90,27 @@ class FKGuard:
     def step(self, raw: np.ndarray, shift: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """One streaming step (2N,): checked, shifted by the sequence's turns (fixed by its first step,
         `shift` None). Returns (shifted step, shift). Raises before any model state is touched."""
+        if shift is not None and self._fast_ok(raw, shift):       # the control-loop case
+            return raw - shift, shift
         self.check(raw)
         if shift is None:
             shift = self.shift(raw)
         out = raw - shift
         self.check_range(out)
         return out, shift
+
+    def _fast_ok(self, raw: np.ndarray, shift: np.ndarray) -> bool:
+        """Scalar version of check + check_range for one step that passes both (else the full checks
+        run and raise with their messages)."""
+        self.robot.check_joints(raw)              # its fast path for one valid configuration
+        vals, sh = raw.tolist(), shift.tolist()
+        for i in range(self.n):
+            a = vals[i]
+            if abs(a) > MAX_ABS_ALPHA_DEG:
+                return False
+            if not self.periodic_only and not (self._lo[i] <= a - sh[i] <= self._hi[i]):
+                return False
+        return True
 
 
 def real_array(x: Any) -> np.ndarray:
