@@ -12,7 +12,7 @@ from pathlib import Path
 from ctrkin.errors import ModelError
 from ctrkin.inference.kinematics import REFINE_FILE, REFINE_FK, Kinematics
 from ctrkin.inference.refine import RefineSettings
-from ctrkin.util.files import replace_folder
+from ctrkin.util.folders import swap_in
 
 
 def assemble_refined(ik_dir: str | Path, fk_dir: str | Path, out: str | Path,
@@ -32,7 +32,7 @@ def assemble_refined(ik_dir: str | Path, fk_dir: str | Path, out: str | Path,
         shutil.copytree(fk_src, build / REFINE_FK,
                         ignore=shutil.ignore_patterns("checkpoint*", ".lock", "*.tmp"))
         (build / REFINE_FILE).write_text(json.dumps((settings or RefineSettings()).to_dict(), indent=2))
-        replace_folder(build, target)
+        swap_in(build, target, ModelError)
     finally:
         if build.exists():
             shutil.rmtree(build)

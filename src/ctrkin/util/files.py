@@ -36,23 +36,3 @@ def atomic_write_text(path: str | Path, text: str) -> None:
 def atomic_write_bytes(path: str | Path, data: bytes) -> None:
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
-
-
-def replace_folder(build: Path, target: Path) -> None:
-    """Swap the finished folder `build` in for `target` (a sibling): the previous `target` is moved
-    aside first and removed only after the swap, so a failure leaves it in place."""
-    import shutil
-    import uuid
-
-    old = None
-    if target.exists():
-        old = target.with_name(f".{target.name}.old-{uuid.uuid4().hex[:8]}")
-        target.rename(old)
-    try:
-        build.rename(target)
-    except OSError:
-        if old is not None:
-            old.rename(target)
-        raise
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
