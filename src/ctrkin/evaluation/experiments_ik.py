@@ -22,7 +22,7 @@ from ctrkin.evaluation.context import (
 )
 from ctrkin.evaluation.metrics import joint_errors
 from ctrkin.evaluation.training_runs import FK_BRANCH
-from ctrkin.inference.kinematics import IKResult, Kinematics
+from ctrkin.inference.kinematics import IKResult
 from ctrkin.virtual import VirtualRobot
 from ctrkin.virtual.transmission import clip_to_valid
 from ctrkin.viz import experiments as fig
@@ -55,21 +55,6 @@ def drive(
     return out, clipped
 
 
-def _turns_into_range(fk: Kinematics, Q: np.ndarray) -> np.ndarray:
-    """Q (T, 2N) with each α moved by whole turns (the same configuration) to the representative
-    nearest the middle of the FK model's trained range: IK joints jump between turns, and the FK model
-    refuses a sequence that leaves its range by more than a turn."""
-    names = list(fk.layout.input_names)
-    out = np.array(Q, dtype=float, copy=True)
-    for i in range(fk.layout.n_tubes):
-        if f"alpha_{i + 1}" not in names:           # sin/cos encoding: every α is in range
-            continue
-        c = names.index(f"alpha_{i + 1}")
-        mid = 0.5 * (fk.bundle.x_norm.lo[c] + fk.bundle.x_norm.hi[c])
-        out[:, i] -= 360.0 * np.round((out[:, i] - mid) / 360.0)
-    return out
-
-
 def _within(reached: np.ndarray, targets: np.ndarray, mm: float = 1.0) -> np.ndarray:
     return np.linalg.norm(reached[:, :3] - targets[:, :3], axis=1) < mm
 
@@ -83,7 +68,8 @@ def _ik_checks(
     joints = res.joints
     sid = np.concatenate([np.full(y - x, k) for k, (x, y) in enumerate(b)])
     Qv = clip_to_valid(ctx.data.virtual.nominal, joints)
-    via_fk = np.asarray(fk.predict(_turns_into_range(fk, Qv), sequence_id=sid), float)
+    # IK joints jump between turns; the FK model refuses a sequence that leaves its range by a turn
+    via_fk = np.asarray(fk.predict(fk.alpha_into_range(Qv), sequence_id=sid), float)
     via_robot, clipped = drive(ctx.data.virtual, joints, b)
     flags = {
         "joints_projected_to_valid": clipped,
@@ -151,9 +137,7 @@ def ik_random(ctx: Context) -> dict[str, Any]:
         res = ctx.models[folder].predict(ds)
         je = joint_errors(res.joints[rows], ds.joints()[rows], ds.n_tubes)
         # the robot is driven along the predicted joints of the whole run, looked at on the targets
-        res_all = IKResult(res.joints, res.in_workspace, res.distance, res.reasons, res.projected,
-                           res.residual_mm, res.jump)
-        checks, via_fk, via_robot = _ik_checks(ctx, res_all, ds.poses(), whole)
+        checks, via_fk, via_robot = _ik_checks(ctx, res, ds.poses(), whole)
         out[name] = {
             "model": folder,
             "joint_rmse_mm": je["beta_mm"]["rmse"],

@@ -64,6 +64,15 @@ class FKGuard:
             out[i] = TURN_DEG * math.floor((a - centre) / TURN_DEG + 0.5)
         return out
 
+    def nearest_turns(self, Q: np.ndarray) -> np.ndarray:
+        """Q (K, 2N) with each α moved by whole turns (the same configuration) to the representative
+        nearest the middle of the trained range; unchanged for a sin/cos encoding."""
+        out = np.array(Q, dtype=float, copy=True)
+        if not self.periodic_only:
+            mid = 0.5 * (self.lo + self.hi)
+            out[:, : self.n] -= TURN_DEG * np.round((out[:, : self.n] - mid) / TURN_DEG)
+        return out
+
     def check_range(self, shifted: np.ndarray) -> None:
         """Raise ModelError if a shifted step is more than a turn outside the trained α range."""
         if self.periodic_only:

@@ -291,17 +291,31 @@ class Kinematics:
             feats[..., self._dcols] = np.clip(feats[..., self._dcols], self._dlo, self._dhi)
         return feats
 
+    def alpha_into_range(self, Q: np.ndarray) -> np.ndarray:
+        """FK only: joints Q (K, 2N) with each α moved by whole turns (the same configuration) to the
+        representative nearest the middle of this model's trained α range."""
+        if self._guard is None:
+            raise ModelError("alpha_into_range() is for FK models")
+        return self._guard.nearest_turns(np.atleast_2d(np.asarray(Q, float)))
+
+    def _probe_outputs(self, Q: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The engine's answers for K candidate next steps Q (K, 2N), nothing advanced: (Q shifted by
+        the sequence's whole turns, de-normalised outputs (K, O), branch states (K,))."""
+        if self.task != "fk" or self._engine is None:
+            raise ModelError(f"{what}() needs an FK model of the LSTM-MLP family")
+        Q = np.atleast_2d(np.asarray(Q, float))
+        if self._guard is not None and len(Q):
+            Q = Q - (self._shift if self._shift is not None else self._guard.shift(Q[0]))
+        prev = Q if self._prev is None else np.broadcast_to(self._prev, Q.shape)
+        xn = (self._clip_deltas(pair_features(self.layout, Q, prev)) - self._xlo) / self._xspan
+        yn, states = self._engine.probe(xn)
+        return Q, yn * self._yspan + self._ylo, states
+
     def probe_tips(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """FK only, the refinement's inner loop: tip positions (K, 3) and unit tangents (K, 3) in the
         tracker frame that `step` would give for each of K candidate joints Q (K, 2N); nothing is
         advanced (`probe` without the quaternion round trip)."""
-        if self.task != "fk" or self._engine is None:
-            raise ModelError("probe_tips() needs an FK model of the LSTM-MLP family")
-        Q = np.ascontiguousarray(np.atleast_2d(np.asarray(Q, float)))
-        prev = Q if self._prev is None else np.broadcast_to(self._prev, Q.shape)
-        xn = (self._clip_deltas(pair_features(self.layout, Q, prev)) - self._xlo) / self._xspan
-        yn, _ = self._engine.probe(xn)
-        y = yn * self._yspan + self._ylo
+        Q, y, _ = self._probe_outputs(Q, "probe_tips")
         if self.frame is not None:
             reg = self.frame.registration
             return local_tips_to_world(y, Q[:, self.layout.n_tubes - 1], reg.rotation, reg.translation)
@@ -310,15 +324,8 @@ class Kinematics:
     def probe(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """FK only: the poses (K, 6) and branch states (K,) that `step` would return for each of K
         candidate joints Q (K, 2N) as the next step of the current sequence; nothing is advanced."""
-        if self.task != "fk" or self._engine is None:
-            raise ModelError("probe() needs an FK model of the LSTM-MLP family")
-        Q = np.atleast_2d(np.asarray(Q, float))
-        if self._guard is not None and len(Q):
-            Q = Q - (self._shift if self._shift is not None else self._guard.shift(Q[0]))
-        prev = Q if self._prev is None else np.broadcast_to(self._prev, Q.shape)
-        xn = (self._clip_deltas(pair_features(self.layout, Q, prev)) - self._xlo) / self._xspan
-        yn, states = self._engine.probe(xn)
-        y = postprocess(self.layout, yn * self._yspan + self._ylo)
+        Q, y, states = self._probe_outputs(Q, "probe")
+        y = postprocess(self.layout, y)
         if self.frame is not None:
             y = self.frame.to_world(y, Q[:, self.layout.n_tubes - 1])
         return y, states

@@ -88,10 +88,12 @@ class FKResidual:
             raise ModelError("IK refinement needs an FK model of the LSTM-MLP family (streaming engine)")
         self.fk = fk
         self.w = tangent_weight_mm
-        n = fk.layout.n_tubes
+        # the trained range of each joint input (±inf for an α the model sees only as sin/cos)
+        names = list(fk.layout.input_names)
         lo, hi = fk.bundle.x_norm.lo, fk.bundle.x_norm.hi
-        self.alpha_lo, self.alpha_hi = lo[:n].copy(), hi[:n].copy()   # FK inputs start with α1..αN,
-        self.beta_lo, self.beta_hi = lo[n:2 * n].copy(), hi[n:2 * n].copy()    # then β1..βN
+        joints = [f"{kind}_{i + 1}" for kind in ("alpha", "beta") for i in range(fk.layout.n_tubes)]
+        self.joint_lo = np.array([lo[names.index(c)] if c in names else -np.inf for c in joints])
+        self.joint_hi = np.array([hi[names.index(c)] if c in names else np.inf for c in joints])
 
     def residual(self, Q: np.ndarray, target_p: np.ndarray, target_t: np.ndarray) -> np.ndarray:
         """Q: (K, 2N) -> (K, 6) residuals (mm)."""
@@ -164,15 +166,8 @@ def _wrap_diff(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
 
 
 def _clamp(res: FKResidual, project: object, Q: np.ndarray) -> np.ndarray:
-    """Onto the FK model's training range (α shifted by whole turns first: the same configuration,
-    inside the range the model knows; β clipped: the model knows nothing outside it), then onto the
-    robot's valid joints."""
-    Q = np.array(Q, dtype=float, copy=True)
-    n = len(res.alpha_lo)
-    for i in range(n):
-        a = Q[:, i]
-        mid = 0.5 * (res.alpha_lo[i] + res.alpha_hi[i])
-        a = a - 360.0 * np.round((a - mid) / 360.0)
-        Q[:, i] = np.clip(a, res.alpha_lo[i], res.alpha_hi[i])
-    Q[:, n:] = np.clip(Q[:, n:], res.beta_lo, res.beta_hi)
+    """Onto the FK model's training range (α moved by whole turns first: the same configuration,
+    inside the range the model knows; then every joint clipped: the model knows nothing outside it),
+    then onto the robot's valid joints."""
+    Q = np.clip(res.fk.alpha_into_range(Q), res.joint_lo, res.joint_hi)
     return project(Q)  # type: ignore[operator]
