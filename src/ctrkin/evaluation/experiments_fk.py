@@ -24,6 +24,7 @@ from ctrkin.evaluation.metrics import (
     azimuth_series,
     rotation_direction,
     snap_report,
+    snap_steps,
     snap_window,
     timing_stats,
 )
@@ -99,28 +100,31 @@ def _turn_predictions(ctx: Context, ds: Dataset) -> dict[str, np.ndarray]:
     return preds
 
 
-def _snap_turn_scores(ctx: Context, ds: Dataset, preds: dict[str, np.ndarray]) -> dict[str, Any]:
+def _turn_azimuths(ctx: Context, ds: Dataset, preds: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """T(L) (deg) of every predictor, the measurement and the truth over ds, unwrapped per sequence."""
+    series = {**preds, "measured": ds.poses(), "truth": ctx.truth(ds)}
+    b, joints = ds.sequence_bounds(), ds.joints()
+    return {k: azimuth_series(p, joints, ds.n_tubes, b) for k, p in series.items()}
+
+
+def _snap_turn_scores(ctx: Context, ds: Dataset, preds: dict[str, np.ndarray],
+                      az: dict[str, np.ndarray]) -> dict[str, Any]:
     """Per predictor: snap events vs truth (headline) and vs measured, per direction; position
-    error vs truth on the two steps at each true snap and away from them."""
+    error vs truth on the two steps at each true snap and away from them. az: _turn_azimuths."""
     b = ds.sequence_bounds()
-    n = ds.n_tubes
-    joints, measured, truth = ds.joints(), ds.poses(), ctx.truth(ds)
+    truth = ctx.truth(ds)
     rows = np.zeros(len(ds.frame), bool)
     rows[valid_rows(ds)] = True
-    az_truth = azimuth_series(truth, joints, n, b)
-    az_meas = azimuth_series(measured, joints, n, b)
-    direction = rotation_direction(joints, n, b)
+    direction = rotation_direction(ds.joints(), ds.n_tubes, b)
     true_snap = np.zeros(len(ds.frame), bool)
-    for a, c in b:
-        true_snap[a + 1:c] = np.abs(np.diff(az_truth[a:c])) > 10.0
+    true_snap[snap_steps(az["truth"], b)] = True
     near = snap_window(true_snap, b)
     out: dict[str, Any] = {}
     for name, p in preds.items():
-        az = azimuth_series(p, joints, n, b)
         e = position_error(p, truth)
         out[name] = {
-            **snap_report(az, az_truth, b, direction),
-            "vs_measured": snap_report(az, az_meas, b, direction),
+            **snap_report(az[name], az["truth"], b, direction),
+            "vs_measured": snap_report(az[name], az["measured"], b, direction),
             "position_at_snap_true_mm": float(np.mean(e[rows & near])) if (rows & near).any() else None,
             "position_away_from_snap_true_mm": float(np.mean(e[rows & ~near])),
         }
@@ -135,8 +139,7 @@ def sweeps(ctx: Context) -> dict[str, Any]:
     n = ds.n_tubes
     joints, measured, truth = ds.joints(), ds.poses(), ctx.truth(ds)
     preds = _turn_predictions(ctx, ds)
-    az = {k: azimuth_series(p, joints, n, b) for k, p in preds.items()}
-    az |= {k: azimuth_series(p, joints, n, b) for k, p in (("measured", measured), ("truth", truth))}
+    az = _turn_azimuths(ctx, ds, preds)
     snap = ds.frame["snap"].to_numpy()
     near = snap_window(snap, b)
     levels = [lv["relative_translation_mm"] for lv in ds.meta.get("levels", [])]
@@ -166,7 +169,7 @@ def sweeps(ctx: Context) -> dict[str, Any]:
                                        if where == "away_from_snap" else near)
             for name in FK_ROWS for where in ("away_from_snap", "at_snap")
         }
-    out["snap_prediction"] = _snap_turn_scores(ctx, ds, preds)
+    out["snap_prediction"] = _snap_turn_scores(ctx, ds, preds, az)
     fig.sweeps_figure(panels, ctx.figures / "fig10a_sweeps.png")
     return out
 
@@ -181,11 +184,10 @@ def snap_turns(ctx: Context) -> dict[str, Any]:
     rows = valid_rows(ds)
     out: dict[str, Any] = {k: summary(p[rows], measured[rows], truth[rows]) for k, p in preds.items()}
     out = with_headline(out, "fk")
-    out["snap_prediction"] = _snap_turn_scores(ctx, ds, preds)
+    az = _turn_azimuths(ctx, ds, preds)
+    out["snap_prediction"] = _snap_turn_scores(ctx, ds, preds, az)
     out["outer_angles_deg"] = ds.meta.get("protocol_params", {}).get("outer_angles_deg")
     panels = []
-    az = {k: azimuth_series(p, joints, n, b) for k, p in preds.items()}
-    az |= {k: azimuth_series(p, joints, n, b) for k, p in (("measured", measured), ("truth", truth))}
     for a, c in b:
         panels.append({"label": f"αN = {joints[a, n - 1]:.0f}°, βN = {joints[a, 2 * n - 1]:.2f} mm",
                        "alpha0": joints[a:c, 0] - joints[a:c, n - 1],
