@@ -13,17 +13,17 @@ from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.datasets import ReproData, registered_truth
 from ctrkin.evaluation.metrics import pose_errors
 from ctrkin.evaluation.tcm_baseline import TCMBaseline
-from ctrkin.evaluation.training_runs import FK_BRANCH, FK_PAPER, IK_PAPER, IK_REFINED
+from ctrkin.evaluation.training_runs import FK_BRANCH, FK_PAPER, IK_FOLLOW, IK_PAPER, IK_REFINED
 from ctrkin.inference import Kinematics
 from ctrkin.models.branch_labels import branch_labels
 
 # learned rows of every FK / IK experiment: results name -> model folder. The recommended model's
 # figures are also written under the headline name "lstm_mlp" (results.json keeps its keys).
 FK_ROWS = {"lstm_mlp_paper": FK_PAPER, "lstm_mlp_branch": FK_BRANCH}
-IK_ROWS = {"lstm_mlp_paper": IK_PAPER, "lstm_mlp_refined": IK_REFINED}
-# the IK refined on the learned FK does not yet beat the direct network (docs/reproduction.md), so
-# the paper's IK network stays the recommended IK
-RECOMMENDED = {"fk": "lstm_mlp_branch", "ik": "lstm_mlp_paper"}
+IK_ROWS = {"lstm_mlp_paper": IK_PAPER, "lstm_mlp_refined": IK_REFINED, "follow_mlp": IK_FOLLOW}
+# the follow IK (from the current joints, ctrkin.models.follow) reaches the targets the direct
+# networks miss by millimetres (docs/reproduction.md)
+RECOMMENDED = {"fk": "lstm_mlp_branch", "ik": "follow_mlp"}
 # ablation row: the snap-aware model's heads, branch state from the nominal TCM continued along the
 # same joint path (physics gate; batch evaluation only, not a streaming model)
 TCM_GATED = "lstm_mlp_branch_tcm_gate"

@@ -121,7 +121,24 @@ def ik_heldout(ctx: Context) -> dict[str, Any]:
             "n": len(rows),
             **checks,
         }
+        if ctx.models[folder].layout.follow:
+            out[name]["from_robot_start"] = _from_robot_start(ctx, folder, rows, sid, b)
     return with_headline(out, "ik")
+
+
+def _from_robot_start(ctx: Context, folder: str, rows: np.ndarray, sid: np.ndarray,
+                      b: list[tuple[int, int]]) -> dict[str, Any]:
+    """A follow IK started from the joints the robot is at when each sequence begins (what a
+    controller knows), instead of from the nearest training target's joints."""
+    ds = ctx.data.paper
+    starts = ds.joints()[rows][[a for a, _ in b]]
+    res = ctx.models[folder].predict(ds.poses()[rows], sequence_id=sid[rows], start_joints=starts)
+    je = joint_errors(res.joints, ds.joints()[rows], ds.n_tubes)
+    checks, _, _ = _ik_checks(ctx, res, ds.poses()[rows], b)
+    return {"tip_error_mm": checks["via_robot"]["position_rmse_mm"],
+            "within_1mm_fraction": checks["within_1mm_fraction"],
+            "joint_rmse_deg": je["alpha_deg"]["rmse"], "joint_alpha_median_deg": je["alpha_deg"]["median"],
+            "joint_rmse_mm": je["beta_mm"]["rmse"]}
 
 
 def ik_random(ctx: Context) -> dict[str, Any]:

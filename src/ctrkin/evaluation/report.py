@@ -17,7 +17,7 @@ REQUIRED_KEYS = (
                   "resnet")
         for k in ("position_rmse_mm", "orientation_rmse_deg", "position_rmse_true_mm")
     ]
-    + [f"ik.{m}.{k}" for m in ("lstm_mlp", "lstm_mlp_paper", "lstm_mlp_refined")
+    + [f"ik.{m}.{k}" for m in ("lstm_mlp", "lstm_mlp_paper", "lstm_mlp_refined", "follow_mlp")
        for k in ("joint_rmse_mm", "joint_rmse_deg", "tip_error_mm", "joint_alpha_median_deg")]
     + [f"snapping.{m}.{k}" for m in ("lstm_mlp_paper", "lstm_mlp_branch", "tcm", "tcm_continued")
        for k in ("precision", "recall", "timing_error_steps", "magnitude_error_deg")]
@@ -39,6 +39,9 @@ REQUIRED_KEYS = (
         "dataset.snaps",
     ]
 )
+
+# IK rows of the experiment table, in column order
+IK_REPORT_ROWS = ("lstm_mlp_paper", "lstm_mlp_refined", "follow_mlp")
 
 
 def lookup(results: dict[str, Any], dotted: str) -> Any:
@@ -102,7 +105,8 @@ def write_report(r: dict[str, Any], path: Path) -> None:
     s += ["", "## Headline", "",
           f"Learned figures come from the recommended models: FK `{rec.get('fk')}` (the snap-aware "
           f"LSTM-MLP; the paper's own FK LSTM-MLP is the `lstm_mlp_paper` row below), IK "
-          f"`{rec.get('ik')}` (the IK refined on the learned FK is the `lstm_mlp_refined` row).", ""]
+          f"`{rec.get('ik')}` (the follow IK: joint changes from the robot's current joints; the paper's IK "
+          f"network is the `lstm_mlp_paper` row, the IK refined on the learned FK `lstm_mlp_refined`).", ""]
     s.append(
         _table(
             ["quantity", "paper", "ours (vs measured)", "ours (vs truth)"],
@@ -226,14 +230,22 @@ def write_report(r: dict[str, Any], path: Path) -> None:
         pp = P.EXPERIMENTS.get(name, {})
         rows.append([name, _pair(pp.get("lstm_mlp"))]
                     + [f"{_err(e[m]['via_robot'])}, {_f(100 * e[m]['within_1mm_fraction'], 0)} % "
-                       f"({_err(e[m]['via_fk_model'])})" for m in ("lstm_mlp_paper", "lstm_mlp_refined")])
+                       f"({_err(e[m]['via_fk_model'])})" for m in IK_REPORT_ROWS])
     ikh = r["ik"]
     rows.append(["held-out sequences", "–"]
                 + [f"{_f(ikh[m]['tip_error_mm'])} mm, {_f(100 * ikh[m]['within_1mm_fraction'], 0)} %, "
                    f"α median {_f(ikh[m]['joint_alpha_median_deg'], 1)}°, {ikh[m]['flagged_jumps']} "
-                   f"α jumps flagged" for m in ("lstm_mlp_paper", "lstm_mlp_refined")])
-    s.append(_table(["IK experiment", "paper", "LSTM-MLP (paper's network)", "refined on the snap-aware FK"],
-                    rows))
+                   f"α jumps flagged" for m in IK_REPORT_ROWS])
+    fs = ikh["follow_mlp"].get("from_robot_start")
+    if fs:
+        rows.append(["held-out, follow IK from the robot's start joints", "–", "", "",
+                     f"{_f(fs['tip_error_mm'])} mm, {_f(100 * fs['within_1mm_fraction'], 0)} %, α median "
+                     f"{_f(fs['joint_alpha_median_deg'], 1)}°"])
+    s.append(_table(["IK experiment", "paper", "LSTM-MLP (paper's network)", "refined on the snap-aware FK",
+                     "follow IK (recommended)"], rows))
+    s += ["", "The follow IK starts each sequence from the joints of the nearest training target unless "
+          "the robot's start joints are given (last row); its α can differ from the recorded α by the "
+          "mirror solution (±α0) that puts the tip at the same pose, so its tip error is the measure.", ""]
     sw = ex["sweeps"].get("snapping_levels")
     if sw:
         for m in ("lstm_mlp_paper", "lstm_mlp_branch"):

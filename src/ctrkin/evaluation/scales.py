@@ -23,7 +23,8 @@ class Budget:
 class ReproScale:
     """paper_levels / paper_outer_step_deg: the training protocol (None: the protocol's own);
     main: the LSTM-MLP FK and IK models (the paper's); branch: the snap-aware FK model
-    (lstm_mlp_branch, the recommended FK); compare: baselines and the Δα0 ablation; grid: the IB and
+    (lstm_mlp_branch, the recommended FK); follow: the follow IK (follow_mlp, the recommended IK,
+    ctrkin.models.follow); compare: baselines and the Δα0 ablation; grid: the IB and
     structure grids (Tables II, III); grid_sequences: how many training sequences the grid and
     comparison models see (None: all); ib_grid / structure_grid: what the grids cover."""
 
@@ -33,6 +34,7 @@ class ReproScale:
     paper_outer_step_deg: float | None
     main: Budget
     branch: Budget
+    follow: Budget
     compare: Budget
     grid: Budget
     grid_sequences: int | None
@@ -53,6 +55,7 @@ SCALES = {
         None,
         main=Budget(500, 20, 32),
         branch=Budget(300, 300, 256, 2e-3, "cosine"),
+        follow=Budget(80, 80, 512, 2e-3, "cosine"),
         compare=Budget(500, 20, 32),
         grid=Budget(500, 20, 32),
         grid_sequences=None,
@@ -62,7 +65,7 @@ SCALES = {
     # after the pose loss flattens)
     "quick": ReproScale(
         "quick", "quick", (4.0, 10.0, 15.0, 20.0), 20.0, main=Budget(150, 15, 64),
-        branch=Budget(80, 80, 256, 2e-3, "cosine"),
+        branch=Budget(80, 80, 256, 2e-3, "cosine"), follow=Budget(40, 40, 512, 2e-3, "cosine"),
         compare=Budget(40, 8, 128), grid=Budget(15, 5, 128), grid_sequences=None,
     ),
     # the CI test of the whole pipeline: every step and key, seconds of training
@@ -73,6 +76,7 @@ SCALES = {
         90.0,
         main=Budget(2, 2, 256),
         branch=Budget(2, 2, 256, 2e-3, "cosine"),
+        follow=Budget(2, 2, 512, 2e-3, "cosine"),
         compare=Budget(1, 1, 512),
         grid=Budget(1, 1, 512),
         grid_sequences=4,

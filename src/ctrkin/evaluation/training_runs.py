@@ -29,7 +29,7 @@ from ctrkin.util.progress import progress_bar
 BASELINES = ("mlp", "lstm", "cnn", "tcn", "resnet")
 ABLATION = "lstm_mlp_no_delta"
 FK_PAPER, FK_BRANCH = "fk_lstm_mlp", "fk_lstm_mlp_branch"
-IK_PAPER, IK_REFINED = "ik_lstm_mlp", "ik_lstm_mlp_refined"
+IK_PAPER, IK_REFINED, IK_FOLLOW = "ik_lstm_mlp", "ik_lstm_mlp_refined", "ik_follow_mlp"
 
 
 @dataclass(frozen=True)
@@ -57,6 +57,7 @@ def plan_runs(scale: ReproScale) -> list[Run]:
         Run("fk_lstm_mlp", "main", cfg(scale.main, task="fk")),
         Run("ik_lstm_mlp", "main", cfg(scale.main, task="ik")),
         Run(FK_BRANCH, "main", cfg(scale.branch, task="fk", model="lstm_mlp_branch")),
+        Run(IK_FOLLOW, "main", cfg(scale.follow, task="ik", model="follow_mlp")),
     ]
     runs += [Run(f"fk_{m}", "compare", cfg(scale.compare, task="fk", model=m)) for m in BASELINES]
     runs += [Run(f"fk_{ABLATION}", "compare", cfg(scale.compare, task="fk", model=ABLATION))]

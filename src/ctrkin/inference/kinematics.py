@@ -30,6 +30,7 @@ from ctrkin.data.schema import sequence_bounds
 from ctrkin.errors import ModelError
 from ctrkin.inference.batch import padded_rows, seqnet_predict, seqnet_trunk
 from ctrkin.inference.engine import StreamingEngine
+from ctrkin.inference.follow import Follower
 from ctrkin.inference.guards import FKGuard, check_pose_step, real_array
 from ctrkin.inference.refine import FKResidual, RefineSettings, refine
 from ctrkin.inference.workspace import WORKSPACE_FILE, Workspace
@@ -130,6 +131,8 @@ class Kinematics:
         # FK input checks and whole-turn α shifts, the same in predict and step (inference.guards)
         self._guard = FKGuard(self.robot, self.layout, bundle.x_norm) if self.layout.task == "fk" else None
         self._shift: np.ndarray | None = None
+        # the follow IK (ctrkin.models.follow) carries the robot's joints from step to step
+        self._follower = Follower(bundle, workspace) if self.layout.follow else None
 
     # --- loading ---------------------------------------------------------------------------------
     @classmethod
@@ -222,7 +225,8 @@ class Kinematics:
         return np.concatenate(outs) if outs else np.zeros((0, self.layout.n_outputs), np.float32)
 
     def predict(self, data: Dataset | np.ndarray, sequence_id: np.ndarray | None = None,
-                strict: bool = False, branch_states: np.ndarray | None = None) -> Any:
+                strict: bool = False, branch_states: np.ndarray | None = None,
+                start_joints: np.ndarray | None = None) -> Any:
         """Predict every step of one or more sequences.
 
         data: a Dataset (its robot must be the model's), or an array (T, 2N) joints (FK) / (T, 6) tip
@@ -230,8 +234,14 @@ class Kinematics:
         IKResult for IK (with strict=True, targets outside the trained workspace raise ModelError).
         branch_states: (T,) {0, 1}, a branch model only: use these states (e.g. from the continued
         TCM, ctrkin.models.branch_labels) instead of the learned gate's.
+        start_joints: (S, 2N) or (2N,), a follow IK only: the robot's joints at the start of each of
+        the S sequences (default: those of the nearest training target).
         """
         raw, bounds = self._raw_from(data, sequence_id)
+        if start_joints is not None and self._follower is None:
+            raise ModelError("start_joints applies to a follow IK model (follow_mlp) only")
+        if self._follower is not None:
+            return self._predict_follow(raw, bounds, strict, start_joints)
         if self.task == "ik" and self.refiner is not None:
             return self._predict_refined(raw, bounds, strict)
         feats = (self._clip_deltas(sequence_features(self.layout, raw, bounds)) - self._xlo) / self._xspan
@@ -284,6 +294,31 @@ class Kinematics:
         self.reset()
         return IKResult(joints, ok, dist, reasons, projected, resid, jump)
 
+    def _predict_follow(self, raw: np.ndarray, bounds: list[tuple[int, int]], strict: bool,
+                        start_joints: np.ndarray | None) -> IKResult:
+        """A follow IK runs each sequence step by step from its start joints."""
+        assert self._follower is not None
+        ok, dist, reasons = self._workspace_check(raw, strict)
+        n2 = 2 * self.layout.n_tubes
+        starts: list[np.ndarray | None] = [None] * len(bounds)
+        if start_joints is not None:
+            arr = np.asarray(start_joints, dtype=np.float64)
+            arr = np.broadcast_to(arr, (len(bounds), n2)) if arr.shape == (n2,) else arr
+            if arr.shape != (len(bounds), n2):
+                raise ModelError(f"start_joints must have shape ({n2},) or ({len(bounds)}, {n2}) (one row "
+                                 f"per sequence), got {np.asarray(start_joints).shape}")
+            starts = list(arr)
+        joints, projected = np.empty((len(raw), n2)), np.zeros(len(raw), bool)
+        try:
+            for (a, b), start in zip(bounds, starts, strict=True):
+                self._follower.reset(start)
+                for t in range(a, b):
+                    joints[t], projected[t] = self._follower.step(raw[t])
+        finally:
+            self._follower.reset()
+        return IKResult(joints, ok, dist, reasons, projected, np.full(len(raw), np.nan),
+                        _jumps(raw, joints, bounds, self.layout.n_tubes))
+
     def _clip_deltas(self, feats: np.ndarray) -> np.ndarray:
         """Step-change features clipped to their training range (the model knows only the step sizes
         it was trained on; a coarser path keeps its direction)."""
@@ -331,8 +366,13 @@ class Kinematics:
         return y, states
 
     # --- streaming -------------------------------------------------------------------------------
-    def reset(self) -> None:
-        """Start a new sequence: the next step() is its first."""
+    def reset(self, joints: np.ndarray | None = None) -> None:
+        """Start a new sequence: the next step() is its first. joints: a follow IK only, the robot's
+        joints (2N,) at the start (default: those of the nearest training target)."""
+        if joints is not None and self._follower is None:
+            raise ModelError("reset(joints) applies to a follow IK model (follow_mlp) only")
+        if self._follower is not None:
+            self._follower.reset(joints)
         self._prev = None
         self._ik_prev = None
         self._shift = None
@@ -354,6 +394,9 @@ class Kinematics:
             raw, self._shift = self._guard.step(raw, self._shift if self._prev is not None else None)
         else:
             check_pose_step(raw)
+        if self._follower is not None:
+            q, projected = self._follower.step(raw)
+            return self._ik_step(raw, q, projected, check, strict)
         if self._fast_fk:
             n = self.layout.n_tubes
             a0 = raw[0] - raw[n - 1]
@@ -389,14 +432,18 @@ class Kinematics:
             if nq > 1e-12:
                 y[3:6] /= nq
             return y
+        q = self.robot.project_joints(y[None])[0]
+        return self._ik_step(raw, q, bool(np.any(np.abs(q - y) > 1e-9)), check, strict)
+
+    def _ik_step(self, raw: np.ndarray, q: np.ndarray, projected: bool, check: bool, strict: bool
+                 ) -> IKStep:
+        """The IK step's flags (workspace, jump), and the refinement of a refined model."""
         ok, reason = True, ""
         if check:
             assert self.workspace is not None
             ok, reason, self._ws_hint = self.workspace.check_one(raw, self._ws_hint)
             if strict and not ok:
                 raise ModelError(f"IK target outside the trained workspace: {reason}")
-        q = self.robot.project_joints(y[None])[0]
-        projected = bool(np.any(np.abs(q - y) > 1e-9))
         residual = math.nan
         if self.refiner is not None:
             q, residual = self._refine(raw, q)

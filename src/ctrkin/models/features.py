@@ -39,7 +39,9 @@ class FeatureLayout:
 
     task: "fk" (joints -> tip pose) or "ik" (tip poses -> joints); n_tubes: N; ib: input buffer length
     (current + IB−1 previous steps, 1..5 in the paper); delta: include Δα0 (FK) or the pose deltas (IK);
-    angle_encoding: "minmax" (paper), "sincos" or "phase" (FK inputs only; module docstring).
+    angle_encoding: "minmax" (paper), "sincos" or "phase" (FK inputs only; module docstring);
+    follow: IK only, the follow IK of ctrkin.models.follow (inputs: the target in the frame of the
+    current outer tube, its step change and the current joints; outputs: the joint change).
     """
 
     task: Task = "fk"
@@ -47,6 +49,7 @@ class FeatureLayout:
     ib: int = 2
     delta: bool = True
     angle_encoding: AngleEncoding = "minmax"
+    follow: bool = False
     input_names: tuple[str, ...] = field(init=False)
     output_names: tuple[str, ...] = field(init=False)
 
@@ -62,6 +65,8 @@ class FeatureLayout:
         if self.task == "ik" and self.angle_encoding != "minmax":
             raise ModelError(f"angle_encoding={self.angle_encoding!r} applies to FK inputs only; use "
                              "'minmax' for IK")
+        if self.follow and (self.task != "ik" or self.ib != 1):
+            raise ModelError("follow=True is an IK layout with input buffer 1 (ctrkin.models.follow)")
         n = self.n_tubes
         alphas = [f"alpha_{i + 1}" for i in range(n)]
         betas = [f"beta_{i + 1}" for i in range(n)]
@@ -76,6 +81,11 @@ class FeatureLayout:
             if self.delta:
                 ins.append("delta_alpha_0")
             outs = list(POSE_NAMES)
+        elif self.follow:
+            local = [f"{p}_local" for p in POSE_NAMES]
+            ins = local + [f"step_{p}" for p in local]
+            ins += [f"{f}_alpha_{i + 1}{n}" for i in range(n - 1) for f in ("sin", "cos")] + betas
+            outs = [f"step_{j}" for j in alphas + betas]
         else:
             ins = list(POSE_NAMES) + ([f"delta_{p}" for p in POSE_NAMES] if self.delta else [])
             outs = alphas + betas
@@ -97,14 +107,16 @@ class FeatureLayout:
 
     def to_dict(self) -> dict[str, object]:
         return {"task": self.task, "n_tubes": self.n_tubes, "ib": self.ib, "delta": self.delta,
-                "angle_encoding": self.angle_encoding, "input_names": list(self.input_names),
+                "angle_encoding": self.angle_encoding, "follow": self.follow,
+                "input_names": list(self.input_names),
                 "output_names": list(self.output_names)}
 
     @classmethod
     def from_dict(cls, d: dict) -> FeatureLayout:
         try:
             layout = cls(task=d["task"], n_tubes=int(d["n_tubes"]), ib=int(d["ib"]),
-                         delta=bool(d["delta"]), angle_encoding=d["angle_encoding"])
+                         delta=bool(d["delta"]), angle_encoding=d["angle_encoding"],
+                         follow=bool(d.get("follow", False)))
         except KeyError as e:
             raise ModelError(f"feature layout lacks {e}") from None
         if "input_names" in d and tuple(d["input_names"]) != layout.input_names:
@@ -115,7 +127,7 @@ class FeatureLayout:
     def describe_difference(self, other: FeatureLayout) -> list[str]:
         """Human-readable list of what differs between two layouts (empty if equal)."""
         diffs = []
-        for k in ("task", "n_tubes", "ib", "delta", "angle_encoding"):
+        for k in ("task", "n_tubes", "ib", "delta", "angle_encoding", "follow"):
             a, b = getattr(self, k), getattr(other, k)
             if a != b:
                 diffs.append(f"{k}: {a!r} vs {b!r}")
@@ -157,6 +169,8 @@ def delta_columns(layout: FeatureLayout) -> np.ndarray:
 
 
 def _features(layout: FeatureLayout, cur: np.ndarray, prev: np.ndarray) -> np.ndarray:
+    if layout.follow:
+        raise ModelError("a follow IK's features depend on the current joints: see ctrkin.models.follow")
     n = layout.n_tubes
     if layout.task == "ik":
         cols = [cur] + ([cur - prev] if layout.delta else [])

@@ -68,6 +68,12 @@ MODELS: dict[str, ModelEntry] = {e.name: e for e in [
                _branch, {"structure": "paper", "gate_units": 32},
                {"angle_encoding": "phase", "output_activation": "linear", "task": "fk",
                 "target_frame": "outer"}, stateful=True),
+    ModelEntry("follow_mlp", "follow IK: the joint change from the current joints to the next target, "
+               "target in the outer tube's frame, trained from perturbed joints (ctrkin.models.follow); "
+               "IK only, MLP Dense 256 x 3", _seq("|D256,D256,D256", "flatten"),
+               {"structure": "|D256,D256,D256"},
+               {"task": "ik", "ib": 1, "output_activation": "linear", "target_frame": "outer",
+                "follow": True, "delta": True}),
     ModelEntry("mlp", "baseline: MLP on the flattened buffer, Dense 128, 64 ReLU",
                _seq("|D128,D64", "flatten"), {"structure": "|D128,D64"}),
     ModelEntry("lstm", "baseline: LSTM(128), last step -> out", _seq("L128|", "last"),

@@ -33,7 +33,8 @@ class TrainConfig:
     frame (paper) or in the "outer" tube's frame (ctrkin.models.frame); lr_schedule: "constant"
     (paper) or "cosine" (decay to lr/50 over max_epochs); gate_weight, unknown_prob: branch models
     only (ctrkin.models.branch): weight of the gate's cross-entropy beside the MAE loss, and how
-    often the previous state is hidden.
+    often the previous state is hidden; follow: the follow IK (ctrkin.models.follow, model
+    'follow_mlp', trained by ctrkin.training.follow).
     """
 
     task: str = "fk"
@@ -58,6 +59,7 @@ class TrainConfig:
     lr_schedule: str = "constant"
     gate_weight: float = 0.1
     unknown_prob: float = 0.1
+    follow: bool = False
 
     def __post_init__(self) -> None:
         if self.task not in ("fk", "ik"):
@@ -82,8 +84,11 @@ class TrainConfig:
             raise ModelError(f"lr must be positive, got {self.lr}")
         if self.target_frame not in FRAMES:
             raise ModelError(f"target_frame must be one of {FRAMES}, got {self.target_frame!r}")
-        if self.target_frame != "tracker" and self.task != "fk":
-            raise ModelError("target_frame='outer' applies to FK models only")
+        if self.follow and (self.task != "ik" or self.target_frame != "outer" or self.ib != 1):
+            raise ModelError("follow=True is the follow IK (model 'follow_mlp'): task 'ik', IB 1, targets "
+                             "in the outer tube's frame")
+        if self.target_frame != "tracker" and self.task != "fk" and not self.follow:
+            raise ModelError("target_frame='outer' applies to FK models and the follow IK only")
         if self.lr_schedule not in LR_SCHEDULES:
             raise ModelError(f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
         if not (self.gate_weight >= 0 and 0 <= self.unknown_prob <= 1):
@@ -94,7 +99,8 @@ class TrainConfig:
 
     def layout(self, n_tubes: int) -> FeatureLayout:
         return FeatureLayout(task=self.task, n_tubes=n_tubes, ib=self.ib,  # type: ignore[arg-type]
-                             delta=self.delta, angle_encoding=self.angle_encoding)  # type: ignore[arg-type]
+                             delta=self.delta, angle_encoding=self.angle_encoding,  # type: ignore[arg-type]
+                             follow=self.follow)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

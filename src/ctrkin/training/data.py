@@ -72,13 +72,8 @@ def data_signature(ds: Dataset) -> str:
     return h.hexdigest()[:16]
 
 
-def prepare(ds: Dataset, cfg: TrainConfig, branches: bool = False) -> Prepared:
-    """Features, windows, split and normalisation of `ds` for `cfg`; branches: also the branch
-    labels of a snap-aware model (ctrkin.models.branch_labels, from the `snap` column)."""
-    layout = cfg.layout(ds.n_tubes)
-    raw_in, target = inputs_and_targets(ds, cfg.task, cfg.pose_source)
-    bounds = ds.sequence_bounds()
-    feats = sequence_features(layout, raw_in, bounds)
+def split_rows(ds: Dataset, cfg: TrainConfig) -> tuple[Split, dict[str, np.ndarray]]:
+    """The split of `cfg` and its usable rows per part (outliers dropped if cfg.drop_outliers)."""
     split = choose_split(ds, cfg)
     keep = np.ones(len(ds.frame), dtype=bool)
     if cfg.drop_outliers:
@@ -88,6 +83,17 @@ def prepare(ds: Dataset, cfg: TrainConfig, branches: bool = False) -> Prepared:
     if len(rows["train"]) == 0 or len(rows["val"]) == 0:
         raise ModelError(f"the split leaves {len(rows['train'])} training and {len(rows['val'])} validation "
                          f"rows; record more sequences (a by-sequence split needs at least 3)")
+    return split, rows
+
+
+def prepare(ds: Dataset, cfg: TrainConfig, branches: bool = False) -> Prepared:
+    """Features, windows, split and normalisation of `ds` for `cfg`; branches: also the branch
+    labels of a snap-aware model (ctrkin.models.branch_labels, from the `snap` column)."""
+    layout = cfg.layout(ds.n_tubes)
+    raw_in, target = inputs_and_targets(ds, cfg.task, cfg.pose_source)
+    bounds = ds.sequence_bounds()
+    feats = sequence_features(layout, raw_in, bounds)
+    split, rows = split_rows(ds, cfg)
     frame = None
     if cfg.target_frame == "outer":     # FK targets in the outer tube's frame (ctrkin.models.frame)
         n = ds.n_tubes

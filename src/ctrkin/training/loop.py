@@ -178,6 +178,9 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
     out = Path(out)
     with folder_lock(out, ModelError, "train"):
         recover(out)
+        if cfg.follow:                       # its own loop: features depend on perturbed joints
+            from ctrkin.training.follow import train_follow
+            return train_follow(ds, cfg, out, overwrite, progress, log)
         return _train_locked(ds, cfg, out, overwrite, progress, log)
 
 

@@ -1,0 +1,169 @@
+"""Training of the follow IK (ctrkin.models.follow): MAE on the joint change from perturbed current
+joints to the true next joints, a fresh perturbation every epoch, early stopping on a fixed
+perturbed validation draw. Writes the same model folder as ctrkin.training.loop (plus workspace.npz
+and the outer-tube frame); a finished folder of the same configuration and data is reused.
+
+Unlike the generic loop it keeps no per-epoch checkpoint: a killed run starts over (the quick
+budget trains in about a minute), and the previous model stays in place until the new one is swapped in.
+"""
+
+from __future__ import annotations
+
+import csv
+import shutil
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from tqdm.auto import tqdm
+
+from ctrkin.data.dataset import Dataset
+from ctrkin.errors import ModelError
+from ctrkin.inference.workspace import Workspace
+from ctrkin.models.follow import follow_features, joint_noise, previous_rows
+from ctrkin.models.frame import OuterFrame
+from ctrkin.models.normalize import MinMax
+from ctrkin.models.store import CONFIG, ModelBundle, read_json, write_json
+from ctrkin.training.config import TrainConfig
+from ctrkin.training.curves import plot_curves
+from ctrkin.training.data import data_signature, inputs_and_targets, split_rows
+from ctrkin.training.loop import TrainResult, _epoch, _learning_rate, _write_history, split_signature
+from ctrkin.training.metrics import joint_errors
+from ctrkin.util.folders import swap_in, write_manifest
+from ctrkin.util.progress import progress_bar
+
+SETTLE_ITERATIONS = 5        # net applications at a sequence start (from the nearest training joints)
+STEP_QUANTILE = 0.95         # sub-step length: this quantile of the training targets' step lengths
+
+
+def train_follow(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, progress: bool,
+                 log: Any) -> TrainResult:
+    """Train the follow IK `cfg` on `ds` into `out` (caller holds the folder lock)."""
+    say = log or (lambda _m: None)
+    torch.set_num_threads(cfg.threads)
+    n = ds.n_tubes
+    split, rows = split_rows(ds, cfg)
+    signature, split_sig = data_signature(ds), split_signature(rows)
+    reused = _reusable(out, cfg, signature, split_sig, overwrite)
+    if reused is not None:
+        say(f"{out} already holds this follow IK; reusing it")
+        return reused
+    poses, joints = inputs_and_targets(ds, "ik", cfg.pose_source)
+    bounds = ds.sequence_bounds()
+    prev = previous_rows(bounds)
+    tr, va = rows["train"], rows["val"]
+    frame = OuterFrame.fit(ds.robot, joints[tr], poses[tr], seed=cfg.seed)
+
+    def draw(r: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """Features and joint changes of rows r from perturbed current joints."""
+        current = joints[prev[r]] + joint_noise(rng, len(r), n)
+        return follow_features(frame, n, poses[r], poses[prev[r]], current), joints[r] - current
+
+    rng = np.random.default_rng(cfg.seed)
+    X, Y = draw(tr, rng)
+    x_norm, y_norm = MinMax.fit(X), MinMax.fit(Y)
+
+    def tensors(x: np.ndarray, y: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
+        return (torch.from_numpy(x_norm.transform(x)[:, None, :].astype(np.float32)),
+                torch.from_numpy(y_norm.transform(y).astype(np.float32)))
+
+    Xv, Yv = tensors(*draw(va, np.random.default_rng(cfg.seed + 1)))
+    steps = np.linalg.norm(poses[tr, :3] - poses[prev[tr], :3], axis=1)
+    moved = steps[steps > 0]
+    follow = {"max_step_mm": float(np.quantile(moved, STEP_QUANTILE)) if len(moved) else 1.0,
+              "settle_iterations": SETTLE_ITERATIONS}
+    torch.manual_seed(cfg.seed)
+    bundle = ModelBundle.create(cfg.to_dict(), cfg.layout(n), x_norm, y_norm, ds.robot,
+                                {"data": {"signature": signature, "split_signature": split_sig,
+                                          "samples": len(ds.frame), "source": str(ds.meta.get("path", "")),
+                                          "protocol": ds.meta.get("protocol")},
+                                 "follow": follow}, frame=frame)
+    net = bundle.net
+    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
+    gen = torch.Generator().manual_seed(cfg.seed)
+    history: list[dict[str, float]] = []
+    best = (float("inf"), 0, {k: v.clone() for k, v in net.state_dict().items()})
+    seconds = 0.0
+    bar = (progress_bar(total=cfg.max_epochs, desc=f"train ik {cfg.model}") if progress
+           else tqdm(disable=True))
+    with bar:
+        for epoch in range(cfg.max_epochs):
+            t0 = time.perf_counter()
+            if epoch:
+                X, Y = draw(tr, rng)
+            for group in opt.param_groups:
+                group["lr"] = _learning_rate(cfg, epoch)
+            train_loss = _epoch(net, opt, *tensors(X, Y), cfg.batch_size, gen)
+            net.eval()
+            with torch.inference_mode():
+                val_loss = float(torch.mean(torch.abs(net(Xv) - Yv)))
+            seconds += time.perf_counter() - t0
+            history.append({"epoch": epoch + 1, "train_loss": train_loss, "val_loss": val_loss,
+                            "seconds": seconds})
+            if val_loss < best[0] - cfg.min_delta:
+                best = (val_loss, epoch + 1, {k: v.detach().clone() for k, v in net.state_dict().items()})
+            bar.update(1)
+            bar.set_postfix(train=f"{train_loss:.4g}", val=f"{val_loss:.4g}", best=best[1])
+            if epoch + 1 - best[1] >= cfg.patience:
+                break
+    net.load_state_dict(best[2])
+    net.eval()
+
+    build = out.with_name(f".{out.name}.build")
+    if build.exists():
+        shutil.rmtree(build)
+    build.mkdir(parents=True)
+    bundle.save(build)
+    split.save(build / "split.json")
+    workspace = Workspace.fit(poses[tr], poses[va], MinMax.fit(poses[tr]), train_joints=joints[tr])
+    workspace.save(build)
+    metrics = _evaluate(bundle, workspace, ds, rows, poses, joints)
+    metrics["training"] = {"epochs": len(history), "best_epoch": best[1], "best_val_loss": best[0],
+                           "seconds": seconds, "early_stopped": len(history) < cfg.max_epochs,
+                           "threads": cfg.threads, "parameters": sum(p.numel() for p in net.parameters())}
+    write_json(build / "metrics.json", metrics)
+    _write_history(build / "history.csv", history)
+    plot_curves(history, build / "curves.png", f"IK {cfg.model}: training and validation loss")
+    write_manifest(build)
+    swap_in(build, out, ModelError)
+    return TrainResult(out, metrics, history)
+
+
+def _evaluate(bundle: ModelBundle, workspace: Workspace, ds: Dataset, rows: dict[str, np.ndarray],
+              poses: np.ndarray, joints: np.ndarray) -> dict[str, Any]:
+    """Joint errors of following the validation and test sequences from the nearest training joints."""
+    from ctrkin.inference.kinematics import Kinematics
+
+    kin = Kinematics(bundle, workspace)
+    sid = ds.frame["sequence_id"].to_numpy()
+    res: dict[str, Any] = {}
+    for part in ("val", "test"):
+        r = rows[part]
+        if len(r):
+            pred = kin.predict(poses[r], sequence_id=sid[r]).joints
+            res[part] = {"rows": len(r), "joints": joint_errors(pred, joints[r], ds.n_tubes)}
+    return res
+
+
+def _reusable(out: Path, cfg: TrainConfig, signature: str, split_sig: str, overwrite: bool
+              ) -> TrainResult | None:
+    """The finished model in `out` if it was trained with `cfg` on this data and split; None if there
+    is none (or overwrite); ModelError if `out` holds another model."""
+    if overwrite or not (out / CONFIG).is_file():
+        return None
+    saved = read_json(out / CONFIG)
+    old = TrainConfig.from_dict(saved["train"])
+    diffs = old.differences(cfg, ignore=("threads",))
+    data = saved.get("data", {})
+    if data.get("signature") != signature:
+        diffs.append("the dataset differs")
+    if data.get("split_signature") != split_sig:
+        diffs.append("the train/val/test split differs")
+    if diffs:
+        raise ModelError(f"{out} holds a model with a different setup ({'; '.join(diffs)}); pass "
+                         f"overwrite (--overwrite) or choose another --out")
+    with open(out / "history.csv", newline="") as f:
+        history = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+    return TrainResult(out, read_json(out / "metrics.json"), history)

@@ -1,0 +1,85 @@
+"""The follow IK (ctrkin.models.follow): it reaches targets the direct IK misses, batch equals
+streaming, start joints are honoured and checked, joints stay within limits or are flagged."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ctrkin.errors import JointError, ModelError
+from ctrkin.inference import Kinematics
+from ctrkin.mechanics import follow
+from ctrkin.robots import paper_robot
+from ctrkin.training import TrainConfig, train
+
+
+@pytest.fixture(scope="module")
+def follow_dir(sweeps, tmp_path_factory):
+    out = tmp_path_factory.mktemp("follow") / "ik_follow"
+    cfg = TrainConfig(task="ik", model="follow_mlp", max_epochs=25, patience=25, batch_size=128, lr=2e-3,
+                      lr_schedule="cosine", threads=1, options={"structure": "|D64,D64"})
+    train(sweeps, cfg, out, progress=False)
+    return out
+
+
+def _reached(joints: np.ndarray) -> np.ndarray:
+    """Tip positions (T, 3) the robot reaches along joints (continued from the first row)."""
+    return follow(paper_robot(), paper_robot().project_joints(joints)).tip_poses[:, :3]
+
+
+def test_follow_ik_reaches_targets_the_direct_ik_misses(follow_dir, model_dirs, sweeps):
+    seq = sweeps.sequence_bounds()[1]
+    targets = sweeps.poses(true=True)[seq[0]:seq[1]]
+    direct = Kinematics.load(model_dirs["ik"]).predict(targets)
+    res = Kinematics.load(follow_dir).predict(targets)
+    e_direct = np.linalg.norm(_reached(direct.joints) - targets[:, :3], axis=1)
+    e_follow = np.linalg.norm(_reached(res.joints) - targets[:, :3], axis=1)
+    print(f"reached tip error: direct {e_direct.mean():.2f} mm, follow {e_follow.mean():.2f} mm")
+    assert e_follow.mean() < 0.5 * e_direct.mean()
+    assert np.isnan(res.residual_mm).all() and not res.jump.any()
+
+
+def test_follow_ik_batch_equals_streaming_and_uses_start_joints(follow_dir, sweeps):
+    a, b = sweeps.sequence_bounds()[2]
+    targets, joints = sweeps.poses(true=True)[a:b], sweeps.joints()[a:b]
+    kin = Kinematics.load(follow_dir)
+    batch = kin.predict(targets, start_joints=joints[0]).joints
+    kin.reset(joints[0])
+    stream = np.array([kin.step(t).joints for t in targets])
+    np.testing.assert_allclose(stream, batch, atol=1e-9)
+    # from the robot's joints the first answer stays near them (the target is where the robot is)
+    assert np.abs(batch[0] - joints[0]).max() < 5.0
+
+
+def test_follow_ik_refuses_bad_start_joints_and_other_models(follow_dir, model_dirs, sweeps):
+    kin = Kinematics.load(follow_dir)
+    targets = sweeps.poses(true=True)[:5]
+    with pytest.raises(ModelError, match="start_joints must have shape"):
+        kin.predict(targets, start_joints=np.zeros((2, 4)))
+    with pytest.raises(JointError):
+        kin.reset(np.array([0.0, 0.0, 5.0, 0.0]))          # β1 > 0: not a configuration
+    with pytest.raises(ModelError, match="follow IK"):
+        Kinematics.load(model_dirs["ik"]).predict(targets, start_joints=np.zeros(4))
+
+
+def test_follow_ik_joints_within_limits_or_flagged(follow_dir, sweeps):
+    robot = paper_robot()
+    targets = sweeps.poses(true=True)
+    targets = targets + np.r_[0.0, 0.0, 4.0, 0.0, 0.0, 0.0]      # pushed beyond the deepest insertion
+    res = Kinematics.load(follow_dir).predict(targets, sequence_id=sweeps.frame["sequence_id"].to_numpy())
+    np.testing.assert_allclose(robot.project_joints(res.joints), res.joints, atol=1e-9)
+    assert res.projected.any() and not res.in_workspace.all()
+
+
+def test_far_targets_are_followed_through_substeps(follow_dir, sweeps):
+    """Every 10th target of a path: the follower interpolates the gaps and ends about as close to
+    those targets as when it is given the whole path."""
+    a, b = sweeps.sequence_bounds()[1]
+    targets = sweeps.poses(true=True)[a:b]
+    kin = Kinematics.load(follow_dir)
+    fine = kin.predict(targets).joints[::10]
+    coarse = kin.predict(targets[::10]).joints
+    e_fine = np.linalg.norm(_reached(fine) - targets[::10, :3], axis=1)
+    e_coarse = np.linalg.norm(_reached(coarse) - targets[::10, :3], axis=1)
+    print(f"mean reached error: whole path {e_fine.mean():.2f} mm, every 10th {e_coarse.mean():.2f} mm")
+    assert e_coarse.mean() < 1.5 * e_fine.mean() + 0.2
