@@ -36,6 +36,12 @@ from ctrkin.util.progress import progress_bar
 
 SETTLE_ITERATIONS = 5        # net applications at a sequence start (from the nearest training joints)
 STEP_QUANTILE = 0.95         # sub-step length: this quantile of the training targets' step lengths
+# rollouts (DAgger-like): at these fractions of the epochs the network follows the training sequences
+# and from then on part of each epoch starts from the joints it reached, where it stayed near the
+# recorded branch: training then covers the states its own errors lead to
+ROLLOUT_AT = (0.5, 0.75)
+ONPOLICY_FRACTION = 0.5
+ONPOLICY_DEG, ONPOLICY_MM = 20.0, 2.0
 
 
 def train_follow(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, progress: bool,
@@ -56,9 +62,16 @@ def train_follow(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, prog
     tr, va = rows["train"], rows["val"]
     frame = OuterFrame.fit(ds.robot, joints[tr], poses[tr], seed=cfg.seed)
 
+    visited: np.ndarray | None = None     # (T, 2N) the follower's own joints before each row (rollouts)
+
     def draw(r: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        """Features and joint changes of rows r from perturbed current joints."""
+        """Features and joint changes of rows r from perturbed current joints, half of them (after a
+        rollout, where it stayed on the recorded branch) from the joints the follower itself reached."""
         current = joints[prev[r]] + joint_noise(rng, len(r), n)
+        if visited is not None:
+            own = visited[prev[r]]
+            near = _on_branch(own, joints[prev[r]], n) & (rng.random(len(r)) < ONPOLICY_FRACTION)
+            current[near] = own[near]
         return follow_features(frame, n, poses[r], poses[prev[r]], current), joints[r] - current
 
     rng = np.random.default_rng(cfg.seed)
@@ -89,8 +102,12 @@ def train_follow(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, prog
     bar = (progress_bar(total=cfg.max_epochs, desc=f"train ik {cfg.model}") if progress
            else tqdm(disable=True))
     with bar:
+        rollouts = {int(cfg.max_epochs * f) for f in ROLLOUT_AT} - {0}
         for epoch in range(cfg.max_epochs):
             t0 = time.perf_counter()
+            if epoch in rollouts:
+                net.eval()
+                visited = _rollout(bundle, poses, joints, bounds, tr)
             if epoch:
                 X, Y = draw(tr, rng)
             for group in opt.param_groups:
@@ -129,6 +146,32 @@ def train_follow(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, prog
     write_manifest(build)
     swap_in(build, out, ModelError)
     return TrainResult(out, metrics, history)
+
+
+def _on_branch(q: np.ndarray, ref: np.ndarray, n: int) -> np.ndarray:
+    """(M,) rows whose joints q are within ONPOLICY_DEG / ONPOLICY_MM of ref (the recorded branch:
+    the recorded next joints are then the right label; on a mirror solution they are not)."""
+    da = np.abs((q[:, :n] - ref[:, :n] + 180.0) % 360.0 - 180.0).max(axis=1)
+    return (da < ONPOLICY_DEG) & (np.abs(q[:, n:] - ref[:, n:]).max(axis=1) < ONPOLICY_MM)
+
+
+def _rollout(bundle: ModelBundle, poses: np.ndarray, joints: np.ndarray, bounds: list[tuple[int, int]],
+             train_rows: np.ndarray) -> np.ndarray:
+    """(T, 2N) the joints the current network reaches at every row of the training sequences,
+    following their recorded targets from their recorded start joints (NaN elsewhere)."""
+    from ctrkin.inference.follow import Follower
+
+    follower = Follower(bundle, None)
+    out = np.full(joints.shape, np.nan)
+    used = np.zeros(len(joints), bool)
+    used[train_rows] = True
+    for a, b in bounds:
+        if not used[a:b].any():
+            continue
+        follower.reset(joints[a])
+        for t in range(a, b):
+            out[t], _ = follower.step(poses[t])
+    return out
 
 
 def _evaluate(bundle: ModelBundle, workspace: Workspace, ds: Dataset, rows: dict[str, np.ndarray],
