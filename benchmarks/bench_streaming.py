@@ -1,5 +1,6 @@
 """Streaming step latency of a reproduction's learned models (issue 8, goal 4): the paper's LSTM-MLP
-FK and IK, the snap-aware FK (lstm_mlp_branch) and the IK refined on it (ik_lstm_mlp_refined).
+FK and IK, the snap-aware FK (lstm_mlp_branch), the IK refined on it (ik_lstm_mlp_refined) and the
+follow IK (ik_follow_mlp, the recommended IK; a step includes its sub-steps and the workspace check).
 
     python benchmarks/bench_streaming.py --run out/reproduce      # after `ctrkin reproduce`
 
@@ -22,7 +23,7 @@ from ctrkin.data.dataset import Dataset
 from ctrkin.inference import Kinematics
 
 MODELS = {"fk_paper": "fk_lstm_mlp", "fk_branch": "fk_lstm_mlp_branch", "ik_paper": "ik_lstm_mlp",
-          "ik_refined": "ik_lstm_mlp_refined"}
+          "ik_refined": "ik_lstm_mlp_refined", "ik_follow": "ik_follow_mlp"}
 
 
 def _latency_us(kin: Kinematics, xs: np.ndarray, warmup: int = 200) -> np.ndarray:

@@ -86,3 +86,11 @@ def test_far_targets_are_followed_through_substeps(follow_dir, sweeps):
     e_coarse = np.linalg.norm(_reached(coarse) - targets[::10, :3], axis=1)
     print(f"mean reached error: whole path {e_fine.mean():.2f} mm, every 10th {e_coarse.mean():.2f} mm")
     assert e_coarse.mean() < 1.5 * e_fine.mean() + 0.2
+
+
+def test_follow_ik_refuses_onnx_export(follow_dir, tmp_path):
+    from ctrkin.inference.onnx_export import export_onnx
+
+    with pytest.raises(ModelError, match="cannot be exported"):
+        export_onnx(Kinematics.load(follow_dir), tmp_path / "follow.onnx")
+    assert not (tmp_path / "follow.onnx").exists()

@@ -89,6 +89,9 @@ def export_onnx(kin: Kinematics, path: str | Path, opset: int = 17) -> Path:
     """Write `kin` as an ONNX file (dynamic batch size); returns the path."""
     import onnx
 
+    if kin.layout.follow:
+        raise ModelError("a follow IK (follow_mlp) cannot be exported: its state (the robot's joints) "
+                         "and sub-steps loop outside the network; use Kinematics.step")
     wrapper = ExportWrapper(kin).eval()
     example: tuple[torch.Tensor, ...] = (torch.zeros(2, kin.ib, kin.layout.n_inputs),)
     names, outputs = ["window"], ["output"]
