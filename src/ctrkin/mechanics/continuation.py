@@ -19,6 +19,7 @@ import numpy as np
 from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
 from ctrkin.mechanics.pointwise import (
+    _NO_BODY,
     Equilibrium,
     _finish,
     _newton,
@@ -99,7 +100,7 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
         if work[0] > settings.max_search_steps:
             # continuation too costly (an extreme robot): give up this step, reported not converged
             pb = _prepare(robot, q_to, settings, checked=True, arr=arr)
-            last = (pb, (x, False, 0, math.inf, det, math.nan))
+            last = (pb, (x, False, 0, math.inf, det, math.nan, _NO_BODY))
             break
         if velocity is not None:  # retry from the plain warm start before sub-stepping
             velocity = None

@@ -109,11 +109,16 @@ class _Problem:
     alpha: np.ndarray  # rad
     beta: np.ndarray   # mm, for the kernels' transmission: βi − extra transmission length
     tips: np.ndarray
-    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
     @property
     def length(self) -> float:
         return float(max(self.tips.max(), 1e-9))
+
+    @property
+    def n_rk4(self) -> int:
+        """RK4 steps of one integration pass."""
+        return int(self.grid[3].sum())
 
 
 def _prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: bool = False,
@@ -128,7 +133,7 @@ def _prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: boo
     beta = qa[n:].copy()
     grid = kernels.build_grid(beta, arr.lengths, arr.sec_len, arr.sec_kap, arr.n_sec,
                               rk4_step(arr, settings))
-    n_rk4 = int(grid[3].sum())
+    n_rk4 = int(grid[4].sum())  # the steps the stretches would take if none were straight
     if n_rk4 > settings.max_rk4_steps:
         raise ConvergenceError(
             f"the TCM grid at q = {qa.tolist()} needs {n_rk4} RK4 steps (> SolverSettings."
@@ -147,28 +152,33 @@ def rk4_step(arr: RobotArrays, settings: SolverSettings) -> float:
     return settings.step
 
 
+# a Newton result: (x (N,) rad/mm, converged, iterations, |r|∞, det J, min det H,
+# body (7,) = tip (3,) mm, unit tangent (3,), energy N·mm from the final pass, NaN if not converged)
+Solution = tuple[np.ndarray, bool, int, float, float, float, np.ndarray]
+_NO_BODY = np.full(7, np.nan)
+_NO_BODY.setflags(write=False)
+
+
 def _newton(pb: _Problem, x0: np.ndarray, settings: SolverSettings, work: list[int] | None = None
-            ) -> tuple[np.ndarray, bool, int, float, float, float]:
+            ) -> Solution:
     """Damped Newton from x0 (kernels.newton); work, if given, gets the RK4 steps spent added to
     work[0]."""
     a = pb.arrays
     x = np.empty_like(x0)
     x0 = np.asarray(x0, float)
     if not np.isfinite(x0).all():
-        return x0.copy(), False, 0, math.inf, math.nan, math.nan
+        return x0.copy(), False, 0, math.inf, math.nan, math.nan, _NO_BODY
+    body = np.empty(7)
     try:
         conv, it, rn, det_j, det_h, shoots = kernels.newton(
             x0, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,
-            settings.tol, settings.max_iter, settings.max_step, x)
+            settings.tol, settings.max_iter, settings.max_step, x, body)
     except (np.linalg.LinAlgError, ZeroDivisionError, OverflowError, FloatingPointError):
-        return x0.copy(), False, 0, math.inf, math.nan, math.nan  # numerics broke down: no root
+        return x0.copy(), False, 0, math.inf, math.nan, math.nan, _NO_BODY  # numerics broke down
     if work is not None:
-        work[0] += int(shoots) * int(pb.grid[3].sum())
+        work[0] += int(shoots) * pb.n_rk4
     conv = bool(conv) and math.isfinite(rn) and rn < settings.tol and bool(np.isfinite(x).all())
-    return x, conv, int(it), float(rn), float(det_j), float(det_h)
-
-
-_NO_RECORD = (np.empty(1), np.empty((1, 3)), np.empty((1, 1)), np.empty((1, 1)))
+    return x, conv, int(it), float(rn), float(det_j), float(det_h), body if conv else _NO_BODY
 
 
 def _integrate(pb: _Problem, x: np.ndarray, record: bool
@@ -178,13 +188,14 @@ def _integrate(pb: _Problem, x: np.ndarray, record: bool
     a = pb.arrays
     n = x.shape[0]
     if record:
-        nrec = 1 + int(pb.grid[3].sum())
+        nrec = 1 + pb.n_rk4
         recs = (np.empty(nrec), np.empty((nrec, 3)), np.empty((nrec, n)), np.empty((nrec, n)))
     else:
-        recs = _NO_RECORD
-    tip, tan, energy = kernels.integrate_full(x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj,
-                                              *pb.grid, record, *recs)
-    return tip, tan, float(energy), recs
+        recs = (np.empty(1), np.empty((1, 3)), np.empty((1, n)), np.empty((1, n)))
+    body = np.empty(7)
+    kernels.integrate_full(x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid, record,
+                           *recs, body)
+    return body[:3], body[3:6], float(body[6]), recs
 
 
 def sane(pb: _Problem, tip: np.ndarray, tan: np.ndarray, energy: float) -> bool:
@@ -197,12 +208,15 @@ def sane(pb: _Problem, tip: np.ndarray, tan: np.ndarray, energy: float) -> bool:
                 and abs(np.linalg.norm(tan) - 1.0) < 1e-9)
 
 
-def _finish(pb: _Problem, sol: tuple[np.ndarray, bool, int, float, float, float]) -> Equilibrium:
-    x, conv, it, rn, det_j, det_h = sol
-    try:
-        tip, tan, energy, _ = _integrate(pb, x, record=False)
-    except (ZeroDivisionError, OverflowError, FloatingPointError):
-        tip, tan, energy = np.full(3, np.nan), np.full(3, np.nan), math.nan
+def _finish(pb: _Problem, sol: Solution) -> Equilibrium:
+    x, conv, it, rn, det_j, det_h, body = sol
+    if conv:  # the final Newton pass integrated the backbone and energy
+        tip, tan, energy = body[:3].copy(), body[3:6].copy(), float(body[6])
+    else:
+        try:
+            tip, tan, energy, _ = _integrate(pb, x, record=False)
+        except (ZeroDivisionError, OverflowError, FloatingPointError):
+            tip, tan, energy = np.full(3, np.nan), np.full(3, np.nan), math.nan
     conv = conv and sane(pb, tip, tan, energy)
     if not conv:
         tip = np.full(3, np.nan)
@@ -232,11 +246,11 @@ def _twisted_guesses(pb: _Problem, around: np.ndarray) -> list[np.ndarray]:
 
 
 def _search(pb: _Problem, guesses: list[np.ndarray], settings: SolverSettings,
-            work: list[int] | None = None) -> list[tuple[np.ndarray, bool, int, float, float, float]]:
+            work: list[int] | None = None) -> list[Solution]:
     """Distinct converged solutions from several guesses, tried in order until the RK4 steps spent
     exceed SolverSettings.max_search_steps (a bound on the time of a multi-start search); work: a
     counter shared with the caller (work[0], RK4 steps spent so far)."""
-    found: list[tuple[np.ndarray, bool, int, float, float, float]] = []
+    found: list[Solution] = []
     work = [0] if work is None else work
     for g in guesses:
         if work[0] > settings.max_search_steps:
@@ -249,7 +263,7 @@ def _search(pb: _Problem, guesses: list[np.ndarray], settings: SolverSettings,
     return found
 
 
-def _stable(sol: tuple[np.ndarray, bool, int, float, float, float]) -> bool:
+def _stable(sol: Solution) -> bool:
     return sol[1] and sol[4] > 0 and sol[5] > 0
 
 
@@ -283,7 +297,7 @@ def _solve_prepared(pb: _Problem, guess: Equilibrium | np.ndarray | None,
 
 
 def cold_solution(pb: _Problem, settings: SolverSettings, work: list[int] | None = None
-                  ) -> tuple[np.ndarray, bool, int, float, float, float]:
+                  ) -> Solution:
     """Newton from untwisted tubes; if that is not stable, the stable solution of least energy
     among twisted starts (else the least-energy converged one, else the first attempt)."""
     n = pb.alpha.shape[0]
@@ -295,11 +309,7 @@ def cold_solution(pb: _Problem, settings: SolverSettings, work: list[int] | None
     pool = [c for c in cands if _stable(c)] or cands
     if not pool:
         return first
-    return min(pool, key=lambda c: _energy(pb, c[0]))
-
-
-def _energy(pb: _Problem, x: np.ndarray) -> float:
-    return _integrate(pb, x, record=False)[2]
+    return min(pool, key=lambda c: float(c[6][6]))  # the energy of the final Newton pass
 
 
 def solve_many(robot: Robot, Q: np.ndarray, settings: SolverSettings = DEFAULT_SETTINGS
