@@ -7,8 +7,9 @@ three-tube robot of the public C++ TCM of TIMClab-CAMI (issue 11, `ctrkin.robots
 Prints, per robot: cold solve from the default guess (paper: median ≤ 1 ms goal, the paper's TCM took
 1.47 s a point; TIMClab: ≤ 100 µs), warm continuation step inside `follow` and the public warm path
 `solve(q, guess=previous)` along 1° sweeps (paper ≤ 35 µs, TIMClab ≤ 60 µs), and the tip-position
-deviation from a tight-tolerance reference integration (scipy DOP853, rtol 1e-12; goal ≤ the solver's
-tolerance, SolverSettings.tip_tol). Runs on one core. Ends with one JSON line of the headline figures
+deviation from a tight-tolerance reference integration (scipy DOP853, rtol 1e-12; goal ≤ 1e-3 mm).
+The TIMClab robot is run again with the RK4 step taken from SolverSettings.tip_tol = 1e-3 mm alone
+(no 3 mm cap; keys timclab_tol_*). Runs on one core. Ends with one JSON line of the headline figures
 (medians in µs, errors in mm).
 """
 
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -28,6 +30,8 @@ import numpy as np
 
 from ctrkin import Robot, SolverSettings, follow, paper_robot, solve
 from ctrkin.acquisition.trajectories import rotation_sweep
+from ctrkin.mechanics.arrays import robot_arrays
+from ctrkin.mechanics.pointwise import rk4_step
 from ctrkin.robots import timclab_robot
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
@@ -54,13 +58,14 @@ def timclab_configs(n: int, seed: int = 0) -> np.ndarray:
 
 
 def timclab_sweeps() -> list[np.ndarray]:
-    """Inner tube rotated 0 → 360 → 0° in 1° steps, the others at α = 0, at three insertions:
-    all curved parts flush (strongest coupling), and inner tubes extended by 50 and 100 mm."""
+    """Inner tube rotated 0 → 360 → 0° in 1° steps, the others at α = 0, outer tube at β = 0, with
+    every curved part overlapping: all tips flush (strongest coupling, snaps), and each inner tip
+    15 and 30 mm beyond the next one's."""
     lengths = timclab_robot().lengths
     out = []
-    for ext in (0.0, 50.0, 100.0):
-        b2 = -(lengths[1] - lengths[2]) + ext
-        b1 = b2 - (lengths[0] - lengths[1]) + ext
+    for ext in (0.0, 15.0, 30.0):
+        b2 = lengths[2] - lengths[1] + ext
+        b1 = b2 + lengths[1] - lengths[0] + ext
         q = rotation_sweep(2, 0.0)
         out.append(np.c_[q[:, 0], np.zeros((len(q), 2)), np.full(len(q), b1),
                          np.full(len(q), b2), np.zeros(len(q))])
@@ -156,12 +161,21 @@ def main() -> None:
     sweeps = timclab_sweeps()
     warm_up(robot, timclab_configs(1)[0], settings, lambda: sweeps[0][::30])
     cold = bench_cold(robot, timclab_configs(args.n), settings)
-    step, warm = bench_warm(robot, sweeps, ["flush", "+50 mm", "+100 mm"], settings)
+    step, warm = bench_warm(robot, sweeps, ["flush", "+15 mm", "+30 mm"], settings)
     err_t = bench_accuracy(robot, timclab_configs(args.n_ref, seed=1), settings)
     out |= {"timclab_robot_cold_us": np.median(cold) * 1e6,
             "timclab_robot_warm_us": np.median(step) * 1e6,
             "timclab_robot_warm_solve_us": np.median(warm) * 1e6,
             "timclab_max_tip_error_mm": err_t.max(), "max_tip_error_mm": max(err.max(), err_t.max())}
+
+    fast = SolverSettings(step=math.inf, tip_tol=1e-3)
+    print(f"TIMClab robot, step from tip_tol = 1e-3 mm alone ({rk4_step(robot_arrays(robot), fast):.1f} mm "
+          "where curved)")
+    cold = bench_cold(robot, timclab_configs(args.n), fast)
+    step, warm = bench_warm(robot, sweeps, ["flush", "+15 mm", "+30 mm"], fast)
+    err_f = bench_accuracy(robot, timclab_configs(args.n_ref, seed=1), fast)
+    out |= {"timclab_tol_cold_us": np.median(cold) * 1e6, "timclab_tol_warm_us": np.median(step) * 1e6,
+            "timclab_tol_warm_solve_us": np.median(warm) * 1e6, "timclab_tol_max_tip_error_mm": err_f.max()}
     print(json.dumps({k: float(f"{v:.4g}") for k, v in out.items()}))
 
 

@@ -328,6 +328,45 @@ def _work(n):
 
 
 @njit(cache=True)
+def _det_between(phi_a, phi_b, f, gj, p_int):
+    """det H at Φ = Φa + f (Φb − Φa) (Φ is affine in s on a straight stretch)."""
+    for u in range(phi_a.shape[0]):
+        for c in range(phi_a.shape[1]):
+            p_int[u, c] = phi_a[u, c] + f * (phi_b[u, c] - phi_a[u, c])
+    return _relative_det(p_int, gj)
+
+
+@njit(cache=True)
+def _straight_min_det(phi_a, phi_b, gj, m, p_int):
+    """Min of det H over the interior sample points f = j/m, 0 < j < m, of a straight stretch taken
+    in one step (the end point is checked by the caller). det H is a polynomial of degree N − 1 in
+    f: two tubes, linear (min at j = 1 or m); three, quadratic (also the points beside its vertex);
+    more, every point."""
+    n = gj.shape[0]
+    best = np.inf
+    if m < 2:
+        return best
+    if n == 2:
+        return _det_between(phi_a, phi_b, 1.0 / m, gj, p_int)
+    if n == 3:
+        d0 = _det_between(phi_a, phi_b, 0.0, gj, p_int)
+        dh = _det_between(phi_a, phi_b, 0.5, gj, p_int)
+        d1 = _det_between(phi_a, phi_b, 1.0, gj, p_int)
+        c2 = 2.0 * (d1 - 2.0 * dh + d0)  # d(f) = d0 + c1 f + c2 f²
+        c1 = d1 - d0 - c2
+        best = _det_between(phi_a, phi_b, 1.0 / m, gj, p_int)
+        if c2 > 0.0:
+            j0 = math.floor(-c1 / (2.0 * c2) * m)
+            for j in (j0, j0 + 1):
+                if 1 < j < m:
+                    best = min(best, _det_between(phi_a, phi_b, j / m, gj, p_int))
+        return best
+    for j in range(1, m):
+        best = min(best, _det_between(phi_a, phi_b, j / m, gj, p_int))
+    return best
+
+
+@njit(cache=True)
 def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample,
                with_var, with_body, y, phi, zb, w, r, jac,
                record, s_rec, p_rec, psi_rec, uz_rec):
@@ -366,7 +405,7 @@ def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
         a, b = bounds[seg], bounds[seg + 1]
         ns = nsteps[seg]
         h = (b - a) / ns
-        sampled = check and ns < nsample[seg] and n > 2
+        sampled = check and ns < nsample[seg]
         if sampled:
             phi_a[:, :] = phi
         for st in range(ns):
@@ -384,18 +423,10 @@ def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
                     on = present[seg, i] > 0.0
                     psi_rec[rec, i] = y[i] if on else np.nan
                     uz_rec[rec, i] = y[n + i] if on else np.nan
-        if sampled:  # interior points of a one-step straight stretch (two tubes: det H linear)
-            m = nsample[seg]
-            for j in range(1, m):
-                if a + j * (b - a) / m > min_tip + S_TOL:
-                    break
-                f = j / m
-                for u in range(2 * n):
-                    for c in range(n):
-                        p_int[u, c] = phi_a[u, c] + f * (phi[u, c] - phi_a[u, c])
-                d = _relative_det(p_int, gj)
-                if d < min_det:
-                    min_det = d
+        if sampled and b <= min_tip + S_TOL:
+            d = _straight_min_det(phi_a, phi, gj, nsample[seg], p_int)
+            if d < min_det:
+                min_det = d
         for i in range(n):
             if not done[i] and tips[i] <= b + S_TOL:
                 done[i] = True
@@ -448,10 +479,10 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, ns
     """Damped Newton on the shooting residual from x0 (rad/mm).
 
     Writes the root to x_out and, if converged, body_out (7,) = tip position (3,) mm, unit tip
-    tangent (3,), elastic energy (N·mm) (_tip). Returns (converged, iterations, |r|∞, det J,
-    min det H, passes) where J = ∂r/∂x at the root (Gilbert et al. 2016 stability measure), det H
-    the conjugate-point test (see shoot) and passes the number of integrations (the work,
-    backtracking included).
+    tangent (3,), elastic energy (N·mm) (_tip); converged includes the checks of `sane`.
+    Returns (converged, iterations, |r|∞, det J, min det H, passes) where J = ∂r/∂x at the root
+    (Gilbert et al. 2016 stability measure), det H the conjugate-point test (see shoot) and passes
+    the number of integrations (the work, backtracking included).
 
     The pass predicted to be the last (C |r|² < tol / PRED_SAFETY) integrates the backbone and
     energy instead of the variation; J and det H are then those of the previous iterate, |Δx| ≤
@@ -533,8 +564,23 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, ns
         shoots += 1
     if converged:
         _tip(zb, body_out)
+        converged = sane(body_out, tips)
     x_out[:] = x
     return converged, it, rn, _det(jac), mdet, shoots
+
+
+@njit(cache=True)
+def sane(body, tips):
+    """Checks a converged equilibrium must pass (body: _tip): a finite tip no farther from the base
+    than the longest tube reaches (a backbone is never longer than itself; 1e-6 relative slack for
+    round-off), a finite unit tip tangent (so a unit quaternion) and a finite energy."""
+    for v in body:
+        if not math.isfinite(v):
+            return False
+    s_end = max(tips.max(), 0.0)
+    tip = math.sqrt(body[0] * body[0] + body[1] * body[1] + body[2] * body[2])
+    # the tangent was normalised by _tip: |t| − 1 measures only NaN/overflow (finite check above)
+    return tip <= s_end * (1.0 + 1e-6) + 1e-9
 
 
 @njit(cache=True)
