@@ -82,7 +82,7 @@ def build_grid(beta, tube_len, sec_len, sec_kap, n_sec, h_max):
     return bounds, kap, present, nsteps, nsample
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _bending(psi, kap, pres, k, cs, sn):
     """(M1): backbone curvature (ux, uy) 1/mm and the bending stiffness sum of present tubes.
     Also writes cs, sn = cos ψi, sin ψi of present tubes (reused by the callers)."""
@@ -104,7 +104,7 @@ def _bending(psi, kap, pres, k, cs, sn):
     return ux, uy, ksum
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _deriv(y, phi, kap, pres, k, gj, dy, dphi, with_var, cs, sn):
     """(M2) and its variation dΦ = A(y) Φ; writes into dy (2N,) and dphi (2N, N); returns the
     backbone curvature (ux, uy) of (M1).
@@ -145,7 +145,7 @@ def _deriv(y, phi, kap, pres, k, gj, dy, dphi, with_var, cs, sn):
     return ux, uy
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _relative_det(phi, gj):
     """det H(s): relative angles ψi − ψN (i < N) as functions of the relative base twist rates
     yj = xj − xN under zero net torque Σ GJ x = 0 (x = D y). On a straight robot det H > 0 for
@@ -244,7 +244,7 @@ def _init_state(x, alpha, beta, rigid, k, gj, y, phi, zb):
             zb[12] += 0.5 * gj[i] * x[i] * x[i] * (-beta[i])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _body_deriv(zb, ux, uy, y, kap, pres, k, gj, cs, sn, dzb):
     """(M3) and the elastic energy density Σ ½ ki |u − Rz(ψi) ûi|² + ½ GJi uiz², at backbone
     curvature (ux, uy) and cs, sn = cos ψ, sin ψ (from _deriv at the same state y).
@@ -268,14 +268,14 @@ def _body_deriv(zb, ux, uy, y, kap, pres, k, gj, cs, sn, dzb):
     dzb[12] = e
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _stage(y, phi, zb, kp, pr, k, gj, with_var, with_body, dy, dphi, dzb, cs, sn):
     ux, uy = _deriv(y, phi, kp, pr, k, gj, dy, dphi, with_var, cs, sn)
     if with_body:
         _body_deriv(zb, ux, uy, y, kp, pr, k, gj, cs, sn, dzb)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _advance(y, phi, zb, f, dy, dphi, dzb, with_var, with_body, yt, pt, zt):
     """RK4 stage state: yt = y + f dy, pt = Φ + f dΦ (if with_var), zt = zb + f dzb (if with_body)."""
     for j in range(y.shape[0]):
@@ -289,7 +289,7 @@ def _advance(y, phi, zb, f, dy, dphi, dzb, with_var, with_body, yt, pt, zt):
             zt[j] = zb[j] + f * dzb[j]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _rk4_step(y, phi, zb, h, kp, pr, k, gj, with_var, with_body, w):
     """One classical RK4 step of (M2), of its variation (differentiated stage by stage, so the
     Jacobian is exact for the discrete map) if with_var, and of (M3) and the energy if with_body.
