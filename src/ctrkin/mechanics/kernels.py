@@ -82,6 +82,17 @@ def build_grid(beta, tube_len, sec_len, sec_kap, n_sec, h_max):
     return bounds, kap, present, nsteps, nsample
 
 
+@njit(cache=True)
+def prepare(q, tube_len, extra, sec_len, sec_kap, n_sec, h_max):
+    """Kernel inputs at joints q (2N,) (deg, mm): α (N,) rad, the transmission's twisting length
+    as β − extra (N,) mm (M4), tips β + L (N,) mm, and the grid of build_grid."""
+    n = tube_len.shape[0]
+    beta = q[n:].copy()
+    alpha = np.radians(q[:n])
+    grid = build_grid(beta, tube_len, sec_len, sec_kap, n_sec, h_max)
+    return alpha, beta - extra, beta + tube_len, grid
+
+
 @njit(cache=True, inline="always")
 def _bending(psi, kap, pres, k, cs, sn):
     """(M1): backbone curvature (ux, uy) 1/mm and the bending stiffness sum of present tubes.

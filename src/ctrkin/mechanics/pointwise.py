@@ -129,10 +129,9 @@ def _prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: boo
         raise ValueError("solve takes one configuration q (2N,); use solve_many for (T, 2N)")
     if arr is None:
         arr = robot_arrays(robot)
-    n = arr.k.shape[0]
-    beta = qa[n:].copy()
     h = rk4_step(arr, settings)
-    grid = kernels.build_grid(beta, arr.lengths, arr.sec_len, arr.sec_kap, arr.n_sec, h)
+    alpha, beta, tips, grid = kernels.prepare(qa, arr.lengths, arr.extra, arr.sec_len,
+                                              arr.sec_kap, arr.n_sec, h)
     n_rk4 = int(grid[4].sum())  # the steps the stretches would take if none were straight
     if n_rk4 > settings.max_rk4_steps:
         raise ConvergenceError(
@@ -141,9 +140,10 @@ def _prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: boo
             f"a step of {h:.3g} mm; check the robot's lengths (mm) and "
             "curvatures (1/mm) or raise max_rk4_steps")
     # the kernels read β only as the twisting length −β of the compliant transmission (M4)
-    return _Problem(arr, qa, np.radians(qa[:n]), beta - arr.extra, beta + arr.lengths, grid)
+    return _Problem(arr, qa, alpha, beta, tips, grid)
 
 
+@functools.lru_cache(maxsize=64)
 def rk4_step(arr: RobotArrays, settings: SolverSettings) -> float:
     """Largest RK4 step (mm) where a tube is curved: SolverSettings.step, or less where the robot
     bends or twists faster than SolverSettings.angle_step rad per step, or where the tip error
