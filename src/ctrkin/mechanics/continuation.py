@@ -171,9 +171,11 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     eqs.append(cur)
     if progress:
         progress(0)
+    dq = np.diff(Qa, axis=0)
+    same = np.r_[False, False, (dq[1:] == dq[:-1]).all(axis=1)]  # step t repeats step t − 1
     for t in range(1, n_steps):
         velocity = None
-        if t >= 2 and not snaps[t - 1] and np.array_equal(Qa[t] - Qa[t - 1], Qa[t - 1] - Qa[t - 2]):
+        if same[t] and not snaps[t - 1]:
             velocity = eqs[-1].x - eqs[-2].x  # secant predictor for equal joint increments
         cur, snaps[t] = _advance(robot, cur, Qa[t], settings, velocity)
         eqs.append(cur)
