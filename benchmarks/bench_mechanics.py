@@ -1,27 +1,38 @@
-"""Mechanics benchmark: TCM speed and accuracy on the paper robot (issue 2 goals).
+"""Mechanics benchmark: TCM speed and accuracy on the paper robot (issue 2 goals) and on the
+three-tube robot of the public C++ TCM of TIMClab-CAMI (issue 11, `ctrkin.robots.timclab_robot`).
 
     python benchmarks/bench_mechanics.py            # 1,000 cold solves, 2×721 warm steps, accuracy
     python benchmarks/bench_mechanics.py --n 200    # quicker
 
-Prints: cold solve from the default guess (median ≤ 1 ms goal; the paper's TCM took 1.47 s a point),
-warm continuation step (median ≤ 0.1 ms goal), and the tip-position deviation from a tight-tolerance
-reference integration (scipy DOP853, rtol 1e-12; ≤ 1e-3 mm goal). Runs on one core.
+Prints, per robot: cold solve from the default guess (paper: median ≤ 1 ms goal, the paper's TCM took
+1.47 s a point; TIMClab: ≤ 100 µs), warm continuation step inside `follow` and the public warm path
+`solve(q, guess=previous)` along 1° sweeps (paper ≤ 35 µs, TIMClab ≤ 60 µs), and the tip-position
+deviation from a tight-tolerance reference integration (scipy DOP853, rtol 1e-12; goal ≤ 1e-3 mm).
+The TIMClab robot is run again with the RK4 step taken from SolverSettings.tip_tol = 1e-3 mm alone
+(no 3 mm cap; keys timclab_tol_*). Runs on one core. Ends with one JSON line of the headline figures
+(medians in µs, errors in mm).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import numpy as np
 
-from ctrkin import SolverSettings, follow, paper_robot, solve
+from ctrkin import Robot, SolverSettings, follow, paper_robot, solve
 from ctrkin.acquisition.trajectories import rotation_sweep
+from ctrkin.mechanics.arrays import robot_arrays
+from ctrkin.mechanics.pointwise import rk4_step
+from ctrkin.robots import timclab_robot
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from mechanics.reference_tcm import reference_tip
@@ -34,23 +45,39 @@ def random_configs(n: int, seed: int = 0) -> np.ndarray:
     return np.c_[rng.uniform(0, 360, n), rng.uniform(0, 360, n), b2 - rng.uniform(0, 20.5, n), b2]
 
 
+def timclab_configs(n: int, seed: int = 0) -> np.ndarray:
+    """Uniform valid configurations of the TIMClab robot: α ∈ [0, 360)³, β3 ∈ [−150, 0] and each
+    inner tube retracted behind the next by up to its full excess length (L1 − L2, L2 − L3), so every
+    overlap of the three curved parts occurs."""
+    rng = np.random.default_rng(seed)
+    lengths = timclab_robot().lengths
+    b3 = -rng.uniform(0, 150, n)
+    b2 = b3 - rng.uniform(0, lengths[1] - lengths[2], n)
+    b1 = b2 - rng.uniform(0, lengths[0] - lengths[1], n)
+    return np.c_[rng.uniform(0, 360, (n, 3)), b1, b2, b3]
+
+
+def timclab_sweeps() -> list[np.ndarray]:
+    """Inner tube rotated 0 → 360 → 0° in 1° steps, the others at α = 0, outer tube at β = 0, with
+    every curved part overlapping: all tips flush (strongest coupling, snaps), and each inner tip
+    15 and 30 mm beyond the next one's."""
+    lengths = timclab_robot().lengths
+    out = []
+    for ext in (0.0, 15.0, 30.0):
+        b2 = lengths[2] - lengths[1] + ext
+        b1 = b2 + lengths[1] - lengths[0] + ext
+        q = rotation_sweep(2, 0.0)
+        out.append(np.c_[q[:, 0], np.zeros((len(q), 2)), np.full(len(q), b1),
+                         np.full(len(q), b2), np.zeros(len(q))])
+    return out
+
+
 def stats(t: np.ndarray) -> str:
-    return (f"median {np.median(t) * 1e3:.3f} ms, p95 {np.percentile(t, 95) * 1e3:.3f} ms, "
-            f"mean {t.mean() * 1e3:.3f} ± {t.std() * 1e3:.3f} ms")
+    return (f"median {np.median(t) * 1e6:.1f} µs, p95 {np.percentile(t, 95) * 1e6:.1f} µs, "
+            f"mean {t.mean() * 1e6:.1f} ± {t.std() * 1e6:.1f} µs")
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--n", type=int, default=1000, help="random configurations for cold solves")
-    ap.add_argument("--n-ref", type=int, default=40, help="configurations checked against the reference")
-    ap.add_argument("--step", type=float, default=SolverSettings().step, help="RK4 step (mm)")
-    args = ap.parse_args()
-    robot = paper_robot()
-    settings = SolverSettings(step=args.step)
-    solve(robot, [0, 0, -10, -5], settings=settings)  # compile / load the numba cache
-    follow(robot, rotation_sweep(2, 20.0, step_deg=30.0), settings=settings)
-
-    Q = random_configs(args.n)
+def bench_cold(robot: Robot, Q: np.ndarray, settings: SolverSettings) -> np.ndarray:
     times = np.empty(len(Q))
     stable = 0
     for i, q in enumerate(Q):
@@ -58,12 +85,17 @@ def main() -> None:
         eq = solve(robot, q, settings=settings)
         times[i] = time.perf_counter() - t0
         stable += eq.stable
-    print(f"cold solve ({len(Q)} random configurations, default guess): {stats(times)}; "
+    print(f"  cold solve ({len(Q)} random configurations, default guess): {stats(times)}; "
           f"{stable}/{len(Q)} stable")
+    return times
 
-    step_times, warm_times = [], []
-    for d in (4.0, 8.0, 12.0, 16.0, 20.0):
-        Qs = rotation_sweep(2, d)
+
+def bench_warm(robot: Robot, sweeps: list[np.ndarray], labels: list[str],
+               settings: SolverSettings, n_warm: int = 200) -> tuple[np.ndarray, np.ndarray]:
+    """Per-step times inside `follow` and of solve(q, guess=previous) on the first n_warm steps."""
+    step_times: list[float] = []
+    warm_times: list[float] = []
+    for Qs, label in zip(sweeps, labels, strict=True):
         stamps: list[float] = []
 
         def stamp(_t: int, stamps: list[float] = stamps) -> None:
@@ -74,23 +106,77 @@ def main() -> None:
         total = time.perf_counter() - t0
         step_times.extend(np.diff(stamps))
         prev = traj.equilibria[0]
-        for q in Qs[1:200]:  # the public warm-start path, timed one by one
+        for q in Qs[1:n_warm]:  # the public warm-start path, timed one by one
             t1 = time.perf_counter()
             prev = solve(robot, q, guess=prev, settings=settings)
             warm_times.append(time.perf_counter() - t1)
-        print(f"follow, 1° sweep at d = {d:4.1f} mm ({len(Qs)} steps, {traj.n_snaps} snaps): "
-              f"{total / len(Qs) * 1e3:.3f} ms per step on average, snap search included")
-    print(f"warm continuation step inside follow (5 sweeps): {stats(np.array(step_times))}")
-    print(f"warm solve(q, guess=previous equilibrium), 1° steps: {stats(np.array(warm_times))}")
+        print(f"  follow, 1° sweep {label} ({len(Qs)} steps, {traj.n_snaps} snaps): "
+              f"{total / len(Qs) * 1e6:.1f} µs per step on average, snap search included")
+    st, wt = np.array(step_times), np.array(warm_times)
+    print(f"  warm continuation step inside follow: {stats(st)}")
+    print(f"  warm solve(q, guess=previous equilibrium), 1° steps: {stats(wt)}")
+    return st, wt
 
+
+def bench_accuracy(robot: Robot, Q: np.ndarray, settings: SolverSettings) -> np.ndarray:
     errs = []
-    for q in random_configs(args.n_ref, seed=1):
+    for q in Q:
         eq = solve(robot, q, settings=settings)
         tip, _, _ = reference_tip(robot, q, eq.x)
         errs.append(np.linalg.norm(eq.tip_position - tip))
     e = np.array(errs)
-    print(f"tip position vs reference integration ({len(e)} configurations, step {args.step} mm): "
-          f"max {e.max():.2e} mm, median {np.median(e):.2e} mm (goal ≤ 1e-3 mm)")
+    print(f"  tip position vs reference integration ({len(e)} configurations): "
+          f"max {e.max():.2e} mm, median {np.median(e):.2e} mm")
+    return e
+
+
+def warm_up(robot: Robot, q: np.ndarray, settings: SolverSettings,
+            sweep: Callable[[], np.ndarray]) -> None:
+    solve(robot, q, settings=settings)  # compile / load the numba cache
+    follow(robot, sweep(), settings=settings)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--n", type=int, default=1000, help="random configurations for cold solves")
+    ap.add_argument("--n-ref", type=int, default=40, help="configurations checked against the reference")
+    ap.add_argument("--step", type=float, default=None, help="largest RK4 step (mm), default: the settings'")
+    args = ap.parse_args()
+    settings = SolverSettings() if args.step is None else SolverSettings(step=args.step)
+    out: dict[str, float] = {}
+
+    robot = paper_robot()
+    print("paper robot (2 tubes)")
+    warm_up(robot, np.array([0, 0, -10, -5.0]), settings, lambda: rotation_sweep(2, 20.0, step_deg=30.0))
+    cold = bench_cold(robot, random_configs(args.n), settings)
+    ds = (4.0, 8.0, 12.0, 16.0, 20.0)
+    step, warm = bench_warm(robot, [rotation_sweep(2, d) for d in ds],
+                            [f"at d = {d:4.1f} mm" for d in ds], settings)
+    err = bench_accuracy(robot, random_configs(args.n_ref, seed=1), settings)
+    out |= {"paper_cold_us": np.median(cold) * 1e6, "paper_warm_us": np.median(step) * 1e6,
+            "paper_warm_solve_us": np.median(warm) * 1e6, "paper_max_tip_error_mm": err.max()}
+
+    robot = timclab_robot()
+    print("TIMClab robot (3 tubes)")
+    sweeps = timclab_sweeps()
+    warm_up(robot, timclab_configs(1)[0], settings, lambda: sweeps[0][::30])
+    cold = bench_cold(robot, timclab_configs(args.n), settings)
+    step, warm = bench_warm(robot, sweeps, ["flush", "+15 mm", "+30 mm"], settings)
+    err_t = bench_accuracy(robot, timclab_configs(args.n_ref, seed=1), settings)
+    out |= {"timclab_robot_cold_us": np.median(cold) * 1e6,
+            "timclab_robot_warm_us": np.median(step) * 1e6,
+            "timclab_robot_warm_solve_us": np.median(warm) * 1e6,
+            "timclab_max_tip_error_mm": err_t.max(), "max_tip_error_mm": max(err.max(), err_t.max())}
+
+    fast = SolverSettings(step=math.inf, tip_tol=1e-3)
+    print(f"TIMClab robot, step from tip_tol = 1e-3 mm alone ({rk4_step(robot_arrays(robot), fast):.1f} mm "
+          "where curved)")
+    cold = bench_cold(robot, timclab_configs(args.n), fast)
+    step, warm = bench_warm(robot, sweeps, ["flush", "+15 mm", "+30 mm"], fast)
+    err_f = bench_accuracy(robot, timclab_configs(args.n_ref, seed=1), fast)
+    out |= {"timclab_tol_cold_us": np.median(cold) * 1e6, "timclab_tol_warm_us": np.median(step) * 1e6,
+            "timclab_tol_warm_solve_us": np.median(warm) * 1e6, "timclab_tol_max_tip_error_mm": err_f.max()}
+    print(json.dumps({k: float(f"{v:.4g}") for k, v in out.items()}))
 
 
 if __name__ == "__main__":

@@ -17,7 +17,8 @@ class RobotArrays:
     extra (N,) mm: Robot.transmission_length; kappa_scale: κ* (1/mm), the fastest rate at which the
     state turns along s: the largest precurvature, times √(1 + ν) for the torsion, whose rate on a
     shared curved stretch is √c = √((1 + ν) κi κj) (ψ'' = c sin ψ, docs/mechanics.md). The RK4 step
-    is at most SolverSettings.angle_step / κ*."""
+    is at most SolverSettings.angle_step / κ*. curved_length: ℓc, the precurved length of all
+    tubes (mm), the most arc length over which the state turns (step from SolverSettings.tip_tol)."""
 
     k: np.ndarray
     gj: np.ndarray
@@ -28,6 +29,7 @@ class RobotArrays:
     rigid: bool
     extra: np.ndarray
     kappa_scale: float
+    curved_length: float
 
 
 @functools.lru_cache(maxsize=64)
@@ -49,7 +51,8 @@ def robot_arrays(robot: Robot) -> RobotArrays:
         rigid=robot.transmission == "rigid",
         extra=np.array(robot.transmission_length or [0.0] * n, dtype=float),
         kappa_scale=float(np.abs(sec_kap).max(initial=0.0)
-                          * np.sqrt(1.0 + max(t.poisson_ratio for t in robot.tubes))))
+                          * np.sqrt(1.0 + max(t.poisson_ratio for t in robot.tubes))),
+        curved_length=float(sec_len[sec_kap != 0.0].sum()))
     for a in (arrs.k, arrs.gj, arrs.lengths, arrs.sec_len, arrs.sec_kap, arrs.n_sec, arrs.extra):
         a.setflags(write=False)
     return arrs

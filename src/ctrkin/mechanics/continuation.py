@@ -19,6 +19,7 @@ import numpy as np
 from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
 from ctrkin.mechanics.pointwise import (
+    _NO_BODY,
     Equilibrium,
     _finish,
     _newton,
@@ -99,7 +100,7 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
         if work[0] > settings.max_search_steps:
             # continuation too costly (an extreme robot): give up this step, reported not converged
             pb = _prepare(robot, q_to, settings, checked=True, arr=arr)
-            last = (pb, (x, False, 0, math.inf, det, math.nan))
+            last = (pb, (x, False, 0, math.inf, det, math.nan, _NO_BODY))
             break
         if velocity is not None:  # retry from the plain warm start before sub-stepping
             velocity = None
@@ -170,9 +171,11 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     eqs.append(cur)
     if progress:
         progress(0)
+    dq = np.diff(Qa, axis=0)
+    same = np.r_[False, False, (dq[1:] == dq[:-1]).all(axis=1)]  # step t repeats step t − 1
     for t in range(1, n_steps):
         velocity = None
-        if t >= 2 and not snaps[t - 1] and np.array_equal(Qa[t] - Qa[t - 1], Qa[t - 1] - Qa[t - 2]):
+        if same[t] and not snaps[t - 1]:
             velocity = eqs[-1].x - eqs[-2].x  # secant predictor for equal joint increments
         cur, snaps[t] = _advance(robot, cur, Qa[t], settings, velocity)
         eqs.append(cur)

@@ -28,7 +28,10 @@ def build_grid(beta, tube_len, sec_len, sec_kap, n_sec, h_max):
 
     beta (N,) mm; tube_len (N,) mm; sec_len, sec_kap (N, S) section lengths (mm) and curvatures
     (1/mm) from base to tip, n_sec (N,) sections used; h_max: largest RK4 step (mm).
-    Returns bounds (M+1,), kap (M, N), present (M, N) as 0/1, nsteps (M,).
+    Returns bounds (M+1,), kap (M, N), present (M, N) as 0/1, nsteps (M,) and nsample (M,).
+    A stretch where every present tube is straight has u_xy = 0 (M1): ψ is linear, uz, R and the
+    variation's uz rows constant, so one RK4 step is exact there (nsteps = 1). nsample is the
+    number of points at spacing ≤ h_max where the conjugate-point test samples det H (shoot).
     """
     n = beta.shape[0]
     tips = beta + tube_len
@@ -58,10 +61,12 @@ def build_grid(beta, tube_len, sec_len, sec_kap, n_sec, h_max):
     kap = np.zeros((m, n))
     present = np.zeros((m, n))
     nsteps = np.ones(m, dtype=np.int64)
+    nsample = np.ones(m, dtype=np.int64)
     for k in range(m):
         a, b = bounds[k], bounds[k + 1]
         mid = 0.5 * (a + b)
-        nsteps[k] = max(1, math.ceil((b - a) / h_max - 1e-12))
+        nsample[k] = max(1, math.ceil((b - a) / h_max - 1e-12))
+        curved = False
         for i in range(n):
             if tips[i] > mid:
                 present[k, i] = 1.0
@@ -72,10 +77,23 @@ def build_grid(beta, tube_len, sec_len, sec_kap, n_sec, h_max):
                     if sigma < cum:
                         kap[k, i] = sec_kap[i, j]
                         break
-    return bounds, kap, present, nsteps
+                curved = curved or kap[k, i] != 0.0
+        nsteps[k] = nsample[k] if curved else 1
+    return bounds, kap, present, nsteps, nsample
 
 
 @njit(cache=True)
+def prepare(q, tube_len, extra, sec_len, sec_kap, n_sec, h_max):
+    """Kernel inputs at joints q (2N,) (deg, mm): α (N,) rad, the transmission's twisting length
+    as β − extra (N,) mm (M4), tips β + L (N,) mm, and the grid of build_grid."""
+    n = tube_len.shape[0]
+    beta = q[n:].copy()
+    alpha = np.radians(q[:n])
+    grid = build_grid(beta, tube_len, sec_len, sec_kap, n_sec, h_max)
+    return alpha, beta - extra, beta + tube_len, grid
+
+
+@njit(cache=True, inline="always")
 def _bending(psi, kap, pres, k, cs, sn):
     """(M1): backbone curvature (ux, uy) 1/mm and the bending stiffness sum of present tubes.
     Also writes cs, sn = cos ψi, sin ψi of present tubes (reused by the callers)."""
@@ -97,9 +115,10 @@ def _bending(psi, kap, pres, k, cs, sn):
     return ux, uy, ksum
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _deriv(y, phi, kap, pres, k, gj, dy, dphi, with_var, cs, sn):
-    """(M2) and its variation dΦ = A(y) Φ; writes into dy (2N,) and dphi (2N, N).
+    """(M2) and its variation dΦ = A(y) Φ; writes into dy (2N,) and dphi (2N, N); returns the
+    backbone curvature (ux, uy) of (M1).
 
     ∂uiz'/∂ψj = ai [δij (cos ψi ux + sin ψi uy) − kj κj cos(ψi − ψj) / Σk],  ai = ki κi / GJi."""
     n = k.shape[0]
@@ -112,32 +131,32 @@ def _deriv(y, phi, kap, pres, k, gj, dy, dphi, with_var, cs, sn):
             dy[i] = 0.0
             dy[n + i] = 0.0
     if not with_var:
-        return
+        return ux, uy
     nc = phi.shape[1]
     for i in range(n):
         if pres[i] > 0.0:
             for c in range(nc):
                 dphi[i, c] = phi[n + i, c]
             a = k[i] / gj[i] * kap[i]
-            if a != 0.0:
-                diag = cs[i] * ux + sn[i] * uy
-                for c in range(nc):
-                    acc = diag * phi[i, c]
-                    for j in range(n):
-                        if pres[j] > 0.0 and kap[j] != 0.0:
-                            cij = cs[i] * cs[j] + sn[i] * sn[j]  # cos(ψi − ψj)
-                            acc -= k[j] * kap[j] * cij / ksum * phi[j, c]
-                    dphi[n + i, c] = a * acc
-            else:
-                for c in range(nc):
-                    dphi[n + i, c] = 0.0
+            for c in range(nc):
+                dphi[n + i, c] = 0.0
+            if a == 0.0:
+                continue
+            for j in range(n):  # row i of ∂uz'/∂ψ, one entry at a time, times row j of Φ
+                if pres[j] > 0.0 and kap[j] != 0.0:
+                    m = -a * k[j] * kap[j] * (cs[i] * cs[j] + sn[i] * sn[j]) / ksum  # cos(ψi − ψj)
+                    if i == j:
+                        m += a * (cs[i] * ux + sn[i] * uy)
+                    for c in range(nc):
+                        dphi[n + i, c] += m * phi[j, c]
         else:
             for c in range(nc):
                 dphi[i, c] = 0.0
                 dphi[n + i, c] = 0.0
+    return ux, uy
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _relative_det(phi, gj):
     """det H(s): relative angles ψi − ψN (i < N) as functions of the relative base twist rates
     yj = xj − xN under zero net torque Σ GJ x = 0 (x = D y). On a straight robot det H > 0 for
@@ -163,101 +182,6 @@ def _relative_det(phi, gj):
     if m == 2:
         return h[0, 0] * h[1, 1] - h[0, 1] * h[1, 0]
     return np.linalg.det(h)
-
-
-@njit(cache=True)
-def _init_state(x, alpha, beta, rigid, y, phi):
-    """(M4) base conditions: ψi(0) = αi − βi xi (compliant) or αi (rigid), uiz(0) = xi."""
-    n = x.shape[0]
-    phi[:, :] = 0.0
-    for i in range(n):
-        y[n + i] = x[i]
-        y[i] = alpha[i] if rigid else alpha[i] - beta[i] * x[i]
-        phi[n + i, i] = 1.0
-        if not rigid:
-            phi[i, i] = -beta[i]
-
-
-@njit(cache=True)
-def _rk4_step(y, phi, h, kp, pr, k, gj, with_var, w):
-    """One RK4 step of (M2) and, differentiated stage by stage, of its variation.
-    w: work arrays (k1..k4, q1..q4, yt, pt)."""
-    k1, k2, k3, k4, q1, q2, q3, q4, yt, pt, cs, sn = w
-    n2 = y.shape[0]
-    nc = phi.shape[1]
-    _deriv(y, phi, kp, pr, k, gj, k1, q1, with_var, cs, sn)
-    for j in range(n2):
-        yt[j] = y[j] + 0.5 * h * k1[j]
-        if with_var:
-            for c in range(nc):
-                pt[j, c] = phi[j, c] + 0.5 * h * q1[j, c]
-    _deriv(yt, pt, kp, pr, k, gj, k2, q2, with_var, cs, sn)
-    for j in range(n2):
-        yt[j] = y[j] + 0.5 * h * k2[j]
-        if with_var:
-            for c in range(nc):
-                pt[j, c] = phi[j, c] + 0.5 * h * q2[j, c]
-    _deriv(yt, pt, kp, pr, k, gj, k3, q3, with_var, cs, sn)
-    for j in range(n2):
-        yt[j] = y[j] + h * k3[j]
-        if with_var:
-            for c in range(nc):
-                pt[j, c] = phi[j, c] + h * q3[j, c]
-    _deriv(yt, pt, kp, pr, k, gj, k4, q4, with_var, cs, sn)
-    for j in range(n2):
-        y[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-        if with_var:
-            for c in range(nc):
-                phi[j, c] += h / 6.0 * (q1[j, c] + 2.0 * q2[j, c] + 2.0 * q3[j, c] + q4[j, c])
-
-
-@njit(cache=True)
-def _work(n):
-    n2 = 2 * n
-    return (np.empty(n2), np.empty(n2), np.empty(n2), np.empty(n2),
-            np.empty((n2, n)), np.empty((n2, n)), np.empty((n2, n)), np.empty((n2, n)),
-            np.empty(n2), np.empty((n2, n)), np.empty(n), np.empty(n))
-
-
-@njit(cache=True)
-def shoot(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, r, jac, with_var):
-    """Integrate (M2) from s = 0 with uz(0) = x; write residuals r_i = uiz(tip_i) (M4) and, if
-    with_var, their exact Jacobian jac = ∂r/∂x (N, N).
-
-    x, alpha (rad), beta (mm), tips (mm): (N,). Returns min over s ∈ (0, min tip] of det H
-    (see _relative_det; +inf for one tube or without the variation).
-    """
-    n = k.shape[0]
-    y = np.empty(2 * n)
-    phi = np.zeros((2 * n, n))
-    _init_state(x, alpha, beta, rigid, y, phi)
-    w = _work(n)
-    done = np.zeros(n, dtype=np.bool_)
-    min_tip = tips.min()
-    min_det = np.inf
-    for i in range(n):  # a tube flush with the front plate ends at s = 0
-        if tips[i] <= S_TOL:
-            done[i] = True
-            r[i] = y[n + i]
-            for c in range(n):
-                jac[i, c] = phi[n + i, c]
-    for seg in range(bounds.shape[0] - 1):
-        a, b = bounds[seg], bounds[seg + 1]
-        ns = nsteps[seg]
-        h = (b - a) / ns
-        for st in range(ns):
-            _rk4_step(y, phi, h, kap[seg], present[seg], k, gj, with_var, w)
-            if with_var and n > 1 and a + (st + 1) * h <= min_tip + S_TOL:
-                d = _relative_det(phi, gj)
-                if d < min_det:
-                    min_det = d
-        for i in range(n):
-            if not done[i] and tips[i] <= b + S_TOL:
-                done[i] = True
-                r[i] = y[n + i]
-                for c in range(n):
-                    jac[i, c] = phi[n + i, c]
-    return min_det
 
 
 @njit(cache=True)
@@ -310,15 +234,271 @@ def _det(a):
     return np.linalg.det(a)
 
 
+NB = 13  # body state: p (3) mm, R row-major (9), elastic energy (1) N·mm
+
+
 @njit(cache=True)
-def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
-           tol, max_iter, max_step, x_out):
+def _init_state(x, alpha, beta, rigid, k, gj, y, phi, zb):
+    """(M4) base conditions: ψi(0) = αi − βi xi (compliant) or αi (rigid), uiz(0) = xi; body at the
+    front plate: p = 0, R = I, energy ½ GJi xi² (−βi) stored in the compliant transmission."""
+    n = x.shape[0]
+    phi[:, :] = 0.0
+    zb[:] = 0.0
+    for d in range(3):
+        zb[3 + 4 * d] = 1.0
+    for i in range(n):
+        y[n + i] = x[i]
+        y[i] = alpha[i] if rigid else alpha[i] - beta[i] * x[i]
+        phi[n + i, i] = 1.0
+        if not rigid:
+            phi[i, i] = -beta[i]
+            zb[12] += 0.5 * gj[i] * x[i] * x[i] * (-beta[i])
+
+
+@njit(cache=True, inline="always")
+def _body_deriv(zb, ux, uy, y, kap, pres, k, gj, cs, sn, dzb):
+    """(M3) and the elastic energy density Σ ½ ki |u − Rz(ψi) ûi|² + ½ GJi uiz², at backbone
+    curvature (ux, uy) and cs, sn = cos ψ, sin ψ (from _deriv at the same state y).
+    zb: p (3), R row-major (9), energy; R' = R [u]^ with u = (ux, uy, 0): columns c0' = −uy c2,
+    c1' = ux c2, c2' = uy c0 − ux c1; p' = c2."""
+    n = k.shape[0]
+    for row in range(3):
+        c0 = zb[3 + 3 * row]
+        c1 = zb[4 + 3 * row]
+        c2 = zb[5 + 3 * row]
+        dzb[row] = c2
+        dzb[3 + 3 * row] = -uy * c2
+        dzb[4 + 3 * row] = ux * c2
+        dzb[5 + 3 * row] = uy * c0 - ux * c1
+    e = 0.0
+    for i in range(n):
+        if pres[i] > 0.0:
+            bx = ux - kap[i] * cs[i]
+            by = uy - kap[i] * sn[i]
+            e += 0.5 * k[i] * (bx * bx + by * by) + 0.5 * gj[i] * y[n + i] * y[n + i]
+    dzb[12] = e
+
+
+@njit(cache=True, inline="always")
+def _stage(y, phi, zb, kp, pr, k, gj, with_var, with_body, dy, dphi, dzb, cs, sn):
+    ux, uy = _deriv(y, phi, kp, pr, k, gj, dy, dphi, with_var, cs, sn)
+    if with_body:
+        _body_deriv(zb, ux, uy, y, kp, pr, k, gj, cs, sn, dzb)
+
+
+@njit(cache=True, inline="always")
+def _advance(y, phi, zb, f, dy, dphi, dzb, with_var, with_body, yt, pt, zt):
+    """RK4 stage state: yt = y + f dy, pt = Φ + f dΦ (if with_var), zt = zb + f dzb (if with_body)."""
+    for j in range(y.shape[0]):
+        yt[j] = y[j] + f * dy[j]
+    if with_var:
+        for j in range(phi.shape[0]):
+            for c in range(phi.shape[1]):
+                pt[j, c] = phi[j, c] + f * dphi[j, c]
+    if with_body:
+        for j in range(NB):
+            zt[j] = zb[j] + f * dzb[j]
+
+
+@njit(cache=True, inline="always")
+def _rk4_step(y, phi, zb, h, kp, pr, k, gj, with_var, with_body, w):
+    """One classical RK4 step of (M2), of its variation (differentiated stage by stage, so the
+    Jacobian is exact for the discrete map) if with_var, and of (M3) and the energy if with_body.
+    w: work arrays (_work)."""
+    k1, k2, k3, k4, q1, q2, q3, q4, yt, pt, cs, sn, b1, b2, b3, b4, zt, _ = w
+    _stage(y, phi, zb, kp, pr, k, gj, with_var, with_body, k1, q1, b1, cs, sn)
+    _advance(y, phi, zb, 0.5 * h, k1, q1, b1, with_var, with_body, yt, pt, zt)
+    _stage(yt, pt, zt, kp, pr, k, gj, with_var, with_body, k2, q2, b2, cs, sn)
+    _advance(y, phi, zb, 0.5 * h, k2, q2, b2, with_var, with_body, yt, pt, zt)
+    _stage(yt, pt, zt, kp, pr, k, gj, with_var, with_body, k3, q3, b3, cs, sn)
+    _advance(y, phi, zb, h, k3, q3, b3, with_var, with_body, yt, pt, zt)
+    _stage(yt, pt, zt, kp, pr, k, gj, with_var, with_body, k4, q4, b4, cs, sn)
+    n2 = y.shape[0]
+    nc = phi.shape[1]
+    h6 = h / 6.0
+    for j in range(n2):
+        y[j] += h6 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+        if with_var:
+            for c in range(nc):
+                phi[j, c] += h6 * (q1[j, c] + 2.0 * q2[j, c] + 2.0 * q3[j, c] + q4[j, c])
+    if with_body:
+        for j in range(NB):
+            zb[j] += h6 * (b1[j] + 2.0 * b2[j] + 2.0 * b3[j] + b4[j])
+
+
+@njit(cache=True)
+def _work(n):
+    """Work arrays of _rk4_step: k1..k4 (2N,), q1..q4 (2N, N), yt, pt, cs, sn, b1..b4 (NB,), zt,
+    and a (2N, N) copy of Φ at the start of a stretch (_integrate)."""
+    n2 = 2 * n
+    return (np.empty(n2), np.empty(n2), np.empty(n2), np.empty(n2),
+            np.empty((n2, n)), np.empty((n2, n)), np.empty((n2, n)), np.empty((n2, n)),
+            np.empty(n2), np.empty((n2, n)), np.empty(n), np.empty(n),
+            np.empty(NB), np.empty(NB), np.empty(NB), np.empty(NB), np.empty(NB),
+            np.empty((n2, n)))
+
+
+@njit(cache=True)
+def _det_between(phi_a, phi_b, f, gj, p_int):
+    """det H at Φ = Φa + f (Φb − Φa) (Φ is affine in s on a straight stretch)."""
+    for u in range(phi_a.shape[0]):
+        for c in range(phi_a.shape[1]):
+            p_int[u, c] = phi_a[u, c] + f * (phi_b[u, c] - phi_a[u, c])
+    return _relative_det(p_int, gj)
+
+
+@njit(cache=True)
+def _straight_min_det(phi_a, phi_b, gj, m, p_int):
+    """Min of det H over the interior sample points f = j/m, 0 < j < m, of a straight stretch taken
+    in one step (the end point is checked by the caller). det H is a polynomial of degree N − 1 in
+    f: two tubes, linear (min at j = 1 or m); three, quadratic (also the points beside its vertex);
+    more, every point."""
+    n = gj.shape[0]
+    best = np.inf
+    if m < 2:
+        return best
+    if n == 2:
+        return _det_between(phi_a, phi_b, 1.0 / m, gj, p_int)
+    if n == 3:
+        d0 = _det_between(phi_a, phi_b, 0.0, gj, p_int)
+        dh = _det_between(phi_a, phi_b, 0.5, gj, p_int)
+        d1 = _det_between(phi_a, phi_b, 1.0, gj, p_int)
+        c2 = 2.0 * (d1 - 2.0 * dh + d0)  # d(f) = d0 + c1 f + c2 f²
+        c1 = d1 - d0 - c2
+        best = _det_between(phi_a, phi_b, 1.0 / m, gj, p_int)
+        if c2 > 0.0:
+            j0 = math.floor(-c1 / (2.0 * c2) * m)
+            for j in (j0, j0 + 1):
+                if 1 < j < m:
+                    best = min(best, _det_between(phi_a, phi_b, j / m, gj, p_int))
+        return best
+    for j in range(1, m):
+        best = min(best, _det_between(phi_a, phi_b, j / m, gj, p_int))
+    return best
+
+
+@njit(cache=True)
+def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample,
+               with_var, with_body, y, phi, zb, w, r, jac,
+               record, s_rec, p_rec, psi_rec, uz_rec):
+    """One integration pass from s = 0 with uz(0) = x: (M2) always, writing the residuals
+    r_i = uiz(tip_i) (M4); the variation and jac = ∂r/∂x (N, N) if with_var; (M3) and the energy
+    into zb if with_body; the grid records (see integrate_full) if record.
+
+    Returns min over s ∈ (0, min tip] of det H (_relative_det; +inf for one tube or without the
+    variation). On a straight stretch taken in one exact step, Φ is affine in s, so det H is
+    sampled at the nsample points of spacing ≤ h_max as if the stretch had been stepped.
+    """
+    n = k.shape[0]
+    _init_state(x, alpha, beta, rigid, k, gj, y, phi, zb)
+    phi_a = w[17]
+    p_int = w[9]
+    done = np.zeros(n, dtype=np.bool_)
+    min_tip = tips.min()
+    min_det = np.inf
+    check = with_var and n > 1
+    if record:
+        s_rec[0] = 0.0
+        p_rec[0, :] = 0.0
+        for i in range(n):
+            on = tips[i] > S_TOL
+            psi_rec[0, i] = y[i] if on else np.nan
+            uz_rec[0, i] = y[n + i] if on else np.nan
+    rec = 0
+    for i in range(n):  # a tube flush with the front plate ends at s = 0
+        if tips[i] <= S_TOL:
+            done[i] = True
+            r[i] = y[n + i]
+            if with_var:
+                for c in range(n):
+                    jac[i, c] = phi[n + i, c]
+    for seg in range(bounds.shape[0] - 1):
+        a, b = bounds[seg], bounds[seg + 1]
+        ns = nsteps[seg]
+        h = (b - a) / ns
+        sampled = check and ns < nsample[seg]
+        if sampled:
+            phi_a[:, :] = phi
+        for st in range(ns):
+            _rk4_step(y, phi, zb, h, kap[seg], present[seg], k, gj, with_var, with_body, w)
+            if check and a + (st + 1) * h <= min_tip + S_TOL:
+                d = _relative_det(phi, gj)
+                if d < min_det:
+                    min_det = d
+            if record:
+                rec += 1
+                s_rec[rec] = a + (st + 1) * h
+                for d3 in range(3):
+                    p_rec[rec, d3] = zb[d3]
+                for i in range(n):
+                    on = present[seg, i] > 0.0
+                    psi_rec[rec, i] = y[i] if on else np.nan
+                    uz_rec[rec, i] = y[n + i] if on else np.nan
+        if sampled and b <= min_tip + S_TOL:
+            d = _straight_min_det(phi_a, phi, gj, nsample[seg], p_int)
+            if d < min_det:
+                min_det = d
+        for i in range(n):
+            if not done[i] and tips[i] <= b + S_TOL:
+                done[i] = True
+                r[i] = y[n + i]
+                if with_var:
+                    for c in range(n):
+                        jac[i, c] = phi[n + i, c]
+    return min_det
+
+
+@njit(cache=True)
+def shoot(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample, r, jac,
+          with_var):
+    """Integrate (M2) from s = 0 with uz(0) = x; write residuals r_i = uiz(tip_i) (M4) and, if
+    with_var, their exact Jacobian jac = ∂r/∂x (N, N).
+
+    x, alpha (rad), beta (mm), tips (mm): (N,). Returns min over s ∈ (0, min tip] of det H
+    (see _relative_det; +inf for one tube or without the variation).
+    """
+    n = k.shape[0]
+    return _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample,
+                      with_var, False, np.empty(2 * n), np.empty((2 * n, n)), np.empty(NB),
+                      _work(n), r, jac, False, np.empty(1), np.empty((1, 3)), np.empty((1, 1)),
+                      np.empty((1, 1)))
+
+
+@njit(cache=True)
+def _tip(zb, out):
+    """out (7,) = tip position (3,) mm, unit tip tangent (3,) (third column of R), energy."""
+    for d in range(3):
+        out[d] = zb[d]
+        out[3 + d] = zb[5 + 3 * d]
+    nrm = math.sqrt(out[3] * out[3] + out[4] * out[4] + out[5] * out[5])
+    for d in range(3):
+        out[3 + d] /= nrm
+    out[6] = zb[12]
+
+
+# A full Newton step from residual |r| lands near C |r|² (quadratic convergence); C is measured on
+# the iteration's own steps (|r₊| / |r|²), and taken as C0 (mm/rad) before the first. A step
+# predicted to land below tol is run as the final pass: without the variation, with the backbone
+# and energy (a wrong guess costs that pass; tol/10 instead made more passes on both robots).
+C0 = 1e3
+
+
+@njit(cache=True)
+def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample,
+           tol, max_iter, max_step, x_out, body_out):
     """Damped Newton on the shooting residual from x0 (rad/mm).
 
-    Writes the root to x_out. Returns (converged, iterations, |r|∞, det J, min det H, shoots) where
-    J = ∂r/∂x at the root (Gilbert et al. 2016 stability measure) and det H is the conjugate-point
-    test (see shoot) and shoots the number of integrations (the work, backtracking included).
-    max_step bounds |Δx|∞ per iteration (rad/mm).
+    Writes the root to x_out and, if converged, body_out (7,) = tip position (3,) mm, unit tip
+    tangent (3,), elastic energy (N·mm) (_tip); converged includes the checks of `sane`.
+    Returns (converged, iterations, |r|∞, det J, min det H, passes) where J = ∂r/∂x at the root
+    (Gilbert et al. 2016 stability measure), det H the conjugate-point test (see shoot) and passes
+    the number of integrations (the work, backtracking included).
+
+    The pass predicted to be the last (C |r|² < tol) integrates the backbone and
+    energy instead of the variation; J and det H are then those of the previous iterate, |Δx| ≤
+    |r| / |J| away (≤ 1e-7 relative for tol 1e-10), which no stability decision can resolve. A
+    wrong prediction costs that pass and Newton carries on. max_step bounds |Δx|∞ per iteration
+    (rad/mm).
     """
     n = x0.shape[0]
     x = x0.copy()
@@ -328,25 +508,45 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
     xt = np.empty(n)
     rt = np.empty(n)
     jt = np.empty((n, n))
-    mdet = shoot(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, r, jac, True)
+    y = np.empty(2 * n)
+    phi = np.empty((2 * n, n))
+    zb = np.empty(NB)
+    w = _work(n)
+    rs, ps, qs, us = np.empty(1), np.empty((1, 3)), np.empty((1, 1)), np.empty((1, 1))
+    mdet = _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample,
+                      True, False, y, phi, zb, w, r, jac, False, rs, ps, qs, us)
     rn = np.abs(r).max()
     it = 0
     shoots = 1
+    have_body = False
+    c_quad = C0
     converged = rn < tol
     while not converged and it < max_iter:
         it += 1
         if not _solve_linear(jac, -r, dx):
             break
         big = np.abs(dx).max()
-        if big > max_step:
+        full = big <= max_step
+        if not full:
             dx *= max_step / big
+        final = full and c_quad * rn * rn < tol
         t = 1.0
         accepted = False
         for _ in range(12):  # backtracking line search on |r|∞
             for i in range(n):
                 xt[i] = x[i] + t * dx[i]
-            md = shoot(xt, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
-                       rt, jt, True)
+            if final:
+                _integrate(xt, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
+                           nsample, False, True, y, phi, zb, w, rt, jt, False, rs, ps, qs, us)
+                shoots += 1
+                final = False
+                rnt = np.abs(rt).max()
+                if rnt < tol:
+                    have_body = True
+                    accepted = True
+                    break
+            md = _integrate(xt, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
+                            nsample, True, False, y, phi, zb, w, rt, jt, False, rs, ps, qs, us)
             shoots += 1
             rnt = np.abs(rt).max()
             if rnt < (1.0 - 1e-4 * t) * rn or rnt < tol:
@@ -355,110 +555,56 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
             t *= 0.5
         if not accepted:
             break
+        if have_body:
+            x[:] = xt
+            rn = rnt
+            converged = True
+            break
+        if t == 1.0 and full and rn > 0.0:
+            c_quad = rnt / (rn * rn)
         x[:] = xt
         r[:] = rt
         jac[:, :] = jt
         rn = rnt
         mdet = md
         converged = rn < tol
+    if converged and not have_body:
+        _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample,
+                   False, True, y, phi, zb, w, rt, jt, False, rs, ps, qs, us)
+        shoots += 1
+    if converged:
+        _tip(zb, body_out)
+        converged = sane(body_out, tips)
     x_out[:] = x
     return converged, it, rn, _det(jac), mdet, shoots
 
 
 @njit(cache=True)
-def _deriv_full(z, kp, pr, k, gj, dz, dummy_phi, cs, sn):
-    """Augmented state z = (ψ, uz (2N), p (3), R row-major (9), energy (1)): (M2), (M3), energy."""
-    n = k.shape[0]
-    n2 = 2 * n
-    _deriv(z[:n2], dummy_phi, kp, pr, k, gj, dz[:n2], dummy_phi, False, cs, sn)
-    ux, uy, _ = _bending(z[:n2], kp, pr, k, cs, sn)
-    # p' = R e3 ; R' = R [u]^ with u = (ux, uy, 0): columns c0' = −uy c2, c1' = ux c2,
-    # c2' = uy c0 − ux c1 (R stored row-major at z[n2+3 : n2+12])
-    o = n2 + 3
-    for row in range(3):
-        c0 = z[o + 3 * row]
-        c1 = z[o + 3 * row + 1]
-        c2 = z[o + 3 * row + 2]
-        dz[n2 + row] = c2
-        dz[o + 3 * row] = -uy * c2
-        dz[o + 3 * row + 1] = ux * c2
-        dz[o + 3 * row + 2] = uy * c0 - ux * c1
-    e = 0.0
-    for i in range(n):
-        if pr[i] > 0.0:
-            bx = ux - kp[i] * cs[i]
-            by = uy - kp[i] * sn[i]
-            e += 0.5 * k[i] * (bx * bx + by * by) + 0.5 * gj[i] * z[n + i] * z[n + i]
-    dz[n2 + 12] = e
+def sane(body, tips):
+    """Checks a converged equilibrium must pass (body: _tip): a finite tip no farther from the base
+    than the longest tube reaches (a backbone is never longer than itself; 1e-6 relative slack for
+    round-off), a finite unit tip tangent (so a unit quaternion) and a finite energy."""
+    for v in body:
+        if not math.isfinite(v):
+            return False
+    s_end = max(tips.max(), 0.0)
+    tip = math.sqrt(body[0] * body[0] + body[1] * body[1] + body[2] * body[2])
+    # the tangent was normalised by _tip: |t| − 1 measures only NaN/overflow (finite check above)
+    return tip <= s_end * (1.0 + 1e-6) + 1e-9
 
 
 @njit(cache=True)
-def integrate_full(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
-                   record, s_rec, p_rec, psi_rec, uz_rec):
-    """Integrate (M2), (M3) and the elastic energy at the solution x.
+def integrate_full(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample,
+                   record, s_rec, p_rec, psi_rec, uz_rec, body_out):
+    """Integrate (M2), (M3) and the elastic energy at the solution x into body_out (7,) (_tip).
 
     If record, every grid point is written to s_rec (K,), p_rec (K, 3) mm, psi_rec (K, N) rad and
-    uz_rec (K, N) rad/mm, K = 1 + Σ nsteps; tubes not present there are NaN. Returns
-    (tip position (3,) mm, unit tip tangent (3,), energy N·mm). Energy = Σ ∫ ½ ki |u − Rz(ψi) ûi|²
-    + ½ GJi uiz² ds, plus ½ GJi xi² (−βi) stored in the compliant transmission.
+    uz_rec (K, N) rad/mm, K = 1 + Σ nsteps; tubes not present there are NaN. Energy = Σ ∫ ½ ki
+    |u − Rz(ψi) ûi|² + ½ GJi uiz² ds, plus ½ GJi xi² (−βi) stored in the compliant transmission.
     """
     n = k.shape[0]
-    n2 = 2 * n
-    nz = n2 + 13
-    z = np.zeros(nz)
-    phi = np.zeros((n2, n))
-    _init_state(x, alpha, beta, rigid, z[:n2], phi)
-    for d in range(3):
-        z[n2 + 3 + 4 * d] = 1.0  # R = I
-    if not rigid:
-        for i in range(n):
-            z[n2 + 12] += 0.5 * gj[i] * x[i] * x[i] * (-beta[i])
-    k1 = np.empty(nz)
-    k2 = np.empty(nz)
-    k3 = np.empty(nz)
-    k4 = np.empty(nz)
-    zt = np.empty(nz)
-    dummy = np.zeros((n2, n))
-    cs = np.empty(n)
-    sn = np.empty(n)
-    rec = 0
-    if record:
-        s_rec[0] = 0.0
-        p_rec[0, :] = 0.0
-        for i in range(n):
-            on = tips[i] > S_TOL
-            psi_rec[0, i] = z[i] if on else np.nan
-            uz_rec[0, i] = z[n + i] if on else np.nan
-    for seg in range(bounds.shape[0] - 1):
-        a, b = bounds[seg], bounds[seg + 1]
-        ns = nsteps[seg]
-        h = (b - a) / ns
-        kp = kap[seg]
-        pr = present[seg]
-        for st in range(ns):
-            _deriv_full(z, kp, pr, k, gj, k1, dummy, cs, sn)
-            for j in range(nz):
-                zt[j] = z[j] + 0.5 * h * k1[j]
-            _deriv_full(zt, kp, pr, k, gj, k2, dummy, cs, sn)
-            for j in range(nz):
-                zt[j] = z[j] + 0.5 * h * k2[j]
-            _deriv_full(zt, kp, pr, k, gj, k3, dummy, cs, sn)
-            for j in range(nz):
-                zt[j] = z[j] + h * k3[j]
-            _deriv_full(zt, kp, pr, k, gj, k4, dummy, cs, sn)
-            for j in range(nz):
-                z[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-            if not record:
-                continue
-            rec += 1
-            s_rec[rec] = a + (st + 1) * h
-            for d in range(3):
-                p_rec[rec, d] = z[n2 + d]
-            for i in range(n):
-                on = pr[i] > 0.0
-                psi_rec[rec, i] = z[i] if on else np.nan
-                uz_rec[rec, i] = z[n + i] if on else np.nan
-    tip = z[n2:n2 + 3].copy()
-    tan = np.array([z[n2 + 5], z[n2 + 8], z[n2 + 11]])  # third column of R
-    tan /= np.sqrt((tan * tan).sum())
-    return tip, tan, z[n2 + 12]
+    zb = np.empty(NB)
+    _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample,
+               False, True, np.empty(2 * n), np.empty((2 * n, n)), zb, _work(n), np.empty(n),
+               np.empty((n, n)), record, s_rec, p_rec, psi_rec, uz_rec)
+    _tip(zb, body_out)

@@ -109,11 +109,16 @@ class _Problem:
     alpha: np.ndarray  # rad
     beta: np.ndarray   # mm, for the kernels' transmission: βi − extra transmission length
     tips: np.ndarray
-    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
     @property
     def length(self) -> float:
         return float(max(self.tips.max(), 1e-9))
+
+    @property
+    def n_rk4(self) -> int:
+        """RK4 steps of one integration pass."""
+        return int(self.grid[3].sum())
 
 
 def _prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: bool = False,
@@ -124,51 +129,62 @@ def _prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: boo
         raise ValueError("solve takes one configuration q (2N,); use solve_many for (T, 2N)")
     if arr is None:
         arr = robot_arrays(robot)
-    n = arr.k.shape[0]
-    beta = qa[n:].copy()
-    grid = kernels.build_grid(beta, arr.lengths, arr.sec_len, arr.sec_kap, arr.n_sec,
-                              rk4_step(arr, settings))
-    n_rk4 = int(grid[3].sum())
+    h = rk4_step(arr, settings)
+    alpha, beta, tips, grid = kernels.prepare(qa, arr.lengths, arr.extra, arr.sec_len,
+                                              arr.sec_kap, arr.n_sec, h)
+    n_rk4 = int(grid[4].sum())  # the steps the stretches would take if none were straight
     if n_rk4 > settings.max_rk4_steps:
         raise ConvergenceError(
             f"the TCM grid at q = {qa.tolist()} needs {n_rk4} RK4 steps (> SolverSettings."
             f"max_rk4_steps = {settings.max_rk4_steps}): tube lengths {arr.lengths.tolist()} mm at "
-            f"a step of {rk4_step(arr, settings):.3g} mm; check the robot's lengths (mm) and "
+            f"a step of {h:.3g} mm; check the robot's lengths (mm) and "
             "curvatures (1/mm) or raise max_rk4_steps")
     # the kernels read β only as the twisting length −β of the compliant transmission (M4)
-    return _Problem(arr, qa, np.radians(qa[:n]), beta - arr.extra, beta + arr.lengths, grid)
+    return _Problem(arr, qa, alpha, beta, tips, grid)
 
 
+@functools.lru_cache(maxsize=64)
 def rk4_step(arr: RobotArrays, settings: SolverSettings) -> float:
-    """Largest RK4 step (mm): SolverSettings.step, or less where the robot bends or twists faster
-    than SolverSettings.angle_step rad per step (curvature-and-torsion scale κ*, RobotArrays)."""
-    if arr.kappa_scale > 0.0:
-        return min(settings.step, settings.angle_step / arr.kappa_scale)
-    return settings.step
+    """Largest RK4 step (mm) where a tube is curved: SolverSettings.step, or less where the robot
+    bends or twists faster than SolverSettings.angle_step rad per step, or where the tip error
+    estimate e(h) = κ*⁵ ℓc min(L, 1/κ*) h⁴ / 120 (SolverSettings) would exceed tip_tol, if set."""
+    kap = arr.kappa_scale
+    if kap <= 0.0 or arr.curved_length <= 0.0:
+        return settings.step
+    if settings.tip_tol is None:
+        return min(settings.step, settings.angle_step / kap)
+    arm = min(float(arr.lengths.max()), 1.0 / kap)
+    h_tol = (120.0 * settings.tip_tol / (kap ** 5 * arr.curved_length * arm)) ** 0.25
+    return min(settings.step, settings.angle_step / kap, h_tol)
+
+
+# a Newton result: (x (N,) rad/mm, converged, iterations, |r|∞, det J, min det H,
+# body (7,) = tip (3,) mm, unit tangent (3,), energy N·mm from the final pass, NaN if not converged)
+Solution = tuple[np.ndarray, bool, int, float, float, float, np.ndarray]
+_NO_BODY = np.full(7, np.nan)
+_NO_BODY.setflags(write=False)
 
 
 def _newton(pb: _Problem, x0: np.ndarray, settings: SolverSettings, work: list[int] | None = None
-            ) -> tuple[np.ndarray, bool, int, float, float, float]:
+            ) -> Solution:
     """Damped Newton from x0 (kernels.newton); work, if given, gets the RK4 steps spent added to
     work[0]."""
     a = pb.arrays
-    x = np.empty_like(x0)
-    x0 = np.asarray(x0, float)
-    if not np.isfinite(x0).all():
-        return x0.copy(), False, 0, math.inf, math.nan, math.nan
+    x0 = np.asarray(x0, dtype=float)
+    x = np.empty(x0.shape[0])
+    body = np.empty(7)
     try:
+        if not math.isfinite(x0.sum()):
+            raise FloatingPointError
         conv, it, rn, det_j, det_h, shoots = kernels.newton(
             x0, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,
-            settings.tol, settings.max_iter, settings.max_step, x)
+            settings.tol, settings.max_iter, settings.max_step, x, body)
     except (np.linalg.LinAlgError, ZeroDivisionError, OverflowError, FloatingPointError):
-        return x0.copy(), False, 0, math.inf, math.nan, math.nan  # numerics broke down: no root
+        return x0.copy(), False, 0, math.inf, math.nan, math.nan, _NO_BODY  # numerics broke down
     if work is not None:
-        work[0] += int(shoots) * int(pb.grid[3].sum())
-    conv = bool(conv) and math.isfinite(rn) and rn < settings.tol and bool(np.isfinite(x).all())
-    return x, conv, int(it), float(rn), float(det_j), float(det_h)
-
-
-_NO_RECORD = (np.empty(1), np.empty((1, 3)), np.empty((1, 1)), np.empty((1, 1)))
+        work[0] += shoots * pb.n_rk4
+    conv = conv and rn < settings.tol and math.isfinite(x.sum())  # rn is NaN if r was
+    return x, conv, it, rn, det_j, det_h, body if conv else _NO_BODY
 
 
 def _integrate(pb: _Problem, x: np.ndarray, record: bool
@@ -178,35 +194,26 @@ def _integrate(pb: _Problem, x: np.ndarray, record: bool
     a = pb.arrays
     n = x.shape[0]
     if record:
-        nrec = 1 + int(pb.grid[3].sum())
+        nrec = 1 + pb.n_rk4
         recs = (np.empty(nrec), np.empty((nrec, 3)), np.empty((nrec, n)), np.empty((nrec, n)))
     else:
-        recs = _NO_RECORD
-    tip, tan, energy = kernels.integrate_full(x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj,
-                                              *pb.grid, record, *recs)
-    return tip, tan, float(energy), recs
+        recs = (np.empty(1), np.empty((1, 3)), np.empty((1, n)), np.empty((1, n)))
+    body = np.empty(7)
+    kernels.integrate_full(x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid, record,
+                           *recs, body)
+    return body[:3], body[3:6], float(body[6]), recs
 
 
-def sane(pb: _Problem, tip: np.ndarray, tan: np.ndarray, energy: float) -> bool:
-    """Sanity checks a converged equilibrium must pass: a finite tip no farther from the base than
-    the longest tube reaches (|tip| ≤ s_end, a backbone is never longer than itself; 1e-6 relative
-    slack for round-off), a finite unit tip tangent (so a unit quaternion) and a finite energy."""
-    s_end = float(max(pb.tips.max(), 0.0))
-    return bool(np.isfinite(tip).all() and np.isfinite(tan).all() and math.isfinite(energy)
-                and np.linalg.norm(tip) <= s_end * (1.0 + 1e-6) + 1e-9
-                and abs(np.linalg.norm(tan) - 1.0) < 1e-9)
-
-
-def _finish(pb: _Problem, sol: tuple[np.ndarray, bool, int, float, float, float]) -> Equilibrium:
-    x, conv, it, rn, det_j, det_h = sol
-    try:
-        tip, tan, energy, _ = _integrate(pb, x, record=False)
-    except (ZeroDivisionError, OverflowError, FloatingPointError):
-        tip, tan, energy = np.full(3, np.nan), np.full(3, np.nan), math.nan
-    conv = conv and sane(pb, tip, tan, energy)
-    if not conv:
-        tip = np.full(3, np.nan)
-        tan = np.full(3, np.nan)
+def _finish(pb: _Problem, sol: Solution) -> Equilibrium:
+    x, conv, it, rn, det_j, det_h, body = sol
+    if conv:  # the final Newton pass integrated the backbone and energy (kernels.sane passed)
+        tip, tan, energy = body[:3], body[3:6], float(body[6])
+    else:
+        try:
+            energy = _integrate(pb, x, record=False)[2]
+        except (ZeroDivisionError, OverflowError, FloatingPointError):
+            energy = math.nan
+        tip, tan = np.full(3, np.nan), np.full(3, np.nan)
     return Equilibrium(q=pb.q, x=x, tip_position=tip, tip_tangent=tan, converged=conv,
                        stability=det_j, conjugate=det_h, energy=energy, residual=rn,
                        iterations=it, _problem=pb)
@@ -232,11 +239,11 @@ def _twisted_guesses(pb: _Problem, around: np.ndarray) -> list[np.ndarray]:
 
 
 def _search(pb: _Problem, guesses: list[np.ndarray], settings: SolverSettings,
-            work: list[int] | None = None) -> list[tuple[np.ndarray, bool, int, float, float, float]]:
+            work: list[int] | None = None) -> list[Solution]:
     """Distinct converged solutions from several guesses, tried in order until the RK4 steps spent
     exceed SolverSettings.max_search_steps (a bound on the time of a multi-start search); work: a
     counter shared with the caller (work[0], RK4 steps spent so far)."""
-    found: list[tuple[np.ndarray, bool, int, float, float, float]] = []
+    found: list[Solution] = []
     work = [0] if work is None else work
     for g in guesses:
         if work[0] > settings.max_search_steps:
@@ -249,7 +256,7 @@ def _search(pb: _Problem, guesses: list[np.ndarray], settings: SolverSettings,
     return found
 
 
-def _stable(sol: tuple[np.ndarray, bool, int, float, float, float]) -> bool:
+def _stable(sol: Solution) -> bool:
     return sol[1] and sol[4] > 0 and sol[5] > 0
 
 
@@ -283,7 +290,7 @@ def _solve_prepared(pb: _Problem, guess: Equilibrium | np.ndarray | None,
 
 
 def cold_solution(pb: _Problem, settings: SolverSettings, work: list[int] | None = None
-                  ) -> tuple[np.ndarray, bool, int, float, float, float]:
+                  ) -> Solution:
     """Newton from untwisted tubes; if that is not stable, the stable solution of least energy
     among twisted starts (else the least-energy converged one, else the first attempt)."""
     n = pb.alpha.shape[0]
@@ -295,11 +302,7 @@ def cold_solution(pb: _Problem, settings: SolverSettings, work: list[int] | None
     pool = [c for c in cands if _stable(c)] or cands
     if not pool:
         return first
-    return min(pool, key=lambda c: _energy(pb, c[0]))
-
-
-def _energy(pb: _Problem, x: np.ndarray) -> float:
-    return _integrate(pb, x, record=False)[2]
+    return min(pool, key=lambda c: float(c[6][6]))  # the energy of the final Newton pass
 
 
 def solve_many(robot: Robot, Q: np.ndarray, settings: SolverSettings = DEFAULT_SETTINGS

@@ -9,9 +9,16 @@ from ctrkin.errors import CtrkinError
 
 @dataclass(frozen=True)
 class SolverSettings:
-    """step: largest RK4 step (mm); angle_step: largest bending angle per RK4 step (rad): the step
-    is min(step, angle_step / κ*) with κ* the robot's curvature-and-torsion scale (1/mm, see
-    `mechanics.arrays.RobotArrays.kappa_scale`); tol: shooting residual |uz(tip)|∞ (rad/mm);
+    """tip_tol: if set, tip-position error (mm) the RK4 step is chosen for, by the estimate
+    e(h) = κ*⁵ ℓc min(L, 1/κ*) h⁴ / 120 (docs/mechanics.md: RK4's phase error (κh)⁵/120 per step of a
+    rotation at rate κ*, over the precurved length ℓc, times the lever arm, at most the longest tube L
+    and the radius 1/κ* of a wound arc); step: largest RK4 step (mm) where a tube is curved (a
+    straight stretch is one exact step); angle_step: largest bending angle per RK4 step (rad). The
+    step is min(step, angle_step / κ*, (tip_tol / e(1))^¼) with κ* the robot's curvature-and-torsion
+    scale (1/mm, see `mechanics.arrays.RobotArrays.kappa_scale`). At the default (tip_tol None:
+    3 mm, 0.15 rad) e ≤ 4.2e-6 mm per mm of precurved length, ≤ 1e-3 mm up to ℓc = 240 mm;
+    `SolverSettings(step=math.inf, tip_tol=1e-3)` takes the step from the tolerance alone;
+    tol: shooting residual |uz(tip)|∞ (rad/mm);
     max_iter: Newton iterations; max_step: largest Newton update |Δuz(0)|∞ (rad/mm);
     max_rk4_steps: refuse a configuration whose grid needs more RK4 steps (a guard against
     absurd lengths or step settings: ConvergenceError instead of a hang); max_search_steps: RK4
@@ -24,8 +31,10 @@ class SolverSettings:
     RK4's error falls as step⁴: on the paper robot the tip is within 3e-5 mm of a tight-tolerance
     reference at the default 3 mm (5e-6 mm at 2 mm, 1.3e-3 mm at 8 mm); with the curvature rule a
     single curved tube is within 3e-6 mm per mm of curved length of the exact arc at any curvature
-    (docs/mechanics.md); benchmarks/bench_mechanics.py measures it."""
+    (docs/mechanics.md); benchmarks/bench_mechanics.py measures it. The estimate e(h) is 2-5× above
+    the measured error on the paper, TIMClab and high-curvature robots (tests/mechanics)."""
 
+    tip_tol: float | None = None
     step: float = 3.0
     tol: float = 1e-10
     max_iter: int = 40
@@ -35,6 +44,8 @@ class SolverSettings:
     max_search_steps: int = 500_000
 
     def __post_init__(self) -> None:
+        if self.tip_tol is not None and not self.tip_tol > 0:
+            raise CtrkinError(f"SolverSettings.tip_tol must be > 0 mm, got {self.tip_tol}")
         if not self.step > 0:
             raise CtrkinError(f"SolverSettings.step must be > 0 mm, got {self.step}")
         if not self.tol > 0:

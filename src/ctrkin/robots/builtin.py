@@ -29,7 +29,21 @@ def paper_robot(transmission: str = "compliant") -> Robot:
     return Robot(tubes=(inner, outer), transmission=transmission, name="paper")  # type: ignore[arg-type]
 
 
-BUILTIN = {"paper": paper_robot}
+def timclab_robot(transmission: str = "compliant") -> Robot:
+    """The three-tube robot of the public C++ TCM of TIMClab-CAMI (issue 11), innermost first.
+
+    OD 1.524 / 1.8 / 2.35 mm, ID 1.3 / 1.62 / 2.06 mm, lengths 463 / 330.5 / 199 mm of which the
+    last 50 mm are curved, curvature 0.010 / 0.005 / 0.007 1/mm, E = 58 GPa, ν = 0.3. A benchmark
+    robot (benchmarks/bench_mechanics.py): long, stiff, mildly curved tubes.
+    """
+    spec = ((1.524, 1.3, 463.0, 0.010), (1.8, 1.62, 330.5, 0.005), (2.35, 2.06, 199.0, 0.007))
+    tubes = tuple(Tube(od=od, id=idd, straight_length=length - 50.0, curved_length=50.0,
+                       curvature=kap, youngs_modulus=NITINOL_E_GPA, poisson_ratio=0.3)
+                  for od, idd, length, kap in spec)
+    return Robot(tubes=tubes, transmission=transmission, name="timclab")  # type: ignore[arg-type]
+
+
+BUILTIN = {"paper": paper_robot, "timclab": timclab_robot}
 
 
 def load_robot(spec: str) -> Robot:
