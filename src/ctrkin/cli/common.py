@@ -8,7 +8,7 @@ from ctrkin.robots import Robot, load_robot
 
 robot_option = click.option(
     "--robot", "robot_spec", default="paper", show_default=True,
-    help="Built-in robot name (paper) or path to a robot TOML file.")
+    help="Built-in robot name (paper, timclab) or path to a robot TOML file.")
 
 
 def get_robot(spec: str) -> Robot:
