@@ -242,25 +242,50 @@ def calibrate(ds: Dataset, robot: Robot | None = None, groups: tuple[str, ...] =
 
 
 def leave_one_sequence_out(ds: Dataset, robot: Robot | None = None, groups: tuple[str, ...] = GROUPS,
-                           max_nfev: int = 60, prior: bool = True) -> dict[str, Any]:
+                           max_nfev: int = 60, prior: bool = True,
+                           prior_scales: tuple[float, ...] = (1.0,)) -> dict[str, Any]:
     """Per sequence: fit `groups` on the other sequences, report the mean tip distance (mm) on it.
-    Returns {"per_sequence": {label: mm}, "mean_mm": sample-weighted mean, "samples": n}."""
+
+    prior_scales: candidate prior strengths (ParameterSet.prior_scale); with more than one, each
+    outer fold picks its own by an inner leave-one-sequence-out on its training sequences only
+    (nested cross-validation: the held-out sequence never chooses), needing >= 3 sequences.
+    Returns {"per_sequence": {label: mm}, "mean_mm": sample-weighted mean, "samples": n,
+    "prior_scale": {label: chosen scale}}."""
     robot = robot or ds.robot
     sid = ds.frame["sequence_id"].to_numpy()
     labels = ds.meta.get("sequence_labels") or []
     uniq = np.unique(sid)
     if len(uniq) < 2:
         raise CtrkinError("leave-one-sequence-out needs at least 2 sequences")
+    if len(prior_scales) > 1 and (len(uniq) < 3 or not prior):
+        raise CtrkinError("choosing the prior strength by nested leave-one-sequence-out needs the prior "
+                          "and at least 3 sequences")
     joints, measured = _positions(ds)
-    ps = ParameterSet(robot, tuple(groups), prior=prior)
-    per, errs = {}, []
+    per, chosen, errs = {}, {}, []
     for k in uniq:
         train, test = np.nonzero(sid != k)[0], np.nonzero(sid == k)[0]
+        scale = prior_scales[0]
+        if len(prior_scales) > 1:
+            scale = min(prior_scales, key=lambda c: _inner_loso(robot, groups, joints, measured, sid, train,
+                                                                max_nfev, c))
+        ps = ParameterSet(robot, tuple(groups), prior=prior, prior_scale=scale)
         x, _ = _fit(ps, joints[train], measured[train], max_nfev)
         e = np.linalg.norm(ps.model(x).predict(joints[test])[:, :3] - measured[test], axis=1)
         name = str(labels[int(k)]) if int(k) < len(labels) else str(k)
-        per[name] = float(np.nanmean(e))
+        per[name], chosen[name] = float(np.nanmean(e)), scale
         errs.append(e)
     all_e = np.concatenate(errs)
     return {"per_sequence": per, "mean_mm": float(np.nanmean(all_e)), "samples": int(all_e.size),
-            "groups": list(groups), "prior": prior}
+            "groups": list(groups), "prior": prior, "prior_scale": chosen}
+
+
+def _inner_loso(robot: Robot, groups: tuple[str, ...], joints: np.ndarray, measured: np.ndarray,
+                sid: np.ndarray, rows: np.ndarray, max_nfev: int, scale: float) -> float:
+    """Sample-weighted mean tip distance (mm) of a leave-one-sequence-out within `rows`."""
+    ps = ParameterSet(robot, tuple(groups), prior_scale=scale)
+    errs = []
+    for k in np.unique(sid[rows]):
+        train, test = rows[sid[rows] != k], rows[sid[rows] == k]
+        x, _ = _fit(ps, joints[train], measured[train], max_nfev)
+        errs.append(np.linalg.norm(ps.model(x).predict(joints[test])[:, :3] - measured[test], axis=1))
+    return float(np.nanmean(np.concatenate(errs)))
