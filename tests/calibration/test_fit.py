@@ -138,3 +138,15 @@ def test_nested_loso_chooses_the_prior_strength_without_the_held_out_sequence(vi
     assert loso["mean_mm"] < 0.3
     with pytest.raises(CtrkinError, match="at least 3 sequences"):
         leave_one_sequence_out(ds, groups=GROUPS, prior=False, prior_scales=(1.0, 2.0))
+
+
+def test_calibrate_cli_nested_prior_scales(tmp_path, virtual):
+    ds, _ = virtual
+    ds.save(tmp_path / "ds")
+    args = ["calibrate", "--data", str(tmp_path / "ds"), "--out", str(tmp_path / "cal.toml"),
+            "--fit", ",".join(GROUPS), "--max-evaluations", "10", "--loso"]
+    r = CliRunner().invoke(cli, [*args, "--prior-scales", "1,100"])
+    assert r.exit_code == 0, r.output
+    assert "prior scale chosen by nested leave-one-sequence-out: a 100, b 100, c 100" in r.output
+    r = CliRunner().invoke(cli, [*args, "--prior-scales", "1,x"])
+    assert r.exit_code != 0 and "--prior-scales" in r.output and "0.5,1,2" in r.output
