@@ -10,7 +10,7 @@ difference of the 3 × 3 matrix, no solve); mechanics columns (precurvature, sti
 offsets, transmission length) from the exact tip sensitivities of the TCM (sensitivity.py: forward
 mode through the RK4 map plus the implicit function theorem for the shooting unknowns), one
 tangent integration per sample at the converged solution instead of one solve per sample and
-parameter (about 14 times faster on the NDI set; `analytic=False` keeps forward differences).
+parameter (8–15 times faster on the comet-lab sets; `analytic=False` keeps forward differences).
 
 With the prior (params.py), residuals (x − x_nominal) / σ_prior · PRIOR_SCALE_MM are appended:
 a maximum a posteriori fit for a position error of about PRIOR_SCALE_MM per coordinate.
