@@ -10,6 +10,7 @@ from click.testing import CliRunner
 from ctrkin.calibration import CalibratedTCM, ParameterSet, calibrate, leave_one_sequence_out
 from ctrkin.cli.main import cli
 from ctrkin.data import Dataset, schema
+from ctrkin.errors import CtrkinError
 from tests.lab_logs import configurations, nylon_robot, to_ctrkin
 
 GROUPS = ("registration", "precurvature", "alpha_offset", "beta_offset", "marker")
@@ -114,3 +115,38 @@ def test_prior_rows_pull_physical_parameters_only(virtual):
     r = problem.residuals(x)
     assert r.shape == (15 + len(x),)
     np.testing.assert_allclose(r[15:], PRIOR_SCALE_MM / sigma)    # 0 for the registration
+
+
+def test_nested_loso_chooses_the_prior_strength_without_the_held_out_sequence(virtual, monkeypatch):
+    import ctrkin.calibration.fit as fit
+
+    ds, _ = virtual
+    seen: list[tuple[float, frozenset[int]]] = []
+    inner = fit._inner_loso
+
+    def spy(robot, groups, joints, measured, sid, rows, max_nfev, scale):
+        seen.append((scale, frozenset(np.unique(sid[rows]).tolist())))
+        return inner(robot, groups, joints, measured, sid, rows, max_nfev, scale)
+
+    monkeypatch.setattr(fit, "_inner_loso", spy)
+    loso = leave_one_sequence_out(ds, groups=GROUPS, max_nfev=15, prior_scales=(1.0, 100.0))
+    # each outer fold scored each candidate on its two training sequences only
+    assert sorted(seen) == sorted((c, frozenset(s)) for c in (1.0, 100.0)
+                                  for s in ({1, 2}, {0, 2}, {0, 1}))
+    # noise 0.05 mm and a 1 mm-scaled prior: the weak prior (true values are far from nominal) wins
+    assert set(loso["prior_scale"].values()) == {100.0}
+    assert loso["mean_mm"] < 0.3
+    with pytest.raises(CtrkinError, match="at least 3 sequences"):
+        leave_one_sequence_out(ds, groups=GROUPS, prior=False, prior_scales=(1.0, 2.0))
+
+
+def test_calibrate_cli_nested_prior_scales(tmp_path, virtual):
+    ds, _ = virtual
+    ds.save(tmp_path / "ds")
+    args = ["calibrate", "--data", str(tmp_path / "ds"), "--out", str(tmp_path / "cal.toml"),
+            "--fit", ",".join(GROUPS), "--max-evaluations", "10", "--loso"]
+    r = CliRunner().invoke(cli, [*args, "--prior-scales", "1,100"])
+    assert r.exit_code == 0, r.output
+    assert "prior scale chosen by nested leave-one-sequence-out: a 100, b 100, c 100" in r.output
+    r = CliRunner().invoke(cli, [*args, "--prior-scales", "1,x"])
+    assert r.exit_code != 0 and "--prior-scales" in r.output and "0.5,1,2" in r.output

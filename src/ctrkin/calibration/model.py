@@ -19,7 +19,7 @@ import numpy as np
 import tomllib
 
 from ctrkin.errors import CtrkinError
-from ctrkin.mechanics.pointwise import _prepare, _solve_prepared
+from ctrkin.mechanics.pointwise import Equilibrium, _prepare, _solve_prepared
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS
 from ctrkin.pose import Registration, quat_from_tangent
 from ctrkin.robots.robot import Robot
@@ -46,16 +46,24 @@ class CalibratedTCM:
     def robot_frame(self, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Point-wise TCM (no history, cold start): marker positions (T, 3) mm and unit tangents
         (T, 3) in the robot base frame; NaN where no equilibrium converged."""
+        pos, tan, _ = self.solve(joints)
+        return pos, tan
+
+    def solve(self, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Equilibrium | None]]:
+        """robot_frame and the equilibria behind it ((T,) list, None where none converged), whose
+        prepared problem and shooting solution the calibration's Jacobian (sensitivity.py) reuses."""
         Q = self.model_joints(joints)
         pos = np.full((len(Q), 3), np.nan)
         tan = np.full((len(Q), 3), np.nan)
+        eqs: list[Equilibrium | None] = [None] * len(Q)
         for i, q in enumerate(Q):
             eq = _solve_prepared(_prepare(self.robot, q, DEFAULT_SETTINGS, checked=True), None,
                                  DEFAULT_SETTINGS)
             if eq.converged:
                 pos[i] = eq.tip_position + self.marker_mm * eq.tip_tangent
                 tan[i] = eq.tip_tangent
-        return pos, tan
+                eqs[i] = eq
+        return pos, tan, eqs
 
     def predict(self, joints: np.ndarray) -> np.ndarray:
         """(T, 2N) logged joints (deg, mm) -> (T, 6) tip poses (x, y, z mm, q0, qx, qy) in the

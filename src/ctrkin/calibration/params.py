@@ -9,9 +9,10 @@ tubes is the registration's), transmission_length (per tube, mm), marker (tip-ma
 Prior (`prior=True`, the default): each physical parameter has a Gaussian prior about its nominal
 value with the standard deviation in PRIOR_SIGMA, chosen from what a lab knows before calibrating
 (curvature of a shape-set tube ±15 %, ν ±0.2, offsets ±10° and ±5 mm, transmission ±100 mm, marker
-±10 mm). It keeps parameters that the data hardly constrain (the outer tube's, when only the inner
-tube moved) near their nominal values instead of letting them drift to fit noise. The registration
-has no prior.
+±10 mm; `prior_scale` multiplies them all). It keeps parameters that the data hardly constrain
+(the outer tube's, when only the inner tube moved) near their nominal values instead of letting
+them drift to fit noise. The registration has no prior. The strength can be chosen without the
+test data by nested leave-one-sequence-out (fit.leave_one_sequence_out, prior_scales).
 """
 
 from __future__ import annotations
@@ -47,8 +48,11 @@ class ParameterSet:
     max_transmission_mm: float = 500.0
     max_marker_mm: float = 20.0
     prior: bool = True
+    prior_scale: float = 1.0                  # multiplies every prior σ (> 1: a weaker prior)
 
     def __post_init__(self) -> None:
+        if not self.prior_scale > 0:
+            raise CtrkinError(f"prior_scale must be > 0, got {self.prior_scale}")
         bad = [g for g in self.groups if g not in GROUPS]
         if bad:
             raise CtrkinError(f"unknown calibration group(s) {bad}; choose from {list(GROUPS)}")
@@ -97,7 +101,7 @@ class ParameterSet:
         out = []
         for name in self.names:
             key = name if name == "marker_mm" else name.rsplit("_", 1)[0]
-            out.append(PRIOR_SIGMA.get(key, np.inf) if self.prior else np.inf)
+            out.append(PRIOR_SIGMA.get(key, np.inf) * self.prior_scale if self.prior else np.inf)
         return np.array(out)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:

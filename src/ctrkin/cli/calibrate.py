@@ -25,7 +25,7 @@ from ctrkin.util.files import atomic_write_text
 @click.command("calibrate", epilog="""\b
 Example:
   ctrkin calibrate --data data/optitrack --robot examples/robots/comet_nylon_optitrack.toml \\
-      --out robots/optitrack_cal.toml --loso""")
+      --out robots/optitrack_cal.toml --loso --prior-scales 0.5,1,2""")
 @click.option("--data", "data_dir", required=True, type=click.Path(exists=True, file_okay=False),
               help="Dataset folder (ctrkin dataset import).")
 @click.option("--robot", "robot_spec", default=None,
@@ -39,16 +39,29 @@ Example:
 @click.option("--max-evaluations", default=60, show_default=True, help="Least-squares evaluations.")
 @click.option("--no-prior", is_flag=True, help="Fit without the prior about the nominal values "
               "(ctrkin.calibration.params.PRIOR_SIGMA).")
+@click.option("--prior-scales", default="1", show_default=True,
+              help="With --loso: candidate multipliers of every prior σ, comma-separated (e.g. 0.5,1,2); "
+              "with several, each fold picks one by a nested leave-one-sequence-out on its training "
+              "sequences (needs >= 3 sequences).")
 def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str, loso: bool,
-                  max_evaluations: int, no_prior: bool) -> None:
+                  max_evaluations: int, no_prior: bool, prior_scales: str) -> None:
     """Fit registration and TCM parameters (precurvature, stiffness ratio, α/β offsets, transmission
     length, marker offset) by bounded least squares; print them with standard errors."""
     ds = Dataset.load(data_dir)
     robot = get_robot(robot_spec) if robot_spec else ds.robot
     groups = tuple(g.strip() for g in fit.split(",") if g.strip())
+    try:
+        scales = tuple(float(v) for v in prior_scales.split(",") if v.strip())
+    except ValueError:
+        raise click.BadParameter(f"numbers separated by commas, e.g. 0.5,1,2; got {prior_scales!r}",
+                                 param_hint="--prior-scales") from None
+    if not scales or not all(v > 0 for v in scales):
+        raise click.BadParameter(f"positive numbers, e.g. 0.5,1,2; got {prior_scales!r}",
+                                 param_hint="--prior-scales")
     res = calibrate(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior)
     if loso:
-        res.loso = leave_one_sequence_out(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior)
+        res.loso = leave_one_sequence_out(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior,
+                                          prior_scales=scales)
     d = res.model.robot.to_dict()
     d["name"] = f"{robot.name}-calibrated"
     d["calibration"] = {**res.model.to_dict(), "dataset": str(data_dir),
@@ -65,6 +78,9 @@ def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str
     if loso:
         per = ", ".join(f"{k} {v:.3f}" for k, v in res.loso["per_sequence"].items())
         click.echo(f"leave-one-sequence-out: {res.loso['mean_mm']:.3f} mm ({per})")
+        if len(scales) > 1:
+            chosen = ", ".join(f"{k} {v:g}" for k, v in res.loso["prior_scale"].items())
+            click.echo(f"prior scale chosen by nested leave-one-sequence-out: {chosen}")
     click.echo(f"wrote {out_file}")
 
 
