@@ -45,8 +45,9 @@ def follow_features(frame: OuterFrame, n_tubes: int, target: np.ndarray, previou
     """
     n = n_tubes
     q = np.asarray(joints, float)
-    local = frame.to_local(np.asarray(target, float), q[:, n - 1])
-    local_prev = frame.to_local(np.asarray(previous, float), q[:, n - 1])
+    m = len(q)
+    both = frame.to_local(np.concatenate([target, previous]), np.concatenate([q[:, n - 1], q[:, n - 1]]))
+    local, local_prev = both[:m], both[m:]
     rel = np.radians(q[:, : n - 1] - q[:, n - 1: n])
     sc = np.stack([np.sin(rel), np.cos(rel)], axis=2).reshape(len(q), -1)
     return np.concatenate([local, local - local_prev, sc, q[:, n:]], axis=1)

@@ -50,12 +50,9 @@ class OuterFrame:
 
     def to_local(self, poses: np.ndarray, alpha_outer_deg: np.ndarray) -> np.ndarray:
         """poses (T, 6) tracker frame, αN (T,) deg -> (T, 6) poses in the outer tube's frame."""
-        R, t = self.registration.rotation, self.registration.translation
-        p = np.asarray(poses, float)
-        pos = (p[:, :3] - t) @ R
-        tan = tangent_from_quat(p[:, 3:6]) @ R
-        return np.concatenate([_rot_z(pos, -np.asarray(alpha_outer_deg, float)),
-                               quat_from_tangent(_rot_z(tan, -np.asarray(alpha_outer_deg, float)))], axis=1)
+        p = np.ascontiguousarray(poses, dtype=np.float64)
+        a = np.ascontiguousarray(np.broadcast_to(np.asarray(alpha_outer_deg, np.float64), (len(p),)))
+        return world_poses_to_local(p, a, self.registration.rotation, self.registration.translation)
 
     def to_world(self, local: np.ndarray, alpha_outer_deg: np.ndarray) -> np.ndarray:
         """Inverse of to_local: (T, 6) local poses -> (T, 6) tracker-frame poses."""
@@ -123,3 +120,36 @@ def local_tips_to_world(y: np.ndarray, alpha_outer_deg: np.ndarray, R: np.ndarra
             pos[k, i] = R[i, 0] * p0 + R[i, 1] * p1 + R[i, 2] * p2 + t[i]
             tan[k, i] = R[i, 0] * v0 + R[i, 1] * v1 + R[i, 2] * v2
     return pos, tan
+
+
+@njit(cache=True)
+def world_poses_to_local(p: np.ndarray, alpha_outer_deg: np.ndarray, R: np.ndarray, t: np.ndarray
+                         ) -> np.ndarray:
+    """OuterFrame.to_local in scalar loops (the follow IK calls it every step): p (K, 6)
+    tracker-frame poses, αN (K,) deg -> (K, 6) poses in the outer tube's frame (unit quaternion
+    from the tangent as pose.quat_from_tangent, the x axis at a tangent pointing straight back)."""
+    k_count = p.shape[0]
+    out = np.empty((k_count, 6))
+    for k in range(k_count):
+        a = math.radians(alpha_outer_deg[k])
+        c, s = math.cos(a), math.sin(a)
+        d0, d1, d2 = p[k, 0] - t[0], p[k, 1] - t[1], p[k, 2] - t[2]
+        w, qx, qy = p[k, 3], p[k, 4], p[k, 5]
+        nq = math.sqrt(w * w + qx * qx + qy * qy)
+        w, qx, qy = w / nq, qx / nq, qy / nq
+        v0, v1, v2 = 2 * w * qy, -2 * w * qx, 1 - 2 * (qx * qx + qy * qy)     # R(q) e3
+        b = np.empty(6)
+        for i in range(3):                                                   # Rᵀ (p − t), Rᵀ v
+            b[i] = R[0, i] * d0 + R[1, i] * d1 + R[2, i] * d2
+            b[3 + i] = R[0, i] * v0 + R[1, i] * v1 + R[2, i] * v2
+        out[k, 0], out[k, 1], out[k, 2] = c * b[0] + s * b[1], -s * b[0] + c * b[1], b[2]   # Rz(−αN)
+        l0, l1, l2 = c * b[3] + s * b[4], -s * b[3] + c * b[4], b[5]
+        nt = math.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
+        l0, l1, l2 = l0 / nt, l1 / nt, l2 / nt
+        q0, q1, q2 = 1.0 + l2, -l1, l0
+        nq = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
+        if nq < 1e-12:
+            out[k, 3], out[k, 4], out[k, 5] = 0.0, 1.0, 0.0
+        else:
+            out[k, 3], out[k, 4], out[k, 5] = q0 / nq, q1 / nq, q2 / nq
+    return out
