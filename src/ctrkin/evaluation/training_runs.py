@@ -49,6 +49,7 @@ def plan_runs(scale: ReproScale) -> list[Run]:
             batch_size=budget.batch_size,
             lr=budget.lr,
             lr_schedule=budget.lr_schedule,
+            val_smoothing=budget.val_smoothing,
             split="dataset",
             **kw,
         )
