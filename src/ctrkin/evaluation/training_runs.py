@@ -50,6 +50,7 @@ def plan_runs(scale: ReproScale) -> list[Run]:
             lr=budget.lr,
             lr_schedule=budget.lr_schedule,
             val_smoothing=budget.val_smoothing,
+            fused_adam=budget.fused_adam,
             split="dataset",
             **kw,
         )

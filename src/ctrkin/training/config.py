@@ -45,10 +45,12 @@ class TrainConfig:
     often the previous state is hidden; loop: "epoch" (one gather of the shuffled training tensors
     per epoch, fused Adam: the per-batch work is the network alone) or "batch" (the loop up to
     issue 11: index gathers and a plain Adam step per batch; kept for comparison, same batches and
-    same seeds); val_smoothing: early stopping counts epochs without an improvement of the
-    exponential moving average of the val loss with this factor (0: the raw val loss, as the
-    paper; the best epoch's weights are still chosen by the raw val loss); max_seconds: stop after
-    this much training time (a wall-clock budget; None: no limit).
+    same seeds); fused_adam: the "epoch" loop's Adam uses the fused CPU kernel (False: the default
+    kernel; the "epoch" loop is then bit-identical to the "batch" loop); val_smoothing: early
+    stopping counts epochs without an improvement of the exponential moving average of the val
+    loss with this factor (0: the raw val loss, as the paper; the best epoch's weights are still
+    chosen by the raw val loss); max_seconds: stop after this much training time (a wall-clock
+    budget; None: no limit).
     """
 
     task: str = "fk"
@@ -74,6 +76,7 @@ class TrainConfig:
     gate_weight: float = 0.1
     unknown_prob: float = 0.1
     loop: str = "epoch"
+    fused_adam: bool = True
     val_smoothing: float = 0.0
     max_seconds: float | None = None
 
@@ -132,8 +135,10 @@ class TrainConfig:
         return cls(**d)
 
     def differences(self, other: TrainConfig,
-                    ignore: tuple[str, ...] = ("max_epochs", "threads", "max_seconds")) -> list[str]:
-        """What differs, as 'key: a vs b' (keys that may change on resume are ignored)."""
+                    ignore: tuple[str, ...] = ("max_epochs", "threads", "max_seconds", "loop",
+                                               "fused_adam")) -> list[str]:
+        """What differs, as 'key: a vs b' (keys that may change on resume are ignored: how, not what,
+        is trained)."""
         a, b = self.to_dict(), other.to_dict()
         return [f"{k}: {json.dumps(a[k])} vs {json.dumps(b[k])}" for k in a
                 if k not in ignore and a[k] != b[k]]
