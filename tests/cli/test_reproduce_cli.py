@@ -10,7 +10,7 @@ from ctrkin.cli.main import cli
 def test_help_lists_scales() -> None:
     res = CliRunner().invoke(cli, ["reproduce", "--help"])
     assert res.exit_code == 0
-    for word in ("quick", "full", "tiny", "--out", "--workers"):
+    for word in ("quick", "full", "tiny", "--out", "--workers", "--executor", "RAY_ADDRESS"):
         assert word in res.output
 
 

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
+from typing import Any
 
 import pytest
 
@@ -86,3 +89,32 @@ def test_rerun_reuses_data_and_models(tiny_run) -> None:
     fk_first, fk_again = first["fk"]["lstm_mlp"], again["fk"]["lstm_mlp"]
     assert fk_again["position_rmse_mm"] == pytest.approx(fk_first["position_rmse_mm"])
     assert again["dataset"] == first["dataset"]
+
+
+def _without_timing(tree: Any) -> Any:
+    """The results minus what depends on the clock or the process (times, memory)."""
+    if isinstance(tree, dict):
+        return {k: _without_timing(v) for k, v in tree.items()
+                if k not in ("timing", "seconds", "memory", "training", "samples_per_s")
+                and not k.startswith("timing.")}
+    if isinstance(tree, list):
+        return [_without_timing(v) for v in tree]
+    return tree
+
+
+@pytest.mark.slow
+def test_ray_executor_gives_the_local_results(tiny_run, tmp_path) -> None:
+    pytest.importorskip("ray")
+    out, local = tiny_run
+    on_ray = reproduce(paper_robot(), get_scale("tiny"), tmp_path, workers=2, executor="ray",
+                       log=lambda _m: None)
+    for weights in sorted((out / "models").glob("*/weights.pt")):    # the same seeds: the same bytes
+        assert (tmp_path / "models" / weights.parent.name / "weights.pt").read_bytes() == weights.read_bytes()
+    assert _without_timing(on_ray) == _without_timing(local)
+    assert on_ray["memory"]["peak_rss_mb_main"] > 0
+
+
+def test_local_reproduction_does_not_import_ray() -> None:
+    code = ("import sys, ctrkin.cli.main, ctrkin.evaluation.reproduce, ctrkin.evaluation.executors; "
+            "assert 'ray' not in sys.modules")
+    subprocess.run([sys.executable, "-c", code], check=True)

@@ -2,6 +2,7 @@
 
     ctrkin reproduce --scale quick --out out/reproduce      # minutes on two cores (README main job)
     ctrkin reproduce --scale full --out out/full            # the paper's data size and training
+    RAY_ADDRESS=auto ctrkin reproduce --scale full --executor ray --out /shared/full   # on a cluster
 
 Writes OUT/report.md (tables with the paper's numbers beside ours, figures), OUT/results.json, and
 keeps the data (OUT/data) and models (OUT/models) so that a rerun reuses them.
@@ -26,7 +27,12 @@ from ctrkin.evaluation.scales import SCALES, get_scale
 )
 @robot_option
 @click.option("--robot-seed", default=0, show_default=True, help="The virtual hardware draw.")
-@click.option("--workers", default=2, show_default=True, help="Models trained in parallel (one thread each).")
+@click.option("--workers", default=2, show_default=True,
+              help="Models trained in parallel (one thread each); with --executor ray and no RAY_ADDRESS, "
+              "the CPUs of the local Ray instance.")
+@click.option("--executor", type=click.Choice(["local", "ray"]), default="local", show_default=True,
+              help="local: spawned processes; ray: one Ray task per training, on the cluster at "
+              "RAY_ADDRESS or a local instance (pip install 'ctrkin[ray]').")
 @click.option(
     "--out",
     "out_dir",
@@ -35,7 +41,8 @@ from ctrkin.evaluation.scales import SCALES, get_scale
     type=click.Path(file_okay=False),
     help="Output folder.",
 )
-def reproduce_cmd(scale: str, robot_spec: str, robot_seed: int, workers: int, out_dir: str) -> None:
+def reproduce_cmd(scale: str, robot_spec: str, robot_seed: int, workers: int, executor: str,
+                  out_dir: str) -> None:
     """Collect data, train the models, run every experiment of the paper, write the report."""
     from ctrkin.evaluation.reproduce import reproduce
 
@@ -46,6 +53,7 @@ def reproduce_cmd(scale: str, robot_spec: str, robot_seed: int, workers: int, ou
         robot_seed=robot_seed,
         workers=workers,
         log=click.echo,
+        executor=executor,
     )
     fk, ik = results["fk"], results["ik"]["lstm_mlp"]
     click.echo(

@@ -7,6 +7,8 @@
     ctrkin train --task fk --model lstm_mlp_no_delta --data data/quick --out models/no_delta   # Fig. 5b
     ctrkin train --task fk --model lstm_mlp_branch --epochs 80 --patience 80 --batch-size 256 \
         --lr 2e-3 --lr-schedule cosine --data data/quick --out models/fk_branch   # snap-aware FK
+    ctrkin train --task fk --batch-size 1024 --lr 5.66e-3 --val-smoothing 0.5 --threads 1 \
+        --data data/quick --out models/fk_fast     # ~5x the samples/s of batch 32 (lr: sqrt rule)
 
 Running the same command again resumes from the last checkpoint in --out (or raise --max-epochs to
 continue a finished run); --overwrite starts over. Models: see `ctrkin train --list-models`.
@@ -59,13 +61,19 @@ def _list_models(ctx: click.Context, _param: click.Parameter, value: bool) -> No
 @click.option("--lr", default=1e-3, show_default=True)
 @click.option("--lr-schedule", type=click.Choice(["constant", "cosine"]), default="constant",
               show_default=True, help="constant (paper) or cosine decay to lr/50 over --epochs.")
+@click.option("--loop", type=click.Choice(["epoch", "batch"]), default="epoch", show_default=True,
+              help="epoch: one gather per epoch, fused Adam; batch: the loop before issue 11.")
+@click.option("--val-smoothing", default=0.0, show_default=True,
+              help="Early stopping on a moving average of the val loss with this factor (0: raw).")
+@click.option("--max-seconds", default=None, type=float, help="Training-time budget (s).")
 @click.option("--seed", default=0, show_default=True)
 @click.option("--threads", default=2, show_default=True, help="torch CPU threads.")
 @click.option("--overwrite", is_flag=True, help="Start over even if --out holds a checkpoint.")
 def train_cmd(task: str, data_dir: str, out_dir: str, model: str, structure: str | None,
               options: tuple[str, ...], ib: int, no_delta: bool, angles: str, output_activation: str,
               pose_source: str, split: str, max_epochs: int, patience: int, batch_size: int, lr: float,
-              lr_schedule: str, seed: int, threads: int, overwrite: bool) -> None:
+              lr_schedule: str, loop: str, val_smoothing: float, max_seconds: float | None, seed: int,
+              threads: int, overwrite: bool) -> None:
     """Train a history-aware kinematics model (paper LSTM-MLP by default) and save it to --out."""
     from ctrkin.training import TrainConfig, train
 
@@ -80,7 +88,8 @@ def train_cmd(task: str, data_dir: str, out_dir: str, model: str, structure: str
     cfg = TrainConfig(task=task, model=model, options=opts, ib=ib, delta=not no_delta, angle_encoding=angles,
                       output_activation=output_activation, pose_source=pose_source, split=split,
                       max_epochs=max_epochs, patience=patience, batch_size=batch_size, lr=lr,
-                      lr_schedule=lr_schedule, seed=seed, threads=threads)
+                      lr_schedule=lr_schedule, loop=loop, val_smoothing=val_smoothing,
+                      max_seconds=max_seconds, seed=seed, threads=threads)
     ds = Dataset.load(data_dir)
     ds.meta.setdefault("path", data_dir)
     res = train(ds, cfg, out_dir, overwrite=overwrite, log=lambda m: click.echo(m, err=True))

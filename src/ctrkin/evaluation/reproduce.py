@@ -4,6 +4,7 @@ results.json. Each stage reuses what an earlier run of the same scale left in th
 
 from __future__ import annotations
 
+import resource
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -42,8 +43,10 @@ def reproduce(
     robot_seed: int = 0,
     workers: int = 2,
     log: Callable[[str], None] = print,
+    executor: str = "local",
 ) -> dict[str, Any]:
-    """Run the whole reproduction into `out`; workers: trainings run in parallel (one thread each)."""
+    """Run the whole reproduction into `out`; workers: trainings run in parallel (one thread each);
+    executor: where they run, "local" processes or "ray" tasks (ctrkin.evaluation.executors)."""
     out = Path(out)
     figures = out / "figures"
     figures.mkdir(parents=True, exist_ok=True)
@@ -61,7 +64,8 @@ def reproduce(
     done()
 
     done = stage("train models")
-    models = train_all(out / "data" / "paper", scale, out / "models", workers=workers, log=log)
+    models = train_all(out / "data" / "paper", scale, out / "models", workers=workers, log=log,
+                       executor=executor)
     done()
 
     done = stage("fit the TCM baseline's registration on training rows")
@@ -146,10 +150,20 @@ def reproduce(
     )
     seconds["total"] = time.perf_counter() - t_all
     results["seconds"] = seconds
+    results["memory"] = peak_rss_mb(workers if executor == "local" else 0)
     written = write_results(results, out / "results.json")
     write_report(written, out / "report.md")
     log(f"wrote {out / 'report.md'} and {out / 'results.json'} ({seconds['total']:.0f} s)")
     return written
+
+
+def peak_rss_mb(workers: int) -> dict[str, float]:
+    """Peak resident memory (MB): this process, the largest finished local training worker, and
+    the bound of both at once (this process + `workers` such workers; Ray workers are not ours)."""
+    main = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0       # Linux: kB
+    child = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
+    return {"peak_rss_mb_main": main, "peak_rss_mb_worker": child,
+            "peak_rss_mb_bound": main + workers * child}
 
 
 def _snapping(experiments: dict[str, Any]) -> dict[str, Any]:

@@ -10,7 +10,6 @@ on the same held-out sequences. Grid and comparison models may see fewer trainin
 
 from __future__ import annotations
 
-import multiprocessing as mp
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -19,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from ctrkin.data.dataset import Dataset
+from ctrkin.evaluation.executors import run_jobs
 from ctrkin.evaluation.scales import Budget, ReproScale
 from ctrkin.inference import Kinematics
 from ctrkin.inference.refine_folder import assemble_refined
@@ -49,6 +49,8 @@ def plan_runs(scale: ReproScale) -> list[Run]:
             batch_size=budget.batch_size,
             lr=budget.lr,
             lr_schedule=budget.lr_schedule,
+            val_smoothing=budget.val_smoothing,
+            fused_adam=budget.fused_adam,
             split="dataset",
             **kw,
         )
@@ -96,11 +98,14 @@ def _train_run(dataset_dir: str, n_sequences: int | None, cfg: dict[str, Any], o
 
 
 def train_all(
-    dataset_dir: Path, scale: ReproScale, out: Path, workers: int = 2, log: Callable[[str], None] = print
+    dataset_dir: Path, scale: ReproScale, out: Path, workers: int = 2, log: Callable[[str], None] = print,
+    executor: str = "local",
 ) -> dict[str, Kinematics]:
     """Train (or resume / reuse) every run into out/<name>, `workers` runs at a time with one torch
     thread each (two single-threaded runs use two cores better than one run with two threads);
-    returns the loaded models. dataset_dir: the saved paper dataset with its split."""
+    returns the loaded models. dataset_dir: the saved paper dataset with its split; executor:
+    "local" (spawned processes) or "ray" (Ray tasks of one CPU each, ctrkin.evaluation.executors;
+    the same results for the same seeds)."""
     runs = plan_runs(scale)
     jobs = []
     for run in runs:
@@ -108,21 +113,9 @@ def train_all(
         n_seq = None if run.role == "main" else scale.grid_sequences
         jobs.append((str(dataset_dir), n_seq, cfg, str(out / run.name)))
     with progress_bar(total=len(runs), desc="train models", unit="model") as bar:
-        if workers <= 1:
-            for run, job in zip(runs, jobs, strict=True):
-                _train_run(*job)
-                bar.update(1)
-                log(f"trained {run.name}")
-        else:
-            ctx = mp.get_context("spawn")
-            with ctx.Pool(workers) as pool:
-                pending = {
-                    run.name: pool.apply_async(_train_run, job) for run, job in zip(runs, jobs, strict=True)
-                }
-                for name, res in pending.items():
-                    res.get()
-                    bar.update(1)
-                    log(f"trained {name}")
+        for k in run_jobs(_train_run, jobs, executor=executor, workers=workers, threads=1):
+            bar.update(1)
+            log(f"trained {runs[k].name}")
     models = {run.name: Kinematics.load(out / run.name) for run in runs}
     assemble_refined(out / IK_PAPER, out / FK_BRANCH, out / IK_REFINED)
     models[IK_REFINED] = Kinematics.load(out / IK_REFINED)

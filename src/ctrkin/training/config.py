@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
@@ -15,6 +16,14 @@ from ctrkin.models.registry import get_entry, resolve_options
 SPLITS = ("dataset", "sequence", "random")
 POSE_SOURCES = ("measured", "true")
 LR_SCHEDULES = ("constant", "cosine")
+LOOPS = ("epoch", "batch")
+PAPER_BATCH, PAPER_LR = 32, 1e-3
+
+
+def scaled_lr(batch_size: int, base_lr: float = PAPER_LR, base_batch: int = PAPER_BATCH) -> float:
+    """Square-root learning-rate rule for a larger batch: Adam's update noise falls with √batch, so
+    lr grows with it (batch 32 -> 1e-3, the paper's; 512 -> 4e-3)."""
+    return base_lr * math.sqrt(batch_size / base_batch)
 
 
 @dataclass(frozen=True)
@@ -34,7 +43,15 @@ class TrainConfig:
     (paper) or "cosine" (decay to lr/50 over max_epochs); gate_weight, unknown_prob: branch models
     only (ctrkin.models.branch): weight of the gate's cross-entropy beside the MAE loss, and how
     often the previous state is hidden; follow: the follow IK (ctrkin.models.follow, model
-    'follow_mlp', trained by ctrkin.training.follow).
+    'follow_mlp', trained by ctrkin.training.follow); loop: "epoch" (one gather of the shuffled
+    training tensors per epoch, fused Adam: the per-batch work is the network alone) or "batch" (the loop up to
+    issue 11: index gathers and a plain Adam step per batch; kept for comparison, same batches and
+    same seeds); fused_adam: the "epoch" loop's Adam uses the fused CPU kernel (False: the default
+    kernel; the "epoch" loop is then bit-identical to the "batch" loop); val_smoothing: early
+    stopping counts epochs without an improvement of the exponential moving average of the val
+    loss with this factor (0: the raw val loss, as the paper; the best epoch's weights are still
+    chosen by the raw val loss); max_seconds: stop after this much training time (a wall-clock
+    budget; None: no limit).
     """
 
     task: str = "fk"
@@ -60,6 +77,10 @@ class TrainConfig:
     gate_weight: float = 0.1
     unknown_prob: float = 0.1
     follow: bool = False
+    loop: str = "epoch"
+    fused_adam: bool = True
+    val_smoothing: float = 0.0
+    max_seconds: float | None = None
 
     def __post_init__(self) -> None:
         if self.task not in ("fk", "ik"):
@@ -93,6 +114,12 @@ class TrainConfig:
             raise ModelError(f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
         if not (self.gate_weight >= 0 and 0 <= self.unknown_prob <= 1):
             raise ModelError("gate_weight must be >= 0 and unknown_prob in [0, 1]")
+        if self.loop not in LOOPS:
+            raise ModelError(f"loop must be one of {LOOPS}, got {self.loop!r}")
+        if not 0 <= self.val_smoothing < 1:
+            raise ModelError(f"val_smoothing must be in [0, 1), got {self.val_smoothing}")
+        if self.max_seconds is not None and not self.max_seconds > 0:
+            raise ModelError(f"max_seconds must be positive or None, got {self.max_seconds}")
         if self.min_delta < 0:
             raise ModelError(f"min_delta must be >= 0, got {self.min_delta}")
         self.layout(2)   # validates ib and angle_encoding
@@ -113,9 +140,11 @@ class TrainConfig:
             raise ModelError(f"unknown training config keys {unknown}")
         return cls(**d)
 
-    def differences(self, other: TrainConfig, ignore: tuple[str, ...] = ("max_epochs", "threads")
-                    ) -> list[str]:
-        """What differs, as 'key: a vs b' (keys that may change on resume are ignored)."""
+    def differences(self, other: TrainConfig,
+                    ignore: tuple[str, ...] = ("max_epochs", "threads", "max_seconds", "loop",
+                                               "fused_adam")) -> list[str]:
+        """What differs, as 'key: a vs b' (keys that may change on resume are ignored: how, not what,
+        is trained)."""
         a, b = self.to_dict(), other.to_dict()
         return [f"{k}: {json.dumps(a[k])} vs {json.dumps(b[k])}" for k in a
                 if k not in ignore and a[k] != b[k]]

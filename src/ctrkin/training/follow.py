@@ -29,7 +29,15 @@ from ctrkin.models.store import CONFIG, ModelBundle, read_json, write_json
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.curves import plot_curves
 from ctrkin.training.data import data_signature, inputs_and_targets, split_rows
-from ctrkin.training.loop import TrainResult, _epoch, _learning_rate, _write_history, split_signature
+from ctrkin.training.loop import (
+    TrainResult,
+    _epoch,
+    _epoch_gathered,
+    _learning_rate,
+    _optimizer,
+    _write_history,
+    split_signature,
+)
 from ctrkin.training.metrics import joint_errors
 from ctrkin.util.folders import swap_in, write_manifest
 from ctrkin.util.progress import progress_bar
@@ -48,6 +56,9 @@ def train_follow(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, prog
                  log: Any) -> TrainResult:
     """Train the follow IK `cfg` on `ds` into `out` (caller holds the folder lock)."""
     say = log or (lambda _m: None)
+    if cfg.val_smoothing or cfg.max_seconds is not None:
+        raise ModelError("the follow IK's training takes no val_smoothing or max_seconds (its epochs "
+                         "are cheap; set max_epochs and patience)")
     torch.set_num_threads(cfg.threads)
     n = ds.n_tubes
     split, rows = split_rows(ds, cfg)
@@ -94,7 +105,8 @@ def train_follow(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, prog
                                           "protocol": ds.meta.get("protocol")},
                                  "follow": follow}, frame=frame)
     net = bundle.net
-    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
+    opt = _optimizer(net, cfg)
+    run_epoch = _epoch_gathered if cfg.loop == "epoch" else _epoch
     gen = torch.Generator().manual_seed(cfg.seed)
     history: list[dict[str, float]] = []
     best = (float("inf"), 0, {k: v.clone() for k, v in net.state_dict().items()})
@@ -112,7 +124,7 @@ def train_follow(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, prog
                 X, Y = draw(tr, rng)
             for group in opt.param_groups:
                 group["lr"] = _learning_rate(cfg, epoch)
-            train_loss = _epoch(net, opt, *tensors(X, Y), cfg.batch_size, gen)
+            train_loss = run_epoch(net, opt, *tensors(X, Y), cfg.batch_size, gen)
             net.eval()
             with torch.inference_mode():
                 val_loss = float(torch.mean(torch.abs(net(Xv) - Yv)))

@@ -1,0 +1,91 @@
+"""Training throughput and accuracy at matched wall time: the loop up to issue 11 (per-batch gathers,
+plain Adam, the paper's batch 32 and lr 1e-3) against the current one (whole-epoch gather, fused
+Adam, a larger batch with the square-root learning-rate rule, early stopping on a smoothed val loss),
+both training the default FK model (the paper's LSTM-MLP) in one run.
+
+    ctrkin collect --protocol paper --scale quick --out data/paper-quick
+    OMP_NUM_THREADS=1 python benchmarks/bench_training.py data/paper-quick --seconds 240
+
+Both runs get the same training-time budget (`TrainConfig.max_seconds`), spent in alternating
+rounds (each round resumes its run from the checkpoint), so both see the same load from other jobs
+on a shared machine. samples/s = training samples x epochs / training seconds (validation included,
+one thread). Held-out error: position RMSE on the test sequences against the truth as the tracker
+sees it without noise (and against the measurement). Prints a table and ends with one JSON line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from ctrkin.data import Dataset
+from ctrkin.training import TrainConfig, train
+from ctrkin.training.config import scaled_lr
+
+
+def configs(batch: int, seconds: float, threads: int) -> dict[str, TrainConfig]:
+    """old: the paper's recipe on the loop up to issue 11; new: the current loop and recipe."""
+    common = {"task": "fk", "threads": threads, "max_epochs": 10_000, "max_seconds": seconds}
+    return {
+        "old": TrainConfig(loop="batch", batch_size=32, lr=1e-3, **common),
+        "new": TrainConfig(loop="epoch", batch_size=batch, lr=scaled_lr(batch), val_smoothing=0.5, **common),
+    }
+
+
+def run(ds: Dataset, cfgs: dict[str, TrainConfig], out: Path, rounds: int) -> dict[str, dict[str, Any]]:
+    """Train every config in `rounds` alternating slices of its time budget; the metrics of each."""
+    metrics: dict[str, dict[str, Any]] = {}
+    for k in range(1, rounds + 1):
+        for name, cfg in cfgs.items():
+            assert cfg.max_seconds is not None
+            step = TrainConfig.from_dict({**cfg.to_dict(), "max_seconds": cfg.max_seconds * k / rounds})
+            t0 = time.perf_counter()
+            metrics[name] = train(ds, step, out / name, progress=False).metrics
+            tr = metrics[name]["training"]
+            print(f"round {k}/{rounds} {name}: epoch {tr['epochs']}, {tr['seconds']:.0f} s trained "
+                  f"({time.perf_counter() - t0:.0f} s with evaluation)", flush=True)
+    return metrics
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("data", type=Path, help="a paper-protocol dataset (ctrkin collect --protocol paper)")
+    ap.add_argument("--seconds", type=float, default=240.0, help="training-time budget of each run")
+    ap.add_argument("--rounds", type=int, default=4, help="alternating slices of the budget")
+    ap.add_argument("--batch", type=int, default=1024, help="batch size of the new recipe")
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--out", type=Path, default=None, help="model folders (default: a temporary folder)")
+    args = ap.parse_args()
+    ds = Dataset.load(args.data)
+    cfgs = configs(args.batch, args.seconds, args.threads)
+    with tempfile.TemporaryDirectory() as tmp:
+        m = run(ds, cfgs, args.out or Path(tmp), args.rounds)
+    rows = {}
+    for name, cfg in cfgs.items():
+        tr, test = m[name]["training"], m[name]["test"]
+        rows[name] = {"batch": cfg.batch_size, "lr": cfg.lr, "epochs": tr["epochs"], "best": tr["best_epoch"],
+                      "seconds": tr["seconds"], "samples_per_s": tr["samples_per_s"],
+                      "mm_true": test["vs_true"]["position_mm_rmse"],
+                      "mm_meas": test["vs_measured"]["position_mm_rmse"],
+                      "deg_true": test["vs_true"]["orientation_deg_rmse"]}
+    print(f"\n{len(ds.frame)} samples; FK lstm_mlp; {args.threads} thread(s); "
+          f"{args.seconds:.0f} s of training each; test sequences")
+    head = f"{'loop':4s} {'batch':>5s} {'lr':>8s} {'epochs':>6s} {'best':>4s} {'train s':>7s} " \
+           f"{'samples/s':>9s} {'mm vs truth':>11s} {'mm vs meas':>10s} {'deg vs truth':>12s}"
+    print(head)
+    for name, r in rows.items():
+        print(f"{name:4s} {r['batch']:5d} {r['lr']:8.2e} {r['epochs']:6d} {r['best']:4d} {r['seconds']:7.0f} "
+              f"{r['samples_per_s']:9.0f} {r['mm_true']:11.3f} {r['mm_meas']:10.3f} {r['deg_true']:12.2f}")
+    print(f"speed-up {rows['new']['samples_per_s'] / rows['old']['samples_per_s']:.2f}x samples/s")
+    print(json.dumps({"samples_per_s_old": round(rows["old"]["samples_per_s"], 1),
+                      "samples_per_s_new": round(rows["new"]["samples_per_s"], 1),
+                      "heldout_mm_old": round(rows["old"]["mm_true"], 4),
+                      "heldout_mm_new": round(rows["new"]["mm_true"], 4)}))
+
+
+if __name__ == "__main__":
+    main()

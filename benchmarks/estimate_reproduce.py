@@ -1,0 +1,76 @@
+"""Estimate the training stage of `ctrkin reproduce --scale SCALE` from one timed epoch per run.
+
+    ctrkin collect --protocol paper --scale full --out data/paper-full
+    OMP_NUM_THREADS=1 python benchmarks/estimate_reproduce.py data/paper-full --scale full
+
+For every training the reproduction plans (evaluation.training_runs.plan_runs), times one epoch on
+`--rows` training rows and one validation pass, scales both to the dataset's split, and multiplies
+by the run's epoch cap (an upper bound: early stopping only shortens it). Prints per run and the
+wall time with `--workers` single-threaded workers (longest-first scheduling).
+"""
+
+from __future__ import annotations
+
+import argparse
+import heapq
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ctrkin.data import Dataset
+from ctrkin.evaluation.scales import get_scale
+from ctrkin.evaluation.training_runs import plan_runs
+from ctrkin.models.registry import get_entry
+from ctrkin.models.store import ModelBundle
+from ctrkin.training.data import prepare
+from ctrkin.training.loop import _BranchBatch, _epoch_gathered, _near_switch, _optimizer, _val_loss
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("data", type=Path)
+    ap.add_argument("--scale", default="full")
+    ap.add_argument("--rows", type=int, default=20_000, help="training rows timed per run")
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args()
+    torch.set_num_threads(1)
+    ds = Dataset.load(args.data)
+    costs = []
+    for run in plan_runs(get_scale(args.scale)):
+        cfg = run.config
+        prep = prepare(ds, cfg, branches=get_entry(cfg.model).stateful)
+        net = ModelBundle.create(cfg.to_dict(), prep.layout, prep.x_norm, prep.y_norm, ds.robot, {}).net
+        opt, gen = _optimizer(net, cfg), torch.Generator().manual_seed(0)
+        train_rows = prep.rows["train"]
+        sub = train_rows[: args.rows]
+        X, Y = torch.from_numpy(prep.X[sub]), torch.from_numpy(prep.Y[sub])
+        if get_entry(cfg.model).stateful:        # the gate loss: time it like the real loop does
+            assert prep.state is not None and prep.state_prev is not None and prep.forced is not None
+            branch = _BranchBatch(torch.from_numpy(prep.state[sub].astype(np.float32)),
+                                  torch.from_numpy(prep.state_prev[sub]), torch.from_numpy(prep.forced[sub]),
+                                  torch.from_numpy(_near_switch(prep.state, prep.bounds)[sub]), 0.1, 0.1)
+        else:
+            branch = None
+        _epoch_gathered(net, opt, X[:2048], Y[:2048], cfg.batch_size, gen, branch)   # warm-up
+        t0 = time.perf_counter()
+        _epoch_gathered(net, opt, X, Y, cfg.batch_size, gen, branch)
+        t_train = (time.perf_counter() - t0) * len(train_rows) / len(sub)
+        t0 = time.perf_counter()
+        _val_loss(net, prep, "val")
+        t_val = time.perf_counter() - t0
+        total = cfg.max_epochs * (t_train + t_val)
+        costs.append((total, run.name))
+        print(f"{run.name:24s} batch {cfg.batch_size:5d} epochs <= {cfg.max_epochs:3d}: "
+              f"{t_train:6.1f} s + val {t_val:4.1f} s per epoch ({len(train_rows)} rows) -> {total:6.0f} s",
+              flush=True)
+    loads = [0.0] * args.workers
+    for total, _ in sorted(costs, reverse=True):
+        heapq.heapreplace(loads, loads[0] + total)
+    print(f"training stage: {sum(c for c, _ in costs):.0f} worker-s; with {args.workers} workers "
+          f"<= {max(loads):.0f} s ({max(loads) / 60:.1f} min)")
+
+
+if __name__ == "__main__":
+    main()
