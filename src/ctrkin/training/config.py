@@ -44,8 +44,8 @@ class TrainConfig:
     only (ctrkin.models.branch): weight of the gate's cross-entropy beside the MAE loss, and how
     often the previous state is hidden; follow: the follow IK (ctrkin.models.follow, model
     'follow_mlp', trained by ctrkin.training.follow); loop: "epoch" (one gather of the shuffled
-    training tensors per epoch, fused Adam: the per-batch work is the network alone) or "batch" (the loop up to
-    issue 11: index gathers and a plain Adam step per batch; kept for comparison, same batches and
+    training tensors per epoch, fused Adam: the per-batch work is the network alone) or "batch" (the
+    loop up to issue 11: index gathers and a plain Adam step per batch; kept for comparison, same batches and
     same seeds); fused_adam: the "epoch" loop's Adam uses the fused CPU kernel (False: the default
     kernel; the "epoch" loop is then bit-identical to the "batch" loop); val_smoothing: early
     stopping counts epochs without an improvement of the exponential moving average of the val
