@@ -21,6 +21,8 @@ from tqdm.auto import tqdm
 
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import ModelError
+from ctrkin.inference.follow import Follower
+from ctrkin.inference.kinematics import Kinematics
 from ctrkin.inference.workspace import Workspace
 from ctrkin.models.follow import follow_features, joint_noise, previous_rows
 from ctrkin.models.frame import OuterFrame
@@ -36,6 +38,7 @@ from ctrkin.training.loop import (
     _learning_rate,
     _optimizer,
     _write_history,
+    setup_differences,
     split_signature,
 )
 from ctrkin.training.metrics import joint_errors
@@ -171,8 +174,6 @@ def _rollout(bundle: ModelBundle, poses: np.ndarray, joints: np.ndarray, bounds:
              train_rows: np.ndarray) -> np.ndarray:
     """(T, 2N) the joints the current network reaches at every row of the training sequences,
     following their recorded targets from their recorded start joints (NaN elsewhere)."""
-    from ctrkin.inference.follow import Follower
-
     follower = Follower(bundle, None)
     out = np.full(joints.shape, np.nan)
     used = np.zeros(len(joints), bool)
@@ -189,8 +190,6 @@ def _rollout(bundle: ModelBundle, poses: np.ndarray, joints: np.ndarray, bounds:
 def _evaluate(bundle: ModelBundle, workspace: Workspace, ds: Dataset, rows: dict[str, np.ndarray],
               poses: np.ndarray, joints: np.ndarray) -> dict[str, Any]:
     """Joint errors of following the validation and test sequences from the nearest training joints."""
-    from ctrkin.inference.kinematics import Kinematics
-
     kin = Kinematics(bundle, workspace)
     sid = ds.frame["sequence_id"].to_numpy()
     res: dict[str, Any] = {}
@@ -209,13 +208,9 @@ def _reusable(out: Path, cfg: TrainConfig, signature: str, split_sig: str, overw
     if overwrite or not (out / CONFIG).is_file():
         return None
     saved = read_json(out / CONFIG)
-    old = TrainConfig.from_dict(saved["train"])
-    diffs = old.differences(cfg, ignore=("threads",))
     data = saved.get("data", {})
-    if data.get("signature") != signature:
-        diffs.append("the dataset differs")
-    if data.get("split_signature") != split_sig:
-        diffs.append("the train/val/test split differs")
+    diffs = setup_differences(saved["train"], data.get("signature"), data.get("split_signature"), cfg,
+                              signature, split_sig, ignore=("threads",))
     if diffs:
         raise ModelError(f"{out} holds a model with a different setup ({'; '.join(diffs)}); pass "
                          f"overwrite (--overwrite) or choose another --out")

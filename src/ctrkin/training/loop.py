@@ -222,6 +222,21 @@ def split_signature(rows: dict[str, np.ndarray]) -> str:
     return h.hexdigest()[:16]
 
 
+def setup_differences(saved_config: dict[str, Any], saved_data: str | None, saved_split: str | None,
+                      cfg: TrainConfig, signature: str, split_sig: str,
+                      ignore: tuple[str, ...] | None = None) -> list[str]:
+    """What differs between a saved run (its config dict, data and split signatures) and `cfg` on
+    this data and split (data_signature, split_signature); empty if it may be resumed or reused.
+    ignore: config keys that may differ (None: those a resume may change, TrainConfig.differences)."""
+    old = TrainConfig.from_dict(saved_config)
+    diffs = old.differences(cfg) if ignore is None else old.differences(cfg, ignore)
+    if saved_data != signature:
+        diffs.append("the dataset differs")
+    if saved_split != split_sig:
+        diffs.append("the train/val/test split differs")
+    return diffs
+
+
 def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = False, progress: bool = True,
           log: Any = None) -> TrainResult:
     """Train `cfg` on `ds`, writing the model folder `out` (ctrkin.models.store).
@@ -270,12 +285,8 @@ def _train_locked(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, pro
     previous = [p / CHECKPOINT for p in (build, out) if (p / CHECKPOINT).is_file()]
     if previous and not overwrite:
         saved = _load_checkpoint(previous[0])
-        old = TrainConfig.from_dict(saved["config"])
-        diffs = old.differences(cfg)
-        if saved["data_signature"] != signature:
-            diffs.append("the dataset differs")
-        if saved.get("split_signature") != split_sig:
-            diffs.append("the train/val/test split differs")
+        diffs = setup_differences(saved["config"], saved["data_signature"], saved.get("split_signature"),
+                                  cfg, signature, split_sig)
         if diffs:
             raise ModelError(f"{out} holds a training run with a different setup ({'; '.join(diffs)}); "
                              f"pass overwrite (--overwrite) or choose another --out")
