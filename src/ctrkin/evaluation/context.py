@@ -24,9 +24,11 @@ IK_ROWS = {"lstm_mlp_paper": IK_PAPER, "lstm_mlp_refined": IK_REFINED, "follow_m
 # the follow IK (from the current joints, ctrkin.models.follow) reaches the targets the direct
 # networks miss by millimetres (docs/reproduction.md)
 RECOMMENDED = {"fk": "lstm_mlp_branch", "ik": "follow_mlp"}
-# ablation row: the snap-aware model's heads, branch state from the nominal TCM continued along the
-# same joint path (physics gate; batch evaluation only, not a streaming model)
+# ablation rows: the snap-aware model's heads, branch state from the nominal TCM continued along the
+# same joint path (physics gate; batch evaluation only, not a streaming model), and from the model's
+# learned gate instead of its fold gate (ctrkin.models.fold_gate)
 TCM_GATED = "lstm_mlp_branch_tcm_gate"
+LEARNED_GATE = "lstm_mlp_branch_learned_gate"
 HEADLINE = "lstm_mlp"
 
 
@@ -56,6 +58,10 @@ class Context:
         """(T, 6) predictions of every learned FK row (FK_ROWS) over ds."""
         out = {name: self.fk(folder, ds) for name, folder in FK_ROWS.items()}
         out[TCM_GATED] = self.fk_tcm_gated(ds)
+        key = (LEARNED_GATE, id(ds))
+        if key not in self._cache:
+            self._cache[key] = np.asarray(self.models[FK_BRANCH].predict(ds, gate="learned"), float)
+        out[LEARNED_GATE] = self._cache[key]
         return out
 
     def tcm_continued(self, ds: Dataset) -> np.ndarray:

@@ -22,6 +22,7 @@ from ctrkin.evaluation.context import (
 )
 from ctrkin.evaluation.metrics import (
     azimuth_series,
+    glitch_window,
     rotation_direction,
     snap_report,
     snap_steps,
@@ -119,12 +120,13 @@ def _snap_turn_scores(ctx: Context, ds: Dataset, preds: dict[str, np.ndarray],
     true_snap = np.zeros(len(ds.frame), bool)
     true_snap[snap_steps(az["truth"], b)] = True
     near = snap_window(true_snap, b)
+    keep = ~glitch_window(ds.frame["outlier"].to_numpy(), b)
     out: dict[str, Any] = {}
     for name, p in preds.items():
         e = position_error(p, truth)
         out[name] = {
-            **snap_report(az[name], az["truth"], b, direction),
-            "vs_measured": snap_report(az[name], az["measured"], b, direction),
+            **snap_report(az[name], az["truth"], b, direction, keep),
+            "vs_measured": snap_report(az[name], az["measured"], b, direction, keep),
             "position_at_snap_true_mm": float(np.mean(e[rows & near])) if (rows & near).any() else None,
             "position_away_from_snap_true_mm": float(np.mean(e[rows & ~near])),
         }

@@ -192,9 +192,18 @@ def rotation_direction(joints: np.ndarray, n_tubes: int, bounds: list[tuple[int,
 
 
 def snap_report(pred_azimuth: np.ndarray, ref_azimuth: np.ndarray, bounds: list[tuple[int, int]],
-                direction: np.ndarray) -> dict[str, Any]:
-    """Snap score over all events and per direction of rotation (`forward`, `backward`)."""
-    out: dict[str, Any] = snap_score(pred_azimuth, ref_azimuth, bounds).to_dict()
-    out["forward"] = snap_score(pred_azimuth, ref_azimuth, bounds, rows=direction > 0).to_dict()
-    out["backward"] = snap_score(pred_azimuth, ref_azimuth, bounds, rows=direction < 0).to_dict()
+                direction: np.ndarray, keep: np.ndarray | None = None) -> dict[str, Any]:
+    """Snap score over all events and per direction of rotation (`forward`, `backward`). keep (T,)
+    bool: count only events at these rows (e.g. not just after an encoder glitch, `glitch_window`)."""
+    keep = np.ones(len(direction), bool) if keep is None else np.asarray(keep, bool)
+    out: dict[str, Any] = snap_score(pred_azimuth, ref_azimuth, bounds, rows=keep).to_dict()
+    out["forward"] = snap_score(pred_azimuth, ref_azimuth, bounds, rows=keep & (direction > 0)).to_dict()
+    out["backward"] = snap_score(pred_azimuth, ref_azimuth, bounds, rows=keep & (direction < 0)).to_dict()
     return out
+
+
+def glitch_window(outlier: np.ndarray, bounds: list[tuple[int, int]], ib: int = 2) -> np.ndarray:
+    """(T,) bool: each encoder-glitch row and the `ib` rows after it, whose predictions see the
+    corrupted joints in their input buffer or step change (the paper removed glitch rows; a T(L)
+    jump there is the glitch, not a snap)."""
+    return snap_window(outlier, bounds, width=ib + 1)

@@ -202,23 +202,26 @@ class StreamingEngine:
         self._fresh = True
         self.state = UNKNOWN_STATE
 
-    def step(self, x: np.ndarray) -> np.ndarray:
-        """x: (F,) normalised features of the current step -> (O,) normalised outputs."""
+    def step(self, x: np.ndarray, state: float | None = None) -> np.ndarray:
+        """x: (F,) normalised features of the current step -> (O,) normalised outputs. state: a
+        BranchNet's branch state from outside (the fold gate, ctrkin.models.fold_gate) in place of
+        its learned gate's."""
         self._x[0, :] = x
         if self._fresh:
             self._fresh = False
             for _ in range(self.ib - 1):
                 self._advance()
-        return self._head(self._advance())
+        return self._head(self._advance(), state)
 
-    def probe(self, xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def probe(self, xs: np.ndarray, states: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Outputs (K, O) and branch states (K,) that `step` would return for each of K candidate
         feature rows xs (K, F) at the next step, without changing the engine (IK refinement asks
-        the learned FK "where would the tip be if the next joints were these?")."""
+        the learned FK "where would the tip be if the next joints were these?"). states (K,): the
+        branch states from outside, as in `step`."""
         xs = np.ascontiguousarray(xs, dtype=np.float64)
         k_count = len(xs)
         if self._fresh:          # the window would be the candidate repeated: run each one aside
-            return self._probe_fresh(xs)
+            return self._probe_fresh(xs, states)
         ib, inp = self.ib, xs
         for k, (kind, w) in enumerate(self.seq):
             if kind == "lstm":
@@ -239,26 +242,28 @@ class StreamingEngine:
             h[:, (ib - 1) * width:] = inp
         else:
             h = inp
-        return self._head_rows(h)
+        return self._head_rows(h, states)
 
-    def _probe_fresh(self, xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _probe_fresh(self, xs: np.ndarray, states: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         saved = (self._fresh, self.state)
         ys, ss = [], []
-        for x in xs:
+        for k, x in enumerate(xs):
             self._fresh, self.state = saved
             keep = [a.copy() for a in (*self._h, *self._c, self._hist)]
-            ys.append(self.step(x))
+            ys.append(self.step(x, None if states is None else float(states[k])))
             ss.append(self.state)
             for dst, src in zip([*self._h, *self._c, self._hist], keep, strict=True):
                 dst[...] = src
         self._fresh, self.state = saved
         return np.array(ys), np.array(ss)
 
-    def _head_rows(self, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _head_rows(self, h: np.ndarray, given: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """_head for K rows at once from the current state, without updating it."""
         k_count = len(h)
         states = np.full(k_count, self.state)
-        if self.gate:
+        if self.gate and given is not None:
+            states = np.asarray(given, dtype=np.float64)
+        elif self.gate:
             z = np.empty((k_count, h.shape[1] + 1))
             z[:, :-1] = h
             z[:, -1] = self.state
@@ -282,10 +287,14 @@ class StreamingEngine:
             y[rows] = yb
         return y, states
 
-    def _head(self, h: np.ndarray) -> np.ndarray:
-        """h: (1, W) trunk features -> (O,) outputs; a BranchNet first updates its state."""
+    def _head(self, h: np.ndarray, state: float | None = None) -> np.ndarray:
+        """h: (1, W) trunk features -> (O,) outputs; a BranchNet first updates its state (from its
+        gate, or to `state` when given)."""
         head, out = self.head, self.out
-        if self.gate:
+        if self.gate and state is not None:
+            self.state = 1.0 if state > 0.5 else 0.0
+            head, out = self.heads[int(self.state)]
+        elif self.gate:
             z = np.empty((1, h.shape[1] + 1))
             z[0, :-1] = h[0]
             z[0, -1] = self.state

@@ -44,6 +44,7 @@ from ctrkin.models.features import (
     step_features,
     window_index,
 )
+from ctrkin.models.fold_gate import FOLD_GATE_FILE, FoldGate, outer_motion
 from ctrkin.models.frame import local_tips_to_world
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle, read_json
@@ -133,6 +134,10 @@ class Kinematics:
         self._shift: np.ndarray | None = None
         # the follow IK (ctrkin.models.follow) carries the robot's joints from step to step
         self._follower = Follower(bundle, workspace) if self.layout.follow else None
+        # a snap-aware FK's fold gate (ctrkin.models.fold_gate) and its streaming state: branch
+        # state (−1 at a start), the outer tube's last rotation m_N and its previous angle
+        self.fold_gate: FoldGate | None = None
+        self._gate_state, self._outer_motion, self._outer_prev = -1, 0, math.nan
 
     # --- loading ---------------------------------------------------------------------------------
     @classmethod
@@ -145,6 +150,8 @@ class Kinematics:
             raise ModelError(f"{src} is an IK model without {WORKSPACE_FILE}; retrain it with ctrkin train")
         metrics = read_json(src / "metrics.json") if (src / "metrics.json").is_file() else {}
         kin = cls(bundle, ws, metrics, src)
+        if (src / FOLD_GATE_FILE).is_file() and isinstance(kin.net, BranchNet):
+            kin.fold_gate = FoldGate.load(src)
         if (src / REFINE_FILE).is_file():
             if bundle.layout.task != "ik" or not (src / REFINE_FK).is_dir():
                 raise ModelError(f"{src / REFINE_FILE} needs an IK model with its FK model in "
@@ -226,14 +233,17 @@ class Kinematics:
 
     def predict(self, data: Dataset | np.ndarray, sequence_id: np.ndarray | None = None,
                 strict: bool = False, branch_states: np.ndarray | None = None,
-                start_joints: np.ndarray | None = None) -> Any:
+                start_joints: np.ndarray | None = None, gate: str | None = None) -> Any:
         """Predict every step of one or more sequences.
 
         data: a Dataset (its robot must be the model's), or an array (T, 2N) joints (FK) / (T, 6) tip
         poses (IK), one sequence unless `sequence_id` (T,) splits it. Returns (T, 6) poses for FK, an
         IKResult for IK (with strict=True, targets outside the trained workspace raise ModelError).
         branch_states: (T,) {0, 1}, a branch model only: use these states (e.g. from the continued
-        TCM, ctrkin.models.branch_labels) instead of the learned gate's.
+        TCM, ctrkin.models.branch_labels) instead of the gate's.
+        gate: a branch model only, which gate sets the branch state: "fold" (the default where the
+        model has one, ctrkin.models.fold_gate) or "learned" (its classifier). The fold gate reads the
+        outer tube's last rotation from the joints, across the sequences of one run of a Dataset.
         start_joints: (S, 2N) or (2N,), a follow IK only: the robot's joints at the start of each of
         the S sequences (default: those of the nearest training target).
         """
@@ -247,8 +257,14 @@ class Kinematics:
         feats = (self._clip_deltas(sequence_features(self.layout, raw, bounds)) - self._xlo) / self._xspan
         if branch_states is not None and not isinstance(self.net, BranchNet):
             raise ModelError("branch_states needs a branch model (lstm_mlp_branch)")
+        if gate is not None and (not isinstance(self.net, BranchNet) or gate not in ("fold", "learned")
+                                 or (gate == "fold" and self.fold_gate is None)):
+            raise ModelError(f"gate={gate!r} needs a branch model (lstm_mlp_branch) and is 'learned' or "
+                             "'fold' (where the model folder has fold_gate.json)")
         if isinstance(self.net, BranchNet):     # the branch state is carried through each sequence
             h = seqnet_trunk(self.net, *padded_rows(feats, bounds, self.ib))
+            if branch_states is None and self.fold_gate is not None and gate != "learned":
+                branch_states = self._fold_states(data, raw, bounds)
             if branch_states is None:
                 yn, _ = self.net.decode(h, bounds)
             else:
@@ -269,6 +285,21 @@ class Kinematics:
         projected = np.any(np.abs(joints - y) > 1e-9, axis=1)
         return IKResult(joints, ok, dist, reasons, projected, np.full(len(y), np.nan),
                         _jumps(raw, joints, bounds, self.layout.n_tubes))
+
+    def _fold_states(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]]
+                     ) -> np.ndarray:
+        """(T,) branch states from the fold gate; m_N from the joints as recorded (a Dataset: runs
+        followed across sequences, glitch rows skipped)."""
+        assert self.fold_gate is not None
+        n = self.layout.n_tubes
+        if isinstance(data, Dataset):
+            f = data.frame
+            motion = outer_motion(data.joints(), bounds, n,
+                                  f["run"].to_numpy() if "run" in f.columns else None,
+                                  f["outlier"].to_numpy())
+        else:
+            motion = outer_motion(raw, bounds, n)
+        return self.fold_gate.states(raw[:, 0] - raw[:, n - 1], raw[:, n:], motion, bounds)
 
     def _workspace_check(self, raw: np.ndarray, strict: bool) -> tuple[np.ndarray, np.ndarray, list[str]]:
         assert self.workspace is not None
@@ -343,7 +374,10 @@ class Kinematics:
             Q = Q - (self._shift if self._shift is not None else self._guard.shift(Q[0]))
         prev = Q if self._prev is None else np.broadcast_to(self._prev, Q.shape)
         xn = (self._clip_deltas(pair_features(self.layout, Q, prev)) - self._xlo) / self._xspan
-        yn, states = self._engine.probe(xn)
+        given = None
+        if self.fold_gate is not None:
+            given = np.array([self._fold_step(q)[0] for q in Q], dtype=np.float64)
+        yn, states = self._engine.probe(xn, given)
         return Q, yn * self._yspan + self._ylo, states
 
     def probe_tips(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -366,11 +400,16 @@ class Kinematics:
         return y, states
 
     # --- streaming -------------------------------------------------------------------------------
-    def reset(self, joints: np.ndarray | None = None) -> None:
+    def reset(self, joints: np.ndarray | None = None, outer_motion: int = 0) -> None:
         """Start a new sequence: the next step() is its first. joints: a follow IK only, the robot's
-        joints (2N,) at the start (default: those of the nearest training target)."""
+        joints (2N,) at the start (default: those of the nearest training target). outer_motion: an FK
+        with a fold gate, the direction the outer tube last turned before this sequence (+1, −1; 0:
+        at rest since power-up), which shifts where it snaps (ctrkin.models.fold_gate)."""
         if joints is not None and self._follower is None:
             raise ModelError("reset(joints) applies to a follow IK model (follow_mlp) only")
+        if outer_motion not in (-1, 0, 1):
+            raise ModelError(f"outer_motion must be -1, 0 or 1, got {outer_motion!r}")
+        self._gate_state, self._outer_motion, self._outer_prev = -1, int(outer_motion), math.nan
         if self._follower is not None:
             self._follower.reset(joints)
         self._prev = None
@@ -417,7 +456,11 @@ class Kinematics:
             feat[self._dcols] = np.minimum(np.maximum(feat[self._dcols], self._dlo), self._dhi)
         xn = (feat - self._xlo) / self._xspan
         if self._engine is not None:
-            yn = self._engine.step(xn)
+            state = None
+            if self.fold_gate is not None:
+                self._gate_state, self._outer_motion, self._outer_prev = self._fold_step(raw)
+                state = float(self._gate_state)
+            yn = self._engine.step(xn, state)
         else:
             if not self._window:
                 self._window.extend([xn] * (self.ib - 1))
@@ -434,6 +477,16 @@ class Kinematics:
             return y
         q = self.robot.project_joints(y[None])[0]
         return self._ik_step(raw, q, bool(np.any(np.abs(q - y) > 1e-9)), check, strict)
+
+    def _fold_step(self, raw: np.ndarray) -> tuple[int, int, float]:
+        """The fold gate's (state, m_N, αN) after joints raw (2N,) as the next step, nothing changed."""
+        assert self.fold_gate is not None
+        n = self.layout.n_tubes
+        a_n, motion = float(raw[n - 1]), self._outer_motion
+        if not math.isnan(self._outer_prev) and abs(a_n - self._outer_prev) > 1e-9:
+            motion = 1 if a_n > self._outer_prev else -1
+        state = self.fold_gate.step(self._gate_state, float(raw[0] - raw[n - 1]), raw[n:], motion)
+        return state, motion, a_n
 
     def _ik_step(self, raw: np.ndarray, q: np.ndarray, projected: bool, check: bool, strict: bool
                  ) -> IKStep:

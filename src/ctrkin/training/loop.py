@@ -24,11 +24,13 @@ import torch
 from tqdm.auto import tqdm
 
 from ctrkin.data.dataset import Dataset
+from ctrkin.data.schema import sequence_bounds
 from ctrkin.data.splits import split_warnings
 from ctrkin.errors import ModelError
 from ctrkin.inference.workspace import Workspace
 from ctrkin.models.branch import UNKNOWN_STATE, BranchNet
 from ctrkin.models.features import postprocess
+from ctrkin.models.fold_gate import FoldGate, build_fold_gate, outer_motion
 from ctrkin.models.registry import get_entry
 from ctrkin.models.store import ModelBundle, write_json
 from ctrkin.training.config import TrainConfig
@@ -351,6 +353,9 @@ def _train_locked(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, pro
     net.eval()
     bundle.save(build)
     prep.split.save(build / "split.json")
+    if stateful:
+        say("tabulating the nominal robot's folds for the fold gate")
+        fold_gate(ds, prep.rows["train"]).save(build)
     metrics = evaluate(bundle, ds, prep)
     metrics["training"] = {"epochs": state["epoch"], "best_epoch": state["best_epoch"],
                            "best_val_loss": state["best_val"], "seconds": state["seconds"],
@@ -407,6 +412,18 @@ def evaluate(bundle: ModelBundle, ds: Dataset, prep: Prepared) -> dict[str, Any]
             m["joints"] = joint_errors(pred, ds.joints()[rows], n)
         res[part] = m
     return res
+
+
+def fold_gate(ds: Dataset, rows: np.ndarray) -> FoldGate:
+    """The fold gate of a snap-aware model (ctrkin.models.fold_gate): folds of the dataset's nominal
+    robot over the translations of `rows` (the training rows, sorted), fitted to their snaps; the
+    outer tube's last rotation is followed over the whole dataset (runs cross the split)."""
+    f = ds.frame
+    q = ds.joints()
+    motion = outer_motion(q, ds.sequence_bounds(), ds.n_tubes,
+                          f["run"].to_numpy() if "run" in f.columns else None, f["outlier"].to_numpy())
+    bounds = sequence_bounds(f["sequence_id"].to_numpy()[rows])
+    return build_fold_gate(ds.robot, q[rows], f["snap"].to_numpy()[rows], bounds, motion[rows])
 
 
 def prep_pose_source(bundle: ModelBundle) -> str:

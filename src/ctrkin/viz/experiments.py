@@ -32,6 +32,7 @@ TURN_CURVES = {
     "lstm_mlp_paper": ("LSTM-MLP (paper)", "tab:orange", ".", 1.5),
     "lstm_mlp_branch": ("snap-aware LSTM-MLP", MODEL, "-", 1.0),
     "lstm_mlp_branch_tcm_gate": ("snap-aware, TCM-gated", "tab:purple", "-", 0.8),
+    "lstm_mlp_branch_learned_gate": ("snap-aware, learned gate", "tab:pink", "-", 0.8),
     "truth": ("truth", TRUE, "--", 0.8),
 }
 
