@@ -8,6 +8,7 @@ import pytest
 from ctrkin.evaluation.metrics import (
     azimuth_series,
     error_stats,
+    glitch_window,
     joint_errors,
     pose_errors,
     rotation_direction,
@@ -107,3 +108,21 @@ def test_snap_report_splits_events_by_direction_of_rotation() -> None:
     assert r["n_reference"] == 2 and r["recall"] == 0.5
     assert r["forward"]["recall"] == 1.0 and r["forward"]["precision"] == 1.0
     assert r["backward"]["recall"] == 0.0 and r["backward"]["n_reference"] == 1
+
+
+def test_events_just_after_an_encoder_glitch_are_not_counted() -> None:
+    """A one-row glitch in the joints makes the prediction spike (two T(L) jumps); the paper removed
+    glitch rows, so the spike is neither a predicted nor a missed snap. Elsewhere events still count."""
+    n = 100
+    ref = np.zeros(n)
+    ref[60:] = 40.0                                                   # one true snap at row 60
+    pred = ref.copy()
+    pred[30] = 25.0                                                   # the spike of a glitch at row 30
+    outlier = np.zeros(n, bool)
+    outlier[30] = True
+    bounds, direction = [(0, n)], np.ones(n)
+    assert snap_report(pred, ref, bounds, direction)["precision"] == 0.5      # the spike: one event
+    keep = ~glitch_window(outlier, bounds)
+    np.testing.assert_array_equal(np.nonzero(~keep)[0], [30, 31, 32])
+    r = snap_report(pred, ref, bounds, direction, keep)
+    assert r["n_predicted"] == 1 and r["precision"] == 1.0 and r["recall"] == 1.0
