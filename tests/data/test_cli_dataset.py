@@ -62,15 +62,19 @@ def test_import_info_split(tmp_path, log_csv, sweep):
     assert summary["split"]["train"] == 101
 
 
-def test_import_refuses_to_overwrite_without_force(tmp_path, log_csv):
+def test_import_refuses_to_overwrite_without_overwrite(tmp_path, log_csv):
     runner = CliRunner()
     out = tmp_path / "ds"
     assert _import(runner, log_csv, out).exit_code == 0
     res = _import(runner, log_csv, out)
-    assert res.exit_code == 2 and "exists; pass --force" in res.output
-    res = _import(runner, log_csv, out, "--force", "--keep-outliers")
+    assert res.exit_code == 1 and "exists; pass --overwrite" in res.output
+    res = _import(runner, log_csv, out, "--overwrite", "--keep-outliers")
     assert res.exit_code == 0, res.output
     assert Dataset.load(out).frame["outlier"].sum() == 1
+    res = _import(runner, log_csv, out, "--force")          # the old flag name still works, with a warning
+    assert res.exit_code == 0, res.output
+    assert "--force is deprecated; use --overwrite" in res.output
+    assert Dataset.load(out).frame["outlier"].sum() == 0
 
 
 def test_import_errors_reach_the_user(tmp_path, log_csv):

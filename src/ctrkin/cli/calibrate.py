@@ -17,7 +17,7 @@ import tomli_w
 
 from ctrkin.calibration import calibrate, leave_one_sequence_out
 from ctrkin.calibration.params import GROUPS
-from ctrkin.cli.common import get_robot
+from ctrkin.cli.common import check_output, get_robot, overwrite_option
 from ctrkin.data.dataset import Dataset
 from ctrkin.util.files import atomic_write_text
 
@@ -43,12 +43,11 @@ Example:
               help="With --loso: candidate multipliers of every prior σ, comma-separated (e.g. 0.5,1,2); "
               "with several, each fold picks one by a nested leave-one-sequence-out on its training "
               "sequences (needs >= 3 sequences).")
+@overwrite_option()
 def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str, loso: bool,
-                  max_evaluations: int, no_prior: bool, prior_scales: str) -> None:
+                  max_evaluations: int, no_prior: bool, prior_scales: str, overwrite: bool) -> None:
     """Fit registration and TCM parameters (precurvature, stiffness ratio, α/β offsets, transmission
     length, marker offset) by bounded least squares; print them with standard errors."""
-    ds = Dataset.load(data_dir)
-    robot = get_robot(robot_spec) if robot_spec else ds.robot
     groups = tuple(g.strip() for g in fit.split(",") if g.strip())
     try:
         scales = tuple(float(v) for v in prior_scales.split(",") if v.strip())
@@ -58,6 +57,9 @@ def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str
     if not scales or not all(v > 0 for v in scales):
         raise click.BadParameter(f"positive numbers, e.g. 0.5,1,2; got {prior_scales!r}",
                                  param_hint="--prior-scales")
+    check_output(out_file, overwrite)
+    ds = Dataset.load(data_dir)
+    robot = get_robot(robot_spec) if robot_spec else ds.robot
     res = calibrate(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior)
     if loso:
         res.loso = leave_one_sequence_out(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior,

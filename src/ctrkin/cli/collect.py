@@ -16,7 +16,6 @@ docs/virtual_robot.md), e.g. --set friction_deg_per_mm=0 --set noise_mm=0.1.
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import click
 
@@ -24,7 +23,7 @@ from ctrkin.acquisition import protocols
 from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.acquisition.task_paths import SHAPES, task_path
-from ctrkin.cli.common import get_robot, parse_floats, robot_option
+from ctrkin.cli.common import check_output, get_robot, overwrite_option, parse_floats, robot_option
 from ctrkin.virtual import VirtualConfig, VirtualConfigError, VirtualRobot
 
 CHOICES = [*protocols.PROTOCOLS, *SHAPES]
@@ -63,24 +62,27 @@ def _config(settings: tuple[str, ...]) -> VirtualConfig:
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
               help="Override a virtual robot effect magnitude (repeatable).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
-              help="Output folder (replaced atomically).")
+              help="Output folder (written as a whole: a failure leaves the previous one).")
+@overwrite_option()
 def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_seed: int,
                 n_points: int | None, levels: str | None, workers: int | None,
-                settings: tuple[str, ...], out_dir: str) -> None:
+                settings: tuple[str, ...], out_dir: str, overwrite: bool) -> None:
     """Record a protocol on the virtual robot (or write square/triangle IK targets)."""
+    config = _config(settings)
+    if levels is not None and protocol not in ("paper", "sweeps"):
+        raise click.BadParameter("--levels applies to the paper and sweeps protocols")
+    level_values = None if levels is None else tuple(parse_floats(levels, "--levels"))
+    out = check_output(out_dir, overwrite)
     robot = get_robot(robot_spec)
-    virtual = VirtualRobot(robot, _config(settings), seed=robot_seed)
-    out = Path(out_dir)
+    virtual = VirtualRobot(robot, config, seed=robot_seed)
     if protocol in SHAPES:
         path = task_path(virtual, protocol, n_points=n_points or 10, seed=seed)
         path.save(out)
         click.echo(f"wrote {len(path.poses)} {protocol} targets to {out}")
         return
     kw: dict[str, object] = {"n_points": n_points or 20} if protocol == "random-points" else {}
-    if levels is not None:
-        if protocol not in ("paper", "sweeps"):
-            raise click.BadParameter("--levels applies to the paper and sweeps protocols")
-        kw["levels"] = tuple(parse_floats(levels, "--levels"))
+    if level_values is not None:
+        kw["levels"] = level_values
     plan = protocols.build(protocol, robot, scale=scale, seed=seed, **kw)  # type: ignore[arg-type]
     t0 = time.perf_counter()
     ds = record(plan, virtual, seed=seed, workers=workers)

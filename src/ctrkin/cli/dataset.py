@@ -28,7 +28,7 @@ import click
 from rich.console import Console
 from rich.table import Table
 
-from ctrkin.cli.common import get_robot, parse_floats, robot_option
+from ctrkin.cli.common import check_output, get_robot, overwrite_option, parse_floats, robot_option
 from ctrkin.data.cleaning import CleaningConfig
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
@@ -183,35 +183,34 @@ def parse_gap(text: str) -> float | str | None:
 @click.option("--no-average", is_flag=True, help="Do not average repeated readings of one sample.")
 @click.option("--unwrap", is_flag=True, help="Unwrap alpha (for logs wrapping angles to ±180°).")
 @click.option("--delimiter", default=",", show_default=True, help="CSV field separator.")
-@click.option("--force", is_flag=True, help="Replace the --out folder if it exists.")
+@overwrite_option(force_alias=True)
 def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | None, out_dir: str,
                maps: tuple[str, ...], units: tuple[str, ...],
                quat_cols: str | None, quat_order: str, gap_text: str, drop_invalid: bool,
                drop_incomplete: bool, keep_outliers: bool, no_average: bool, unwrap: bool,
-               delimiter: str, force: bool) -> None:
+               delimiter: str, overwrite: bool, force: bool) -> None:
     """Import robot logs LOG_FILES (CSV, one row a tracker reading) into one cleaned dataset: repeated
     readings averaged, encoder glitches and pose outliers removed, snaps detected (see docs/data.md,
     and docs/real_robot.md for import profiles). Without --profile, one file."""
-    out = Path(out_dir)
-    if out.exists() and not force:
-        raise click.UsageError(f"{out} exists; pass --force to replace it")
-    robot = get_robot(robot_spec)
+    if profile_file is None and len(log_files) != 1:
+        raise click.UsageError("several log files need --profile (one sequence per file); without a "
+                               "profile import one file")
     quaternion_columns = tuple(c.strip() for c in quat_cols.split(",")) if quat_cols else ()
+    mapping, unit_kw, gap = parse_map(maps), parse_units(units), parse_gap(gap_text)
+    out = check_output(out_dir, overwrite or force)
+    robot = get_robot(robot_spec)
     cfg = ImportConfig(
-        mapping=parse_map(maps), quaternion_columns=quaternion_columns,
-        quaternion_order=cast(Any, quat_order), sequence_gap=cast(Any, parse_gap(gap_text)),
+        mapping=mapping, quaternion_columns=quaternion_columns,
+        quaternion_order=cast(Any, quat_order), sequence_gap=cast(Any, gap),
         drop_invalid_joints=drop_invalid, drop_incomplete=drop_incomplete, unwrap=unwrap,
         delimiter=delimiter,
         cleaning=CleaningConfig(average_repeats=not no_average, outliers="flag" if keep_outliers else "drop"),
-        **cast(Any, parse_units(units)))
+        **cast(Any, unit_kw))
     if profile_file is not None:
         from ctrkin.data.profile import load_profile
         from ctrkin.data.profile_import import import_with_profile
 
         ds = import_with_profile(list(log_files), load_profile(profile_file, robot.n_tubes), robot, cfg)
-    elif len(log_files) != 1:
-        raise click.UsageError("several log files need --profile (one sequence per file); without a "
-                               "profile import one file")
     else:
         ds = import_csv(log_files[0], robot, cfg)
     ds.save(out)

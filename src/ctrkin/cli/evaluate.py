@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import click
 
+from ctrkin.cli.common import check_output, overwrite_option
 from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.real import evaluate
 
@@ -25,9 +26,12 @@ Examples:
                    "(.toml, calibrated or not) or a trained FK model folder. Repeatable.")
 @click.option("--out", "out_dir", default=None, type=click.Path(file_okay=False),
               help="Folder for results.json and plots (one sub-folder per predictor when several).")
-def evaluate_cmd(data_dir: str, predictors: tuple[str, ...], out_dir: str | None) -> None:
+@overwrite_option()
+def evaluate_cmd(data_dir: str, predictors: tuple[str, ...], out_dir: str | None, overwrite: bool) -> None:
     """Compare predictors with the measured tips: position (and orientation, where measured) errors
     overall and per sequence; plots of predicted vs measured tips and of error against joints."""
+    if out_dir is not None:
+        check_output(out_dir, overwrite)
     ds = Dataset.load(data_dir)
     for k, spec in enumerate(predictors):
         out = None if out_dir is None else (out_dir if len(predictors) == 1 else f"{out_dir}/{k}")

@@ -7,14 +7,13 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import click
 import numpy as np
 import pandas as pd
 
 from ctrkin.acquisition.trajectories import PAPER_LEVELS_MM, rotation_sweep
-from ctrkin.cli.common import get_robot, parse_floats, robot_option
+from ctrkin.cli.common import check_output, get_robot, overwrite_option, parse_floats, robot_option
 from ctrkin.mechanics import follow, solve
 from ctrkin.util.files import atomic_path
 from ctrkin.util.progress import progress_bar
@@ -50,14 +49,16 @@ def solve_cmd(robot_spec: str, q_text: str, as_json: bool) -> None:
 @click.option("--step", "step_deg", default=1.0, show_default=True, help="Rotation step (deg).")
 @click.option("--out", "out_dir", default="out/sweep", show_default=True,
               type=click.Path(file_okay=False), help="Output folder for sweep.csv and sweep.png.")
+@overwrite_option()
 def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha: float,
-              step_deg: float, out_dir: str) -> None:
+              step_deg: float, out_dir: str, overwrite: bool) -> None:
     """Full inner-tube rotation forward and back at several relative translations (paper
     Fig. 2b), solved by continuation: writes sweep.csv and a plot of T(L) against α0."""
     from ctrkin.viz.sweep import plot_sweeps
 
-    robot = get_robot(robot_spec)
     levels = parse_floats(translations, "--translations")
+    out = check_output(out_dir, overwrite)
+    robot = get_robot(robot_spec)
     n = robot.n_tubes
     frames, curves = [], []
     paths = [rotation_sweep(n, d, outer_beta, outer_alpha, step_deg) for d in levels]
@@ -76,7 +77,6 @@ def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha
                 "T_L": tr.azimuth, "snap": tr.snaps, "stable": tr.stable}))
             curves.append({"label": f"d = {d:g} mm", "alpha0": alpha0, "azimuth": tr.azimuth,
                            "snaps": tr.snaps, "forward": forward})
-    out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     table = pd.concat(frames, ignore_index=True)
     with atomic_path(out / "sweep.csv") as tmp:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import click
 
+from ctrkin.cli.common import check_output, overwrite_option
 from ctrkin.util.files import atomic_path
 
 
@@ -18,11 +19,13 @@ from ctrkin.util.files import atomic_path
 @click.argument("model_dir", type=click.Path(exists=True, file_okay=False))
 @click.option("--data", "data_dir", required=True, type=click.Path(exists=True, file_okay=False))
 @click.option("--out", "out_file", required=True, type=click.Path(dir_okay=False), help="CSV file.")
-def predict_cmd(model_dir: str, data_dir: str, out_file: str) -> None:
+@overwrite_option()
+def predict_cmd(model_dir: str, data_dir: str, out_file: str, overwrite: bool) -> None:
     """Predict every sample of a dataset with MODEL_DIR."""
     from ctrkin.data import Dataset
     from ctrkin.inference import Kinematics
 
+    check_output(out_file, overwrite)
     kin = Kinematics.load(model_dir)
     ds = Dataset.load(data_dir)
     res = kin.predict(ds)

@@ -17,9 +17,11 @@ continue a finished run); --overwrite starts over. Models: see `ctrkin train --l
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import click
 
+from ctrkin.cli.common import check_output
 from ctrkin.data import Dataset
 
 
@@ -32,6 +34,16 @@ def _list_models(ctx: click.Context, _param: click.Parameter, value: bool) -> No
         click.echo(f"{name:20s} {e.description}")
     click.echo("structures (lstm_mlp --structure): " + ", ".join(f"{k}={v}" for k, v in STRUCTURES.items()))
     ctx.exit()
+
+
+def _check_model_folder(out: Path, overwrite: bool) -> None:
+    """The output rule for a model folder: the same setup resumes, another model needs --overwrite
+    (ctrkin.training checks both); anything else in --out is refused here unless --overwrite."""
+    from ctrkin.models.store import CONFIG
+    from ctrkin.training.loop import CHECKPOINT
+
+    if not ((out / CONFIG).is_file() or (out / CHECKPOINT).is_file()):
+        check_output(out, overwrite)
 
 
 @click.command("train")
@@ -68,7 +80,8 @@ def _list_models(ctx: click.Context, _param: click.Parameter, value: bool) -> No
 @click.option("--max-seconds", default=None, type=float, help="Training-time budget (s).")
 @click.option("--seed", default=0, show_default=True)
 @click.option("--threads", default=2, show_default=True, help="torch CPU threads.")
-@click.option("--overwrite", is_flag=True, help="Start over even if --out holds a checkpoint.")
+@click.option("--overwrite", is_flag=True, help="Start over even if --out holds a checkpoint or another "
+              "model; replace --out if it is a folder that is not a model.")
 def train_cmd(task: str, data_dir: str, out_dir: str, model: str, structure: str | None,
               options: tuple[str, ...], ib: int, no_delta: bool, angles: str, output_activation: str,
               pose_source: str, split: str, max_epochs: int, patience: int, batch_size: int, lr: float,
@@ -90,6 +103,7 @@ def train_cmd(task: str, data_dir: str, out_dir: str, model: str, structure: str
                       max_epochs=max_epochs, patience=patience, batch_size=batch_size, lr=lr,
                       lr_schedule=lr_schedule, loop=loop, val_smoothing=val_smoothing,
                       max_seconds=max_seconds, seed=seed, threads=threads)
+    _check_model_folder(Path(out_dir), overwrite)
     ds = Dataset.load(data_dir)
     ds.meta.setdefault("path", data_dir)
     res = train(ds, cfg, out_dir, overwrite=overwrite, log=lambda m: click.echo(m, err=True))
