@@ -1,6 +1,8 @@
 """`ctrkin collect`: record a protocol on the virtual robot into a dataset folder.
 
     ctrkin collect --protocol paper --scale quick --seed 0 --out data/paper-quick
+    ctrkin collect --protocol paper --scale full --out data/paper            # the paper's ~208k samples
+    ctrkin collect --protocol paper --scale tiny --out data/paper-tiny       # reproduce --scale tiny's data
     ctrkin collect --protocol sweeps --out data/sweeps
     ctrkin collect --protocol sweeps --levels 2,6,10 --robot my_robot.toml --out data/my-sweeps
     ctrkin collect --protocol random-points --n-points 20 --seed 1 --out data/random
@@ -24,6 +26,7 @@ from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.acquisition.task_paths import SHAPES, task_path
 from ctrkin.cli.common import check_output, get_robot, overwrite_option, parse_floats, robot_option
+from ctrkin.evaluation.scales import SCALES
 from ctrkin.virtual import VirtualConfig, VirtualConfigError, VirtualRobot
 
 CHOICES = [*protocols.PROTOCOLS, *SHAPES]
@@ -47,8 +50,10 @@ def _config(settings: tuple[str, ...]) -> VirtualConfig:
 
 @click.command("collect")
 @click.option("--protocol", type=click.Choice(CHOICES), required=True, help="What to record.")
-@click.option("--scale", type=click.Choice(list(protocols.SCALES)), default="full", show_default=True,
-              help="full: the paper's size (paper: ~208k samples); quick: a small version.")
+@click.option("--scale", type=click.Choice(sorted(SCALES)), default="quick", show_default=True,
+              help="Size of the paper protocol (the others do not depend on it). full: the paper's "
+              "(~208k samples); quick: 3 levels x 4 outer angles (~8.6k); tiny: 2 levels x 4 outer angles "
+              "(~5.8k), the data of reproduce --scale tiny.")
 @robot_option
 @click.option("--seed", default=0, show_default=True, help="Noise, glitches, random configurations.")
 @click.option("--robot-seed", default=0, show_default=True, help="The virtual hardware draw.")
@@ -83,7 +88,12 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
     kw: dict[str, object] = {"n_points": n_points or 20} if protocol == "random-points" else {}
     if level_values is not None:
         kw["levels"] = level_values
-    plan = protocols.build(protocol, robot, scale=scale, seed=seed, **kw)  # type: ignore[arg-type]
+    if protocol == "paper" and scale == "tiny":
+        tiny = SCALES["tiny"]
+        kw.setdefault("levels", tiny.paper_levels)
+        kw["outer_step_deg"] = tiny.paper_outer_step_deg
+    protocol_scale = SCALES[scale].protocol_scale
+    plan = protocols.build(protocol, robot, scale=protocol_scale, seed=seed, **kw)  # type: ignore[arg-type]
     t0 = time.perf_counter()
     ds = record(plan, virtual, seed=seed, workers=workers)
     elapsed = time.perf_counter() - t0
