@@ -17,7 +17,7 @@ import tomli_w
 
 from ctrkin.calibration import calibrate, leave_one_sequence_out
 from ctrkin.calibration.params import GROUPS
-from ctrkin.cli.common import check_output, get_robot, overwrite_option
+from ctrkin.cli.common import check_output, get_robot, overwrite_option, say
 from ctrkin.data.dataset import Dataset
 from ctrkin.util.files import atomic_write_text
 
@@ -70,20 +70,20 @@ def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str
                         "fit": json.loads(json.dumps(res.to_dict(), default=float, allow_nan=True)
                                           .replace("NaN", "null"))}
     atomic_write_text(out_file, tomli_w.dumps(cast(dict[str, Any], _drop_none(d))))
-    click.echo(f"{'parameter':24s} {'unit':5s} {'nominal':>10s} {'fitted':>10s} {'± std':>9s}")
+    say(f"{'parameter':24s} {'unit':5s} {'nominal':>10s} {'fitted':>10s} {'± std':>9s}")
     for row in res.table():
         flag = "  (at bound)" if row["at_bound"] else ""
-        click.echo(f"{row['name']:24s} {row['unit']:5s} {row['nominal']:10.4g} {row['value']:10.4g} "
+        say(f"{row['name']:24s} {row['unit']:5s} {row['nominal']:10.4g} {row['value']:10.4g} "
                    f"{row['std']:9.2g}{flag}")
-    click.echo(f"samples {res.n_samples}: nominal TCM (fitted registration) {res.nominal_mean_mm:.3f} mm, "
+    say(f"samples {res.n_samples}: nominal TCM (fitted registration) {res.nominal_mean_mm:.3f} mm, "
                f"calibrated {res.mean_mm:.3f} mm mean tip distance (in-sample)")
     if loso:
         per = ", ".join(f"{k} {v:.3f}" for k, v in res.loso["per_sequence"].items())
-        click.echo(f"leave-one-sequence-out: {res.loso['mean_mm']:.3f} mm ({per})")
+        say(f"leave-one-sequence-out: {res.loso['mean_mm']:.3f} mm ({per})")
         if len(scales) > 1:
             chosen = ", ".join(f"{k} {v:g}" for k, v in res.loso["prior_scale"].items())
-            click.echo(f"prior scale chosen by nested leave-one-sequence-out: {chosen}")
-    click.echo(f"wrote {out_file}")
+            say(f"prior scale chosen by nested leave-one-sequence-out: {chosen}")
+    say(f"wrote {out_file}")
 
 
 def _drop_none(d: object) -> object:

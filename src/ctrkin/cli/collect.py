@@ -25,7 +25,7 @@ from ctrkin.acquisition import protocols
 from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.acquisition.task_paths import SHAPES, task_path
-from ctrkin.cli.common import check_output, get_robot, overwrite_option, parse_floats, robot_option
+from ctrkin.cli.common import check_output, get_robot, overwrite_option, parse_floats, robot_option, say
 from ctrkin.evaluation.scales import SCALES
 from ctrkin.virtual import VirtualConfig, VirtualConfigError, VirtualRobot
 
@@ -83,7 +83,7 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
     if protocol in SHAPES:
         path = task_path(virtual, protocol, n_points=n_points or 10, seed=seed)
         path.save(out)
-        click.echo(f"wrote {len(path.poses)} {protocol} targets to {out}")
+        say(f"wrote {len(path.poses)} {protocol} targets to {out}")
         return
     kw: dict[str, object] = {"n_points": n_points or 20} if protocol == "random-points" else {}
     if level_values is not None:
@@ -99,14 +99,14 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
     elapsed = time.perf_counter() - t0
     ds.save(out)
     f = ds.frame
-    click.echo(f"{protocol} ({scale}): {len(f)} samples in {f['sequence_id'].nunique()} sequences, "
+    say(f"{protocol} ({scale}): {len(f)} samples in {f['sequence_id'].nunique()} sequences, "
                f"{int(f['snap'].sum())} snap samples, {int(f['outlier'].sum())} encoder glitches; "
                f"{elapsed:.1f} s ({len(f) / max(elapsed, 1e-9):.0f} samples/s)")
     if protocol in ("paper", "sweeps"):
         h = sweep_hysteresis(ds)
         for _, row in h.iterrows():
-            click.echo(f"  d = {row['relative_translation_mm']:5.1f} mm: hysteresis mean "
+            say(f"  d = {row['relative_translation_mm']:5.1f} mm: hysteresis mean "
                        f"{row['hysteresis_mean_mm']:.2f} mm, max {row['hysteresis_max_mm']:.2f} mm, "
                        f"T(L) gap {row['azimuth_gap_max_deg']:.1f} deg, snap samples "
                        f"{int(row['snap_samples'])}")
-    click.echo(f"wrote {out}")
+    say(f"wrote {out}")

@@ -18,6 +18,28 @@ from ctrkin.robots import Robot, load_robot
 
 F = TypeVar("F", bound=Callable[..., Any])
 
+QUIET = "ctrkin.quiet"   # ctx.meta key set by `ctrkin --quiet`
+
+
+def quiet() -> bool:
+    """Whether `ctrkin --quiet` was given (False outside a click command)."""
+    ctx = click.get_current_context(silent=True)
+    return bool(ctx is not None and ctx.meta.get(QUIET))
+
+
+def say(message: str, err: bool = False) -> None:
+    """A message about the work done (what was written, timings, summaries); silent with --quiet.
+    Results that are only printed, warnings and errors use click.echo."""
+    if not quiet():
+        click.echo(message, err=err)
+
+
+def log_line(message: str) -> None:
+    """A log line of a long run on stderr: with --quiet only its warnings."""
+    if message.startswith("warning") or not quiet():
+        click.echo(message, err=True)
+
+
 robot_option = click.option(
     "--robot", "robot_spec", default="paper", show_default=True,
     help="Built-in robot name (paper, timclab) or path to a robot TOML file.")

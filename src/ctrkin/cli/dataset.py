@@ -28,7 +28,15 @@ import click
 from rich.console import Console
 from rich.table import Table
 
-from ctrkin.cli.common import check_output, get_robot, overwrite_option, parse_floats, robot_option
+from ctrkin.cli.common import (
+    check_output,
+    get_robot,
+    overwrite_option,
+    parse_floats,
+    quiet,
+    robot_option,
+    say,
+)
 from ctrkin.data.cleaning import CleaningConfig
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
@@ -215,7 +223,8 @@ def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | 
         ds = import_csv(log_files[0], robot, cfg)
     ds.save(out)
     names = ", ".join(Path(f).name for f in log_files)
-    print_summary(summarize(ds), title=f"imported {names} -> {out}")
+    if not quiet():
+        print_summary(summarize(ds), title=f"imported {names} -> {out}")
     for w in ds.meta["cleaning"]["warnings"]:
         click.echo(f"warning: {w}", err=True)
 
@@ -250,7 +259,7 @@ def split_cmd(folder: str, kind: str, seed: int, fractions: str, test_seqs: str 
         split = random_split(len(ds.frame), frac, seed=seed)
     ds.save_split(folder, split)
     sizes = split.sizes()
-    click.echo(f"{folder}: {kind} split, seed {seed}: train {sizes['train']}, val {sizes['val']}, "
+    say(f"{folder}: {kind} split, seed {seed}: train {sizes['train']}, val {sizes['val']}, "
                f"test {sizes['test']} samples -> {Path(folder) / 'split.json'}")
     for w in split_warnings(split, frac):
         click.echo(f"warning: {w}", err=True)

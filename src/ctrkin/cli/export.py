@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import click
 
-from ctrkin.cli.common import check_output, overwrite_option
+from ctrkin.cli.common import check_output, overwrite_option, say
 
 
 @click.command("export")
@@ -24,5 +24,5 @@ def export_cmd(model_dir: str, out_file: str, overwrite: bool) -> None:
     check_output(out_file, overwrite)
     kin = Kinematics.load(model_dir)
     path = export_onnx(kin, out_file)
-    click.echo(f"wrote {path}: input window (batch, {kin.ib}, {kin.layout.n_inputs}) "
+    say(f"wrote {path}: input window (batch, {kin.ib}, {kin.layout.n_inputs}) "
                f"{list(kin.layout.input_names)} -> output {list(kin.layout.output_names)}")

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ctrkin.acquisition.trajectories import PAPER_LEVELS_MM, rotation_sweep
-from ctrkin.cli.common import check_output, get_robot, overwrite_option, parse_floats, robot_option
+from ctrkin.cli.common import check_output, get_robot, overwrite_option, parse_floats, robot_option, say
 from ctrkin.mechanics import follow, solve
 from ctrkin.util.files import atomic_path
 from ctrkin.util.progress import progress_bar
@@ -84,5 +84,5 @@ def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha
     plot_sweeps(curves, out / "sweep.png", title=f"{robot.name}: T(L) over full inner rotations")
     for d, f in zip(levels, frames, strict=True):
         snaps = f.loc[f["snap"], "alpha_1"].tolist()
-        click.echo(f"d = {d:5.1f} mm: snaps at α1 = {snaps if snaps else 'none'}")
-    click.echo(f"wrote {out / 'sweep.csv'} and {out / 'sweep.png'}")
+        say(f"d = {d:5.1f} mm: snaps at α1 = {snaps if snaps else 'none'}")
+    say(f"wrote {out / 'sweep.csv'} and {out / 'sweep.png'}")

@@ -15,7 +15,7 @@ from pathlib import Path
 import click
 import pandas as pd
 
-from ctrkin.cli.common import check_output, overwrite_option
+from ctrkin.cli.common import check_output, overwrite_option, say
 from ctrkin.util.files import atomic_path
 
 FORMATS = (".csv", ".parquet", ".json")
@@ -78,4 +78,4 @@ def predict_cmd(model_dir: str, data_dir: str, out_file: str | None, overwrite: 
         msg = f"wrote {len(table)} predictions to {out_file}"
     if kin.task == "ik":
         msg += f" ({int((~res.in_workspace).sum())} targets outside the trained workspace)"
-    click.echo(msg, err=out_file is None)
+    say(msg, err=out_file is None)

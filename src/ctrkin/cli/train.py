@@ -21,7 +21,7 @@ from pathlib import Path
 
 import click
 
-from ctrkin.cli.common import check_output
+from ctrkin.cli.common import check_output, log_line, say
 from ctrkin.data import Dataset
 
 
@@ -106,8 +106,8 @@ def train_cmd(task: str, data_dir: str, out_dir: str, model: str, structure: str
     _check_model_folder(Path(out_dir), overwrite)
     ds = Dataset.load(data_dir)
     ds.meta.setdefault("path", data_dir)
-    res = train(ds, cfg, out_dir, overwrite=overwrite, log=lambda m: click.echo(m, err=True))
+    res = train(ds, cfg, out_dir, overwrite=overwrite, log=log_line)
     tr = res.metrics["training"]
-    click.echo(f"trained {tr['epochs']} epochs (best {tr['best_epoch']}, val loss {tr['best_val_loss']:.4g}) "
+    say(f"trained {tr['epochs']} epochs (best {tr['best_epoch']}, val loss {tr['best_val_loss']:.4g}) "
                f"in {tr['seconds']:.1f} s; model in {res.out}")
-    click.echo(json.dumps({k: v for k, v in res.metrics.items() if k in ("val", "test")}, indent=2))
+    say(json.dumps({k: v for k, v in res.metrics.items() if k in ("val", "test")}, indent=2))
