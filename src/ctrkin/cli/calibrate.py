@@ -23,7 +23,7 @@ from ctrkin.util.files import atomic_write_text
 
 
 @click.command("calibrate", epilog="""\b
-Example:
+Examples:
   ctrkin calibrate --data data/optitrack --robot examples/robots/comet_nylon_optitrack.toml \\
       --out robots/optitrack_cal.toml --loso --prior-scales 0.5,1,2""")
 @click.option("--data", "data_dir", required=True, type=click.Path(exists=True, file_okay=False),

@@ -48,7 +48,11 @@ def _config(settings: tuple[str, ...]) -> VirtualConfig:
         raise click.BadParameter(str(e)) from None
 
 
-@click.command("collect")
+@click.command("collect", epilog="""\b
+Examples:
+  ctrkin collect --protocol paper --scale tiny --out data/paper-tiny
+  ctrkin collect --protocol random-points --n-points 20 --seed 1 --out data/random
+  ctrkin collect --protocol sweeps --set noise_mm=0.1 --out data/sweeps-noisy""")
 @click.option("--protocol", type=click.Choice(CHOICES), required=True, help="What to record.")
 @click.option("--scale", type=click.Choice(sorted(SCALES)), default="quick", show_default=True,
               help="Size of the paper protocol (the others do not depend on it). full: the paper's "

@@ -44,7 +44,10 @@ from ctrkin.data.splits import random_split, split_by_sequence, split_warnings, 
 from ctrkin.data.summary import summarize
 
 
-@click.group("dataset")
+@click.group("dataset", epilog="""\b
+Examples:
+  ctrkin dataset info data/paper
+  ctrkin dataset split data/paper --kind random --seed 0""")
 def dataset_group() -> None:
     """Inspect datasets, import robot logs (CSV) and split datasets."""
 
@@ -97,7 +100,9 @@ def print_summary(s: dict[str, Any], title: str) -> None:
     console.print(ranges)
 
 
-@dataset_group.command("info")
+@dataset_group.command("info", epilog="""\b
+Examples:
+  ctrkin dataset info data/paper --json""")
 @click.argument("folder", type=click.Path(exists=True, file_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def info_cmd(folder: str, as_json: bool) -> None:
@@ -159,7 +164,11 @@ def parse_gap(text: str) -> float | str | None:
                                  param_hint="--sequence-gap") from None
 
 
-@dataset_group.command("import")
+@dataset_group.command("import", epilog="""\b
+Examples:
+  ctrkin dataset import robot_log.csv --robot paper --units rad,m --out data/mylog
+  ctrkin dataset import logs/*.csv --profile examples/profiles/comet_optitrack.toml \\
+      --robot examples/robots/comet_nylon_optitrack.toml --out data/optitrack""")
 @click.argument("log_files", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
 @robot_option
 @click.option("--profile", "profile_file", default=None, type=click.Path(exists=True, dir_okay=False),
@@ -230,7 +239,10 @@ def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | 
 
 
 # --- split -----------------------------------------------------------------------------------------
-@dataset_group.command("split")
+@dataset_group.command("split", epilog="""\b
+Examples:
+  ctrkin dataset split data/paper --fractions 0.8,0.1,0.1 --seed 2
+  ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate""")
 @click.argument("folder", type=click.Path(exists=True, file_okay=False))
 @click.option("--kind", type=click.Choice(["sequence", "random"]), default="sequence", show_default=True,
               help="sequence: whole sequences per part (no leakage through the input buffer); "

@@ -13,7 +13,9 @@ import click
 from ctrkin.cli.common import check_output, overwrite_option, say
 
 
-@click.command("export")
+@click.command("export", epilog="""\b
+Examples:
+  ctrkin export models/fk --out fk.onnx""")
 @click.argument("model_dir", type=click.Path(exists=True, file_okay=False))
 @click.option("--out", "out_file", required=True, type=click.Path(dir_okay=False), help="ONNX file.")
 @overwrite_option()

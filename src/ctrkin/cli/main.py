@@ -63,16 +63,16 @@ def _environ(name: str, value: str) -> Iterator[None]:
 
 
 @click.group(cls=CtrkinGroup, context_settings={"help_option_names": ["-h", "--help"]}, epilog="""\b
-Examples:
-  ctrkin solve --q 0,0,-15,-5
-  ctrkin --quiet collect --protocol sweeps --out data/sweeps
-  CTRKIN_NO_PROGRESS=1 ctrkin reproduce --scale tiny --out out/tiny
-
-\b
 Progress is one updating line on a terminal and a few lines (25/50/75/100 %) in a log or pipe;
 CTRKIN_NO_PROGRESS=1 (or --quiet) turns it off.
 Exit status: 0 done; 1 the input is wrong for the task (invalid joints, robot mismatch, bad data,
-an existing output without --overwrite), one line on stderr; 2 a usage error.""")
+an existing output without --overwrite), one line on stderr; 2 a usage error.
+
+\b
+Examples:
+  ctrkin solve --q 0,0,-15,-5
+  ctrkin --quiet collect --protocol sweeps --out data/sweeps
+  CTRKIN_NO_PROGRESS=1 ctrkin reproduce --scale tiny --out out/tiny""")
 @click.option("--quiet", "-q", is_flag=True,
               help="No progress and no messages about the work done; results that are only printed "
               "(solve, dataset info, predict to stdout, ...), warnings and errors still are.")

@@ -19,7 +19,10 @@ from ctrkin.util.files import atomic_path
 from ctrkin.util.progress import progress_bar
 
 
-@click.command("solve")
+@click.command("solve", epilog="""\b
+Examples:
+  ctrkin solve --q 0,0,-15,-5
+  ctrkin solve --robot paper --q 90,0,-20,0 --json""")
 @robot_option
 @click.option("--q", "q_text", required=True,
               help="Joints α1..αN (deg), β1..βN (mm), comma-separated, e.g. 0,0,-15,-5.")
@@ -40,7 +43,10 @@ def solve_cmd(robot_spec: str, q_text: str, as_json: bool) -> None:
                f"{eq.stability:.4f}  energy: {eq.energy:.4g} N·mm")
 
 
-@click.command("sweep")
+@click.command("sweep", epilog="""\b
+Examples:
+  ctrkin sweep --out out/sweep
+  ctrkin sweep --translations 4,20 --step 2 --out out/sweep-coarse""")
 @robot_option
 @click.option("--translations", default=",".join(str(v) for v in PAPER_LEVELS_MM),
               show_default=True, help="Relative translations d = β_N − β_1 (mm).")

@@ -16,7 +16,10 @@ from ctrkin.cli.common import get_robot, robot_option, say
 from ctrkin.evaluation.scales import SCALES, get_scale
 
 
-@click.command("reproduce")
+@click.command("reproduce", epilog="""\b
+Examples:
+  ctrkin reproduce --scale tiny --out out/tiny
+  ctrkin reproduce --scale quick --out out/reproduce""")
 @click.option(
     "--scale",
     type=click.Choice(sorted(SCALES)),

@@ -46,7 +46,11 @@ def _check_model_folder(out: Path, overwrite: bool) -> None:
         check_output(out, overwrite)
 
 
-@click.command("train")
+@click.command("train", epilog="""\b
+Examples:
+  ctrkin train --task fk --data data/paper --out models/fk
+  ctrkin train --task ik --model follow_mlp --data data/paper --out models/ik_follow
+  ctrkin train --list-models""")
 @click.option("--list-models", is_flag=True, expose_value=False, is_eager=True, callback=_list_models,
               help="List the model registry and exit.")
 @click.option("--task", type=click.Choice(["fk", "ik"]), required=True, help="Forward or inverse kinematics.")
