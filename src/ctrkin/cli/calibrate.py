@@ -74,9 +74,9 @@ def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str
     for row in res.table():
         flag = "  (at bound)" if row["at_bound"] else ""
         say(f"{row['name']:24s} {row['unit']:5s} {row['nominal']:10.4g} {row['value']:10.4g} "
-                   f"{row['std']:9.2g}{flag}")
+            f"{row['std']:9.2g}{flag}")
     say(f"samples {res.n_samples}: nominal TCM (fitted registration) {res.nominal_mean_mm:.3f} mm, "
-               f"calibrated {res.mean_mm:.3f} mm mean tip distance (in-sample)")
+        f"calibrated {res.mean_mm:.3f} mm mean tip distance (in-sample)")
     if loso:
         per = ", ".join(f"{k} {v:.3f}" for k, v in res.loso["per_sequence"].items())
         say(f"leave-one-sequence-out: {res.loso['mean_mm']:.3f} mm ({per})")

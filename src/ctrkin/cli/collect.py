@@ -104,13 +104,13 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
     ds.save(out)
     f = ds.frame
     say(f"{protocol} ({scale}): {len(f)} samples in {f['sequence_id'].nunique()} sequences, "
-               f"{int(f['snap'].sum())} snap samples, {int(f['outlier'].sum())} encoder glitches; "
-               f"{elapsed:.1f} s ({len(f) / max(elapsed, 1e-9):.0f} samples/s)")
+        f"{int(f['snap'].sum())} snap samples, {int(f['outlier'].sum())} encoder glitches; "
+        f"{elapsed:.1f} s ({len(f) / max(elapsed, 1e-9):.0f} samples/s)")
     if protocol in ("paper", "sweeps"):
         h = sweep_hysteresis(ds)
         for _, row in h.iterrows():
             say(f"  d = {row['relative_translation_mm']:5.1f} mm: hysteresis mean "
-                       f"{row['hysteresis_mean_mm']:.2f} mm, max {row['hysteresis_max_mm']:.2f} mm, "
-                       f"T(L) gap {row['azimuth_gap_max_deg']:.1f} deg, snap samples "
-                       f"{int(row['snap_samples'])}")
+                f"{row['hysteresis_mean_mm']:.2f} mm, max {row['hysteresis_max_mm']:.2f} mm, "
+                f"T(L) gap {row['azimuth_gap_max_deg']:.1f} deg, snap samples "
+                f"{int(row['snap_samples'])}")
     say(f"wrote {out}")

@@ -272,6 +272,6 @@ def split_cmd(folder: str, kind: str, seed: int, fractions: str, test_seqs: str 
     ds.save_split(folder, split)
     sizes = split.sizes()
     say(f"{folder}: {kind} split, seed {seed}: train {sizes['train']}, val {sizes['val']}, "
-               f"test {sizes['test']} samples -> {Path(folder) / 'split.json'}")
+        f"test {sizes['test']} samples -> {Path(folder) / 'split.json'}")
     for w in split_warnings(split, frac):
         click.echo(f"warning: {w}", err=True)

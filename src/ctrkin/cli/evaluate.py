@@ -39,15 +39,15 @@ def evaluate_cmd(data_dir: str, predictors: tuple[str, ...], out_dir: str | None
         res = evaluate(ds, spec, out)
         o = res["overall"]
         show(f"{spec}: {o['samples']} samples, position mean {o['position_mean_mm']:.3f} mm, "
-                   f"RMSE {o['position_rmse_mm']:.3f} mm, max {o['position_max_mm']:.3f} mm"
-                   + (f", orientation mean {o['orientation_mean_deg']:.2f} deg"
-                      if "orientation_mean_deg" in o else ", orientation: not measured"))
+             f"RMSE {o['position_rmse_mm']:.3f} mm, max {o['position_max_mm']:.3f} mm"
+             + (f", orientation mean {o['orientation_mean_deg']:.2f} deg"
+                if "orientation_mean_deg" in o else ", orientation: not measured"))
         if "registration" in res:
             show(f"  registration: {res['registration']}")
         show(f"  {'sequence':32s} {'samples':>7s} {'mean mm':>8s} {'rmse mm':>8s}")
         for name, s in res["per_sequence"].items():
             show(f"  {name:32s} {s['samples']:7d} {s['position_mean_mm']:8.3f} "
-                       f"{s['position_rmse_mm']:8.3f}")
+                 f"{s['position_rmse_mm']:8.3f}")
         if res.get("out_of_range_samples"):
             click.echo(f"  WARNING: {res['out_of_range_samples']} samples have joints outside the model's "
                        "training range (beyond the margin); their predictions are extrapolations:", err=True)

@@ -27,4 +27,4 @@ def export_cmd(model_dir: str, out_file: str, overwrite: bool) -> None:
     kin = Kinematics.load(model_dir)
     path = export_onnx(kin, out_file)
     say(f"wrote {path}: input window (batch, {kin.ib}, {kin.layout.n_inputs}) "
-               f"{list(kin.layout.input_names)} -> output {list(kin.layout.output_names)}")
+        f"{list(kin.layout.input_names)} -> output {list(kin.layout.output_names)}")

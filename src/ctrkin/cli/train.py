@@ -113,5 +113,5 @@ def train_cmd(task: str, data_dir: str, out_dir: str, model: str, structure: str
     res = train(ds, cfg, out_dir, overwrite=overwrite, log=log_line)
     tr = res.metrics["training"]
     say(f"trained {tr['epochs']} epochs (best {tr['best_epoch']}, val loss {tr['best_val_loss']:.4g}) "
-               f"in {tr['seconds']:.1f} s; model in {res.out}")
+        f"in {tr['seconds']:.1f} s; model in {res.out}")
     say(json.dumps({k: v for k, v in res.metrics.items() if k in ("val", "test")}, indent=2))
