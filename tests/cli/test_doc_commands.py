@@ -44,9 +44,9 @@ TINY: dict[tuple[str, ...], list[str]] = {
 SKIP: dict[str, str] = {
     "ctrkin reproduce --scale quick": "the README's main job, ~12 minutes on two cores",
     "ctrkin reproduce --scale full": "the paper's data size and training, hours",
-    "ctrkin reproduce --scale tiny": "147 s on the two-core dev machine (numba cache cold), beyond this "
-    "test's ~90 s budget; the same tiny pipeline runs in tests/evaluation/test_reproduce.py, the "
-    "command's arguments in tests/cli/test_reproduce_cli.py",
+    "ctrkin reproduce --scale tiny": "90 s (warm numba cache) to 147 s (cold) on the two-core dev "
+    "machine, this test's whole budget; the same tiny pipeline runs in tests/evaluation/"
+    "test_reproduce.py, the command's arguments in tests/cli/test_reproduce_cli.py",
 }
 
 ENV = {"CTRKIN_NO_PROGRESS": "1"}
