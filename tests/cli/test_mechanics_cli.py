@@ -19,8 +19,9 @@ def test_solve_json() -> None:
 
 def test_solve_rejects_invalid_joints() -> None:
     res = CliRunner().invoke(cli, ["solve", "--q", "0,0,5,-5"])
-    assert res.exit_code != 0
-    assert "beta_1 <= beta_2" in str(res.exception)
+    assert res.exit_code == 1 and res.stdout == ""
+    assert res.stderr.startswith("Error: ") and "beta_1 <= beta_2" in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
 
 
 def test_solve_rejects_garbage() -> None:

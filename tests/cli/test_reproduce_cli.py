@@ -23,6 +23,5 @@ def test_malformed_robot_file_is_refused(tmp_path) -> None:
     bad = tmp_path / "robot.toml"
     bad.write_text("[[tubes]]\nod = 1\n")
     res = CliRunner().invoke(cli, ["reproduce", "--robot", str(bad), "--out", str(tmp_path / "o")])
-    assert res.exit_code != 0
-    assert "missing field" in str(res.exception)
+    assert res.exit_code == 1 and "missing field" in res.stderr
     assert not (tmp_path / "o" / "results.json").exists()

@@ -10,7 +10,6 @@ from click.testing import CliRunner
 
 from ctrkin.cli.main import cli
 from ctrkin.data import Dataset
-from ctrkin.errors import DatasetError
 from tests.data.conftest import readings
 
 
@@ -62,23 +61,27 @@ def test_import_info_split(tmp_path, log_csv, sweep):
     assert summary["split"]["train"] == 101
 
 
-def test_import_refuses_to_overwrite_without_force(tmp_path, log_csv):
+def test_import_refuses_to_overwrite_without_overwrite(tmp_path, log_csv):
     runner = CliRunner()
     out = tmp_path / "ds"
     assert _import(runner, log_csv, out).exit_code == 0
     res = _import(runner, log_csv, out)
-    assert res.exit_code == 2 and "exists; pass --force" in res.output
-    res = _import(runner, log_csv, out, "--force", "--keep-outliers")
+    assert res.exit_code == 1 and "exists; pass --overwrite" in res.output
+    res = _import(runner, log_csv, out, "--overwrite", "--keep-outliers")
     assert res.exit_code == 0, res.output
     assert Dataset.load(out).frame["outlier"].sum() == 1
+    res = _import(runner, log_csv, out, "--force")          # the old flag name still works, with a warning
+    assert res.exit_code == 0, res.output
+    assert "--force is deprecated; use --overwrite" in res.output
+    assert Dataset.load(out).frame["outlier"].sum() == 0
 
 
 def test_import_errors_reach_the_user(tmp_path, log_csv):
     runner = CliRunner()
     res = runner.invoke(cli, ["dataset", "import", str(log_csv), "--out", str(tmp_path / "ds"),
                               "--units", "rad,m"])
-    assert isinstance(res.exception, DatasetError)
-    assert "missing column(s) for ['alpha_1', 'beta_1']" in str(res.exception)
+    assert res.exit_code == 1          # a DatasetError: one line on stderr, no traceback
+    assert "Error: " in res.stderr and "missing column(s) for ['alpha_1', 'beta_1']" in res.stderr
     res = _import(runner, log_csv, tmp_path / "ds", "--map", "oops")
     assert res.exit_code == 2 and "expected LOG_COLUMN=FIELD" in res.output
     res = _import(runner, log_csv, tmp_path / "ds", "--units", "furlong")
@@ -98,7 +101,7 @@ def test_split_by_sequence_with_fractions(tmp_path, small_dataset):
     res = runner.invoke(cli, ["dataset", "split", str(folder), "--fractions", "0.6,0.4"])
     assert res.exit_code == 2 and "three fractions needed" in res.output
     res = runner.invoke(cli, ["dataset", "split", str(folder), "--fractions", "0.6,0.3,0.3"])
-    assert isinstance(res.exception, DatasetError) and "summing to 1" in str(res.exception)
+    assert res.exit_code == 1 and "summing to 1" in res.stderr
 
 
 def test_info_reports_measurement_error_against_truth(tmp_path, small_dataset):

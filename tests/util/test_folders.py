@@ -128,9 +128,9 @@ def test_manifest_detects_a_replaced_or_missing_file(tmp_path):
 
 # --- kills --------------------------------------------------------------------------------------------
 
-def _collect_args(seed: int, out: Path) -> list[str]:
+def _collect_args(seed: int, out: Path, overwrite: bool = False) -> list[str]:
     return ["collect", "--protocol", "random-points", "--n-points", "4", "--scale", "quick",
-            "--workers", "1", "--seed", str(seed), "--out", str(out)]
+            "--workers", "1", "--seed", str(seed), "--out", str(out), *(["--overwrite"] if overwrite else [])]
 
 
 @pytest.mark.slow
@@ -149,7 +149,7 @@ def test_kill_during_collect_leaves_old_or_new_dataset(tmp_path):
         got = _frame_of(out)                     # never nothing: it loads
         assert any(_same(got, f) for f in frames), "the dataset is neither the previous nor the new one"
 
-    killed = _kill_trials(_cli, _collect_args(2, out), work, 11, reset, check)
+    killed = _kill_trials(_cli, _collect_args(2, out, overwrite=True), work, 11, reset, check)
     assert sum(killed) >= TRIALS // 2
 
 

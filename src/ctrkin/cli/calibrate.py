@@ -17,13 +17,13 @@ import tomli_w
 
 from ctrkin.calibration import calibrate, leave_one_sequence_out
 from ctrkin.calibration.params import GROUPS
-from ctrkin.cli.common import get_robot
+from ctrkin.cli.common import check_output, get_robot, overwrite_option, say
 from ctrkin.data.dataset import Dataset
 from ctrkin.util.files import atomic_write_text
 
 
 @click.command("calibrate", epilog="""\b
-Example:
+Examples:
   ctrkin calibrate --data data/optitrack --robot examples/robots/comet_nylon_optitrack.toml \\
       --out robots/optitrack_cal.toml --loso --prior-scales 0.5,1,2""")
 @click.option("--data", "data_dir", required=True, type=click.Path(exists=True, file_okay=False),
@@ -43,12 +43,11 @@ Example:
               help="With --loso: candidate multipliers of every prior σ, comma-separated (e.g. 0.5,1,2); "
               "with several, each fold picks one by a nested leave-one-sequence-out on its training "
               "sequences (needs >= 3 sequences).")
+@overwrite_option()
 def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str, loso: bool,
-                  max_evaluations: int, no_prior: bool, prior_scales: str) -> None:
+                  max_evaluations: int, no_prior: bool, prior_scales: str, overwrite: bool) -> None:
     """Fit registration and TCM parameters (precurvature, stiffness ratio, α/β offsets, transmission
     length, marker offset) by bounded least squares; print them with standard errors."""
-    ds = Dataset.load(data_dir)
-    robot = get_robot(robot_spec) if robot_spec else ds.robot
     groups = tuple(g.strip() for g in fit.split(",") if g.strip())
     try:
         scales = tuple(float(v) for v in prior_scales.split(",") if v.strip())
@@ -58,6 +57,9 @@ def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str
     if not scales or not all(v > 0 for v in scales):
         raise click.BadParameter(f"positive numbers, e.g. 0.5,1,2; got {prior_scales!r}",
                                  param_hint="--prior-scales")
+    check_output(out_file, overwrite)
+    ds = Dataset.load(data_dir)
+    robot = get_robot(robot_spec) if robot_spec else ds.robot
     res = calibrate(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior)
     if loso:
         res.loso = leave_one_sequence_out(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior,
@@ -68,20 +70,20 @@ def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str
                         "fit": json.loads(json.dumps(res.to_dict(), default=float, allow_nan=True)
                                           .replace("NaN", "null"))}
     atomic_write_text(out_file, tomli_w.dumps(cast(dict[str, Any], _drop_none(d))))
-    click.echo(f"{'parameter':24s} {'unit':5s} {'nominal':>10s} {'fitted':>10s} {'± std':>9s}")
+    say(f"{'parameter':24s} {'unit':5s} {'nominal':>10s} {'fitted':>10s} {'± std':>9s}")
     for row in res.table():
         flag = "  (at bound)" if row["at_bound"] else ""
-        click.echo(f"{row['name']:24s} {row['unit']:5s} {row['nominal']:10.4g} {row['value']:10.4g} "
-                   f"{row['std']:9.2g}{flag}")
-    click.echo(f"samples {res.n_samples}: nominal TCM (fitted registration) {res.nominal_mean_mm:.3f} mm, "
-               f"calibrated {res.mean_mm:.3f} mm mean tip distance (in-sample)")
+        say(f"{row['name']:24s} {row['unit']:5s} {row['nominal']:10.4g} {row['value']:10.4g} "
+            f"{row['std']:9.2g}{flag}")
+    say(f"samples {res.n_samples}: nominal TCM (fitted registration) {res.nominal_mean_mm:.3f} mm, "
+        f"calibrated {res.mean_mm:.3f} mm mean tip distance (in-sample)")
     if loso:
         per = ", ".join(f"{k} {v:.3f}" for k, v in res.loso["per_sequence"].items())
-        click.echo(f"leave-one-sequence-out: {res.loso['mean_mm']:.3f} mm ({per})")
+        say(f"leave-one-sequence-out: {res.loso['mean_mm']:.3f} mm ({per})")
         if len(scales) > 1:
             chosen = ", ".join(f"{k} {v:g}" for k, v in res.loso["prior_scale"].items())
-            click.echo(f"prior scale chosen by nested leave-one-sequence-out: {chosen}")
-    click.echo(f"wrote {out_file}")
+            say(f"prior scale chosen by nested leave-one-sequence-out: {chosen}")
+    say(f"wrote {out_file}")
 
 
 def _drop_none(d: object) -> object:

@@ -1,6 +1,8 @@
 """`ctrkin collect`: record a protocol on the virtual robot into a dataset folder.
 
     ctrkin collect --protocol paper --scale quick --seed 0 --out data/paper-quick
+    ctrkin collect --protocol paper --scale full --out data/paper            # the paper's ~208k samples
+    ctrkin collect --protocol paper --scale tiny --out data/paper-tiny       # reproduce --scale tiny's data
     ctrkin collect --protocol sweeps --out data/sweeps
     ctrkin collect --protocol sweeps --levels 2,6,10 --robot my_robot.toml --out data/my-sweeps
     ctrkin collect --protocol random-points --n-points 20 --seed 1 --out data/random
@@ -16,7 +18,6 @@ docs/virtual_robot.md), e.g. --set friction_deg_per_mm=0 --set noise_mm=0.1.
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import click
 
@@ -24,7 +25,8 @@ from ctrkin.acquisition import protocols
 from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.acquisition.task_paths import SHAPES, task_path
-from ctrkin.cli.common import get_robot, parse_floats, robot_option
+from ctrkin.cli.common import check_output, get_robot, overwrite_option, parse_floats, robot_option, say
+from ctrkin.evaluation.scales import SCALES
 from ctrkin.virtual import VirtualConfig, VirtualConfigError, VirtualRobot
 
 CHOICES = [*protocols.PROTOCOLS, *SHAPES]
@@ -46,10 +48,16 @@ def _config(settings: tuple[str, ...]) -> VirtualConfig:
         raise click.BadParameter(str(e)) from None
 
 
-@click.command("collect")
+@click.command("collect", epilog="""\b
+Examples:
+  ctrkin collect --protocol paper --scale tiny --out data/paper-tiny
+  ctrkin collect --protocol random-points --n-points 20 --seed 1 --out data/random
+  ctrkin collect --protocol sweeps --set noise_mm=0.1 --out data/sweeps-noisy""")
 @click.option("--protocol", type=click.Choice(CHOICES), required=True, help="What to record.")
-@click.option("--scale", type=click.Choice(list(protocols.SCALES)), default="full", show_default=True,
-              help="full: the paper's size (paper: ~208k samples); quick: a small version.")
+@click.option("--scale", type=click.Choice(sorted(SCALES)), default="quick", show_default=True,
+              help="Size of the paper protocol (the others do not depend on it). full: the paper's "
+              "(~208k samples); quick: 3 levels x 4 outer angles (~8.6k); tiny: 2 levels x 4 outer angles "
+              "(~5.8k), the data of reproduce --scale tiny.")
 @robot_option
 @click.option("--seed", default=0, show_default=True, help="Noise, glitches, random configurations.")
 @click.option("--robot-seed", default=0, show_default=True, help="The virtual hardware draw.")
@@ -63,38 +71,46 @@ def _config(settings: tuple[str, ...]) -> VirtualConfig:
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
               help="Override a virtual robot effect magnitude (repeatable).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
-              help="Output folder (replaced atomically).")
+              help="Output folder (written as a whole: a failure leaves the previous one).")
+@overwrite_option()
 def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_seed: int,
                 n_points: int | None, levels: str | None, workers: int | None,
-                settings: tuple[str, ...], out_dir: str) -> None:
+                settings: tuple[str, ...], out_dir: str, overwrite: bool) -> None:
     """Record a protocol on the virtual robot (or write square/triangle IK targets)."""
+    config = _config(settings)
+    if levels is not None and protocol not in ("paper", "sweeps"):
+        raise click.BadParameter("--levels applies to the paper and sweeps protocols")
+    level_values = None if levels is None else tuple(parse_floats(levels, "--levels"))
+    out = check_output(out_dir, overwrite)
     robot = get_robot(robot_spec)
-    virtual = VirtualRobot(robot, _config(settings), seed=robot_seed)
-    out = Path(out_dir)
+    virtual = VirtualRobot(robot, config, seed=robot_seed)
     if protocol in SHAPES:
         path = task_path(virtual, protocol, n_points=n_points or 10, seed=seed)
         path.save(out)
-        click.echo(f"wrote {len(path.poses)} {protocol} targets to {out}")
+        say(f"wrote {len(path.poses)} {protocol} targets to {out}")
         return
     kw: dict[str, object] = {"n_points": n_points or 20} if protocol == "random-points" else {}
-    if levels is not None:
-        if protocol not in ("paper", "sweeps"):
-            raise click.BadParameter("--levels applies to the paper and sweeps protocols")
-        kw["levels"] = tuple(parse_floats(levels, "--levels"))
-    plan = protocols.build(protocol, robot, scale=scale, seed=seed, **kw)  # type: ignore[arg-type]
+    if level_values is not None:
+        kw["levels"] = level_values
+    if protocol == "paper" and scale == "tiny":
+        tiny = SCALES["tiny"]
+        kw.setdefault("levels", tiny.paper_levels)
+        kw["outer_step_deg"] = tiny.paper_outer_step_deg
+    protocol_scale = SCALES[scale].protocol_scale
+    plan = protocols.build(protocol, robot, scale=protocol_scale, seed=seed, **kw)  # type: ignore[arg-type]
     t0 = time.perf_counter()
     ds = record(plan, virtual, seed=seed, workers=workers)
     elapsed = time.perf_counter() - t0
     ds.save(out)
     f = ds.frame
-    click.echo(f"{protocol} ({scale}): {len(f)} samples in {f['sequence_id'].nunique()} sequences, "
-               f"{int(f['snap'].sum())} snap samples, {int(f['outlier'].sum())} encoder glitches; "
-               f"{elapsed:.1f} s ({len(f) / max(elapsed, 1e-9):.0f} samples/s)")
+    say(f"{protocol} ({scale}): {len(f)} samples in {f['sequence_id'].nunique()} sequences, "
+        f"{int(f['snap'].sum())} snap samples, {int(f['outlier'].sum())} encoder glitches; "
+        f"{elapsed:.1f} s ({len(f) / max(elapsed, 1e-9):.0f} samples/s)")
     if protocol in ("paper", "sweeps"):
         h = sweep_hysteresis(ds)
         for _, row in h.iterrows():
-            click.echo(f"  d = {row['relative_translation_mm']:5.1f} mm: hysteresis mean "
-                       f"{row['hysteresis_mean_mm']:.2f} mm, max {row['hysteresis_max_mm']:.2f} mm, "
-                       f"T(L) gap {row['azimuth_gap_max_deg']:.1f} deg, snap samples "
-                       f"{int(row['snap_samples'])}")
-    click.echo(f"wrote {out}")
+            say(f"  d = {row['relative_translation_mm']:5.1f} mm: hysteresis mean "
+                f"{row['hysteresis_mean_mm']:.2f} mm, max {row['hysteresis_max_mm']:.2f} mm, "
+                f"T(L) gap {row['azimuth_gap_max_deg']:.1f} deg, snap samples "
+                f"{int(row['snap_samples'])}")
+    say(f"wrote {out}")

@@ -1,14 +1,86 @@
-"""Options and parsing shared by the sub-commands."""
+"""Options and parsing shared by the sub-commands, and the one rule for existing output.
+
+Output rule: a command never replaces an existing output file, or a folder that is not empty, unless
+it is given `--overwrite` (`--force` is kept, hidden, as a deprecated alias where it existed).
+`ctrkin train` and `ctrkin reproduce` resume their own run in --out instead (same settings); that is
+not replacing.
+"""
 
 from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TypeVar
 
 import click
 
 from ctrkin.robots import Robot, load_robot
 
+F = TypeVar("F", bound=Callable[..., Any])
+
+QUIET = "ctrkin.quiet"   # ctx.meta key set by `ctrkin --quiet`
+
+
+def quiet() -> bool:
+    """Whether `ctrkin --quiet` was given (False outside a click command)."""
+    ctx = click.get_current_context(silent=True)
+    return bool(ctx is not None and ctx.meta.get(QUIET))
+
+
+def say(message: str, err: bool = False) -> None:
+    """A message about the work done (what was written, timings, summaries); silent with --quiet.
+    Results that are only printed, warnings and errors use click.echo."""
+    if not quiet():
+        click.echo(message, err=err)
+
+
+def log_line(message: str) -> None:
+    """A log line of a long run on stderr: with --quiet only its warnings."""
+    if message.startswith("warning") or not quiet():
+        click.echo(message, err=True)
+
+
 robot_option = click.option(
     "--robot", "robot_spec", default="paper", show_default=True,
     help="Built-in robot name (paper, timclab) or path to a robot TOML file.")
+
+
+class OutputExistsError(click.ClickException):
+    """--out names something that exists and --overwrite was not given (exit status 1)."""
+
+    exit_code = 1
+
+
+def overwrite_option(force_alias: bool = False) -> Callable[[F], F]:
+    """`--overwrite` (and, with force_alias, the hidden deprecated `--force`) as one `overwrite` flag."""
+    flag = click.option("--overwrite", is_flag=True,
+                        help="Replace the output if it exists (otherwise an existing output is refused).")
+    if not force_alias:
+        return flag
+
+    def _force(ctx: click.Context, _param: click.Parameter, value: bool) -> bool:
+        if value:
+            click.echo("warning: --force is deprecated; use --overwrite", err=True)
+        return value
+
+    force = click.option("--force", "force", is_flag=True, hidden=True, expose_value=True, callback=_force,
+                         help="Deprecated alias of --overwrite.")
+
+    def decorate(f: F) -> F:
+        return flag(force(f))
+
+    return decorate
+
+
+def check_output(path: str | Path, overwrite: bool) -> Path:
+    """The output rule: refuse (OutputExistsError) an existing file or non-empty folder `path` unless
+    `overwrite`. Call it after the arguments are checked and before any work is done."""
+    p = Path(path)
+    if overwrite or not p.exists():
+        return p
+    if p.is_dir() and not any(p.iterdir()):
+        return p
+    raise OutputExistsError(f"{p} exists; pass --overwrite to replace it (or choose another --out)")
 
 
 def get_robot(spec: str) -> Robot:

@@ -28,7 +28,15 @@ import click
 from rich.console import Console
 from rich.table import Table
 
-from ctrkin.cli.common import get_robot, parse_floats, robot_option
+from ctrkin.cli.common import (
+    check_output,
+    get_robot,
+    overwrite_option,
+    parse_floats,
+    quiet,
+    robot_option,
+    say,
+)
 from ctrkin.data.cleaning import CleaningConfig
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
@@ -36,7 +44,10 @@ from ctrkin.data.splits import random_split, split_by_sequence, split_warnings, 
 from ctrkin.data.summary import summarize
 
 
-@click.group("dataset")
+@click.group("dataset", epilog="""\b
+Examples:
+  ctrkin dataset info data/paper
+  ctrkin dataset split data/paper --kind random --seed 0""")
 def dataset_group() -> None:
     """Inspect datasets, import robot logs (CSV) and split datasets."""
 
@@ -89,7 +100,9 @@ def print_summary(s: dict[str, Any], title: str) -> None:
     console.print(ranges)
 
 
-@dataset_group.command("info")
+@dataset_group.command("info", epilog="""\b
+Examples:
+  ctrkin dataset info data/paper --json""")
 @click.argument("folder", type=click.Path(exists=True, file_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def info_cmd(folder: str, as_json: bool) -> None:
@@ -151,7 +164,11 @@ def parse_gap(text: str) -> float | str | None:
                                  param_hint="--sequence-gap") from None
 
 
-@dataset_group.command("import")
+@dataset_group.command("import", epilog="""\b
+Examples:
+  ctrkin dataset import robot_log.csv --robot paper --units rad,m --out data/mylog
+  ctrkin dataset import logs/*.csv --profile examples/profiles/comet_optitrack.toml \\
+      --robot examples/robots/comet_nylon_optitrack.toml --out data/optitrack""")
 @click.argument("log_files", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
 @robot_option
 @click.option("--profile", "profile_file", default=None, type=click.Path(exists=True, dir_okay=False),
@@ -183,46 +200,49 @@ def parse_gap(text: str) -> float | str | None:
 @click.option("--no-average", is_flag=True, help="Do not average repeated readings of one sample.")
 @click.option("--unwrap", is_flag=True, help="Unwrap alpha (for logs wrapping angles to ±180°).")
 @click.option("--delimiter", default=",", show_default=True, help="CSV field separator.")
-@click.option("--force", is_flag=True, help="Replace the --out folder if it exists.")
+@overwrite_option(force_alias=True)
 def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | None, out_dir: str,
                maps: tuple[str, ...], units: tuple[str, ...],
                quat_cols: str | None, quat_order: str, gap_text: str, drop_invalid: bool,
                drop_incomplete: bool, keep_outliers: bool, no_average: bool, unwrap: bool,
-               delimiter: str, force: bool) -> None:
+               delimiter: str, overwrite: bool, force: bool) -> None:
     """Import robot logs LOG_FILES (CSV, one row a tracker reading) into one cleaned dataset: repeated
     readings averaged, encoder glitches and pose outliers removed, snaps detected (see docs/data.md,
     and docs/real_robot.md for import profiles). Without --profile, one file."""
-    out = Path(out_dir)
-    if out.exists() and not force:
-        raise click.UsageError(f"{out} exists; pass --force to replace it")
-    robot = get_robot(robot_spec)
+    if profile_file is None and len(log_files) != 1:
+        raise click.UsageError("several log files need --profile (one sequence per file); without a "
+                               "profile import one file")
     quaternion_columns = tuple(c.strip() for c in quat_cols.split(",")) if quat_cols else ()
+    mapping, unit_kw, gap = parse_map(maps), parse_units(units), parse_gap(gap_text)
+    out = check_output(out_dir, overwrite or force)
+    robot = get_robot(robot_spec)
     cfg = ImportConfig(
-        mapping=parse_map(maps), quaternion_columns=quaternion_columns,
-        quaternion_order=cast(Any, quat_order), sequence_gap=cast(Any, parse_gap(gap_text)),
+        mapping=mapping, quaternion_columns=quaternion_columns,
+        quaternion_order=cast(Any, quat_order), sequence_gap=cast(Any, gap),
         drop_invalid_joints=drop_invalid, drop_incomplete=drop_incomplete, unwrap=unwrap,
         delimiter=delimiter,
         cleaning=CleaningConfig(average_repeats=not no_average, outliers="flag" if keep_outliers else "drop"),
-        **cast(Any, parse_units(units)))
+        **cast(Any, unit_kw))
     if profile_file is not None:
         from ctrkin.data.profile import load_profile
         from ctrkin.data.profile_import import import_with_profile
 
         ds = import_with_profile(list(log_files), load_profile(profile_file, robot.n_tubes), robot, cfg)
-    elif len(log_files) != 1:
-        raise click.UsageError("several log files need --profile (one sequence per file); without a "
-                               "profile import one file")
     else:
         ds = import_csv(log_files[0], robot, cfg)
     ds.save(out)
     names = ", ".join(Path(f).name for f in log_files)
-    print_summary(summarize(ds), title=f"imported {names} -> {out}")
+    if not quiet():
+        print_summary(summarize(ds), title=f"imported {names} -> {out}")
     for w in ds.meta["cleaning"]["warnings"]:
         click.echo(f"warning: {w}", err=True)
 
 
 # --- split -----------------------------------------------------------------------------------------
-@dataset_group.command("split")
+@dataset_group.command("split", epilog="""\b
+Examples:
+  ctrkin dataset split data/paper --fractions 0.8,0.1,0.1 --seed 2
+  ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate""")
 @click.argument("folder", type=click.Path(exists=True, file_okay=False))
 @click.option("--kind", type=click.Choice(["sequence", "random"]), default="sequence", show_default=True,
               help="sequence: whole sequences per part (no leakage through the input buffer); "
@@ -251,7 +271,7 @@ def split_cmd(folder: str, kind: str, seed: int, fractions: str, test_seqs: str 
         split = random_split(len(ds.frame), frac, seed=seed)
     ds.save_split(folder, split)
     sizes = split.sizes()
-    click.echo(f"{folder}: {kind} split, seed {seed}: train {sizes['train']}, val {sizes['val']}, "
-               f"test {sizes['test']} samples -> {Path(folder) / 'split.json'}")
+    say(f"{folder}: {kind} split, seed {seed}: train {sizes['train']}, val {sizes['val']}, "
+        f"test {sizes['test']} samples -> {Path(folder) / 'split.json'}")
     for w in split_warnings(split, frac):
         click.echo(f"warning: {w}", err=True)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import click
 
+from ctrkin.cli.common import check_output, overwrite_option, say
 from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.real import evaluate
 
@@ -25,24 +26,28 @@ Examples:
                    "(.toml, calibrated or not) or a trained FK model folder. Repeatable.")
 @click.option("--out", "out_dir", default=None, type=click.Path(file_okay=False),
               help="Folder for results.json and plots (one sub-folder per predictor when several).")
-def evaluate_cmd(data_dir: str, predictors: tuple[str, ...], out_dir: str | None) -> None:
+@overwrite_option()
+def evaluate_cmd(data_dir: str, predictors: tuple[str, ...], out_dir: str | None, overwrite: bool) -> None:
     """Compare predictors with the measured tips: position (and orientation, where measured) errors
     overall and per sequence; plots of predicted vs measured tips and of error against joints."""
+    if out_dir is not None:
+        check_output(out_dir, overwrite)
     ds = Dataset.load(data_dir)
+    show = click.echo if out_dir is None else say    # without --out the printed table is the result
     for k, spec in enumerate(predictors):
         out = None if out_dir is None else (out_dir if len(predictors) == 1 else f"{out_dir}/{k}")
         res = evaluate(ds, spec, out)
         o = res["overall"]
-        click.echo(f"{spec}: {o['samples']} samples, position mean {o['position_mean_mm']:.3f} mm, "
-                   f"RMSE {o['position_rmse_mm']:.3f} mm, max {o['position_max_mm']:.3f} mm"
-                   + (f", orientation mean {o['orientation_mean_deg']:.2f} deg"
-                      if "orientation_mean_deg" in o else ", orientation: not measured"))
+        show(f"{spec}: {o['samples']} samples, position mean {o['position_mean_mm']:.3f} mm, "
+             f"RMSE {o['position_rmse_mm']:.3f} mm, max {o['position_max_mm']:.3f} mm"
+             + (f", orientation mean {o['orientation_mean_deg']:.2f} deg"
+                if "orientation_mean_deg" in o else ", orientation: not measured"))
         if "registration" in res:
-            click.echo(f"  registration: {res['registration']}")
-        click.echo(f"  {'sequence':32s} {'samples':>7s} {'mean mm':>8s} {'rmse mm':>8s}")
+            show(f"  registration: {res['registration']}")
+        show(f"  {'sequence':32s} {'samples':>7s} {'mean mm':>8s} {'rmse mm':>8s}")
         for name, s in res["per_sequence"].items():
-            click.echo(f"  {name:32s} {s['samples']:7d} {s['position_mean_mm']:8.3f} "
-                       f"{s['position_rmse_mm']:8.3f}")
+            show(f"  {name:32s} {s['samples']:7d} {s['position_mean_mm']:8.3f} "
+                 f"{s['position_rmse_mm']:8.3f}")
         if res.get("out_of_range_samples"):
             click.echo(f"  WARNING: {res['out_of_range_samples']} samples have joints outside the model's "
                        "training range (beyond the margin); their predictions are extrapolations:", err=True)
@@ -51,4 +56,4 @@ def evaluate_cmd(data_dir: str, predictors: tuple[str, ...], out_dir: str | None
                     click.echo(f"    {name}: {j['count']} samples outside [{j['lo']:.4g}, {j['hi']:.4g}] "
                                f"± {j['margin']:.3g}", err=True)
         if out is not None:
-            click.echo(f"  wrote {out}/results.json, tips.png, error_vs_joints.png")
+            say(f"  wrote {out}/results.json, tips.png, error_vs_joints.png")

@@ -7,20 +7,22 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import click
 import numpy as np
 import pandas as pd
 
 from ctrkin.acquisition.trajectories import PAPER_LEVELS_MM, rotation_sweep
-from ctrkin.cli.common import get_robot, parse_floats, robot_option
+from ctrkin.cli.common import check_output, get_robot, overwrite_option, parse_floats, robot_option, say
 from ctrkin.mechanics import follow, solve
 from ctrkin.util.files import atomic_path
 from ctrkin.util.progress import progress_bar
 
 
-@click.command("solve")
+@click.command("solve", epilog="""\b
+Examples:
+  ctrkin solve --q 0,0,-15,-5
+  ctrkin solve --robot paper --q 90,0,-20,0 --json""")
 @robot_option
 @click.option("--q", "q_text", required=True,
               help="Joints α1..αN (deg), β1..βN (mm), comma-separated, e.g. 0,0,-15,-5.")
@@ -41,7 +43,10 @@ def solve_cmd(robot_spec: str, q_text: str, as_json: bool) -> None:
                f"{eq.stability:.4f}  energy: {eq.energy:.4g} N·mm")
 
 
-@click.command("sweep")
+@click.command("sweep", epilog="""\b
+Examples:
+  ctrkin sweep --out out/sweep
+  ctrkin sweep --translations 4,20 --step 2 --out out/sweep-coarse""")
 @robot_option
 @click.option("--translations", default=",".join(str(v) for v in PAPER_LEVELS_MM),
               show_default=True, help="Relative translations d = β_N − β_1 (mm).")
@@ -50,14 +55,16 @@ def solve_cmd(robot_spec: str, q_text: str, as_json: bool) -> None:
 @click.option("--step", "step_deg", default=1.0, show_default=True, help="Rotation step (deg).")
 @click.option("--out", "out_dir", default="out/sweep", show_default=True,
               type=click.Path(file_okay=False), help="Output folder for sweep.csv and sweep.png.")
+@overwrite_option()
 def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha: float,
-              step_deg: float, out_dir: str) -> None:
+              step_deg: float, out_dir: str, overwrite: bool) -> None:
     """Full inner-tube rotation forward and back at several relative translations (paper
     Fig. 2b), solved by continuation: writes sweep.csv and a plot of T(L) against α0."""
     from ctrkin.viz.sweep import plot_sweeps
 
-    robot = get_robot(robot_spec)
     levels = parse_floats(translations, "--translations")
+    out = check_output(out_dir, overwrite)
+    robot = get_robot(robot_spec)
     n = robot.n_tubes
     frames, curves = [], []
     paths = [rotation_sweep(n, d, outer_beta, outer_alpha, step_deg) for d in levels]
@@ -76,7 +83,6 @@ def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha
                 "T_L": tr.azimuth, "snap": tr.snaps, "stable": tr.stable}))
             curves.append({"label": f"d = {d:g} mm", "alpha0": alpha0, "azimuth": tr.azimuth,
                            "snaps": tr.snaps, "forward": forward})
-    out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     table = pd.concat(frames, ignore_index=True)
     with atomic_path(out / "sweep.csv") as tmp:
@@ -84,5 +90,5 @@ def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha
     plot_sweeps(curves, out / "sweep.png", title=f"{robot.name}: T(L) over full inner rotations")
     for d, f in zip(levels, frames, strict=True):
         snaps = f.loc[f["snap"], "alpha_1"].tolist()
-        click.echo(f"d = {d:5.1f} mm: snaps at α1 = {snaps if snaps else 'none'}")
-    click.echo(f"wrote {out / 'sweep.csv'} and {out / 'sweep.png'}")
+        say(f"d = {d:5.1f} mm: snaps at α1 = {snaps if snaps else 'none'}")
+    say(f"wrote {out / 'sweep.csv'} and {out / 'sweep.png'}")

@@ -12,11 +12,14 @@ from __future__ import annotations
 
 import click
 
-from ctrkin.cli.common import get_robot, robot_option
+from ctrkin.cli.common import get_robot, robot_option, say
 from ctrkin.evaluation.scales import SCALES, get_scale
 
 
-@click.command("reproduce")
+@click.command("reproduce", epilog="""\b
+Examples:
+  ctrkin reproduce --scale tiny --out out/tiny
+  ctrkin reproduce --scale quick --out out/reproduce""")
 @click.option(
     "--scale",
     type=click.Choice(sorted(SCALES)),
@@ -52,16 +55,16 @@ def reproduce_cmd(scale: str, robot_spec: str, robot_seed: int, workers: int, ex
         out_dir,
         robot_seed=robot_seed,
         workers=workers,
-        log=click.echo,
+        log=say,
         executor=executor,
     )
     fk, ik = results["fk"], results["ik"]["lstm_mlp"]
-    click.echo(
+    say(
         f"FK LSTM-MLP: {fk['lstm_mlp']['position_rmse_mm']:.3f} mm / "
         f"{fk['lstm_mlp']['orientation_rmse_deg']:.3f} deg (paper 0.69 mm / 0.16 deg); "
         f"TCM: {fk['tcm']['position_rmse_mm']:.2f} mm"
     )
-    click.echo(
+    say(
         f"IK LSTM-MLP: {ik['joint_rmse_mm']:.3f} mm / {ik['joint_rmse_deg']:.3f} deg "
         f"(paper 1.22 mm / 2.46 deg); tip reached {ik['tip_error_mm']:.3f} mm"
     )

@@ -17,9 +17,11 @@ continue a finished run); --overwrite starts over. Models: see `ctrkin train --l
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import click
 
+from ctrkin.cli.common import check_output, log_line, say
 from ctrkin.data import Dataset
 
 
@@ -34,7 +36,21 @@ def _list_models(ctx: click.Context, _param: click.Parameter, value: bool) -> No
     ctx.exit()
 
 
-@click.command("train")
+def _check_model_folder(out: Path, overwrite: bool) -> None:
+    """The output rule for a model folder: the same setup resumes, another model needs --overwrite
+    (ctrkin.training checks both); anything else in --out is refused here unless --overwrite."""
+    from ctrkin.models.store import CONFIG
+    from ctrkin.training.loop import CHECKPOINT
+
+    if not ((out / CONFIG).is_file() or (out / CHECKPOINT).is_file()):
+        check_output(out, overwrite)
+
+
+@click.command("train", epilog="""\b
+Examples:
+  ctrkin train --task fk --data data/paper --out models/fk
+  ctrkin train --task ik --model follow_mlp --data data/paper --out models/ik_follow
+  ctrkin train --list-models""")
 @click.option("--list-models", is_flag=True, expose_value=False, is_eager=True, callback=_list_models,
               help="List the model registry and exit.")
 @click.option("--task", type=click.Choice(["fk", "ik"]), required=True, help="Forward or inverse kinematics.")
@@ -68,7 +84,8 @@ def _list_models(ctx: click.Context, _param: click.Parameter, value: bool) -> No
 @click.option("--max-seconds", default=None, type=float, help="Training-time budget (s).")
 @click.option("--seed", default=0, show_default=True)
 @click.option("--threads", default=2, show_default=True, help="torch CPU threads.")
-@click.option("--overwrite", is_flag=True, help="Start over even if --out holds a checkpoint.")
+@click.option("--overwrite", is_flag=True, help="Start over even if --out holds a checkpoint or another "
+              "model; replace --out if it is a folder that is not a model.")
 def train_cmd(task: str, data_dir: str, out_dir: str, model: str, structure: str | None,
               options: tuple[str, ...], ib: int, no_delta: bool, angles: str, output_activation: str,
               pose_source: str, split: str, max_epochs: int, patience: int, batch_size: int, lr: float,
@@ -90,10 +107,11 @@ def train_cmd(task: str, data_dir: str, out_dir: str, model: str, structure: str
                       max_epochs=max_epochs, patience=patience, batch_size=batch_size, lr=lr,
                       lr_schedule=lr_schedule, loop=loop, val_smoothing=val_smoothing,
                       max_seconds=max_seconds, seed=seed, threads=threads)
+    _check_model_folder(Path(out_dir), overwrite)
     ds = Dataset.load(data_dir)
     ds.meta.setdefault("path", data_dir)
-    res = train(ds, cfg, out_dir, overwrite=overwrite, log=lambda m: click.echo(m, err=True))
+    res = train(ds, cfg, out_dir, overwrite=overwrite, log=log_line)
     tr = res.metrics["training"]
-    click.echo(f"trained {tr['epochs']} epochs (best {tr['best_epoch']}, val loss {tr['best_val_loss']:.4g}) "
-               f"in {tr['seconds']:.1f} s; model in {res.out}")
-    click.echo(json.dumps({k: v for k, v in res.metrics.items() if k in ("val", "test")}, indent=2))
+    say(f"trained {tr['epochs']} epochs (best {tr['best_epoch']}, val loss {tr['best_val_loss']:.4g}) "
+        f"in {tr['seconds']:.1f} s; model in {res.out}")
+    say(json.dumps({k: v for k, v in res.metrics.items() if k in ("val", "test")}, indent=2))
