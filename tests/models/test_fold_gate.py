@@ -107,3 +107,19 @@ def test_file_round_trip_and_malformed_files(tmp_path) -> None:
     (tmp_path / "fold_gate.json").write_text("{not json")
     with pytest.raises(ModelError):
         FoldGate.load(tmp_path)
+
+
+def test_a_sequence_that_continues_its_run_keeps_the_branch() -> None:
+    """A turn that ends on the upper branch inside the band (φ = 10° after a forward snap at 20°),
+    then a new sequence of the same run starting there: it stays on branch 1; from rest the gate
+    could only guess by the sign of φ (also 1 here), so start the second one at φ = −5°."""
+    gate = _gate(20.0)
+    first = np.arange(170.0, 211.0)                       # φ −10 .. 30: the forward snap at 20
+    second = np.arange(175.0, 160.0, -1.0)                # φ −5 .. −19: inside the band, going down
+    a0 = np.r_[first, second]
+    bounds = [(0, len(first)), (len(first), len(a0))]
+    betas, motion = np.zeros((len(a0), 2)), np.zeros(len(a0))
+    kept = gate.states(a0, betas, motion, bounds, [False, True])
+    fresh = gate.states(a0, betas, motion, bounds, [False, False])
+    assert kept[len(first) - 1] == 1 and kept[len(first):].tolist() == [1] * len(second)
+    assert fresh[len(first):].tolist() == [0] * len(second)

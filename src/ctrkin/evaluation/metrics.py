@@ -203,7 +203,7 @@ def snap_report(pred_azimuth: np.ndarray, ref_azimuth: np.ndarray, bounds: list[
 
 
 def glitch_window(outlier: np.ndarray, bounds: list[tuple[int, int]], ib: int = 2) -> np.ndarray:
-    """(T,) bool: each encoder-glitch row and the `ib` rows after it, whose predictions see the
-    corrupted joints in their input buffer or step change (the paper removed glitch rows; a T(L)
-    jump there is the glitch, not a snap)."""
-    return snap_window(outlier, bounds, width=ib + 1)
+    """(T,) bool: each encoder-glitch row and the ib + 1 rows after it: their predictions, or the
+    step into them, see the corrupted joints in the input buffer or the step change (the paper
+    removed glitch rows; a T(L) jump there is the glitch, not a snap)."""
+    return snap_window(outlier, bounds, width=ib + 2)

@@ -44,7 +44,7 @@ from ctrkin.models.features import (
     step_features,
     window_index,
 )
-from ctrkin.models.fold_gate import FOLD_GATE_FILE, FoldGate, outer_motion
+from ctrkin.models.fold_gate import FOLD_GATE_FILE, FoldGate, outer_motion, run_continues
 from ctrkin.models.frame import local_tips_to_world
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle, read_json
@@ -292,14 +292,15 @@ class Kinematics:
         followed across sequences, glitch rows skipped)."""
         assert self.fold_gate is not None
         n = self.layout.n_tubes
+        runs = None
         if isinstance(data, Dataset):
             f = data.frame
-            motion = outer_motion(data.joints(), bounds, n,
-                                  f["run"].to_numpy() if "run" in f.columns else None,
-                                  f["outlier"].to_numpy())
+            runs = f["run"].to_numpy() if "run" in f.columns else None
+            motion = outer_motion(data.joints(), bounds, n, runs, f["outlier"].to_numpy())
         else:
             motion = outer_motion(raw, bounds, n)
-        return self.fold_gate.states(raw[:, 0] - raw[:, n - 1], raw[:, n:], motion, bounds)
+        return self.fold_gate.states(raw[:, 0] - raw[:, n - 1], raw[:, n:], motion, bounds,
+                                     run_continues(bounds, runs))
 
     def _workspace_check(self, raw: np.ndarray, strict: bool) -> tuple[np.ndarray, np.ndarray, list[str]]:
         assert self.workspace is not None
@@ -400,16 +401,20 @@ class Kinematics:
         return y, states
 
     # --- streaming -------------------------------------------------------------------------------
-    def reset(self, joints: np.ndarray | None = None, outer_motion: int = 0) -> None:
+    def reset(self, joints: np.ndarray | None = None, outer_motion: int = 0,
+              continue_run: bool = False) -> None:
         """Start a new sequence: the next step() is its first. joints: a follow IK only, the robot's
-        joints (2N,) at the start (default: those of the nearest training target). outer_motion: an FK
-        with a fold gate, the direction the outer tube last turned before this sequence (+1, −1; 0:
-        at rest since power-up), which shifts where it snaps (ctrkin.models.fold_gate)."""
+        joints (2N,) at the start (default: those of the nearest training target). An FK with a fold
+        gate (ctrkin.models.fold_gate): outer_motion, the direction the outer tube last turned before
+        this sequence (+1, −1; 0: at rest since power-up), which shifts where it snaps; or
+        continue_run=True: the robot moved on from the previous sequence without a stop (unrecorded
+        moves in between), so its branch and the outer tube's last rotation carry over."""
         if joints is not None and self._follower is None:
             raise ModelError("reset(joints) applies to a follow IK model (follow_mlp) only")
         if outer_motion not in (-1, 0, 1):
             raise ModelError(f"outer_motion must be -1, 0 or 1, got {outer_motion!r}")
-        self._gate_state, self._outer_motion, self._outer_prev = -1, int(outer_motion), math.nan
+        if not continue_run:
+            self._gate_state, self._outer_motion, self._outer_prev = -1, int(outer_motion), math.nan
         if self._follower is not None:
             self._follower.reset(joints)
         self._prev = None
@@ -429,6 +434,7 @@ class Kinematics:
         raw = real_array(x)
         if raw.shape != (self.layout.raw_width,):
             raise ModelError(f"step() expects shape ({self.layout.raw_width},), got {raw.shape}")
+        outer = float(raw[self.layout.n_tubes - 1])     # as given: whole-turn shifts differ by sequence
         if self._guard is not None:
             raw, self._shift = self._guard.step(raw, self._shift if self._prev is not None else None)
         else:
@@ -458,7 +464,7 @@ class Kinematics:
         if self._engine is not None:
             state = None
             if self.fold_gate is not None:
-                self._gate_state, self._outer_motion, self._outer_prev = self._fold_step(raw)
+                self._gate_state, self._outer_motion, self._outer_prev = self._fold_step(raw, outer)
                 state = float(self._gate_state)
             yn = self._engine.step(xn, state)
         else:
@@ -478,11 +484,12 @@ class Kinematics:
         q = self.robot.project_joints(y[None])[0]
         return self._ik_step(raw, q, bool(np.any(np.abs(q - y) > 1e-9)), check, strict)
 
-    def _fold_step(self, raw: np.ndarray) -> tuple[int, int, float]:
-        """The fold gate's (state, m_N, αN) after joints raw (2N,) as the next step, nothing changed."""
+    def _fold_step(self, raw: np.ndarray, outer: float | None = None) -> tuple[int, int, float]:
+        """The fold gate's (state, m_N, αN) after joints raw (2N,) as the next step, nothing changed.
+        outer: αN as the caller gave it (default raw's)."""
         assert self.fold_gate is not None
         n = self.layout.n_tubes
-        a_n, motion = float(raw[n - 1]), self._outer_motion
+        a_n, motion = float(raw[n - 1]) if outer is None else outer, self._outer_motion
         if not math.isnan(self._outer_prev) and abs(a_n - self._outer_prev) > 1e-9:
             motion = 1 if a_n > self._outer_prev else -1
         state = self.fold_gate.step(self._gate_state, float(raw[0] - raw[n - 1]), raw[n:], motion)

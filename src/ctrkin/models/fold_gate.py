@@ -25,7 +25,8 @@ tube's lag is set by the turn itself: it widens the band symmetrically, as does 
 tubes wider than the nominal one (c). The outer tube's was set before the sequence (an unrecorded move
 to its angle, or rest) and shifts both folds the same way (κ). Forward and backward snaps separate the
 two even when every snap of the data has the same m_N. m_N is read from the joint path, carried across
-the sequences of one run (the `run` column, glitch rows skipped) and reset at rest.
+the sequences of one run (the `run` column, glitch rows skipped) and reset at rest; so is the
+branch state, which the unrecorded move between two sequences of a run does not reset either.
 θ+ ≥ θ− always (no chattering where the pair is not bistable and both are 0). The table is
 interpolated multilinearly in β and clamped at the edges of the trained range.
 """
@@ -81,14 +82,17 @@ class FoldGate:
         return np.maximum(hi, lo), lo
 
     def states(self, alpha0: np.ndarray, betas: np.ndarray, outer_motion: np.ndarray,
-               bounds: list[tuple[int, int]]) -> np.ndarray:
+               bounds: list[tuple[int, int]], continues: list[bool] | None = None) -> np.ndarray:
         """(T,) int8 branch states along each sequence. alpha0 (T,) deg, betas (T, N) mm,
-        outer_motion (T,) m_N (ctrkin.models.fold_gate.outer_motion)."""
+        outer_motion (T,) m_N (ctrkin.models.fold_gate.outer_motion); continues: per sequence, True
+        where it continues the previous one's run (the branch is kept across the unrecorded move)."""
         phi = phase_deg(alpha0)
         hi, lo = self.thresholds(betas, outer_motion)
         s = np.zeros(len(phi), dtype=np.int8)
-        for a, b in bounds:
-            cur = -1
+        cur = -1
+        for k, (a, b) in enumerate(bounds):
+            if not (continues is not None and continues[k] and k > 0):
+                cur = -1
             for t in range(a, b):
                 cur = self._next(cur, float(phi[t]), float(hi[t]), float(lo[t]))
                 s[t] = cur
@@ -187,6 +191,14 @@ def build_fold_gate(robot: Robot, joints: np.ndarray, snap: np.ndarray, bounds: 
     table = FoldGate(axes, fwd.reshape(shape), bwd.reshape(shape))
     offsets, lag = _fit_offsets(table, joints, snap, bounds, np.asarray(motion), n)
     return FoldGate(axes, table.forward, table.backward, offsets, lag)
+
+
+def run_continues(bounds: list[tuple[int, int]], runs: np.ndarray | None) -> list[bool]:
+    """Per sequence: does it continue the run of the sequence before it (file order)?"""
+    if runs is None:
+        return [False] * len(bounds)
+    return [k > 0 and b > a and bounds[k - 1][1] > bounds[k - 1][0] and runs[a] == runs[bounds[k - 1][1] - 1]
+            for k, (a, b) in enumerate(bounds)]
 
 
 def outer_motion(joints: np.ndarray, bounds: list[tuple[int, int]], n_tubes: int,
