@@ -8,7 +8,8 @@ layout's input_names, un-normalised, oldest step first) to "output": (B, O) floa
 (FK: tip pose with unit quaternion; IK: joints). Metadata props record the task, IB, feature and output
 names and the robot fingerprint. A snap-aware model (BranchNet) has a second input "state": (B,)
 float32, the previous branch state (0.5 at a sequence start), and a second output "state_out": the
-new one, to be fed back at the next step.
+new one, to be fed back at the next step. The graph holds its learned gate: it predicts as
+`Kinematics.predict(..., gate="learned")`; the fold gate (ctrkin.models.fold_gate) is not exported.
 """
 
 from __future__ import annotations
