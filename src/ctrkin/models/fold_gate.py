@@ -101,7 +101,7 @@ class FoldGate:
     def step(self, state: int, alpha0: float, betas: np.ndarray, outer_motion: int) -> int:
         """The state after one step from `state` (−1: a sequence start)."""
         hi, lo = self._cached(betas, outer_motion)
-        return self._next(state, float(phase_deg(np.array(alpha0))), hi, lo)
+        return self._next(state, float(alpha0) % 360.0 - 180.0, hi, lo)     # phase_deg, scalar
 
     def _cached(self, betas: np.ndarray, outer_motion: int) -> tuple[float, float]:
         key = (*np.asarray(betas, float).tolist(), int(outer_motion))
