@@ -89,6 +89,21 @@ def _table(header: list[str], rows: list[list[str]]) -> str:
     return "\n".join(lines)
 
 
+def _budgets(scale: dict[str, Any]) -> str:
+    """One paragraph: how this scale trained, against the paper's batch 32, lr 1e-3, ≤ 500 epochs."""
+    roles = {"main": "paper FK/IK", "branch": "snap-aware FK", "follow": "follow IK",
+             "compare": "baselines and ablation", "grid": "IB and structure grids"}
+    parts = []
+    for key, label in roles.items():
+        b = scale.get(key)
+        if isinstance(b, dict):
+            sched = "cosine decay" if b["lr_schedule"] == "cosine" else "constant lr"
+            parts.append(f"{label} batch {b['batch_size']}, lr {b['lr']:.2g} ({sched}), "
+                         f"≤ {b['epochs']} epochs")
+    return ("Training differs from the paper's (batch 32, lr 1e-3, up to 500 epochs with early "
+            "stopping): " + "; ".join(parts) + " (docs/reproduction.md says why).")
+
+
 def write_report(r: dict[str, Any], path: Path) -> None:
     fk, ik, ex, tm = r["fk"], r["ik"]["lstm_mlp"], r["experiments"], r["timing"]
     s: list[str] = [f"# ctrkin reproduction of the paper ({r['scale']['name']} scale)", ""]
@@ -101,6 +116,7 @@ def write_report(r: dict[str, Any], path: Path) -> None:
         f'sensor offset, like the paper\'s EM sensor); "truth" is the true tip seen by the tracker '
         "without noise, which hardware cannot give."
     )
+    s += ["", _budgets(r["scale"])]
     rec = r.get("recommended", {})
     s += ["", "## Headline", "",
           f"Learned figures come from the recommended models: FK `{rec.get('fk')}` (the snap-aware "
