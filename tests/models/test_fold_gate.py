@@ -12,7 +12,7 @@ from ctrkin.models.fold_gate import FoldGate, _fit_offsets, outer_motion
 def _gate(fold: float = 20.0, c: float = 0.0, lag: float = 0.0) -> FoldGate:
     axes = (np.array([-20.0, 0.0]), np.array([0.0]))
     table = np.full((2, 1), fold)
-    return FoldGate(axes, table, -table, (c, -c), lag)
+    return FoldGate(axes, table, -table, c, lag)
 
 
 def _turn(step: float = 1.0) -> np.ndarray:
@@ -89,9 +89,8 @@ def test_offsets_are_recovered_from_the_snaps() -> None:
         snap.extend(flags)
         motion.extend([m] * len(a0))
         bounds.append((start, len(rows)))
-    (c_fit, minus_c), lag_fit = _fit_offsets(gate, np.array(rows), np.array(snap), bounds,
-                                             np.array(motion), 2)
-    assert c_fit == pytest.approx(c, abs=1.0) and minus_c == -c_fit
+    c_fit, lag_fit = _fit_offsets(gate, np.array(rows), np.array(snap), bounds, np.array(motion), 2)
+    assert c_fit == pytest.approx(c, abs=1.0)
     assert lag_fit == pytest.approx(lag, abs=1.0)
 
 
@@ -99,7 +98,7 @@ def test_file_round_trip_and_malformed_files(tmp_path) -> None:
     gate = _gate(20.0, c=1.5, lag=3.0)
     gate.save(tmp_path)
     back = FoldGate.load(tmp_path)
-    assert back.offsets == gate.offsets and back.outer_lag_deg == 3.0
+    assert back.widen_deg == gate.widen_deg and back.outer_lag_deg == 3.0
     np.testing.assert_array_equal(back.forward, gate.forward)
     (tmp_path / "fold_gate.json").write_text('{"axes_mm": [[0, 0]], "forward_deg": [1, 2]}')
     with pytest.raises(ModelError):

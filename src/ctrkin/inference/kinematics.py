@@ -44,7 +44,7 @@ from ctrkin.models.features import (
     step_features,
     window_index,
 )
-from ctrkin.models.fold_gate import FOLD_GATE_FILE, FoldGate, outer_motion, run_continues
+from ctrkin.models.fold_gate import FOLD_GATE_FILE, FoldGate, outer_motion, recorded_motion, run_continues
 from ctrkin.models.frame import local_tips_to_world
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle, read_json
@@ -294,9 +294,7 @@ class Kinematics:
         n = self.layout.n_tubes
         runs = None
         if isinstance(data, Dataset):
-            f = data.frame
-            runs = f["run"].to_numpy() if "run" in f.columns else None
-            motion = outer_motion(data.joints(), bounds, n, runs, f["outlier"].to_numpy())
+            motion, runs = recorded_motion(data.frame, data.joints(), bounds, n)
         else:
             motion = outer_motion(raw, bounds, n)
         return self.fold_gate.states(raw[:, 0] - raw[:, n - 1], raw[:, n:], motion, bounds,

@@ -35,16 +35,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ctrkin.errors import ModelError
 from ctrkin.mechanics.folds import fold_angles
 from ctrkin.models.branch_labels import BAND_DEG, phase_deg, snap_events
+from ctrkin.models.store import read_json, write_json
 from ctrkin.robots.robot import Robot
-from ctrkin.util.files import atomic_write_text
 
 FOLD_GATE_FILE = "fold_gate.json"
 MAX_GRID_POINTS = 400       # translations at which the folds are computed (≈ 0.07 s each, paper robot)
@@ -55,14 +56,15 @@ FOLD_STEP_DEG = 0.5         # the table's sweep step
 @dataclass(frozen=True, eq=False)
 class FoldGate:
     """axes: per tube, the grid of β (mm, increasing); forward, backward: fold tables φ± (deg) of
-    shape (len(axes[0]), …); offsets: (c, −c) deg; outer_lag_deg: κ; band_deg: half-width of the band."""
+    shape (len(axes[0]), …); widen_deg: c; outer_lag_deg: κ; band_deg: half-width of the band."""
 
     axes: tuple[np.ndarray, ...]
     forward: np.ndarray
     backward: np.ndarray
-    offsets: tuple[float, float] = (0.0, 0.0)
+    widen_deg: float = 0.0
     outer_lag_deg: float = 0.0
     band_deg: float = BAND_DEG
+    _cache: dict[tuple[float, ...], tuple[float, float]] = field(default_factory=dict, init=False, repr=False)
 
     def folds(self, betas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """betas (T, N) -> the nominal folds φ+ (T,), φ− (T,) in deg, interpolated."""
@@ -77,8 +79,8 @@ class FoldGate:
         """betas (T, N), outer_motion m_N (T,) or scalar -> switching phases θ+, θ− (T,) deg, θ+ ≥ θ−."""
         fwd, bwd = self.folds(betas)
         lag = self.outer_lag_deg * np.asarray(outer_motion, float)
-        hi = np.where(fwd >= MIN_FOLD_DEG, fwd + self.offsets[0] - lag, self.band_deg)
-        lo = np.where(bwd <= -MIN_FOLD_DEG, bwd + self.offsets[1] - lag, -self.band_deg)
+        hi = np.where(fwd >= MIN_FOLD_DEG, fwd + self.widen_deg - lag, self.band_deg)
+        lo = np.where(bwd <= -MIN_FOLD_DEG, bwd - self.widen_deg - lag, -self.band_deg)
         return np.maximum(hi, lo), lo
 
     def states(self, alpha0: np.ndarray, betas: np.ndarray, outer_motion: np.ndarray,
@@ -91,7 +93,7 @@ class FoldGate:
         s = np.zeros(len(phi), dtype=np.int8)
         cur = -1
         for k, (a, b) in enumerate(bounds):
-            if not (continues is not None and continues[k] and k > 0):
+            if continues is None or not continues[k]:
                 cur = -1
             for t in range(a, b):
                 cur = self._next(cur, float(phi[t]), float(hi[t]), float(lo[t]))
@@ -105,13 +107,12 @@ class FoldGate:
 
     def _cached(self, betas: np.ndarray, outer_motion: int) -> tuple[float, float]:
         key = (*np.asarray(betas, float).tolist(), int(outer_motion))
-        cache = self.__dict__.setdefault("_cache", {})     # thresholds of recent translations
-        if key not in cache:
-            if len(cache) > 4096:
-                cache.clear()
+        if key not in self._cache:                          # thresholds of recent translations
+            if len(self._cache) > 4096:
+                self._cache.clear()
             hi, lo = self.thresholds(np.asarray(key[:-1])[None], float(outer_motion))
-            cache[key] = (float(hi[0]), float(lo[0]))
-        return cache[key]
+            self._cache[key] = (float(hi[0]), float(lo[0]))
+        return self._cache[key]
 
     def _next(self, cur: int, phi: float, hi: float, lo: float) -> int:
         if phi > self.band_deg:
@@ -129,7 +130,7 @@ class FoldGate:
     # --- files -----------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, object]:
         return {"axes_mm": [a.tolist() for a in self.axes], "forward_deg": self.forward.tolist(),
-                "backward_deg": self.backward.tolist(), "offsets_deg": list(self.offsets),
+                "backward_deg": self.backward.tolist(), "widen_deg": self.widen_deg,
                 "outer_lag_deg": self.outer_lag_deg, "band_deg": self.band_deg}
 
     @classmethod
@@ -139,28 +140,23 @@ class FoldGate:
             shape = tuple(len(a) for a in axes)
             fwd = np.asarray(d["forward_deg"], float).reshape(shape)
             bwd = np.asarray(d["backward_deg"], float).reshape(shape)
-            off = (float(d["offsets_deg"][0]), float(d["offsets_deg"][1]))
+            widen = float(d["widen_deg"])
             lag = float(d["outer_lag_deg"])
             band = float(d["band_deg"])
         except (KeyError, ValueError, TypeError, IndexError) as e:
             raise ModelError(f"malformed fold gate ({type(e).__name__}: {e})") from None
         if not all(np.all(np.diff(a) > 0) for a in axes) or not (
-                np.isfinite(fwd).all() and np.isfinite(bwd).all() and all(map(math.isfinite, (*off, lag)))):
+                np.isfinite(fwd).all() and np.isfinite(bwd).all()
+                and math.isfinite(widen) and math.isfinite(lag)):
             raise ModelError("malformed fold gate: axes must increase and tables be finite")
-        return cls(axes, fwd, bwd, off, lag, band)
+        return cls(axes, fwd, bwd, widen, lag, band)
 
     def save(self, folder: str | Path) -> None:
-        import json
-        atomic_write_text(Path(folder) / FOLD_GATE_FILE, json.dumps(self.to_dict()))
+        write_json(Path(folder) / FOLD_GATE_FILE, self.to_dict())
 
     @classmethod
     def load(cls, folder: str | Path) -> FoldGate:
-        import json
-        path = Path(folder) / FOLD_GATE_FILE
-        try:
-            return cls.from_dict(json.loads(path.read_text()))
-        except json.JSONDecodeError as e:
-            raise ModelError(f"{path} is not valid JSON: {e}") from None
+        return cls.from_dict(read_json(Path(folder) / FOLD_GATE_FILE))
 
 
 def build_fold_gate(robot: Robot, joints: np.ndarray, snap: np.ndarray, bounds: list[tuple[int, int]],
@@ -189,8 +185,8 @@ def build_fold_gate(robot: Robot, joints: np.ndarray, snap: np.ndarray, bounds: 
     half = 0.5 * FOLD_STEP_DEG                    # mid-way between the last row before and the snap
     fwd, bwd = np.where(fwd > 0, fwd - half, 0.0), np.where(bwd < 0, bwd + half, 0.0)
     table = FoldGate(axes, fwd.reshape(shape), bwd.reshape(shape))
-    offsets, lag = _fit_offsets(table, joints, snap, bounds, np.asarray(motion), n)
-    return FoldGate(axes, table.forward, table.backward, offsets, lag)
+    widen, lag = _fit_offsets(table, joints, snap, bounds, np.asarray(motion), n)
+    return FoldGate(axes, table.forward, table.backward, widen, lag)
 
 
 def run_continues(bounds: list[tuple[int, int]], runs: np.ndarray | None) -> list[bool]:
@@ -199,6 +195,14 @@ def run_continues(bounds: list[tuple[int, int]], runs: np.ndarray | None) -> lis
         return [False] * len(bounds)
     return [k > 0 and b > a and bounds[k - 1][1] > bounds[k - 1][0] and runs[a] == runs[bounds[k - 1][1] - 1]
             for k, (a, b) in enumerate(bounds)]
+
+
+def recorded_motion(frame: Any, joints: np.ndarray, bounds: list[tuple[int, int]], n_tubes: int
+                    ) -> tuple[np.ndarray, np.ndarray | None]:
+    """m_N (T,) of a dataset's rows and its runs (T,) (None without a `run` column): `outer_motion`
+    followed across the runs of `frame` (a Dataset's frame), its `outlier` rows skipped."""
+    runs = frame["run"].to_numpy() if "run" in frame.columns else None
+    return outer_motion(joints, bounds, n_tubes, runs, frame["outlier"].to_numpy()), runs
 
 
 def outer_motion(joints: np.ndarray, bounds: list[tuple[int, int]], n_tubes: int,
@@ -212,27 +216,22 @@ def outer_motion(joints: np.ndarray, bounds: list[tuple[int, int]], n_tubes: int
         for g in np.nonzero(skip)[0]:
             alpha[g] = alpha[g - 1] if g > 0 else alpha[g]
     out = np.zeros(len(alpha), dtype=np.int8)
-    cur = 0
-    prev_run, prev_alpha = None, None
-    for a, b in bounds:
-        run = None if runs is None else runs[a]
-        if runs is None or run != prev_run or prev_alpha is None:
-            cur, last = 0, alpha[a]
-        else:
-            last = prev_alpha
+    cur, last = 0, 0.0
+    for (a, b), cont in zip(bounds, run_continues(bounds, runs), strict=True):
+        if not cont:                           # at rest: `last` is the end of the previous sequence
+            cur, last = 0, alpha[a] if b > a else last
         for t in range(a, b):
             d = alpha[t] - last
             if abs(d) > 1e-9:
                 cur = 1 if d > 0 else -1
             out[t] = cur
             last = alpha[t]
-        prev_run, prev_alpha = run, alpha[b - 1] if b > a else prev_alpha
     return out
 
 
 def _fit_offsets(gate: FoldGate, joints: np.ndarray, snap: np.ndarray, bounds: list[tuple[int, int]],
-                 motion: np.ndarray, n: int) -> tuple[tuple[float, float], float]:
-    """(c, −c), κ: weighted least squares of the data's snaps, φ_e − φ±(β_e) = ±c − κ·m_N, weights
+                 motion: np.ndarray, n: int) -> tuple[float, float]:
+    """c, κ: weighted least squares of the data's snaps, φ_e − φ±(β_e) = ±c − κ·m_N, weights
     φ±(β_e)² (module docstring), φ_e mid-way between the snap row and the one before. κ is 0 where
     the snaps cannot separate it from c (all of one direction and one m_N, or none with m_N ≠ 0)."""
     alpha0 = joints[:, 0] - joints[:, n - 1]
@@ -247,14 +246,13 @@ def _fit_offsets(gate: FoldGate, joints: np.ndarray, snap: np.ndarray, bounds: l
             if sign != 0 and abs(phi[t]) < gate.band_deg and abs(fold) >= MIN_FOLD_DEG:
                 rows.append((sign, float(motion[t]), float(mid - fold), float(fold) ** 2))
     if not rows:
-        return (0.0, 0.0), 0.0
+        return 0.0, 0.0
     d, m, r, w = (np.array(c, dtype=float) for c in zip(*rows, strict=True))
     A = np.stack([d, -m], axis=1) * np.sqrt(w)[:, None]
     if np.linalg.matrix_rank(A) < 2:
         A = A[:, :1]
     coef = np.linalg.lstsq(A, r * np.sqrt(w), rcond=None)[0]
-    c = float(coef[0])
-    return (c, -c), float(coef[1]) if len(coef) > 1 else 0.0
+    return float(coef[0]), float(coef[1]) if len(coef) > 1 else 0.0
 
 
 def _interpolate(axes: tuple[np.ndarray, ...], table: np.ndarray, x: np.ndarray) -> np.ndarray:

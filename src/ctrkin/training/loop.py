@@ -30,7 +30,7 @@ from ctrkin.errors import ModelError
 from ctrkin.inference.workspace import Workspace
 from ctrkin.models.branch import UNKNOWN_STATE, BranchNet
 from ctrkin.models.features import postprocess
-from ctrkin.models.fold_gate import FoldGate, build_fold_gate, outer_motion
+from ctrkin.models.fold_gate import FoldGate, build_fold_gate, recorded_motion
 from ctrkin.models.registry import get_entry
 from ctrkin.models.store import ModelBundle, write_json
 from ctrkin.training.config import TrainConfig
@@ -420,8 +420,7 @@ def fold_gate(ds: Dataset, rows: np.ndarray) -> FoldGate:
     outer tube's last rotation is followed over the whole dataset (runs cross the split)."""
     f = ds.frame
     q = ds.joints()
-    motion = outer_motion(q, ds.sequence_bounds(), ds.n_tubes,
-                          f["run"].to_numpy() if "run" in f.columns else None, f["outlier"].to_numpy())
+    motion, _ = recorded_motion(f, q, ds.sequence_bounds(), ds.n_tubes)
     bounds = sequence_bounds(f["sequence_id"].to_numpy()[rows])
     return build_fold_gate(ds.robot, q[rows], f["snap"].to_numpy()[rows], bounds, motion[rows])
 
