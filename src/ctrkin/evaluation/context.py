@@ -47,21 +47,19 @@ class Context:
             self._cache[key] = registered_truth(ds, self.data.virtual)
         return self._cache[key]
 
-    def fk(self, name: str, ds: Dataset) -> np.ndarray:
-        """(T, 6) predictions of FK model `name` over every sequence of ds (batch, with history)."""
-        key = (name, id(ds))
+    def fk(self, name: str, ds: Dataset, gate: str | None = None) -> np.ndarray:
+        """(T, 6) predictions of FK model `name` over every sequence of ds (batch, with history);
+        gate: a branch model's gate (Kinematics.predict), None for its default."""
+        key = (name if gate is None else f"{name}|{gate}", id(ds))
         if key not in self._cache:
-            self._cache[key] = np.asarray(self.models[name].predict(ds), float)
+            self._cache[key] = np.asarray(self.models[name].predict(ds, gate=gate), float)
         return self._cache[key]
 
     def fk_rows(self, ds: Dataset) -> dict[str, np.ndarray]:
         """(T, 6) predictions of every learned FK row (FK_ROWS) over ds."""
         out = {name: self.fk(folder, ds) for name, folder in FK_ROWS.items()}
         out[TCM_GATED] = self.fk_tcm_gated(ds)
-        key = (LEARNED_GATE, id(ds))
-        if key not in self._cache:
-            self._cache[key] = np.asarray(self.models[FK_BRANCH].predict(ds, gate="learned"), float)
-        out[LEARNED_GATE] = self._cache[key]
+        out[LEARNED_GATE] = self.fk(FK_BRANCH, ds, gate="learned")
         return out
 
     def tcm_continued(self, ds: Dataset) -> np.ndarray:
