@@ -185,3 +185,70 @@ def test_streaming_workspace_check_matches_batch(model_dirs, sweeps):
     kin.reset()
     flags = [kin.step(p).in_workspace for p in poses]
     np.testing.assert_array_equal(flags, batch.in_workspace)
+
+
+def _lagged(model_dirs):
+    """The snap-aware model with an outer-tube lag λ = 0.8° + 0.4°/mm · overlap put into its frame."""
+    from dataclasses import replace
+
+    kin = Kinematics.load(model_dirs["fk_branch"])
+    kin.frame = replace(kin.frame, lag=(0.8, 0.4))
+    return kin
+
+
+def _outer_moves(sweeps):
+    """Two sequences of sweep joints whose outer motor turns forward, then back, then rests."""
+    q = sweeps.joints()[:120].copy()
+    q[:, 1] += np.r_[np.arange(40), 40 - np.arange(40), np.zeros(40)]
+    return np.r_[q, q], np.repeat([0, 1], len(q))
+
+
+def test_outer_lag_turns_the_frame_batch_and_streaming_alike(model_dirs, sweeps):
+    """With a lag the frame turns with αN − λ(β)·m_N: batch equals streaming, rows at rest are
+    unchanged, and rows after an outer turn are turned about the registered axis by ∓λ."""
+    from ctrkin.models.fold_gate import outer_motion
+    from ctrkin.robots.overlap import curved_overlap
+
+    kin, plain = _lagged(model_dirs), Kinematics.load(model_dirs["fk_branch"])
+    q, sid = _outer_moves(sweeps)
+    batch, ref = kin.predict(q, sequence_id=sid), plain.predict(q, sequence_id=sid)
+    bounds = [(0, 120), (120, 240)]
+    assert np.abs(batch - _stream(kin, q, bounds)).max() < STREAM_TOL
+    m = outer_motion(q, bounds, kin.layout.n_tubes)        # +1 while it turns forward, then −1
+    assert (m == 1).sum() > 30 and (m == -1).sum() > 60 and (m == 0).sum() == 2
+    assert np.abs(batch[m == 0] - ref[m == 0]).max() < 1e-9
+    R = kin.frame.registration.rotation
+    lam = 0.8 + 0.4 * curved_overlap(kin.robot, q)
+    for k in np.nonzero(m != 0)[0][::17]:
+        a, b = R.T @ (ref[k, :3] - kin.frame.registration.translation), R.T @ (
+            batch[k, :3] - kin.frame.registration.translation)
+        turn = np.degrees(np.arctan2(a[0] * b[1] - a[1] * b[0], a[0] * b[0] + a[1] * b[1]))
+        assert turn == pytest.approx(-lam[k] * m[k], abs=1e-6)
+
+
+def test_onnx_takes_the_outer_lag(model_dirs, sweeps, tmp_path):
+    """A frame with a lag exports an "outer_lag_deg" input; fed λ(β)·m_N it gives predict's poses."""
+    import json
+
+    from ctrkin.models.fold_gate import outer_motion
+    from ctrkin.models.outer_lag import lag_deg
+
+    kin = _lagged(model_dirs)
+    path = export_onnx(kin, tmp_path / "lag.onnx")
+    sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    meta = {p.key: p.value for p in __import__("onnx").load(str(path)).metadata_props}
+    assert json.loads(meta["ctrkin.outer_lag_deg"]) == [0.8, 0.4]
+    q, sid = _outer_moves(sweeps)
+    bounds = [(0, 120), (120, 240)]
+    ref = kin.predict(q, sequence_id=sid, gate="learned")
+    motion = outer_motion(q, bounds, kin.layout.n_tubes)
+    lag = (lag_deg(kin.robot, q, kin.frame.lag) * motion).astype(np.float32)
+    windows = kin.feature_windows(q, sequence_id=sid).astype(np.float32)
+    out = np.empty_like(ref)
+    for a, b in bounds:
+        state = np.array([0.5], np.float32)
+        for t in range(a, b):
+            feed = {"window": windows[t:t + 1], "state": state, "outer_lag_deg": lag[t:t + 1]}
+            y, state = sess.run(None, feed)
+            out[t] = y[0]
+    assert np.abs(out - ref).max() < ONNX_TOL

@@ -1,4 +1,4 @@
-"""Transmission: curved overlap geometry, the play operator, mechanical stops."""
+"""Transmission: the dead band, the play operator, mechanical stops."""
 
 from __future__ import annotations
 
@@ -7,15 +7,7 @@ import pytest
 
 from ctrkin.acquisition.protocols import config
 from ctrkin.virtual import VirtualConfig
-from ctrkin.virtual.transmission import clip_to_valid, curved_overlap, dead_band, play
-
-
-@pytest.mark.parametrize(("d", "overlap"), [(0.0, 0.0), (4.0, 0.0), (5.5, 0.0), (12.0, 6.5),
-                                            (20.0, 14.5), (20.5, 14.5)])
-def test_curved_overlap_of_the_paper_robot(robot, d, overlap):
-    # inner curved part s in [beta1 + 57, beta1 + 72], outer in [beta2 + 37, beta2 + 51.5]
-    q = config(2, 0.0, 0.0, -3.0, d)
-    assert curved_overlap(robot, q[None, :])[0] == pytest.approx(overlap, abs=1e-12)
+from ctrkin.virtual.transmission import clip_to_valid, dead_band, play
 
 
 def test_dead_band_grows_with_overlap(robot):

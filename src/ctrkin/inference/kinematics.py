@@ -46,6 +46,7 @@ from ctrkin.models.features import (
 )
 from ctrkin.models.fold_gate import FOLD_GATE_FILE, FoldGate, outer_motion, recorded_motion, run_continues
 from ctrkin.models.frame import local_tips_to_world
+from ctrkin.models.outer_lag import lag_deg
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle, read_json
 from ctrkin.robots.robot import Robot
@@ -138,6 +139,7 @@ class Kinematics:
         # state (−1 at a start), the outer tube's last rotation m_N and its previous angle
         self.fold_gate: FoldGate | None = None
         self._gate_state, self._outer_motion, self._outer_prev = -1, 0, math.nan
+        self._lag_beta, self._lag = b"", 0.0      # the outer lag λ(β) of the last β (ctrkin.models.frame)
 
     # --- loading ---------------------------------------------------------------------------------
     @classmethod
@@ -279,24 +281,35 @@ class Kinematics:
             yn = self.predict_normalised(feats[window_index(bounds, self.ib)])
         y = postprocess(self.layout, yn * self._yspan + self._ylo)
         if self.task == "fk":
-            return y if self.frame is None else self.frame.to_world(y, raw[:, self.layout.n_tubes - 1])
+            return y if self.frame is None else self.frame.to_world(y, self._frame_angles(data, raw, bounds))
         ok, dist, reasons = self._workspace_check(raw, strict)
         joints = self.robot.project_joints(y)
         projected = np.any(np.abs(joints - y) > 1e-9, axis=1)
         return IKResult(joints, ok, dist, reasons, projected, np.full(len(y), np.nan),
                         _jumps(raw, joints, bounds, self.layout.n_tubes))
 
+    def _recorded_motion(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]]
+                         ) -> tuple[np.ndarray, np.ndarray | None]:
+        """m_N (T,) from the joints as recorded (a Dataset: runs followed across sequences, glitch
+        rows skipped) and the runs (T,) (None for an array)."""
+        n = self.layout.n_tubes
+        if isinstance(data, Dataset):
+            return recorded_motion(data.frame, data.joints(), bounds, n)
+        return outer_motion(raw, bounds, n), None
+
+    def _frame_angles(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]]
+                      ) -> np.ndarray:
+        """(T,) the angle the outer frame turns with at each row (αN less the outer tube's lag)."""
+        assert self.frame is not None
+        motion = self._recorded_motion(data, raw, bounds)[0] if self.frame.has_lag else 0
+        return self.frame.outer_angle(self.robot, raw, motion)
+
     def _fold_states(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]]
                      ) -> np.ndarray:
-        """(T,) branch states from the fold gate; m_N from the joints as recorded (a Dataset: runs
-        followed across sequences, glitch rows skipped)."""
+        """(T,) branch states from the fold gate, m_N as _recorded_motion."""
         assert self.fold_gate is not None
         n = self.layout.n_tubes
-        runs = None
-        if isinstance(data, Dataset):
-            motion, runs = recorded_motion(data.frame, data.joints(), bounds, n)
-        else:
-            motion = outer_motion(raw, bounds, n)
+        motion, runs = self._recorded_motion(data, raw, bounds)
         return self.fold_gate.states(raw[:, 0] - raw[:, n - 1], raw[:, n:], motion, bounds,
                                      run_continues(bounds, runs))
 
@@ -386,7 +399,7 @@ class Kinematics:
         Q, y, _ = self._probe_outputs(Q, "probe_tips")
         if self.frame is not None:
             reg = self.frame.registration
-            return local_tips_to_world(y, Q[:, self.layout.n_tubes - 1], reg.rotation, reg.translation)
+            return local_tips_to_world(y, self._probe_angles(Q), reg.rotation, reg.translation)
         return local_tips_to_world(y, np.zeros(len(Q)), np.eye(3), np.zeros(3))
 
     def probe(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -395,8 +408,16 @@ class Kinematics:
         Q, y, states = self._probe_outputs(Q, "probe")
         y = postprocess(self.layout, y)
         if self.frame is not None:
-            y = self.frame.to_world(y, Q[:, self.layout.n_tubes - 1])
+            y = self.frame.to_world(y, self._probe_angles(Q))
         return y, states
+
+    def _probe_angles(self, Q: np.ndarray) -> np.ndarray:
+        """(K,) outer-frame angles of K candidate next joints (the m_N a step to each would leave)."""
+        assert self.frame is not None
+        if not self.frame.has_lag:
+            return Q[:, self.layout.n_tubes - 1]
+        motion = np.array([self._motion_after(float(q[self.layout.n_tubes - 1])) for q in Q], float)
+        return self.frame.outer_angle(self.robot, Q, motion)
 
     # --- streaming -------------------------------------------------------------------------------
     def reset(self, joints: np.ndarray | None = None, outer_motion: int = 0,
@@ -404,7 +425,8 @@ class Kinematics:
         """Start a new sequence: the next step() is its first. joints: a follow IK only, the robot's
         joints (2N,) at the start (default: those of the nearest training target). An FK with a fold
         gate (ctrkin.models.fold_gate): outer_motion, the direction the outer tube last turned before
-        this sequence (+1, −1; 0: at rest since power-up), which shifts where it snaps; or
+        this sequence (+1, −1; 0: at rest since power-up), which shifts where it snaps (and, for a frame
+        with an outer lag, ctrkin.models.frame, where the outer tube points); or
         continue_run=True: the robot moved on from the previous sequence without a stop (unrecorded
         moves in between), so its branch and the outer tube's last rotation carry over."""
         if joints is not None and self._follower is None:
@@ -474,7 +496,7 @@ class Kinematics:
         y = yn * self._yspan + self._ylo
         if self.task == "fk":
             if self.frame is not None:
-                return self.frame.to_world_one(y, float(raw[self.layout.n_tubes - 1]))
+                return self.frame.to_world_one(y, self._step_angle(raw, outer))
             nq = math.sqrt(y[3] * y[3] + y[4] * y[4] + y[5] * y[5])
             if nq > 1e-12:
                 y[3:6] /= nq
@@ -482,16 +504,37 @@ class Kinematics:
         q = self.robot.project_joints(y[None])[0]
         return self._ik_step(raw, q, bool(np.any(np.abs(q - y) > 1e-9)), check, strict)
 
+    def _motion_after(self, a_n: float) -> int:
+        """m_N after the outer motor reaches a_n (deg) as the next step."""
+        if not math.isnan(self._outer_prev) and abs(a_n - self._outer_prev) > 1e-9:
+            return 1 if a_n > self._outer_prev else -1
+        return self._outer_motion
+
     def _fold_step(self, raw: np.ndarray, outer: float | None = None) -> tuple[int, int, float]:
         """The fold gate's (state, m_N, αN) after joints raw (2N,) as the next step, nothing changed.
         outer: αN as the caller gave it (default raw's)."""
         assert self.fold_gate is not None
         n = self.layout.n_tubes
-        a_n, motion = float(raw[n - 1]) if outer is None else outer, self._outer_motion
-        if not math.isnan(self._outer_prev) and abs(a_n - self._outer_prev) > 1e-9:
-            motion = 1 if a_n > self._outer_prev else -1
+        a_n = float(raw[n - 1]) if outer is None else outer
+        motion = self._motion_after(a_n)
         state = self.fold_gate.step(self._gate_state, float(raw[0] - raw[n - 1]), raw[n:], motion)
         return state, motion, a_n
+
+    def _step_angle(self, raw: np.ndarray, outer: float) -> float:
+        """The outer frame's angle at this step (αN less the lag λ(β)·m_N; λ cached per β); m_N is
+        followed here where no fold gate follows it."""
+        assert self.frame is not None
+        n = self.layout.n_tubes
+        a_n = float(raw[n - 1])
+        if not self.frame.has_lag:
+            return a_n
+        if self.fold_gate is None:
+            self._outer_motion, self._outer_prev = self._motion_after(outer), outer
+        beta = raw[n:].tobytes()
+        if self._lag_beta != beta:
+            self._lag_beta = beta
+            self._lag = float(lag_deg(self.robot, raw[None], self.frame.lag)[0])
+        return a_n - self._lag * self._outer_motion
 
     def _ik_step(self, raw: np.ndarray, q: np.ndarray, projected: bool, check: bool, strict: bool
                  ) -> IKStep:

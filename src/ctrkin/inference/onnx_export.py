@@ -10,6 +10,10 @@ names and the robot fingerprint. A snap-aware model (BranchNet) has a second inp
 float32, the previous branch state (0.5 at a sequence start), and a second output "state_out": the
 new one, to be fed back at the next step. The graph holds its learned gate: it predicts as
 `Kinematics.predict(..., gate="learned")`; the fold gate (ctrkin.models.fold_gate) is not exported.
+A model whose outer frame has a transmission lag (ctrkin.models.frame, outer_lag) has one more input
+"outer_lag_deg": (B,) float32, λ(β)·m_N: how far the outer tube lags its command (deg; 0 at rest,
+λ after a forward turn of the outer motor, −λ after a backward one); metadata "ctrkin.outer_lag_deg"
+holds (a, b) of λ = a + b·curved_overlap(β) (ctrkin.robots.overlap).
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ class ExportWrapper(nn.Module):
         self.register_buffer("yspan", f32(kin.bundle.y_norm.span))
         self.fk = kin.task == "fk"
         self.frame = kin.frame is not None
+        self.lag = kin.frame is not None and kin.frame.has_lag
         self.rot: torch.Tensor
         self.trans: torch.Tensor
         reg = kin.frame.registration if kin.frame is not None else None
@@ -54,17 +59,21 @@ class ExportWrapper(nn.Module):
         self.alpha_col = 2 * (n - 1) if kin.layout.angle_encoding == "sincos" else n - 1
         self.sincos = kin.layout.angle_encoding == "sincos"
 
-    def forward(self, window: torch.Tensor, state: torch.Tensor | None = None
+    def forward(self, window: torch.Tensor, *extra: torch.Tensor
                 ) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
+        """extra: the branch state (B,) of a branch model, then the outer lag λ(β)·m_N (B,) deg of a
+        frame with a lag (ctrkin.models.frame), in this order."""
         x = (window - self.xlo) / self.xspan
+        lag = extra[-1] if self.lag else None
         if isinstance(self.net, BranchNet):
-            assert state is not None
+            state = extra[0]
             h = self.net.trunk(x)
             new_state = (self.net.gate_logit(h, state) > 0).to(h.dtype)
-            return self._finish(self.net.head_out(h, new_state), window), new_state
-        return self._finish(self.net(x), window)
+            return self._finish(self.net.head_out(h, new_state), window, lag), new_state
+        return self._finish(self.net(x), window, lag)
 
-    def _finish(self, yn: torch.Tensor, window: torch.Tensor) -> torch.Tensor:
+    def _finish(self, yn: torch.Tensor, window: torch.Tensor, lag: torch.Tensor | None = None
+                ) -> torch.Tensor:
         y = yn * self.yspan + self.ylo
         if self.fk:
             q = y[:, 3:6]
@@ -73,6 +82,8 @@ class ExportWrapper(nn.Module):
                 last = window[:, -1]
                 a = torch.atan2(last[:, self.alpha_col], last[:, self.alpha_col + 1]) if self.sincos \
                     else last[:, self.alpha_col] * (math.pi / 180.0)
+                if lag is not None:
+                    a = a - lag * (math.pi / 180.0)
                 c, s = torch.cos(a), torch.sin(a)
                 w, qx, qy = q[:, 0], q[:, 1], q[:, 2]
                 tan = torch.stack([2 * w * qy, -2 * w * qx, 1 - 2 * (qx * qx + qy * qy)], 1)
@@ -102,6 +113,10 @@ def export_onnx(kin: Kinematics, path: str | Path, opset: int = 17) -> Path:
         names.append("state")
         outputs.append("state_out")
         axes.update({"state": {0: "batch"}, "state_out": {0: "batch"}})
+    if wrapper.lag:
+        example += (torch.zeros(2),)
+        names.append("outer_lag_deg")
+        axes["outer_lag_deg"] = {0: "batch"}
     out = Path(path)
     with atomic_path(out) as tmp:
         try:
@@ -115,6 +130,8 @@ def export_onnx(kin: Kinematics, path: str | Path, opset: int = 17) -> Path:
         meta = {"task": kin.task, "ib": str(kin.ib), "input_names": json.dumps(list(kin.layout.input_names)),
                 "output_names": json.dumps(list(kin.layout.output_names)),
                 "robot_fingerprint": kin.robot.fingerprint(), "model": kin.config["model"]}
+        if wrapper.lag and kin.frame is not None:
+            meta["outer_lag_deg"] = json.dumps(list(kin.frame.lag))   # λ = a + b·overlap(β), deg
         for k, v in meta.items():
             p = model.metadata_props.add()
             p.key, p.value = f"ctrkin.{k}", v

@@ -23,23 +23,40 @@ import numpy as np
 from numba import njit
 
 from ctrkin.errors import ModelError
+from ctrkin.models.outer_lag import lag_deg
 from ctrkin.pose import Registration, quat_from_tangent, tangent_from_quat
+from ctrkin.robots.robot import Robot
 
 FRAMES = ("tracker", "outer")
 
 
 @dataclass(frozen=True, eq=False)
 class OuterFrame:
-    """registration: robot base -> tracker (p_tracker = R p_robot + t)."""
+    """registration: robot base -> tracker (p_tracker = R p_robot + t); lag: (a deg, b deg/mm) of the
+    outer tube's transmission lag λ(β) = a + b·overlap(β) (ctrkin.models.outer_lag): the frame turns
+    with the outer tube, at αN − λ(β)·m_N after the outer motor last turned in direction m_N."""
 
     registration: Registration
+    lag: tuple[float, float] = (0.0, 0.0)
+
+    @property
+    def has_lag(self) -> bool:
+        return self.lag != (0.0, 0.0)
+
+    def outer_angle(self, robot: Robot, joints: np.ndarray, motion: np.ndarray | int) -> np.ndarray:
+        """(T,) deg the angle the frame turns with: αN − λ(β)·m_N (αN itself without a lag).
+        joints (T, 2N), motion (T,) or one m_N for every row."""
+        J = np.atleast_2d(np.asarray(joints, float))
+        a_n = J[:, robot.n_tubes - 1]
+        if not self.has_lag:
+            return a_n.copy()
+        return a_n - lag_deg(robot, J, self.lag) * np.asarray(motion, float)
 
     @classmethod
     def fit(cls, robot: object, joints: np.ndarray, poses: np.ndarray, max_points: int = 400,
             seed: int = 0) -> OuterFrame:
         """Fit the registration on up to `max_points` rows: joints (M, 2N), measured poses (M, 6)."""
         from ctrkin.mechanics import solve
-        from ctrkin.robots.robot import Robot
 
         if not isinstance(robot, Robot):
             raise ModelError("OuterFrame.fit needs the dataset's Robot")
@@ -78,14 +95,15 @@ class OuterFrame:
         return out
 
     def to_dict(self) -> dict[str, object]:
-        return {"frame": "outer", **self.registration.to_dict()}
+        return {"frame": "outer", **self.registration.to_dict(), "outer_lag_deg": list(self.lag)}
 
     @classmethod
     def from_dict(cls, d: dict) -> OuterFrame:
         try:
+            a, b = (float(v) for v in d.get("outer_lag_deg", (0.0, 0.0)))   # older folders: no lag
             return cls(Registration(np.array(d["rotation"], float), np.array(d["translation_mm"], float),
-                                    float(d.get("rms_mm", float("nan")))))
-        except (KeyError, ValueError) as e:
+                                    float(d.get("rms_mm", float("nan")))), (a, b))
+        except (KeyError, ValueError, TypeError) as e:
             raise ModelError(f"bad outer-frame entry: {e}") from None
 
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -12,8 +12,10 @@ from ctrkin.data.splits import Split, random_split, split_by_sequence
 from ctrkin.errors import ModelError
 from ctrkin.models.branch_labels import branch_labels, previous_labels
 from ctrkin.models.features import FeatureLayout, sequence_features, windows
+from ctrkin.models.fold_gate import recorded_motion
 from ctrkin.models.frame import OuterFrame
 from ctrkin.models.normalize import MinMax
+from ctrkin.models.outer_lag import fit_outer_lag
 from ctrkin.training.config import TrainConfig
 
 
@@ -38,13 +40,29 @@ class Prepared:
     state_prev: np.ndarray | None = None
     forced: np.ndarray | None = None
     frame: OuterFrame | None = None
+    outer_deg: np.ndarray | None = None
 
     def to_world(self, pred: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """Predicted (len(rows), O) targets in the frame users see (tracker frame for FK)."""
-        if self.frame is None:
+        if self.frame is None or self.outer_deg is None:
             return pred
-        n = self.layout.n_tubes
-        return self.frame.to_world(pred, self.raw_in[rows, n - 1])
+        return self.frame.to_world(pred, self.outer_deg[rows])
+
+
+def outer_frame(ds: Dataset, joints: np.ndarray, poses: np.ndarray, train: np.ndarray, seed: int
+                ) -> tuple[OuterFrame, np.ndarray]:
+    """The outer tube's frame of an FK model and the (T,) angle it turns with at each row: the
+    registration fitted on training rows, then the outer tube's lag (ctrkin.models.outer_lag) from
+    training rows at rest and after outer turns, with m_N followed across the runs of ds."""
+    n = ds.n_tubes
+    frame = OuterFrame.fit(ds.robot, joints[train], poses[train], seed=seed)
+    bounds = ds.sequence_bounds()
+    motion, _ = recorded_motion(ds.frame, joints, bounds, n)
+    use = np.zeros(len(joints), dtype=bool)
+    use[train] = True
+    local = frame.to_local(poses, joints[:, n - 1])
+    frame = replace(frame, lag=fit_outer_lag(ds.robot, joints, local, motion, bounds, use))
+    return frame, frame.outer_angle(ds.robot, joints, motion)
 
 
 def inputs_and_targets(ds: Dataset, task: str, pose_source: str) -> tuple[np.ndarray, np.ndarray]:
@@ -94,16 +112,16 @@ def prepare(ds: Dataset, cfg: TrainConfig, branches: bool = False) -> Prepared:
     bounds = ds.sequence_bounds()
     feats = sequence_features(layout, raw_in, bounds)
     split, rows = split_rows(ds, cfg)
-    frame = None
+    frame, outer_deg = None, None
     if cfg.target_frame == "outer":     # FK targets in the outer tube's frame (ctrkin.models.frame)
-        n = ds.n_tubes
-        frame = OuterFrame.fit(ds.robot, raw_in[rows["train"]], target[rows["train"]], seed=cfg.seed)
-        target = frame.to_local(target, raw_in[:, n - 1])
+        frame, outer_deg = outer_frame(ds, raw_in, target, rows["train"], cfg.seed)
+        target = frame.to_local(target, outer_deg)
     x_norm = MinMax.fit(feats[rows["train"]])
     y_norm = MinMax.fit(target[rows["train"]])
     X = windows(x_norm.transform(feats), bounds, layout.ib).astype(np.float32)
     Y = y_norm.transform(target).astype(np.float32)
-    prep = Prepared(layout, x_norm, y_norm, X, Y, raw_in, target, split, rows, bounds, frame=frame)
+    prep = Prepared(layout, x_norm, y_norm, X, Y, raw_in, target, split, rows, bounds, frame=frame,
+                    outer_deg=outer_deg)
     if branches:
         n = ds.n_tubes
         joints = ds.joints()

@@ -17,34 +17,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ctrkin.robots.overlap import curved_overlap
 from ctrkin.robots.robot import Robot
 from ctrkin.virtual.config import VirtualConfig
 
-
-def curved_overlap(robot: Robot, Q: np.ndarray) -> np.ndarray:
-    """Length (mm) of s ≥ 0 where at least two tubes with non-zero precurvature overlap.
-
-    Q: (T, 2N) joints (deg, mm) -> (T,) mm. On the paper robot: 0 for d ≤ 5.5 mm, 14.5 at d = 20 mm.
-    """
-    Qa = np.atleast_2d(np.asarray(Q, dtype=float))
-    n = robot.n_tubes
-    beta = Qa[:, n:]
-    starts, ends = [], []
-    for i, t in enumerate(robot.tubes):
-        cum = 0.0
-        for s in t.sections:
-            if s.curvature != 0.0 and s.length > 0:
-                starts.append(np.maximum(beta[:, i] + cum, 0.0))
-                ends.append(np.maximum(beta[:, i] + cum + s.length, 0.0))
-            cum += s.length
-    if len(starts) < 2:
-        return np.zeros(Qa.shape[0])
-    a = np.stack(starts, axis=1)  # (T, K)
-    b = np.stack(ends, axis=1)
-    pts = np.sort(np.concatenate([a, b], axis=1), axis=1)  # (T, 2K)
-    mid = 0.5 * (pts[:, 1:] + pts[:, :-1])  # (T, 2K-1)
-    cover = ((a[:, None, :] <= mid[:, :, None]) & (mid[:, :, None] < b[:, None, :])).sum(axis=2)
-    return ((cover >= 2) * np.diff(pts, axis=1)).sum(axis=1)
+__all__ = ["clip_to_valid", "curved_overlap", "dead_band", "play"]
 
 
 def dead_band(robot: Robot, config: VirtualConfig, Q: np.ndarray) -> np.ndarray:
