@@ -35,14 +35,7 @@ class ExportWrapper(nn.Module):
         super().__init__()
         self.net = kin.net
         f32 = lambda a: torch.tensor(a, dtype=torch.float32)  # noqa: E731
-        self.xlo: torch.Tensor
-        self.xspan: torch.Tensor
-        self.ylo: torch.Tensor
-        self.yspan: torch.Tensor
-        self.register_buffer("xlo", f32(kin.bundle.x_norm.lo))
-        self.register_buffer("xspan", f32(kin.bundle.x_norm.span))
-        self.register_buffer("ylo", f32(kin.bundle.y_norm.lo))
-        self.register_buffer("yspan", f32(kin.bundle.y_norm.span))
+        self.x_norm, self.y_norm = kin.bundle.x_norm.torch(), kin.bundle.y_norm.torch()
         self.fk = kin.task == "fk"
         self.frame = kin.frame is not None
         self.rot: torch.Tensor
@@ -56,7 +49,7 @@ class ExportWrapper(nn.Module):
 
     def forward(self, window: torch.Tensor, state: torch.Tensor | None = None
                 ) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
-        x = (window - self.xlo) / self.xspan
+        x = self.x_norm.transform(window)
         if isinstance(self.net, BranchNet):
             assert state is not None
             h = self.net.trunk(x)
@@ -65,7 +58,7 @@ class ExportWrapper(nn.Module):
         return self._finish(self.net(x), window)
 
     def _finish(self, yn: torch.Tensor, window: torch.Tensor) -> torch.Tensor:
-        y = yn * self.yspan + self.ylo
+        y = self.y_norm.inverse(yn)
         if self.fk:
             q = y[:, 3:6]
             q = q / torch.linalg.vector_norm(q, dim=1, keepdim=True).clamp_min(1e-12)
@@ -79,7 +72,7 @@ class ExportWrapper(nn.Module):
                 pos, tan = (torch.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], 1)
                             for v in (y[:, :3], tan))
                 pos, tan = pos @ self.rot.T + self.trans, tan @ self.rot.T
-                q = torch.stack([1.0 + tan[:, 2], -tan[:, 1], tan[:, 0]], 1)   # pose.quat_from_tangent
+                q = torch.stack([1.0 + tan[:, 2], -tan[:, 1], tan[:, 0]], 1)   # geometry.quat_from_tangent
                 q = q / torch.linalg.vector_norm(q, dim=1, keepdim=True).clamp_min(1e-12)
                 return torch.cat([pos, q], 1)
             y = torch.cat([y[:, :3], q], 1)
@@ -110,11 +103,11 @@ def export_onnx(kin: Kinematics, path: str | Path, opset: int = 17) -> Path:
                 torch.onnx.export(wrapper, example, str(tmp), input_names=names, output_names=outputs,
                                   opset_version=opset, dynamo=False, dynamic_axes=axes)
         except Exception as e:  # the exporter raises many types
-            raise ModelError(f"ONNX export failed for model {kin.config['model']!r}: {e}") from None
+            raise ModelError(f"ONNX export failed for model {kin.config.model!r}: {e}") from None
         model = onnx.load(str(tmp))
         meta = {"task": kin.task, "ib": str(kin.ib), "input_names": json.dumps(list(kin.layout.input_names)),
                 "output_names": json.dumps(list(kin.layout.output_names)),
-                "robot_fingerprint": kin.robot.fingerprint(), "model": kin.config["model"]}
+                "robot_fingerprint": kin.robot.fingerprint(), "model": kin.config.model}
         for k, v in meta.items():
             p = model.metadata_props.add()
             p.key, p.value = f"ctrkin.{k}", v
