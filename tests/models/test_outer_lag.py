@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 import ctrkin
+from ctrkin.geometry import Registration
 from ctrkin.models.frame import OuterFrame
 from ctrkin.models.outer_lag import fit_outer_lag, lag_deg
-from ctrkin.pose import Registration
 from ctrkin.robots.overlap import curved_overlap
 
 A, B = 0.75, 0.40          # λ = A + B·overlap, deg and deg/mm (the virtual robot's half dead band)

@@ -14,8 +14,8 @@ import numpy as np
 import pandas as pd
 
 from ctrkin.data import Dataset, schema
+from ctrkin.geometry import position_error, tangent_angle_error, tip_azimuth
 from ctrkin.mechanics import solve_many
-from ctrkin.pose import position_error, tangent_angle_error, tip_azimuth
 from ctrkin.robots.robot import Robot
 
 

@@ -28,8 +28,8 @@ from ctrkin import __version__
 from ctrkin.acquisition.protocols import config
 from ctrkin.data import schema
 from ctrkin.errors import DatasetError
+from ctrkin.geometry import pose_rotation, quat_from_tangent
 from ctrkin.mechanics import solve
-from ctrkin.pose import quat_from_tangent
 from ctrkin.util.files import atomic_path, atomic_write_text
 from ctrkin.virtual.robot import VirtualRobot
 
@@ -61,11 +61,6 @@ class TaskPath:
             frame.to_csv(tmp, index=False)
         atomic_write_text(out / META_FILE, json.dumps(self.meta, indent=2))
         return out
-
-
-def _tangent_rotation(pose: np.ndarray) -> Rotation:
-    q0, qx, qy = pose[3:6]
-    return Rotation.from_quat([qx, qy, 0.0, q0])  # scipy order (x, y, z, w)
 
 
 def task_path(virtual: VirtualRobot, shape: str, n_points: int = 10, seed: int = 0,
@@ -100,7 +95,7 @@ def task_path(virtual: VirtualRobot, shape: str, n_points: int = 10, seed: int =
         t = (si - cum[e]) / edge_len[e] if edge_len[e] > 0 else 0.0
         a, b = corners[e], ends[e]
         poses[i, :3] = a[:3] + t * (b[:3] - a[:3])
-        ra, rb = _tangent_rotation(a), _tangent_rotation(b)
+        ra, rb = pose_rotation(a[3:6]), pose_rotation(b[3:6])
         rel = (ra.inv() * rb).as_rotvec()  # equivalent angle-axis of the edge's rotation
         r = ra * Rotation.from_rotvec(t * rel)
         poses[i, 3:6] = quat_from_tangent(r.apply([0.0, 0.0, 1.0]))

@@ -34,8 +34,8 @@ from ctrkin.calibration.params import GROUPS, ParameterSet
 from ctrkin.calibration.sensitivity import tip_jacobian
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import CtrkinError
+from ctrkin.geometry import Registration
 from ctrkin.mechanics.pointwise import Equilibrium
-from ctrkin.pose import Registration
 from ctrkin.robots.robot import Robot
 
 NAN_PENALTY_MM = 100.0   # residual of a sample whose TCM solve did not converge

@@ -19,9 +19,9 @@ import numpy as np
 import tomllib
 
 from ctrkin.errors import CtrkinError
+from ctrkin.geometry import Registration, quat_from_tangent
 from ctrkin.mechanics.pointwise import Equilibrium, _prepare, _solve_prepared
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS
-from ctrkin.pose import Registration, quat_from_tangent
 from ctrkin.robots.robot import Robot
 
 

@@ -21,11 +21,10 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ctrkin.calibration.model import CalibratedTCM
 from ctrkin.errors import CtrkinError
-from ctrkin.pose import Registration
+from ctrkin.geometry import Registration
 from ctrkin.robots.robot import Robot
 from ctrkin.robots.tube import Section
 
@@ -92,7 +91,7 @@ class ParameterSet:
     def nominal(self, registration: Registration | None = None) -> np.ndarray:
         x = np.array([r[2] for r in self.layout()])
         if registration is not None and "registration" in self.groups:
-            x[:3] = Rotation.from_matrix(registration.rotation).as_rotvec()
+            x[:3] = registration.rotvec
             x[3:6] = registration.translation
         return x
 
@@ -129,8 +128,8 @@ class ParameterSet:
             offsets[n + i] = v.get(f"beta_offset_{i + 1}", 0.0)
         if "registration" in self.groups:
             rotvec = [v["reg_rot_x"], v["reg_rot_y"], v["reg_rot_z"]]
-            reg = Registration(Rotation.from_rotvec(rotvec).as_matrix(),
-                               np.array([v["reg_t_x"], v["reg_t_y"], v["reg_t_z"]]))
+            reg = Registration.from_rotvec(np.array(rotvec),
+                                           np.array([v["reg_t_x"], v["reg_t_y"], v["reg_t_z"]]))
         else:
             reg = registration or Registration.identity()
         return CalibratedTCM(robot, offsets, float(v.get("marker_mm", 0.0)), reg)

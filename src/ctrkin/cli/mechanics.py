@@ -14,6 +14,7 @@ import pandas as pd
 
 from ctrkin.acquisition.trajectories import PAPER_LEVELS_MM, rotation_sweep
 from ctrkin.cli.common import check_output, get_robot, overwrite_option, parse_floats, robot_option, say
+from ctrkin.geometry import POSE_COLUMNS
 from ctrkin.mechanics import follow, solve
 from ctrkin.util.files import atomic_path
 from ctrkin.util.progress import progress_bar
@@ -79,7 +80,7 @@ def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha
                 "relative_translation": d, "step": np.arange(len(Q)),
                 **{c: Q[:, k] for k, c in enumerate(robot.joint_names())},
                 "alpha0": alpha0, "forward": forward,
-                **{c: tr.tip_poses[:, k] for k, c in enumerate(("x", "y", "z", "q0", "qx", "qy"))},
+                **{c: tr.tip_poses[:, k] for k, c in enumerate(POSE_COLUMNS)},
                 "T_L": tr.azimuth, "snap": tr.snaps, "stable": tr.stable}))
             curves.append({"label": f"d = {d:g} mm", "alpha0": alpha0, "azimuth": tr.azimuth,
                            "snaps": tr.snaps, "forward": forward})

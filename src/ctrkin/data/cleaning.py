@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 
 from ctrkin.errors import DatasetError
-from ctrkin.pose import tip_azimuth
+from ctrkin.geometry import tip_azimuth
 
 MAD_TO_SIGMA = 1.4826  # MAD of a normal distribution times this is its standard deviation
 

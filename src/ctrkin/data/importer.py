@@ -14,7 +14,7 @@ A log has one row per tracker reading. Its columns are mapped onto dataset field
     snap (optional)                    the log's own snap flag (0/1); otherwise detected
 
 A field not mapped is read from a column of the same name when the log has one. Every orientation
-becomes the dataset's (q0, qx, qy) through the tip tangent R e3 (pose.quat_from_tangent).
+becomes the dataset's (q0, qx, qy) through the tip tangent R e3 (geometry.quat_from_tangent).
 
 Without sequence_id, the log is one sequence, unless it has time stamps and `sequence_gap` is set:
 a time gap larger than `sequence_gap` (in the log's time unit), or with "auto" larger than
@@ -26,9 +26,8 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
 
 import numpy as np
 import pandas as pd
@@ -36,96 +35,13 @@ import pandas as pd
 from ctrkin.data import cleaning, schema
 from ctrkin.data.cleaning import CleaningConfig
 from ctrkin.data.dataset import Dataset
+from ctrkin.data.import_config import LENGTH_TO_MM, ImportConfig, fields
 from ctrkin.errors import DatasetError, JointError
-from ctrkin.pose import quat_from_tangent
+from ctrkin.geometry import quat_from_tangent, tangent_from_quat, tangent_from_quaternion
 from ctrkin.robots.robot import Robot
 
-AngleUnit = Literal["deg", "rad"]
-LengthUnit = Literal["mm", "m"]
-QuaternionOrder = Literal["wxyz", "xyzw"]
 AUTO_GAP_FACTOR = 10.0
 QUAT_NORM_TOL = 0.05          # a unit quaternion read with the wrong columns is rarely this close to 1
-LENGTH_TO_MM = {"mm": 1.0, "m": 1000.0}
-OPTIONAL_FIELDS = ("sequence_id", "time", "step", "snap")
-ORIENTATION_FIELDS = ("q0", "qw", "qx", "qy", "qz", "tx", "ty", "tz")
-
-
-def fields(n_tubes: int) -> list[str]:
-    """Every field a log column can be mapped to, for an N-tube robot."""
-    return [*schema.joint_columns(n_tubes), "x", "y", "z", *ORIENTATION_FIELDS, *OPTIONAL_FIELDS]
-
-
-@dataclass(frozen=True)
-class ImportConfig:
-    """How to read a log. mapping: (log column, field) pairs (module docstring); units of the log's
-    angles (alpha), joint lengths (beta) and positions; quaternion_columns: four log columns holding
-    a full quaternion in `quaternion_order` (shorthand for mapping qw, qx, qy, qz); sequence_gap:
-    None (never split), "auto" or a time gap in the log's time unit; drop_invalid_joints /
-    drop_incomplete: drop rows with joints outside the robot's limits / with empty or NaN cells
-    instead of failing; unwrap: unwrap the alpha columns (for logs that wrap angles to ±180°);
-    position_only: the log has no tip orientation (or one that is not the tip tangent, such as a
-    marker body's): the dataset keeps a placeholder orientation (base z) and meta["orientation"] =
-    "absent", and orientation metrics are skipped."""
-
-    mapping: tuple[tuple[str, str], ...] = ()
-    angle_unit: AngleUnit = "deg"
-    beta_unit: LengthUnit = "mm"
-    position_unit: LengthUnit = "mm"
-    quaternion_columns: tuple[str, ...] = ()
-    quaternion_order: QuaternionOrder = "wxyz"
-    sequence_gap: float | Literal["auto"] | None = "auto"
-    drop_invalid_joints: bool = False
-    drop_incomplete: bool = False
-    unwrap: bool = False
-    delimiter: str = ","
-    position_only: bool = False
-    cleaning: CleaningConfig = field(default_factory=CleaningConfig)
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "mapping", tuple((str(c), str(f)) for c, f in self.mapping))
-        object.__setattr__(self, "quaternion_columns", tuple(self.quaternion_columns))
-        if self.angle_unit not in ("deg", "rad"):
-            raise DatasetError(f"angle unit must be 'deg' or 'rad', got {self.angle_unit!r}")
-        for name in ("beta_unit", "position_unit"):
-            if getattr(self, name) not in LENGTH_TO_MM:
-                raise DatasetError(f"{name} must be 'mm' or 'm', got {getattr(self, name)!r}")
-        if self.quaternion_order not in ("wxyz", "xyzw"):
-            raise DatasetError(f"quaternion order must be 'wxyz' or 'xyzw', got {self.quaternion_order!r}")
-        if self.quaternion_columns and len(self.quaternion_columns) != 4:
-            raise DatasetError(f"quaternion_columns needs four log columns (in {self.quaternion_order} "
-                               f"order), got {list(self.quaternion_columns)}")
-        gap = self.sequence_gap
-        if gap is not None and gap != "auto" and not (isinstance(gap, int | float) and gap > 0):
-            raise DatasetError(f"sequence_gap must be None, 'auto' or a positive time gap, got {gap!r}")
-        if not isinstance(self.delimiter, str) or len(self.delimiter) != 1:
-            raise DatasetError(f"delimiter must be one character, got {self.delimiter!r}")
-        fields_seen: dict[str, str] = {}
-        for col, fld in self.field_mapping():
-            if fld in fields_seen:
-                raise DatasetError(f"field {fld!r} is mapped twice (from columns {fields_seen[fld]!r} "
-                                   f"and {col!r}); map each field once")
-            fields_seen[fld] = col
-
-    @classmethod
-    def from_mapping(cls, mapping: Mapping[str, str], **kw: Any) -> ImportConfig:
-        """ImportConfig from a {log column: field} dict."""
-        return cls(mapping=tuple(mapping.items()), **kw)
-
-    def field_mapping(self) -> list[tuple[str, str]]:
-        """(log column, field) pairs including the quaternion_columns shorthand."""
-        pairs = list(self.mapping)
-        if self.quaternion_columns:
-            names = ("qw", "qx", "qy", "qz") if self.quaternion_order == "wxyz" else ("qx", "qy", "qz", "qw")
-            pairs += list(zip(self.quaternion_columns, names, strict=True))
-        return pairs
-
-    def to_dict(self) -> dict[str, object]:
-        return {"mapping": dict(self.mapping), "angle_unit": self.angle_unit, "beta_unit": self.beta_unit,
-                "position_unit": self.position_unit, "quaternion_columns": list(self.quaternion_columns),
-                "quaternion_order": self.quaternion_order, "sequence_gap": self.sequence_gap,
-                "drop_invalid_joints": self.drop_invalid_joints, "drop_incomplete": self.drop_incomplete,
-                "unwrap": self.unwrap, "delimiter": self.delimiter, "position_only": self.position_only,
-                "cleaning": self.cleaning.to_dict()}
 
 
 def _line(row: int) -> int:
@@ -194,7 +110,7 @@ class _Log:
         if "q0" in columns:
             columns["qw"] = columns.pop("q0")
             self.field_names["qw"] = "q0"  # errors use the name the user gave
-        required = [*schema.joint_columns(n), "x", "y", "z"]
+        required = [*schema.joint_columns(n), *schema.POSITION_COLUMNS]
         missing = [f for f in required if f not in columns]
         if self.orientation_mode(columns) is None and not self.cfg.position_only:
             missing.append("orientation: q0,qx,qy (5-DOF) or qw,qx,qy,qz or tx,ty,tz")
@@ -258,115 +174,167 @@ def import_csv(path: str | Path, robot: Robot, config: ImportConfig | None = Non
 
 def import_frame(log: _Log, robot: Robot, cfg: ImportConfig, src: str) -> Dataset:
     """The rows of `log` (read from a CSV, or made by an import profile) -> a cleaned Dataset;
-    src names the log(s) in messages."""
+    src names the log(s) in messages. Stages: read the fields, drop incomplete rows, check the
+    joints, orientation and sequences, check the time order, average and clean, build the dataset."""
     n = robot.n_tubes
-    cols = log.columns
-    mode = "absent" if cfg.position_only else log.orientation_mode(cols)
-    pose_fields = ["x", "y", "z"] + {"quaternion": ["qw", "qx", "qy", "qz"], "tangent": ["tx", "ty", "tz"],
-                                     "5dof": ["qw", "qx", "qy"], "absent": []}[str(mode)]
-    numeric = schema.joint_columns(n) + pose_fields + [f for f in ("time", "step", "snap") if f in cols]
-    values = {f: log.numbers(f) for f in numeric}
-    rows_read = len(log.raw)
-    line = np.arange(rows_read)
-
-    # --- incomplete rows ---------------------------------------------------------------------------
-    nan = np.zeros(rows_read, dtype=bool)
-    for f in numeric:
-        if f == "snap":
-            continue
-        col_nan = ~np.isfinite(values[f])
-        if col_nan.any() and not cfg.drop_incomplete:
-            r = int(np.argmax(col_nan))
-            raise DatasetError(f"{log.where(r)}, {log.line_col(f)} is empty, NaN or inf; fix "
-                               "the log or pass --drop-incomplete to skip such rows")
-        nan |= col_nan
-    if "snap" in values:
-        values["snap"] = np.nan_to_num(values["snap"], nan=0.0)
-    labels = log.raw[cols["sequence_id"]].str.strip().to_numpy() if "sequence_id" in cols else None
-    if labels is not None:
-        empty_label = labels == ""
-        if empty_label.any() and not cfg.drop_incomplete:
-            r = int(np.argmax(empty_label))
-            raise DatasetError(f"{log.where(r)}, {log.line_col('sequence_id')} is empty; fix the "
-                               "log or pass --drop-incomplete")
-        nan |= empty_label
-    keep = ~nan
-    values = {f: v[keep] for f, v in values.items()}
-    line = line[keep]
-    labels = labels[keep] if labels is not None else None
-    if len(line) == 0:
-        raise DatasetError(f"{src}: no complete rows left")
-
-    # --- joints: units, limits ----------------------------------------------------------------------
-    alpha = np.column_stack([values[c] for c in schema.alpha_columns(n)])
-    if cfg.angle_unit == "rad":
-        alpha = np.degrees(alpha)
-    beta = np.column_stack([values[c] for c in schema.beta_columns(n)]) * LENGTH_TO_MM[cfg.beta_unit]
-    joints = np.column_stack([alpha, beta])
-    invalid = ~robot.is_valid(joints)
-    if invalid.any() and not cfg.drop_invalid_joints:
-        r = int(np.argmax(invalid))
-        try:
-            robot.check_joints(joints[r])
-            reason = "outside the robot's limits"
-        except JointError as e:
-            reason = str(e).split(" (q = ")[0]
-        beta_cols = [cols[c] for c in schema.beta_columns(n)]
-        read = {cols[c]: float(values[c][r]) for c in schema.beta_columns(n)}
-        raise DatasetError(f"{log.where(line[r])}: joints outside the limits of robot "
-                           f"{robot.name!r}: {reason}; columns {beta_cols} read {read} "
-                           f"({cfg.beta_unit}). Fix the log, check --units and --map, or pass "
-                           "--drop-invalid to drop such rows")
-    ok = ~invalid
-    joints, line = joints[ok], line[ok]
-    values = {f: v[ok] for f, v in values.items()}
-    labels = labels[ok] if labels is not None else None
-    if len(line) == 0:
-        raise DatasetError(f"{src}: every row has joints outside the limits of robot {robot.name!r}")
-
-    # --- pose: units, orientation -------------------------------------------------------------------
-    position = np.column_stack([values[c] for c in ("x", "y", "z")]) * LENGTH_TO_MM[cfg.position_unit]
-    tangent = _tangents(values, mode, line, log, src)
-    warnings: list[str] = []
-
-    # --- sequences and time order -------------------------------------------------------------------
-    sequence, seq_labels = _sequences(labels, values.get("time"), line, cfg, log, src)
-    if "step" in values:
-        big = np.abs(values["step"]) >= MAX_EXACT_STEP
-        if big.any():
-            r = int(np.argmax(big))
-            raise DatasetError(f"{log.where(line[r])}, {log.line_col('step')}: {values['step'][r]:.17g} is "
-                               "at least 2^53, where float64 can no longer tell neighbouring integers apart "
-                               "(distinct samples would be averaged together); renumber the steps, e.g. "
-                               "from 0, or leave step unmapped")
-        frac = values["step"] != np.round(values["step"])
-        if frac.any():
-            r = int(np.argmax(frac))
-            raise DatasetError(f"{log.where(line[r])}, {log.line_col('step')}: "
-                               f"{values['step'][r]:g} is not an integer sample index")
-    for f in ("time", "step"):
-        if f in values:
-            v = values[f]
-            back = (sequence[1:] == sequence[:-1]) & (v[1:] < v[:-1])
-            if back.any():
-                r = int(np.argmax(back)) + 1
-                raise DatasetError(f"{log.where(line[r])}, {log.line_col(f)}: {v[r]:g} comes "
-                                   f"after {v[r - 1]:g}; the log must be sorted by {f} within each "
-                                   "sequence")
+    mode = "absent" if cfg.position_only else log.orientation_mode(log.columns)
+    rows = _Rows.read(log, n, str(mode))
+    incomplete = rows.drop_incomplete(cfg, src)
+    joints, invalid = rows.valid_joints(robot, cfg, src)
+    position = np.column_stack([rows.values[c] for c in schema.POSITION_COLUMNS])
+    position = position * LENGTH_TO_MM[cfg.position_unit]
+    tangent = _tangents(rows.values, mode, rows.line, log, src)
+    sequence, seq_labels = _sequences(rows.labels, rows.values.get("time"), rows.line, cfg, log, src)
+    rows.check_order(sequence)
     if cfg.unwrap:
         for a, b in schema.sequence_bounds(sequence):
             joints[a:b, :n] = np.unwrap(joints[a:b, :n], period=360.0, axis=0)
+    s = _clean(rows, sequence, joints, position, tangent, n, cfg.cleaning, src)
+    counts = {"rows_read": rows.count, "rows_incomplete_dropped": int(incomplete.sum()),
+              "rows_invalid_joints_dropped": int(invalid.sum())}
+    return _dataset(s, rows, seq_labels, robot, cfg, str(mode), counts)
 
-    # --- cleaning -----------------------------------------------------------------------------------
-    cc = cfg.cleaning
+
+@dataclass(eq=False)
+class _Rows:
+    """The log's rows still in play: their field values (R,), data-row indices `line` (for messages)
+    and sequence labels; each stage drops rows from all three at once (`keep`)."""
+
+    log: _Log
+    values: dict[str, np.ndarray]
+    line: np.ndarray
+    labels: np.ndarray | None
+    count: int                   # rows read
+
+    @classmethod
+    def read(cls, log: _Log, n: int, mode: str) -> _Rows:
+        cols = log.columns
+        pose_fields = schema.POSITION_COLUMNS + {"quaternion": ["qw", "qx", "qy", "qz"],
+                                                 "tangent": ["tx", "ty", "tz"], "5dof": ["qw", "qx", "qy"],
+                                                 "absent": []}[mode]
+        numeric = schema.joint_columns(n) + pose_fields + [f for f in ("time", "step", "snap") if f in cols]
+        values = {f: log.numbers(f) for f in numeric}
+        labels = log.raw[cols["sequence_id"]].str.strip().to_numpy() if "sequence_id" in cols else None
+        return cls(log, values, np.arange(len(log.raw)), labels, len(log.raw))
+
+    def keep(self, mask: np.ndarray) -> None:
+        self.values = {f: v[mask] for f, v in self.values.items()}
+        self.line = self.line[mask]
+        self.labels = self.labels[mask] if self.labels is not None else None
+
+    def drop_incomplete(self, cfg: ImportConfig, src: str) -> np.ndarray:
+        """Drop rows with an empty, NaN or inf cell (or fail without drop_incomplete); a missing snap
+        flag reads 0. Returns the (R,) dropped mask."""
+        log, nan = self.log, np.zeros(self.count, dtype=bool)
+        for f, v in self.values.items():
+            if f == "snap":
+                continue
+            col_nan = ~np.isfinite(v)
+            if col_nan.any() and not cfg.drop_incomplete:
+                r = int(np.argmax(col_nan))
+                raise DatasetError(f"{log.where(r)}, {log.line_col(f)} is empty, NaN or inf; fix "
+                                   "the log or pass --drop-incomplete to skip such rows")
+            nan |= col_nan
+        if "snap" in self.values:
+            self.values["snap"] = np.nan_to_num(self.values["snap"], nan=0.0)
+        if self.labels is not None:
+            empty_label = self.labels == ""
+            if empty_label.any() and not cfg.drop_incomplete:
+                r = int(np.argmax(empty_label))
+                raise DatasetError(f"{log.where(r)}, {log.line_col('sequence_id')} is empty; fix the "
+                                   "log or pass --drop-incomplete")
+            nan |= empty_label
+        self.keep(~nan)
+        if len(self.line) == 0:
+            raise DatasetError(f"{src}: no complete rows left")
+        return nan
+
+    def valid_joints(self, robot: Robot, cfg: ImportConfig, src: str) -> tuple[np.ndarray, np.ndarray]:
+        """Joints (R, 2N) in deg and mm; rows outside the robot's limits dropped (drop_invalid_joints)
+        or refused with the reason. Returns (joints of the kept rows, the (R,) invalid mask)."""
+        n, cols, values, log = robot.n_tubes, self.log.columns, self.values, self.log
+        alpha = np.column_stack([values[c] for c in schema.alpha_columns(n)])
+        if cfg.angle_unit == "rad":
+            alpha = np.degrees(alpha)
+        beta = np.column_stack([values[c] for c in schema.beta_columns(n)]) * LENGTH_TO_MM[cfg.beta_unit]
+        joints = np.column_stack([alpha, beta])
+        invalid = ~robot.is_valid(joints)
+        if invalid.any() and not cfg.drop_invalid_joints:
+            r = int(np.argmax(invalid))
+            try:
+                robot.check_joints(joints[r])
+                reason = "outside the robot's limits"
+            except JointError as e:
+                reason = str(e).split(" (q = ")[0]
+            beta_cols = [cols[c] for c in schema.beta_columns(n)]
+            read = {cols[c]: float(values[c][r]) for c in schema.beta_columns(n)}
+            raise DatasetError(f"{log.where(self.line[r])}: joints outside the limits of robot "
+                               f"{robot.name!r}: {reason}; columns {beta_cols} read {read} "
+                               f"({cfg.beta_unit}). Fix the log, check --units and --map, or pass "
+                               "--drop-invalid to drop such rows")
+        self.keep(~invalid)
+        if len(self.line) == 0:
+            raise DatasetError(f"{src}: every row has joints outside the limits of robot {robot.name!r}")
+        return joints[~invalid], invalid
+
+    def check_order(self, sequence: np.ndarray) -> None:
+        """Steps are exact integers, and time and step never go back within a sequence."""
+        log, values, line = self.log, self.values, self.line
+        if "step" in values:
+            big = np.abs(values["step"]) >= MAX_EXACT_STEP
+            if big.any():
+                r = int(np.argmax(big))
+                raise DatasetError(f"{log.where(line[r])}, {log.line_col('step')}: "
+                                   f"{values['step'][r]:.17g} is at least 2^53, where float64 can no longer "
+                                   "tell neighbouring integers apart (distinct samples would be averaged "
+                                   "together); renumber the steps, e.g. from 0, or leave step unmapped")
+            frac = values["step"] != np.round(values["step"])
+            if frac.any():
+                r = int(np.argmax(frac))
+                raise DatasetError(f"{log.where(line[r])}, {log.line_col('step')}: "
+                                   f"{values['step'][r]:g} is not an integer sample index")
+        for f in ("time", "step"):
+            if f in values:
+                v = values[f]
+                back = (sequence[1:] == sequence[:-1]) & (v[1:] < v[:-1])
+                if back.any():
+                    r = int(np.argmax(back)) + 1
+                    raise DatasetError(f"{log.where(line[r])}, {log.line_col(f)}: {v[r]:g} comes "
+                                       f"after {v[r - 1]:g}; the log must be sorted by {f} within each "
+                                       "sequence")
+
+
+@dataclass(eq=False)
+class _Cleaned:
+    """The samples kept after averaging and cleaning (K,), with what cleaning found."""
+
+    samples: cleaning.Samples    # every averaged sample (S,), before outliers are dropped
+    groups: np.ndarray           # (R,) sample of each reading
+    idx: np.ndarray              # (K,) the kept samples among the S
+    sequence: np.ndarray         # (K,) sequence index
+    line: np.ndarray             # (K,) data row of each sample's first reading
+    step: np.ndarray             # (K,) int64
+    joints: np.ndarray           # (K, 2N) deg, mm
+    position: np.ndarray         # (K, 3) mm
+    tangent: np.ndarray          # (K, 3) unit
+    glitch: np.ndarray           # (S,) joint glitches
+    pose_out: np.ndarray         # (S,) pose outliers
+    snap: np.ndarray             # (K,) bool
+    snap_source: str             # "log" | "detected"
+
+
+def _clean(rows: _Rows, sequence: np.ndarray, joints: np.ndarray, position: np.ndarray,
+           tangent: np.ndarray, n: int, cc: CleaningConfig, src: str) -> _Cleaned:
+    """Average repeated readings into samples, flag (or drop) glitches and pose outliers, read or
+    detect snaps (ctrkin.data.cleaning)."""
+    values = rows.values
     if cc.average_repeats:
         groups = cleaning.repeat_groups(sequence, joints, values.get("step"), cc.repeat_tol)
     else:
-        groups = np.arange(len(line))
+        groups = np.arange(len(rows.line))
     samples = cleaning.average_readings(groups, joints, position, tangent, cc)
     first = samples.first
-    s_seq, s_line = sequence[first], line[first]
-    s_joints, s_pos, s_tan = samples.joints, samples.position, samples.tangent
+    s_seq, s_joints, s_pos, s_tan = sequence[first], samples.joints, samples.position, samples.tangent
     if "step" in values:
         s_step = values["step"][first].astype(np.int64)
     else:
@@ -383,47 +351,51 @@ def import_frame(log: _Log, robot: Robot, cfg: ImportConfig, src: str) -> Datase
     idx = np.nonzero(keep_s)[0]
     if len(idx) == 0:
         raise DatasetError(f"{src}: cleaning removed every sample; check the cleaning thresholds")
-    s_seq, s_line, s_step = s_seq[idx], s_line[idx], s_step[idx]
-    s_joints, s_pos, s_tan = s_joints[idx], s_pos[idx], s_tan[idx]
+    s_seq, s_joints, s_pos = s_seq[idx], s_joints[idx], s_pos[idx]
     if "snap" in values:
-        snap_read = pd.Series(values["snap"] != 0).groupby(groups).any().to_numpy()
-        snap = snap_read[idx]
+        snap = pd.Series(values["snap"] != 0).groupby(groups).any().to_numpy()[idx]
     else:
         snap = np.zeros(len(idx), dtype=bool)
         for a, b in schema.sequence_bounds(s_seq):
             snap[a:b] = cleaning.snap_mask(s_joints[a:b], s_pos[a:b], n, cc)
-    if np.abs(s_pos).max() < 1.0:
+    return _Cleaned(samples, groups, idx, s_seq, rows.line[first][idx], s_step[idx], s_joints, s_pos,
+                    s_tan[idx], glitch, pose_out, snap, "log" if "snap" in values else "detected")
+
+
+def _dataset(s: _Cleaned, rows: _Rows, seq_labels: list[str], robot: Robot, cfg: ImportConfig, mode: str,
+             counts: dict[str, int]) -> Dataset:
+    """The Dataset of the cleaned samples, with the cleaning report and noise estimate in its meta."""
+    n, samples, idx = robot.n_tubes, s.samples, s.idx
+    warnings: list[str] = []
+    if np.abs(s.position).max() < 1.0:
         warnings.append("every tip position is within 1 mm of the origin: are the positions in metres? "
                         "(--units position=m)")
-    if np.median(s_tan[:, 2]) < 0:
+    if np.median(s.tangent[:, 2]) < 0:
         warnings.append("most tip tangents point backwards (-z): check the quaternion order "
                         "(--quat-order) and the tracker-to-robot registration")
-
-    # --- the dataset --------------------------------------------------------------------------------
-    seq_ids = np.unique(s_seq, return_inverse=True)[1].astype(np.int64)  # renumber 0..K-1 after drops
-    pose = np.column_stack([s_pos, quat_from_tangent(s_tan)])
-    frame = pd.DataFrame({"sequence_id": seq_ids, "step": s_step,
-                          **{c: s_joints[:, k] for k, c in enumerate(schema.joint_columns(n))},
+    seq_ids = np.unique(s.sequence, return_inverse=True)[1].astype(np.int64)  # renumber 0..K-1 after drops
+    pose = np.column_stack([s.position, quat_from_tangent(s.tangent)])
+    outlier = s.glitch | s.pose_out
+    frame = pd.DataFrame({"sequence_id": seq_ids, "step": s.step,
+                          **{c: s.joints[:, k] for k, c in enumerate(schema.joint_columns(n))},
                           **{c: pose[:, k] for k, c in enumerate(schema.POSE_COLUMNS)},
-                          "snap": snap.astype(bool), "outlier": outlier[idx].astype(bool)})
-    if "time" in values:
-        frame["time"] = values["time"][first][idx]
+                          "snap": s.snap.astype(bool), "outlier": outlier[idx].astype(bool)})
+    if "time" in rows.values:
+        frame["time"] = rows.values["time"][samples.first][idx]
     frame["n_readings"] = samples.n_readings[idx]
-    frame["source_line"] = np.array([log.file_line(r) for r in s_line], dtype=np.int64)
-    kept_labels = [seq_labels[k] for k in np.unique(s_seq)]
+    frame["source_line"] = np.array([rows.log.file_line(r) for r in s.line], dtype=np.int64)
+    kept_labels = [seq_labels[k] for k in np.unique(s.sequence)]
     report = {
-        "rows_read": rows_read,
-        "rows_incomplete_dropped": int(nan.sum()),
-        "rows_invalid_joints_dropped": int(invalid.sum()),
+        **counts,
         "readings_rejected": samples.rejected,
-        "samples_averaged": len(first),
+        "samples_averaged": len(samples.first),
         "readings_per_sample": {"min": int(samples.n_readings.min()),
                                 "median": float(np.median(samples.n_readings)),
                                 "max": int(samples.n_readings.max())},
-        "joint_glitches": int(glitch.sum()), "pose_outliers": int(pose_out.sum()),
-        "outliers_action": "dropped" if cc.outliers == "drop" else "flagged",
+        "joint_glitches": int(s.glitch.sum()), "pose_outliers": int(s.pose_out.sum()),
+        "outliers_action": "dropped" if cfg.cleaning.outliers == "drop" else "flagged",
         "samples": len(frame), "sequences": len(kept_labels),
-        "snaps": int(snap.sum()), "snap_source": "log" if "snap" in values else "detected",
+        "snaps": int(s.snap.sum()), "snap_source": s.snap_source,
         "orientation": mode, "warnings": warnings,
     }
     meta = {
@@ -463,11 +435,7 @@ def _tangents(values: dict[str, np.ndarray], mode: str | None, line: np.ndarray,
         extra = "" if mode == "quaternion" else " (a 5-DOF quaternion needs qz = 0)"
         raise DatasetError(f"{log.where(line[r])}: the quaternion in columns {used} has norm "
                            f"{norm[r]:.4f}, not 1{extra}; check --map, --quaternion and --quat-order")
-    q = q / norm[:, None]
-    w, x, y = q[:, 0], q[:, 1], q[:, 2]
-    z = q[:, 3] if mode == "quaternion" else np.zeros_like(w)
-    # third column of the rotation matrix of (w, x, y, z): the tip tangent R e3
-    return np.column_stack([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+    return tangent_from_quaternion(q) if mode == "quaternion" else tangent_from_quat(q)
 
 
 def _sequences(labels: np.ndarray | None, time: np.ndarray | None, line: np.ndarray, cfg: ImportConfig,

@@ -48,10 +48,12 @@ from typing import Any, Literal
 import tomllib
 
 from ctrkin.errors import DatasetError
+from ctrkin.geometry import POSITION_COLUMNS
+from ctrkin.robots.robot import joint_names
 
 Orientation = Literal["tangent", "marker", "absent"]
 ORIENTATIONS = ("tangent", "marker", "absent")
-POSE_FIELDS = ("x", "y", "z")
+POSE_FIELDS = POSITION_COLUMNS
 QUAT_FIELDS = ("qw", "qx", "qy", "qz")
 REFERENCE_FIELDS = (*POSE_FIELDS, *QUAT_FIELDS)
 SECTIONS = {"file", "columns", "pose", "reference", "groups", "drop"}
@@ -217,7 +219,7 @@ def parse_profile(text: str, n_tubes: int, source: str = "profile") -> Profile:
     order = _choice(pose.get("quaternion_order", "wxyz"), ("wxyz", "xyzw"), where("pose", "quaternion_order"))
     orientation = _choice(pose.get("orientation", "tangent"), ORIENTATIONS, where("pose", "orientation"))
 
-    joints = [f"alpha_{i + 1}" for i in range(n_tubes)] + [f"beta_{i + 1}" for i in range(n_tubes)]
+    joints = joint_names(n_tubes)
     allowed = [*joints, *POSE_FIELDS, *QUAT_FIELDS]
     cols_raw = d.get("columns")
     if not cols_raw:

@@ -18,41 +18,22 @@ from ctrkin.data.dataset import Dataset
 from ctrkin.data.importer import ImportConfig, _Log, _sha256, import_frame
 from ctrkin.data.profile import ColumnSpec, Profile
 from ctrkin.errors import DatasetError
+from ctrkin.geometry import POSITION_COLUMNS, matrix_to_quaternion, quaternion_to_matrix
 from ctrkin.robots.robot import Robot
 
 LENGTH_TO_MM = {"mm": 1.0, "m": 1000.0}
-
-
-def quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    """(R, 4) quaternions (w, x, y, z), normalised here -> (R, 3, 3) rotation matrices."""
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
-    ], axis=1)
-
-
-def matrix_to_quat(R: np.ndarray) -> np.ndarray:
-    """(R, 3, 3) rotations -> (R, 4) unit quaternions (w, x, y, z), w >= 0."""
-    from scipy.spatial.transform import Rotation
-
-    xyzw = Rotation.from_matrix(R).as_quat()
-    q = np.column_stack([xyzw[:, 3], xyzw[:, :3]])
-    return q * np.where(q[:, :1] < 0, -1.0, 1.0)
 
 
 def relative_pose(p_tip: np.ndarray, q_tip: np.ndarray | None, p_ref: np.ndarray,
                   q_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     """Tip pose in a reference body's frame: p = R_refᵀ (p_tip − p_ref), R = R_refᵀ R_tip.
     p_*: (R, 3); q_*: (R, 4) (w, x, y, z); q_tip may be None (position only)."""
-    R_ref = quat_to_matrix(q_ref)
+    R_ref = quaternion_to_matrix(q_ref)
     p = np.einsum("rji,rj->ri", R_ref, p_tip - p_ref)
     if q_tip is None:
         return p, None
-    R = np.einsum("rji,rjk->rik", R_ref, quat_to_matrix(q_tip))
-    return p, matrix_to_quat(R)
+    R = np.einsum("rji,rjk->rik", R_ref, quaternion_to_matrix(q_tip))
+    return p, matrix_to_quaternion(R)
 
 
 class _File:
@@ -128,12 +109,12 @@ def read_file(path: Path, profile: Profile, robot: Robot, label: str
         if k.startswith("beta_"):
             vals[k] = vals[k] + _beta_zero(spec, robot, k)
     unit = LENGTH_TO_MM[profile.position_unit]
-    p_tip = np.column_stack([vals[k] for k in ("x", "y", "z")]) * unit
+    p_tip = np.column_stack([vals[k] for k in POSITION_COLUMNS]) * unit
     q_tip = None
     if profile.orientation == "tangent":
         q_tip = np.column_stack([vals[k] for k in ("qw", "qx", "qy", "qz")])
     if ref:
-        p_ref = np.column_stack([ref[k] for k in ("x", "y", "z")]) * unit
+        p_ref = np.column_stack([ref[k] for k in POSITION_COLUMNS]) * unit
         q_ref = np.column_stack([ref[k] for k in ("qw", "qx", "qy", "qz")])
         bad = keep & ~(np.isfinite(q_ref).all(axis=1) & (np.linalg.norm(q_ref, axis=1) > 0.5))
         if bad.any():

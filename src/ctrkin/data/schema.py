@@ -27,8 +27,13 @@ import itertools
 
 import numpy as np
 
+from ctrkin.geometry import POSE_COLUMNS as _POSE
+from ctrkin.geometry import POSITION_COLUMNS as _POSITION
+from ctrkin.robots.robot import alpha_names, beta_names, joint_names
+
 FORMAT_VERSION = 1
-POSE_COLUMNS = ["x", "y", "z", "q0", "qx", "qy"]
+POSE_COLUMNS = list(_POSE)            # ctrkin.geometry defines the names; a list here, as always
+POSITION_COLUMNS = list(_POSITION)
 TRUE_POSE_COLUMNS = [f"true_{c}" for c in POSE_COLUMNS]
 INDEX_COLUMNS = ["sequence_id", "step"]
 FLAG_COLUMNS = ["snap", "outlier"]
@@ -37,17 +42,9 @@ UNITS = {"alpha": "deg", "beta": "mm", "position": "mm",
          "orientation": "unit quaternion (q0, qx, qy), qz = 0"}
 
 
-def alpha_columns(n_tubes: int) -> list[str]:
-    return [f"alpha_{i + 1}" for i in range(n_tubes)]
-
-
-def beta_columns(n_tubes: int) -> list[str]:
-    return [f"beta_{i + 1}" for i in range(n_tubes)]
-
-
-def joint_columns(n_tubes: int) -> list[str]:
-    """Joint vector order (fixed): α1..αN, β1..βN."""
-    return alpha_columns(n_tubes) + beta_columns(n_tubes)
+alpha_columns = alpha_names      # the robot's joint names are the dataset's joint columns
+beta_columns = beta_names
+joint_columns = joint_names      # joint vector order (fixed): α1..αN, β1..βN
 
 
 def required_columns(n_tubes: int) -> list[str]:
@@ -59,7 +56,7 @@ def column_unit(column: str) -> str:
     base = column.removeprefix("true_")
     if base.startswith("alpha_"):
         return "deg"
-    if base.startswith("beta_") or base in ("x", "y", "z"):
+    if base.startswith("beta_") or base in POSITION_COLUMNS:
         return "mm"
     if base == "time":
         return "log unit"

@@ -8,7 +8,7 @@ import numpy as np
 
 from ctrkin.data import schema
 from ctrkin.data.dataset import Dataset
-from ctrkin.pose import position_error, tangent_angle_error
+from ctrkin.geometry import position_error, tangent_angle_error
 
 VIRTUAL_NOISE_KEYS = ("noise_mm", "noise_deg", "readings_per_sample", "glitch_rate", "glitch_deg",
                       "glitch_mm")

@@ -30,7 +30,7 @@ from ctrkin.evaluation.metrics import (
     timing_stats,
 )
 from ctrkin.evaluation.training_runs import ABLATION, BASELINES
-from ctrkin.pose import position_error
+from ctrkin.geometry import position_error
 from ctrkin.viz import experiments as fig
 
 PAPER_ROW = "lstm_mlp_paper"

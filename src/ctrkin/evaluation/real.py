@@ -18,7 +18,7 @@ import numpy as np
 
 from ctrkin.calibration.model import CalibratedTCM
 from ctrkin.data.dataset import Dataset
-from ctrkin.pose import Registration, position_error, tangent_angle_error
+from ctrkin.geometry import Registration, position_error, tangent_angle_error
 from ctrkin.util.files import atomic_write_text
 
 RANGE_MARGIN = 0.05

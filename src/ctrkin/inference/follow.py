@@ -13,10 +13,10 @@ import numpy as np
 
 from ctrkin.errors import ModelError
 from ctrkin.inference.engine import StreamingEngine
-from ctrkin.inference.workspace import Workspace
 from ctrkin.models.follow import follow_features, substeps
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle
+from ctrkin.models.workspace import Workspace
 
 
 class Follower:
@@ -29,8 +29,7 @@ class Follower:
         self.robot = bundle.robot
         self.frame = bundle.frame
         self.engine = StreamingEngine(bundle.net)
-        self.x_lo, self.x_span = bundle.x_norm.lo, bundle.x_norm.span
-        self.y_lo, self.y_span = bundle.y_norm.lo, bundle.y_norm.span
+        self.x_norm, self.y_norm = bundle.x_norm, bundle.y_norm
         settings = bundle.extra.get("follow", {})
         self.max_step_mm = float(settings.get("max_step_mm", 1.0))
         self.settle = int(settings.get("settle_iterations", 5))
@@ -72,7 +71,7 @@ class Follower:
 
     def _apply(self, target: np.ndarray, previous: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, bool]:
         feat = follow_features(self.frame, self.n, target[None], previous[None], q[None])[0]
-        dq = self.engine.step((feat - self.x_lo) / self.x_span) * self.y_span + self.y_lo
+        dq = self.y_norm.inverse(self.engine.step(self.x_norm.transform(feat)))
         new = q + dq
         valid = self.robot.project_joints(new[None])[0]
         return valid, bool(np.any(np.abs(valid - new) > 1e-9))

@@ -33,7 +33,6 @@ from ctrkin.inference.engine import StreamingEngine
 from ctrkin.inference.follow import Follower
 from ctrkin.inference.guards import FKGuard, check_pose_step, real_array
 from ctrkin.inference.refine import FKResidual, RefineSettings, refine
-from ctrkin.inference.workspace import WORKSPACE_FILE, Workspace
 from ctrkin.models.branch import BranchNet
 from ctrkin.models.features import (
     check_raw,
@@ -49,6 +48,7 @@ from ctrkin.models.frame import local_tips_to_world
 from ctrkin.models.outer_lag import lag_deg
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle, read_json
+from ctrkin.models.workspace import WORKSPACE_FILE, Workspace
 from ctrkin.robots.robot import Robot
 
 REFINE_FILE, REFINE_FK = "refine.json", "fk"
@@ -119,8 +119,7 @@ class Kinematics:
         self.workspace = workspace
         self.metrics = metrics or {}
         self.path = path
-        self._xlo, self._xspan = bundle.x_norm.lo, bundle.x_norm.span
-        self._ylo, self._yspan = bundle.y_norm.lo, bundle.y_norm.span
+        self._x_norm, self._y_norm = bundle.x_norm, bundle.y_norm     # the model's pre/post step
         self._engine = StreamingEngine(self.net) if isinstance(self.net, SeqNet) else None
         self._window: deque[np.ndarray] = deque(maxlen=self.layout.ib)
         self._prev: np.ndarray | None = None
@@ -200,7 +199,7 @@ class Kinematics:
                   ) -> tuple[np.ndarray, list[tuple[int, int]]]:
         if isinstance(data, Dataset):
             self.check_robot(data.robot)
-            true = self.config.get("pose_source") == "true" and data.has_truth
+            true = self.config.pose_source == "true" and data.has_truth
             raw = data.joints() if self.task == "fk" else data.poses(true=true)
             return self._guarded(check_raw(self.layout, raw), data.sequence_bounds())
         raw = check_raw(self.layout, data)
@@ -256,7 +255,7 @@ class Kinematics:
             return self._predict_follow(raw, bounds, strict, start_joints)
         if self.task == "ik" and self.refiner is not None:
             return self._predict_refined(raw, bounds, strict)
-        feats = (self._clip_deltas(sequence_features(self.layout, raw, bounds)) - self._xlo) / self._xspan
+        feats = self._x_norm.transform(self._clip_deltas(sequence_features(self.layout, raw, bounds)))
         if branch_states is not None and not isinstance(self.net, BranchNet):
             raise ModelError("branch_states needs a branch model (lstm_mlp_branch)")
         if gate is not None and (not isinstance(self.net, BranchNet) or gate not in ("fold", "learned")
@@ -279,7 +278,7 @@ class Kinematics:
             yn = seqnet_predict(self.net, *padded_rows(feats, bounds, self.ib))
         else:
             yn = self.predict_normalised(feats[window_index(bounds, self.ib)])
-        y = postprocess(self.layout, yn * self._yspan + self._ylo)
+        y = postprocess(self.layout, self._y_norm.inverse(yn))
         if self.task == "fk":
             return y if self.frame is None else self.frame.to_world(y, self._frame_angles(data, raw, bounds))
         ok, dist, reasons = self._workspace_check(raw, strict)
@@ -385,12 +384,12 @@ class Kinematics:
         if self._guard is not None and len(Q):
             Q = Q - (self._shift if self._shift is not None else self._guard.shift(Q[0]))
         prev = Q if self._prev is None else np.broadcast_to(self._prev, Q.shape)
-        xn = (self._clip_deltas(pair_features(self.layout, Q, prev)) - self._xlo) / self._xspan
+        xn = self._x_norm.transform(self._clip_deltas(pair_features(self.layout, Q, prev)))
         given = None
         if self.fold_gate is not None:
             given = np.array([self._fold_step(q)[0] for q in Q], dtype=np.float64)
         yn, states = self._engine.probe(xn, given)
-        return Q, yn * self._yspan + self._ylo, states
+        return Q, self._y_norm.inverse(yn), states
 
     def probe_tips(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """FK only, the refinement's inner loop: tip positions (K, 3) and unit tangents (K, 3) in the
@@ -480,7 +479,7 @@ class Kinematics:
         self._prev = raw
         if len(self._dcols):
             feat[self._dcols] = np.minimum(np.maximum(feat[self._dcols], self._dlo), self._dhi)
-        xn = (feat - self._xlo) / self._xspan
+        xn = self._x_norm.transform(feat)
         if self._engine is not None:
             state = None
             if self.fold_gate is not None:
@@ -493,7 +492,7 @@ class Kinematics:
             self._window.append(xn)
             with torch.inference_mode():
                 yn = self.net(torch.tensor(np.array(self._window)[None], dtype=torch.float32))[0].numpy()
-        y = yn * self._yspan + self._ylo
+        y = self._y_norm.inverse(yn)
         if self.task == "fk":
             if self.frame is not None:
                 return self.frame.to_world_one(y, self._step_angle(raw, outer))

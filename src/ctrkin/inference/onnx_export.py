@@ -39,14 +39,7 @@ class ExportWrapper(nn.Module):
         super().__init__()
         self.net = kin.net
         f32 = lambda a: torch.tensor(a, dtype=torch.float32)  # noqa: E731
-        self.xlo: torch.Tensor
-        self.xspan: torch.Tensor
-        self.ylo: torch.Tensor
-        self.yspan: torch.Tensor
-        self.register_buffer("xlo", f32(kin.bundle.x_norm.lo))
-        self.register_buffer("xspan", f32(kin.bundle.x_norm.span))
-        self.register_buffer("ylo", f32(kin.bundle.y_norm.lo))
-        self.register_buffer("yspan", f32(kin.bundle.y_norm.span))
+        self.x_norm, self.y_norm = kin.bundle.x_norm.torch(), kin.bundle.y_norm.torch()
         self.fk = kin.task == "fk"
         self.frame = kin.frame is not None
         self.lag = kin.frame is not None and kin.frame.has_lag
@@ -63,7 +56,7 @@ class ExportWrapper(nn.Module):
                 ) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
         """extra: the branch state (B,) of a branch model, then the outer lag λ(β)·m_N (B,) deg of a
         frame with a lag (ctrkin.models.frame), in this order."""
-        x = (window - self.xlo) / self.xspan
+        x = self.x_norm.transform(window)
         lag = extra[-1] if self.lag else None
         if isinstance(self.net, BranchNet):
             state = extra[0]
@@ -74,7 +67,7 @@ class ExportWrapper(nn.Module):
 
     def _finish(self, yn: torch.Tensor, window: torch.Tensor, lag: torch.Tensor | None = None
                 ) -> torch.Tensor:
-        y = yn * self.yspan + self.ylo
+        y = self.y_norm.inverse(yn)
         if self.fk:
             q = y[:, 3:6]
             q = q / torch.linalg.vector_norm(q, dim=1, keepdim=True).clamp_min(1e-12)
@@ -90,7 +83,7 @@ class ExportWrapper(nn.Module):
                 pos, tan = (torch.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], 1)
                             for v in (y[:, :3], tan))
                 pos, tan = pos @ self.rot.T + self.trans, tan @ self.rot.T
-                q = torch.stack([1.0 + tan[:, 2], -tan[:, 1], tan[:, 0]], 1)   # pose.quat_from_tangent
+                q = torch.stack([1.0 + tan[:, 2], -tan[:, 1], tan[:, 0]], 1)   # geometry.quat_from_tangent
                 q = q / torch.linalg.vector_norm(q, dim=1, keepdim=True).clamp_min(1e-12)
                 return torch.cat([pos, q], 1)
             y = torch.cat([y[:, :3], q], 1)
@@ -125,11 +118,11 @@ def export_onnx(kin: Kinematics, path: str | Path, opset: int = 17) -> Path:
                 torch.onnx.export(wrapper, example, str(tmp), input_names=names, output_names=outputs,
                                   opset_version=opset, dynamo=False, dynamic_axes=axes)
         except Exception as e:  # the exporter raises many types
-            raise ModelError(f"ONNX export failed for model {kin.config['model']!r}: {e}") from None
+            raise ModelError(f"ONNX export failed for model {kin.config.model!r}: {e}") from None
         model = onnx.load(str(tmp))
         meta = {"task": kin.task, "ib": str(kin.ib), "input_names": json.dumps(list(kin.layout.input_names)),
                 "output_names": json.dumps(list(kin.layout.output_names)),
-                "robot_fingerprint": kin.robot.fingerprint(), "model": kin.config["model"]}
+                "robot_fingerprint": kin.robot.fingerprint(), "model": kin.config.model}
         if wrapper.lag and kin.frame is not None:
             meta["outer_lag_deg"] = json.dumps(list(kin.frame.lag))   # λ = a + b·overlap(β), deg
         for k, v in meta.items():

@@ -28,7 +28,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ctrkin.errors import ModelError
-from ctrkin.pose import tangent_from_quat
+from ctrkin.geometry import tangent_from_quat
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
+from ctrkin.geometry import tip_azimuth, tip_pose
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
 from ctrkin.mechanics.pointwise import (
     _NO_BODY,
@@ -31,7 +32,6 @@ from ctrkin.mechanics.pointwise import (
     solve,
 )
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS, SolverSettings
-from ctrkin.pose import tip_azimuth, tip_pose
 from ctrkin.robots.robot import Robot
 
 JUMP_RAD = 0.35  # largest accepted twist change per (sub)step, max_i |Δuz_i(0)| · L_i (rad)

@@ -15,10 +15,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ctrkin.errors import ConvergenceError
+from ctrkin.geometry import quat_from_tangent
 from ctrkin.mechanics import kernels
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS, SolverSettings
-from ctrkin.pose import quat_from_tangent
 from ctrkin.robots.robot import Robot
 
 

@@ -26,11 +26,13 @@ from typing import Literal
 import numpy as np
 
 from ctrkin.errors import ModelError
+from ctrkin.geometry import POSE_COLUMNS
+from ctrkin.robots.robot import alpha_names, beta_names
 
 Task = Literal["fk", "ik"]
 AngleEncoding = Literal["minmax", "sincos", "phase"]
 ANGLE_ENCODINGS = ("minmax", "sincos", "phase")
-POSE_NAMES = ("x", "y", "z", "q0", "qx", "qy")
+POSE_NAMES = POSE_COLUMNS    # the pose features are named as the dataset's pose columns
 
 
 @dataclass(frozen=True)
@@ -68,8 +70,7 @@ class FeatureLayout:
         if self.follow and (self.task != "ik" or self.ib != 1):
             raise ModelError("follow=True is an IK layout with input buffer 1 (ctrkin.models.follow)")
         n = self.n_tubes
-        alphas = [f"alpha_{i + 1}" for i in range(n)]
-        betas = [f"beta_{i + 1}" for i in range(n)]
+        alphas, betas = alpha_names(n), beta_names(n)
         if self.task == "fk":
             if self.angle_encoding == "sincos":
                 ins = [f"{f}_{a}" for a in alphas for f in ("sin", "cos")] + betas

@@ -26,8 +26,8 @@ import math
 
 import numpy as np
 
+from ctrkin.geometry import quat_from_tangent, tangent_from_quat
 from ctrkin.models.frame import OuterFrame
-from ctrkin.pose import quat_from_tangent, tangent_from_quat
 
 # perturbation of the current joints in training: σ per level (deg for α, SIGMA_BETA_PER_DEG × σ mm
 # for β), mixed with these probabilities (0: the exact path, large: a bad start to recover from)

@@ -23,8 +23,8 @@ import numpy as np
 from numba import njit
 
 from ctrkin.errors import ModelError
+from ctrkin.geometry import Registration, quat_from_tangent, rotate_z, tangent_from_quat
 from ctrkin.models.outer_lag import lag_deg
-from ctrkin.pose import Registration, quat_from_tangent, tangent_from_quat
 from ctrkin.robots.robot import Robot
 
 FRAMES = ("tracker", "outer")
@@ -76,8 +76,8 @@ class OuterFrame:
         R, t = self.registration.rotation, self.registration.translation
         y = np.asarray(local, float)
         a = np.asarray(alpha_outer_deg, float)
-        pos = _rot_z(y[:, :3], a) @ R.T + t
-        tan = _rot_z(tangent_from_quat(y[:, 3:6]), a) @ R.T
+        pos = rotate_z(y[:, :3], a) @ R.T + t
+        tan = rotate_z(tangent_from_quat(y[:, 3:6]), a) @ R.T
         return np.concatenate([pos, quat_from_tangent(tan)], axis=1)
 
     def to_world_one(self, y: np.ndarray, alpha_outer_deg: float) -> np.ndarray:
@@ -89,7 +89,7 @@ class OuterFrame:
         t0, t1, t2 = tan[0]
         nt = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
         t0, t1, t2 = t0 / nt, t1 / nt, t2 / nt
-        q0, q1, q2 = 1.0 + t2, -t1, t0                # pose.quat_from_tangent
+        q0, q1, q2 = 1.0 + t2, -t1, t0                # geometry.quat_from_tangent
         nq = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
         out[3:] = (0.0, 1.0, 0.0) if nq < 1e-12 else (q0 / nq, q1 / nq, q2 / nq)
         return out
@@ -101,17 +101,9 @@ class OuterFrame:
     def from_dict(cls, d: dict) -> OuterFrame:
         try:
             a, b = (float(v) for v in d.get("outer_lag_deg", (0.0, 0.0)))   # older folders: no lag
-            return cls(Registration(np.array(d["rotation"], float), np.array(d["translation_mm"], float),
-                                    float(d.get("rms_mm", float("nan")))), (a, b))
+            return cls(Registration.from_dict(d), (a, b))
         except (KeyError, ValueError, TypeError) as e:
             raise ModelError(f"bad outer-frame entry: {e}") from None
-
-
-def _rot_z(v: np.ndarray, deg: np.ndarray) -> np.ndarray:
-    """Rotate vectors v (T, 3) about z by deg (T,)."""
-    a = np.radians(deg)
-    c, s = np.cos(a), np.sin(a)
-    return np.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], axis=1)
 
 
 @njit(cache=True)
@@ -145,7 +137,7 @@ def world_poses_to_local(p: np.ndarray, alpha_outer_deg: np.ndarray, R: np.ndarr
                          ) -> np.ndarray:
     """OuterFrame.to_local in scalar loops (the follow IK calls it every step): p (K, 6)
     tracker-frame poses, αN (K,) deg -> (K, 6) poses in the outer tube's frame (unit quaternion
-    from the tangent as pose.quat_from_tangent, the x axis at a tangent pointing straight back)."""
+    from the tangent as geometry.quat_from_tangent, the x axis at a tangent pointing straight back)."""
     k_count = p.shape[0]
     out = np.empty((k_count, 6))
     for k in range(k_count):

@@ -1,10 +1,17 @@
-"""Min-max normalisation to [0, 1] (paper III.C), fit on the training split only and saved with a model."""
+"""Min-max normalisation to [0, 1] (paper III.C), fit on the training split only and saved with a model.
+
+A model's one pre/post step: inputs go through x_norm.transform before the network, outputs through
+y_norm.inverse after it, in numpy (MinMax) or, inside an exported graph, in torch (TorchMinMax).
+Nothing else restates the arithmetic.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+import torch
+from torch import nn
 
 from ctrkin.errors import ModelError
 
@@ -44,7 +51,16 @@ class MinMax:
         return (np.asarray(x, dtype=np.float64) - self.lo) / self.span
 
     def inverse(self, x: np.ndarray) -> np.ndarray:
+        """(..., F) normalised -> (..., F) in the original units (float64)."""
         return np.asarray(x, dtype=np.float64) * self.span + self.lo
+
+    def subset(self, columns: slice | np.ndarray) -> MinMax:
+        """The normaliser of some of the columns (e.g. the pose inputs of an IK model)."""
+        return MinMax(self.lo[columns], self.span[columns])
+
+    def torch(self) -> TorchMinMax:
+        """The same step as a torch module (float32 buffers), for exported graphs."""
+        return TorchMinMax(self)
 
     def to_dict(self) -> dict[str, list[float]]:
         return {"lo": self.lo.tolist(), "span": self.span.tolist()}
@@ -55,3 +71,21 @@ class MinMax:
             return cls(np.array(d["lo"], dtype=np.float64), np.array(d["span"], dtype=np.float64))
         except KeyError as e:
             raise ModelError(f"normalisation entry lacks {e}") from None
+
+
+class TorchMinMax(nn.Module):
+    """MinMax in torch, float32: transform (..., F) -> normalised, inverse (..., F) -> units."""
+
+    lo: torch.Tensor
+    span: torch.Tensor
+
+    def __init__(self, norm: MinMax) -> None:
+        super().__init__()
+        self.register_buffer("lo", torch.tensor(norm.lo, dtype=torch.float32))
+        self.register_buffer("span", torch.tensor(norm.span, dtype=torch.float32))
+
+    def transform(self, x: torch.Tensor) -> torch.Tensor:
+        return (x - self.lo) / self.span
+
+    def inverse(self, x: torch.Tensor) -> torch.Tensor:
+        return x * self.span + self.lo

@@ -8,7 +8,7 @@
     split.json          the train/val/test rows used       (written by training)
     metrics.json        losses and errors in mm / deg      (written by training)
     history.csv, curves.png   loss curves (paper Fig. 9)   (written by training)
-    workspace.npz       IK only: training targets and distance threshold (ctrkin.inference.workspace)
+    workspace.npz       IK only: training targets and distance threshold (ctrkin.models.workspace)
     frame.json          FK in the outer tube's frame only: the registration (ctrkin.models.frame)
     checkpoint.pt       last epoch, optimiser and RNG state, to resume training
     manifest.json       SHA-256 of every file above but the checkpoint: loading refuses files that
@@ -58,15 +58,61 @@ def read_json(path: Path) -> Any:
         raise ModelError(f"cannot read {path}: {e}") from None
 
 
+@dataclass(frozen=True)
+class ModelConfig:
+    """The configuration a model was trained with: config.json's "train" entry
+    (ctrkin.training.TrainConfig.to_dict()), typed where the model side reads it.
+
+    model: registry name (ctrkin.models.MODELS); options: its resolved options; output_activation:
+    "relu" | "linear"; pose_source: the pose columns learned from, "measured" | "true"; target_frame:
+    FK poses learned in the "tracker" or the "outer" tube's frame (ctrkin.models.frame); training:
+    the whole entry as written (how it was trained: provenance, and the resume check).
+    """
+
+    model: str
+    options: dict[str, Any]
+    output_activation: str
+    pose_source: str = "measured"
+    target_frame: str = "tracker"
+    training: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any], source: str = "config.json") -> ModelConfig:
+        """From the "train" entry (older folders lack pose_source and target_frame: the defaults)."""
+        if not isinstance(d, dict):
+            raise ModelError(f"{source}: the training configuration is not a table")
+        try:
+            return cls(str(d["model"]), dict(d["options"]), str(d["output_activation"]),
+                       str(d.get("pose_source", "measured")), str(d.get("target_frame", "tracker")),
+                       dict(d))
+        except (KeyError, TypeError, ValueError) as e:
+            raise ModelError(f"{source}: the training configuration lacks or mangles {e}; retrain the "
+                             "model with `ctrkin train`") from None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The "train" entry: the keys as written, in their order, typed fields taking precedence."""
+        return {**self.training, "model": self.model, "options": self.options,
+                "output_activation": self.output_activation, "pose_source": self.pose_source,
+                "target_frame": self.target_frame}
+
+    def __getitem__(self, key: str) -> Any:
+        """Dict-style read of a JSON key (the bundle's config was a dict before it was typed)."""
+        return self.to_dict()[key]
+
+    def get(self, key: str, default: Any = None) -> Any:
+        return self.to_dict().get(key, default)
+
+
 @dataclass(eq=False)
 class ModelBundle:
     """A network with the layout, normalisation and robot it was trained for.
 
-    config: the training configuration as a dict (TrainConfig.to_dict()) with "model", "options" and
-    "output_activation"; extra: provenance stored beside it in config.json.
+    config: the typed training configuration (ModelConfig); x_norm, y_norm: the min-max pre/post
+    step (ctrkin.models.normalize); extra: provenance stored beside the configuration in config.json;
+    frame: the outer-tube frame of a model that learned in it.
     """
 
-    config: dict[str, Any]
+    config: ModelConfig
     layout: FeatureLayout
     x_norm: MinMax
     y_norm: MinMax
@@ -76,18 +122,21 @@ class ModelBundle:
     frame: OuterFrame | None = None
 
     @classmethod
-    def create(cls, config: dict[str, Any], layout: FeatureLayout, x_norm: MinMax, y_norm: MinMax,
-               robot: Robot, extra: dict[str, Any] | None = None, frame: OuterFrame | None = None
-               ) -> ModelBundle:
-        """A fresh network (seed torch first) for this configuration."""
-        net = build_model(config["model"], layout.n_inputs, layout.n_outputs, layout.ib,
-                          config["output_activation"], config["options"])
+    def create(cls, config: ModelConfig | dict[str, Any], layout: FeatureLayout, x_norm: MinMax,
+               y_norm: MinMax, robot: Robot, extra: dict[str, Any] | None = None,
+               frame: OuterFrame | None = None) -> ModelBundle:
+        """A fresh network (seed torch first) for this configuration (a dict: TrainConfig.to_dict())."""
+        if not isinstance(config, ModelConfig):
+            config = ModelConfig.from_dict(config)
+        net = build_model(config.model, layout.n_inputs, layout.n_outputs, layout.ib,
+                          config.output_activation, config.options)
         return cls(config, layout, x_norm, y_norm, robot, net, dict(extra or {}), frame)
 
     def save(self, folder: str | Path) -> Path:
         out = Path(folder)
         out.mkdir(parents=True, exist_ok=True)
-        write_json(out / CONFIG, {"train": self.config, "ctrkin_version": __version__, **self.extra})
+        write_json(out / CONFIG, {"train": self.config.to_dict(), "ctrkin_version": __version__,
+                                  **self.extra})
         write_json(out / FEATURES, self.layout.to_dict())
         write_json(out / NORMALIZATION, {"inputs": self.x_norm.to_dict(), "outputs": self.y_norm.to_dict()})
         write_json(out / ROBOT, {"robot": self.robot.to_dict(), "fingerprint": self.robot.fingerprint()})
@@ -108,7 +157,9 @@ class ModelBundle:
                              f"(train one with `ctrkin train --out {src}`)")
         check_manifest(src, REQUIRED, ModelError)
         cfg_file = read_json(src / CONFIG)
-        config = cfg_file.pop("train")
+        if not isinstance(cfg_file, dict) or "train" not in cfg_file:
+            raise ModelError(f"{src / CONFIG} has no training configuration (\"train\"); retrain the model")
+        config = ModelConfig.from_dict(cfg_file.pop("train"), str(src / CONFIG))
         cfg_file.pop("ctrkin_version", None)
         layout = FeatureLayout.from_dict(read_json(src / FEATURES))
         norm = read_json(src / NORMALIZATION)
@@ -122,7 +173,7 @@ class ModelBundle:
             raise ModelError(f"{src / ROBOT}: the robot description does not match its stored "
                              f"fingerprint (edited by hand?)")
         frame = None
-        if config.get("target_frame", "tracker") == "outer":
+        if config.target_frame == "outer":
             if not (src / FRAME).is_file():
                 raise ModelError(f"{src} learned poses in the outer tube's frame but lacks {FRAME}")
             frame = OuterFrame.from_dict(read_json(src / FRAME))
@@ -131,6 +182,6 @@ class ModelBundle:
             state = torch.load(src / WEIGHTS, map_location="cpu", weights_only=True)
             bundle.net.load_state_dict(state)
         except (RuntimeError, OSError, KeyError, EOFError, pickle.UnpicklingError, zipfile.BadZipFile) as e:
-            raise ModelError(f"{src / WEIGHTS} does not fit model {config['model']!r}: {e}") from None
+            raise ModelError(f"{src / WEIGHTS} does not fit model {config.model!r}: {e}") from None
         bundle.net.eval()
         return bundle

@@ -26,6 +26,22 @@ Transmission = Literal["compliant", "rigid"]
 JOINT_TOL = 1e-9  # mm: slack on the joint inequalities for round-off
 
 
+
+def alpha_names(n_tubes: int) -> list[str]:
+    """Names of the base rotations αi (deg), innermost tube first: alpha_1..alpha_N."""
+    return [f"alpha_{i + 1}" for i in range(n_tubes)]
+
+
+def beta_names(n_tubes: int) -> list[str]:
+    """Names of the base translations βi (mm), innermost tube first: beta_1..beta_N."""
+    return [f"beta_{i + 1}" for i in range(n_tubes)]
+
+
+def joint_names(n_tubes: int) -> list[str]:
+    """Joint vector order (fixed, DESIGN.md: Conventions): α1..αN, β1..βN. These are the dataset's
+    joint columns (ctrkin.data.schema) and the learned models' joint features."""
+    return alpha_names(n_tubes) + beta_names(n_tubes)
+
 @dataclass(frozen=True)
 class Robot:
     """tubes: innermost first. transmission: "compliant" (the part s < 0 is straight but twists,
@@ -83,8 +99,7 @@ class Robot:
         return np.array([t.length for t in self.tubes])
 
     def joint_names(self) -> list[str]:
-        n = self.n_tubes
-        return [f"alpha_{i + 1}" for i in range(n)] + [f"beta_{i + 1}" for i in range(n)]
+        return joint_names(self.n_tubes)
 
     def project_joints(self, Q: np.ndarray) -> np.ndarray:
         """Project joints (T, 2N) onto the valid set by moving translations only, as the mechanical

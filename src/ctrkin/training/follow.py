@@ -23,11 +23,11 @@ from ctrkin.data.dataset import Dataset
 from ctrkin.errors import ModelError
 from ctrkin.inference.follow import Follower
 from ctrkin.inference.kinematics import Kinematics
-from ctrkin.inference.workspace import Workspace
 from ctrkin.models.follow import follow_features, joint_noise, previous_rows
 from ctrkin.models.frame import OuterFrame
 from ctrkin.models.normalize import MinMax
 from ctrkin.models.store import CONFIG, ModelBundle, read_json, write_json
+from ctrkin.models.workspace import Workspace
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.curves import plot_curves
 from ctrkin.training.data import data_signature, inputs_and_targets, split_rows

@@ -26,13 +26,14 @@ from tqdm.auto import tqdm
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.schema import sequence_bounds
 from ctrkin.data.splits import split_warnings
+from ctrkin.data.tracker_view import recorded_tracker_view
 from ctrkin.errors import ModelError
-from ctrkin.inference.workspace import Workspace
 from ctrkin.models.branch import UNKNOWN_STATE, BranchNet
 from ctrkin.models.features import postprocess
 from ctrkin.models.fold_gate import FoldGate, build_fold_gate, recorded_motion
 from ctrkin.models.registry import get_entry
 from ctrkin.models.store import ModelBundle, write_json
+from ctrkin.models.workspace import Workspace
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.curves import plot_curves
 from ctrkin.training.data import Prepared, data_signature, prepare
@@ -40,7 +41,6 @@ from ctrkin.training.metrics import joint_errors, pose_errors
 from ctrkin.util.files import atomic_path, atomic_write_text
 from ctrkin.util.folders import folder_lock, recover, swap_in, write_manifest
 from ctrkin.util.progress import progress_bar
-from ctrkin.virtual.truth import tracker_truth
 
 CHECKPOINT = "checkpoint.pt"
 SMOOTH_RTOL = 1e-3
@@ -363,9 +363,8 @@ def _train_locked(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, pro
                            "samples_per_s": len(train_rows) * state["epoch"] / max(state["seconds"], 1e-9),
                            "threads": cfg.threads, "parameters": sum(p.numel() for p in net.parameters())}
     if cfg.task == "ik":
-        pose_cols = slice(0, 6)
-        norm = type(prep.x_norm)(prep.x_norm.lo[pose_cols], prep.x_norm.span[pose_cols])
-        Workspace.fit(prep.raw_in[prep.rows["train"]], prep.raw_in[prep.rows["val"]], norm,
+        pose_norm = prep.x_norm.subset(slice(0, 6))
+        Workspace.fit(prep.raw_in[prep.rows["train"]], prep.raw_in[prep.rows["val"]], pose_norm,
                       train_joints=prep.target[prep.rows["train"]]).save(build)
     write_json(build / "metrics.json", metrics)
     _write_history(build / "history.csv", state["history"])
@@ -394,7 +393,8 @@ def evaluate(bundle: ModelBundle, ds: Dataset, prep: Prepared) -> dict[str, Any]
     """Loss (normalised MAE) and physical errors on the validation and test rows."""
     res: dict[str, Any] = {}
     n = ds.n_tubes
-    truth = tracker_truth(ds) if prep.layout.task == "fk" and prep_pose_source(bundle) == "measured" else None
+    measured_fk = prep.layout.task == "fk" and prep_pose_source(bundle) == "measured"
+    truth = recorded_tracker_view(ds) if measured_fk else None
     for part in ("val", "test"):
         rows = prep.rows[part]
         if len(rows) == 0:
@@ -427,7 +427,7 @@ def fold_gate(ds: Dataset, rows: np.ndarray) -> FoldGate:
 
 def prep_pose_source(bundle: ModelBundle) -> str:
     """Which pose columns the model learned from ("measured" or "true")."""
-    return str(bundle.config.get("pose_source", "measured"))
+    return bundle.config.pose_source
 
 
 def _write_history(path: Path, history: list[dict[str, float]]) -> None:

@@ -5,7 +5,7 @@ never perfect: a fixed rigid error (R_e, t_e) remains, drawn once per robot seed
 in a fixture on the tip, its centre `offset` mm beyond the tube tip along the tip tangent. Each sample is the
 mean of n readings (the paper averaged five, Sec. II.B); a reading adds isotropic position noise and
 turns the tangent by a small random angle. The 5-DOF sensor measures no roll, so the orientation is
-rebuilt from the averaged tangent with qz = 0 (pose.quat_from_tangent).
+rebuilt from the averaged tangent with qz = 0 (geometry.quat_from_tangent).
 """
 
 from __future__ import annotations
@@ -14,20 +14,18 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from ctrkin.pose import quat_from_tangent, tangent_from_quat
+from ctrkin.geometry import RigidTransform, quat_from_tangent, sensor_poses, sensor_view
 
 
 @dataclass(frozen=True, eq=False)
 class Tracker:
-    """rotation (3, 3), translation (3,) mm: the residual registration error, measured = R_e p + t_e.
-    offset: mm of the sensor centre beyond the tube tip along the tangent. noise_mm: position std
-    per axis of one reading; noise_deg: tangent std of one reading (deg); readings: readings
-    averaged per sample."""
+    """registration: the residual registration error, measured = R_e p + t_e (rotation (3, 3),
+    translation (3,) mm). offset: mm of the sensor centre beyond the tube tip along the tangent.
+    noise_mm: position std per axis of one reading; noise_deg: tangent std of one reading (deg);
+    readings: readings averaged per sample."""
 
-    rotation: np.ndarray
-    translation: np.ndarray
+    registration: RigidTransform
     offset: float
     noise_mm: float
     noise_deg: float
@@ -41,20 +39,24 @@ class Tracker:
         axis = rng.standard_normal(3)
         axis /= np.linalg.norm(axis)
         angle = np.radians(registration_deg) * rng.standard_normal()
-        rot = Rotation.from_rotvec(axis * angle).as_matrix()
-        trans = registration_mm * rng.standard_normal(3)
-        return cls(rot, trans, float(offset_mm), float(noise_mm), float(noise_deg), int(readings))
+        error = RigidTransform.from_rotvec(axis * angle, registration_mm * rng.standard_normal(3))
+        return cls(error, float(offset_mm), float(noise_mm), float(noise_deg), int(readings))
+
+    @property
+    def rotation(self) -> np.ndarray:
+        return self.registration.rotation
+
+    @property
+    def translation(self) -> np.ndarray:
+        return self.registration.translation
 
     def _sensor(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Sensor centre (T, 3) and axis (T, 3) seen through the registration."""
-        tan = tangent_from_quat(poses[:, 3:6])
-        p = (poses[:, :3] + self.offset * tan) @ self.rotation.T + self.translation
-        return p, tan @ self.rotation.T
+        return sensor_poses(poses, self.registration, self.offset)
 
     def registered(self, poses: np.ndarray) -> np.ndarray:
         """Noise-free tracker view of true poses (T, 6) in the robot base frame -> (T, 6)."""
-        p, tan = self._sensor(np.atleast_2d(np.asarray(poses, dtype=float)))
-        return np.concatenate([p, quat_from_tangent(tan)], axis=1)
+        return sensor_view(np.atleast_2d(np.asarray(poses, dtype=float)), self.registration, self.offset)
 
     def measure(self, poses: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Measured poses (T, 6): registered, each the mean of `readings` noisy readings."""
@@ -70,7 +72,7 @@ class Tracker:
         return np.concatenate([p_read.mean(axis=1), quat_from_tangent(tan_mean)], axis=1)
 
     def to_dict(self) -> dict[str, Any]:
-        rv = Rotation.from_matrix(self.rotation).as_rotvec()
+        rv = self.registration.rotvec
         return {"registration_rotation": self.rotation.tolist(),
                 "registration_rotation_deg": float(np.degrees(np.linalg.norm(rv))),
                 "registration_translation_mm": self.translation.tolist(),
