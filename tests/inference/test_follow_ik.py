@@ -94,3 +94,27 @@ def test_follow_ik_refuses_onnx_export(follow_dir, tmp_path):
     with pytest.raises(ModelError, match="cannot be exported"):
         export_onnx(Kinematics.load(follow_dir), tmp_path / "follow.onnx")
     assert not (tmp_path / "follow.onnx").exists()
+
+
+def test_follower_inverts_the_outer_tubes_play(follow_dir):
+    """With an outer lag λ the follower's motor commands, put through the transmission's play
+    operator (width 2λ, from rest), leave the outer tube exactly where the network meant it:
+    θ = network αN − λ. A start at rest is seen by the network with the tube's angle + λ."""
+    from ctrkin.virtual.transmission import play
+
+    kin = Kinematics.load(follow_dir)
+    f = kin._follower
+    f.lag = (2.0, 0.0)                                   # λ = 2° whatever the translations
+    q0 = np.array([10.0, 30.0, -20.0, 0.0])
+    f.reset(q0)
+    assert f.joints[1] == pytest.approx(32.0) and f.tube == f.motor == 30.0
+    theta = np.r_[30.0, 31.0, 33.0, 33.0, 32.5, 29.0, 29.0, 29.5, 35.0]   # forward, still, back, forward
+    motors = []
+    for th in theta:
+        q = q0.copy()
+        q[1] = th + 2.0
+        motors.append(f._backlash_inverse(q)[1])
+    tube = np.empty((len(theta), 1))
+    play(np.array(motors)[:, None], np.full((len(theta), 1), 4.0), np.array([30.0]), tube)
+    np.testing.assert_allclose(tube[:, 0], theta, atol=1e-12)
+    assert motors[3] == motors[2] and motors[4] == pytest.approx(30.5)   # still: no move; back: θ − λ

@@ -5,6 +5,12 @@ when it lies farther than the training steps (substeps).
 A sequence starts from joints the caller gives (where the robot is) or, without them, from the
 joints of the nearest training target; either way the network is applied `settle_iterations` times
 at the first target (its training from perturbed joints makes each application a correction).
+
+The outer tube lags its motor by λ(β) in the direction the motor last turned (ctrkin.models.outer_lag;
+stored as `outer_lag_deg` in the model's follow settings). The network learned from turns recorded
+after a forward outer step, so its joints are those of a tube lagging by +λ; the motor command it
+returns is the play's inverse for the tube angle the network means (Follower._backlash_inverse), and
+a start at rest is seen by the network with the tube's angle + λ.
 """
 
 from __future__ import annotations
@@ -14,6 +20,7 @@ import numpy as np
 from ctrkin.errors import ModelError
 from ctrkin.inference.engine import StreamingEngine
 from ctrkin.models.follow import follow_features, substeps
+from ctrkin.models.outer_lag import lag_deg
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle
 from ctrkin.models.workspace import Workspace
@@ -35,8 +42,12 @@ class Follower:
         self.settle = int(settings.get("settle_iterations", 5))
         self.iterations = int(settings.get("iterations", 1))    # applications per (sub-)target
         self.workspace = workspace
-        self.joints: np.ndarray | None = None        # where the robot is (the last answer or the start)
+        lag = settings.get("outer_lag_deg", (0.0, 0.0))
+        self.lag = (float(lag[0]), float(lag[1]))     # the outer tube's lag λ(β) (models.outer_lag)
+        self.joints: np.ndarray | None = None        # where the robot is, as the network sees it
         self.target: np.ndarray | None = None        # the previous target of this sequence
+        self.tube = np.nan                           # the outer tube's angle (deg), NaN: not known yet
+        self.motor = np.nan                          # the outer motor's last command (deg)
 
     def reset(self, joints: np.ndarray | None = None) -> None:
         """Start a sequence, at `joints` (2N,) (deg, mm) if the robot's joints are known."""
@@ -46,7 +57,38 @@ class Follower:
                 raise ModelError(f"start joints must be {2 * self.n} finite numbers (α deg, β mm), got "
                                  f"{np.asarray(joints).tolist()}")
             joints = self.robot.check_joints(q)
-        self.joints, self.target = joints, None
+        self.joints, self.target, self.tube, self.motor = None, None, np.nan, np.nan
+        if joints is not None:
+            self._at_rest(joints)
+
+    def _lag(self, q: np.ndarray) -> float:
+        return 0.0 if self.lag == (0.0, 0.0) else float(lag_deg(self.robot, q[None], self.lag)[0])
+
+    def _at_rest(self, q: np.ndarray) -> None:
+        """The robot stands at motor joints q, its outer tube at rest (m_N = 0: tube = motor). The
+        network learned from turns after a forward outer step, where the tube lags by λ, so it sees
+        the joints whose outer angle is the tube's + λ."""
+        self.tube = self.motor = float(q[self.n - 1])
+        self.joints = q.copy()
+        self.joints[self.n - 1] += self._lag(q)
+
+    def _backlash_inverse(self, q: np.ndarray) -> np.ndarray:
+        """Motor joints for the network's answer q: the tube is to stand at θ = q_N − λ(β); the motor
+        goes to θ + λ turning forward, θ − λ turning back, and stays where the tube does not move
+        (the inverse of the transmission's play, ctrkin.virtual.transmission)."""
+        out = q.copy()
+        if self.lag == (0.0, 0.0):
+            return out
+        lam = self._lag(q)
+        theta = float(q[self.n - 1]) - lam
+        if theta > self.tube + 1e-9:
+            out[self.n - 1] = theta + lam
+        elif theta < self.tube - 1e-9:
+            out[self.n - 1] = theta - lam
+        else:
+            out[self.n - 1] = self.motor
+        self.tube, self.motor = theta, float(out[self.n - 1])
+        return out
 
     def step(self, target: np.ndarray) -> tuple[np.ndarray, bool]:
         """target (6,) tracker-frame pose -> (joints (2N,) within the robot's limits, whether the
@@ -55,7 +97,8 @@ class Follower:
             if self.joints is None:
                 if self.workspace is None:
                     raise ModelError("a follow IK without its workspace needs start joints (reset(joints))")
-                self.joints = self.workspace.nearest_joints(target)
+                self._at_rest(self.workspace.nearest_joints(target))
+            assert self.joints is not None
             q, projected = self.joints, False
             for _ in range(self.settle):
                 q, projected = self._apply(target, target, q)
@@ -67,7 +110,9 @@ class Follower:
                     q, projected = self._apply(sub, previous, q)
                     previous = sub
         self.joints, self.target = q, np.array(target, dtype=np.float64)
-        return q.copy(), projected
+        motor = self._backlash_inverse(q)
+        valid = self.robot.project_joints(motor[None])[0]
+        return valid, projected or bool(np.any(np.abs(valid - motor) > 1e-9))
 
     def _apply(self, target: np.ndarray, previous: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, bool]:
         feat = follow_features(self.frame, self.n, target[None], previous[None], q[None])[0]

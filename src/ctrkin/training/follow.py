@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import shutil
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -24,13 +25,12 @@ from ctrkin.errors import ModelError
 from ctrkin.inference.follow import Follower
 from ctrkin.inference.kinematics import Kinematics
 from ctrkin.models.follow import follow_features, joint_noise, previous_rows
-from ctrkin.models.frame import OuterFrame
 from ctrkin.models.normalize import MinMax
 from ctrkin.models.store import CONFIG, ModelBundle, read_json, write_json
 from ctrkin.models.workspace import Workspace
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.curves import plot_curves
-from ctrkin.training.data import data_signature, inputs_and_targets, split_rows
+from ctrkin.training.data import data_signature, inputs_and_targets, outer_frame, split_rows
 from ctrkin.training.loop import (
     TrainResult,
     _epoch,
@@ -74,7 +74,8 @@ def train_follow(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, prog
     bounds = ds.sequence_bounds()
     prev = previous_rows(bounds)
     tr, va = rows["train"], rows["val"]
-    frame = OuterFrame.fit(ds.robot, joints[tr], poses[tr], seed=cfg.seed)
+    lagged, _ = outer_frame(ds, joints, poses, tr, cfg.seed)   # the follower inverts the outer lag
+    frame = replace(lagged, lag=(0.0, 0.0))                      # the network's frame: the commanded αN
 
     visited: np.ndarray | None = None     # (T, 2N) the follower's own joints before each row (rollouts)
 
@@ -100,7 +101,7 @@ def train_follow(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, prog
     steps = np.linalg.norm(poses[tr, :3] - poses[prev[tr], :3], axis=1)
     moved = steps[steps > 0]
     follow = {"max_step_mm": float(np.quantile(moved, STEP_QUANTILE)) if len(moved) else 1.0,
-              "settle_iterations": SETTLE_ITERATIONS}
+              "settle_iterations": SETTLE_ITERATIONS, "outer_lag_deg": list(lagged.lag)}
     torch.manual_seed(cfg.seed)
     bundle = ModelBundle.create(cfg.to_dict(), cfg.layout(n), x_norm, y_norm, ds.robot,
                                 {"data": {"signature": signature, "split_signature": split_sig,
@@ -175,6 +176,7 @@ def _rollout(bundle: ModelBundle, poses: np.ndarray, joints: np.ndarray, bounds:
     """(T, 2N) the joints the current network reaches at every row of the training sequences,
     following their recorded targets from their recorded start joints (NaN elsewhere)."""
     follower = Follower(bundle, None)
+    follower.lag = (0.0, 0.0)     # recorded joints already carry the recording's outer lag
     out = np.full(joints.shape, np.nan)
     used = np.zeros(len(joints), bool)
     used[train_rows] = True
