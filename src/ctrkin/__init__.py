@@ -4,20 +4,32 @@
     robot = ctrkin.paper_robot()
     eq = ctrkin.solve(robot, [0, 0, -15, -5])          # q = (α1, α2 deg, β1, β2 mm)
     traj = ctrkin.follow(robot, Q)                       # continuation, snaps flagged
+    fk = ctrkin.Kinematics.load("models/fk")             # a trained model (torch)
+
+Every name is imported on first use (PEP 562): `import ctrkin` costs no numba or torch import.
 """
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ctrkin.util.lazy import lazy_attributes
 
 __version__ = "0.1.0"
 
-from ctrkin.mechanics import Equilibrium, SolverSettings, Trajectory, follow, solve, solve_many
-from ctrkin.robots import Robot, Tube, load_robot, paper_robot
+_WHERE = {
+    "Equilibrium": "ctrkin.mechanics", "SolverSettings": "ctrkin.mechanics", "Trajectory": "ctrkin.mechanics",
+    "follow": "ctrkin.mechanics", "solve": "ctrkin.mechanics", "solve_many": "ctrkin.mechanics",
+    "Robot": "ctrkin.robots", "Tube": "ctrkin.robots", "load_robot": "ctrkin.robots",
+    "paper_robot": "ctrkin.robots", "Kinematics": "ctrkin.inference",
+}
 
-__all__ = ["Equilibrium", "Robot", "SolverSettings", "Trajectory", "Tube", "__version__", "follow",
-           "load_robot", "paper_robot", "solve", "solve_many"]
+__all__ = ["Equilibrium", "Kinematics", "Robot", "SolverSettings", "Trajectory", "Tube", "__version__",
+           "follow", "load_robot", "paper_robot", "solve", "solve_many"]
 
+__getattr__, __dir__ = lazy_attributes(__name__, _WHERE)
 
-def __getattr__(name: str):  # torch is imported only when a learned model is asked for
-    if name == "Kinematics":
-        from ctrkin.inference import Kinematics
-
-        return Kinematics
-    raise AttributeError(f"module 'ctrkin' has no attribute {name!r}")
+if TYPE_CHECKING:
+    from ctrkin.inference import Kinematics
+    from ctrkin.mechanics import Equilibrium, SolverSettings, Trajectory, follow, solve, solve_many
+    from ctrkin.robots import Robot, Tube, load_robot, paper_robot

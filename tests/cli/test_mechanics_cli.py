@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pandas as pd
+import pytest
 from click.testing import CliRunner
 
 from ctrkin.cli.main import cli
@@ -38,3 +40,26 @@ def test_sweep_writes_csv_and_png(tmp_path) -> None:
     snaps = table.groupby("relative_translation")["snap"].sum()
     assert snaps[4.0] == 0 and snaps[20.0] == 2
     assert (out / "sweep.png").stat().st_size > 10_000
+
+
+def test_solve_prints_t_of_l_and_json_gives_the_backbone() -> None:
+    from ctrkin.mechanics import solve
+    from ctrkin.pose import tip_azimuth
+    from ctrkin.robots import paper_robot
+
+    eq = solve(paper_robot(), [180.0, 30.0, -20.0, 0.0])
+    expected = (float(tip_azimuth(eq.tip_position, 30.0)) + 180.0) % 360.0 - 180.0
+    res = CliRunner().invoke(cli, ["solve", "--q", "180,30,-20,0"])
+    assert res.exit_code == 0, res.output
+    assert f"(deg): {expected:.3f}" in res.output
+    res = CliRunner().invoke(cli, ["solve", "--q", "180,30,-20,0", "--json", "--backbone"])
+    out = json.loads(res.output)
+    assert out["T_L_deg"] == pytest.approx(expected) and -180.0 < out["T_L_deg"] <= 180.0
+    b = out["backbone"]
+    assert len(b["s_mm"]) == len(b["points_mm"]) == len(b["twist_deg"]) > 2
+    assert all(len(row) == 2 for row in b["twist_deg"]) and np.all(np.diff(b["s_mm"]) > 0)
+    assert b["points_mm"][-1] == pytest.approx(out["tip_position_mm"], abs=1e-9)
+    plain = CliRunner().invoke(cli, ["solve", "--q", "0,0,-15,-5", "--json"]).output
+    assert "backbone" not in json.loads(plain)
+    table = CliRunner().invoke(cli, ["solve", "--q", "180,30,-20,0", "--backbone"]).output
+    assert "s_mm,x_mm,y_mm,z_mm,psi_1_deg,psi_2_deg" in table

@@ -95,7 +95,7 @@ def test_split_file_round_trip_and_errors(tmp_path):
 
 
 def test_test_sequences_by_name_or_index_and_ratio_warning():
-    from ctrkin.data.splits import split_warnings, split_with_test
+    from ctrkin.data.splits import Split, split_by_sequence, split_warnings, split_with_test
 
     sid = np.repeat([0, 1, 2, 3], [162, 21, 328, 40])
     labels = ["a", "b", "c", "d"]
@@ -106,6 +106,11 @@ def test_test_sequences_by_name_or_index_and_ratio_warning():
     assert set(np.unique(sid[by_name.train])) | set(np.unique(sid[by_name.val])) == {0, 1, 3}
     warnings = split_warnings(by_name, (0.7, 0.15, 0.15))
     assert any(w.startswith("test has 328") for w in warnings)
+    # the test sequences were named: the advice is not to name them, also after a save and load
+    assert by_name.test_chosen and not any("choose the test sequences" in w for w in warnings)
+    assert Split.from_dict(by_name.to_dict()).test_chosen
+    assert "choose the test sequences with --test" in " ".join(
+        split_warnings(split_by_sequence(sid, (0.7, 0.15, 0.15), seed=0), (0.0, 0.0, 1.0)))
     with pytest.raises(DatasetError, match="no such sequence"):
         split_with_test(sid, labels, ["zz"])
 

@@ -19,6 +19,15 @@ def test_pose_errors_known_offsets():
     assert e["orientation_deg_mae"] == pytest.approx(3.0)
 
 
+def test_pose_errors_of_position_only_data_have_no_orientation():
+    """A position-only dataset's quaternion columns are placeholders: no orientation error is made up."""
+    a = tip_pose(np.array([[0.0, 0.0, 50.0]]), np.array([[0.0, 1.0, 1.0]]))
+    b = tip_pose(np.array([[3.0, 4.0, 50.0]]), np.array([[0.0, 0.0, 1.0]]))
+    e = pose_errors(a, b, orientation=False)
+    assert e == {"position_mm_rmse": pytest.approx(5.0), "position_mm_mae": pytest.approx(5.0),
+                 "position_mm_max": pytest.approx(5.0), "n": 1}
+
+
 def test_joint_errors_euclidean_per_sample_and_wrapped():
     ref = np.array([[1.0, 0.0, -10.0, 0.0], [0.0, 0.0, -10.0, 0.0]])
     pred = np.array([[359.0, 0.0, -13.0, -4.0], [3.0, 4.0, -10.0, 0.0]])

@@ -11,12 +11,12 @@ A calibrated robot file (`ctrkin calibrate --out`) is a normal robot file: its `
 
 from __future__ import annotations
 
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import tomllib
 
 from ctrkin.errors import CtrkinError
 from ctrkin.geometry import Registration, quat_from_tangent

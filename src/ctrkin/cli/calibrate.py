@@ -17,7 +17,7 @@ import tomli_w
 
 from ctrkin.calibration import calibrate, leave_one_sequence_out
 from ctrkin.calibration.params import GROUPS
-from ctrkin.cli.common import check_output, get_robot, overwrite_option, say
+from ctrkin.cli.common import check_output, emit_json, get_robot, json_option, overwrite_option, say
 from ctrkin.data.dataset import Dataset
 from ctrkin.util.files import atomic_write_text
 
@@ -25,7 +25,8 @@ from ctrkin.util.files import atomic_write_text
 @click.command("calibrate", epilog="""\b
 Examples:
   ctrkin calibrate --data data/optitrack --robot examples/robots/comet_nylon_optitrack.toml \\
-      --out robots/optitrack_cal.toml --loso --prior-scales 0.5,1,2""")
+      --out robots/optitrack_cal.toml --loso --prior-scales 0.5,1,2
+  ctrkin calibrate --data data/optitrack --out robots/optitrack_cal.toml --json > calibration.json""")
 @click.option("--data", "data_dir", required=True, type=click.Path(exists=True, file_okay=False),
               help="Dataset folder (ctrkin dataset import).")
 @click.option("--robot", "robot_spec", default=None,
@@ -44,8 +45,10 @@ Examples:
               "with several, each fold picks one by a nested leave-one-sequence-out on its training "
               "sequences (needs >= 3 sequences).")
 @overwrite_option()
+@json_option
 def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str, loso: bool,
-                  max_evaluations: int, no_prior: bool, prior_scales: str, overwrite: bool) -> None:
+                  max_evaluations: int, no_prior: bool, prior_scales: str, overwrite: bool,
+                  as_json: bool) -> None:
     """Fit registration and TCM parameters (precurvature, stiffness ratio, α/β offsets, transmission
     length, marker offset) by bounded least squares; print them with standard errors."""
     groups = tuple(g.strip() for g in fit.split(",") if g.strip())
@@ -84,6 +87,10 @@ def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str
             chosen = ", ".join(f"{k} {v:g}" for k, v in res.loso["prior_scale"].items())
             say(f"prior scale chosen by nested leave-one-sequence-out: {chosen}")
     say(f"wrote {out_file}")
+    if as_json:
+        emit_json({"out": out_file, "robot": robot.name, "samples": res.n_samples,
+                   "nominal_mean_mm": res.nominal_mean_mm, "calibrated_mean_mm": res.mean_mm,
+                   "parameters": res.table(), **({"loso": res.loso} if loso else {})})
 
 
 def _drop_none(d: object) -> object:

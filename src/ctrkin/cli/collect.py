@@ -25,7 +25,16 @@ from ctrkin.acquisition import protocols
 from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.acquisition.task_paths import SHAPES, task_path
-from ctrkin.cli.common import check_output, get_robot, overwrite_option, parse_floats, robot_option, say
+from ctrkin.cli.common import (
+    check_output,
+    emit_json,
+    get_robot,
+    json_option,
+    overwrite_option,
+    parse_floats,
+    robot_option,
+    say,
+)
 from ctrkin.evaluation.scales import SCALES
 from ctrkin.virtual import VirtualConfig, VirtualConfigError, VirtualRobot
 
@@ -52,7 +61,8 @@ def _config(settings: tuple[str, ...]) -> VirtualConfig:
 Examples:
   ctrkin collect --protocol paper --scale tiny --out data/paper-tiny
   ctrkin collect --protocol random-points --n-points 20 --seed 1 --out data/random
-  ctrkin collect --protocol sweeps --set noise_mm=0.1 --out data/sweeps-noisy""")
+  ctrkin collect --protocol sweeps --set noise_mm=0.1 --out data/sweeps-noisy
+  ctrkin collect --protocol sweeps --levels 8 --out data/sweeps-8 --json > collect.json""")
 @click.option("--protocol", type=click.Choice(CHOICES), required=True, help="What to record.")
 @click.option("--scale", type=click.Choice(sorted(SCALES)), default="quick", show_default=True,
               help="Size of the paper protocol (the others do not depend on it). full: the paper's "
@@ -73,9 +83,10 @@ Examples:
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Output folder (written as a whole: a failure leaves the previous one).")
 @overwrite_option()
+@json_option
 def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_seed: int,
                 n_points: int | None, levels: str | None, workers: int | None,
-                settings: tuple[str, ...], out_dir: str, overwrite: bool) -> None:
+                settings: tuple[str, ...], out_dir: str, overwrite: bool, as_json: bool) -> None:
     """Record a protocol on the virtual robot (or write square/triangle IK targets)."""
     config = _config(settings)
     if levels is not None and protocol not in ("paper", "sweeps"):
@@ -88,6 +99,8 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
         path = task_path(virtual, protocol, n_points=n_points or 10, seed=seed)
         path.save(out)
         say(f"wrote {len(path.poses)} {protocol} targets to {out}")
+        if as_json:
+            emit_json({"protocol": protocol, "robot": robot.name, "targets": len(path.poses), "out": out})
         return
     kw: dict[str, object] = {"n_points": n_points or 20} if protocol == "random-points" else {}
     if level_values is not None:
@@ -106,11 +119,18 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
     say(f"{protocol} ({scale}): {len(f)} samples in {f['sequence_id'].nunique()} sequences, "
         f"{int(f['snap'].sum())} snap samples, {int(f['outlier'].sum())} encoder glitches; "
         f"{elapsed:.1f} s ({len(f) / max(elapsed, 1e-9):.0f} samples/s)")
+    summary: dict[str, object] = {
+        "protocol": protocol, "scale": scale, "robot": robot.name, "seed": seed, "robot_seed": robot_seed,
+        "samples": len(f), "sequences": int(f["sequence_id"].nunique()), "snap_samples": int(f["snap"].sum()),
+        "encoder_glitches": int(f["outlier"].sum()), "seconds": elapsed, "out": out}
     if protocol in ("paper", "sweeps"):
         h = sweep_hysteresis(ds)
+        summary["hysteresis"] = h.to_dict(orient="records")
         for _, row in h.iterrows():
             say(f"  d = {row['relative_translation_mm']:5.1f} mm: hysteresis mean "
                 f"{row['hysteresis_mean_mm']:.2f} mm, max {row['hysteresis_max_mm']:.2f} mm, "
                 f"T(L) gap {row['azimuth_gap_max_deg']:.1f} deg, snap samples "
                 f"{int(row['snap_samples'])}")
     say(f"wrote {out}")
+    if as_json:
+        emit_json(summary)

@@ -8,6 +8,8 @@ not replacing.
 
 from __future__ import annotations
 
+import json
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
@@ -19,19 +21,57 @@ from ctrkin.robots import Robot, load_robot
 F = TypeVar("F", bound=Callable[..., Any])
 
 QUIET = "ctrkin.quiet"   # ctx.meta key set by `ctrkin --quiet`
+JSON_OUT = "ctrkin.json"  # ctx.meta key set by a command's --json: stdout holds only the JSON object
+
+
+def _meta(key: str) -> bool:
+    ctx = click.get_current_context(silent=True)
+    return bool(ctx is not None and ctx.meta.get(key))
 
 
 def quiet() -> bool:
     """Whether `ctrkin --quiet` was given (False outside a click command)."""
-    ctx = click.get_current_context(silent=True)
-    return bool(ctx is not None and ctx.meta.get(QUIET))
+    return _meta(QUIET)
 
 
 def say(message: str, err: bool = False) -> None:
-    """A message about the work done (what was written, timings, summaries); silent with --quiet.
-    Results that are only printed, warnings and errors use click.echo."""
+    """A message about the work done (what was written, timings, summaries); silent with --quiet, on
+    stderr with --json. Results that are only printed, warnings and errors use click.echo."""
     if not quiet():
-        click.echo(message, err=err)
+        click.echo(message, err=err or _meta(JSON_OUT))
+
+
+def _set_json(ctx: click.Context, _param: click.Parameter, value: bool) -> bool:
+    if value:
+        ctx.meta[JSON_OUT] = True
+    return value
+
+
+json_option = click.option(
+    "--json", "as_json", is_flag=True, callback=_set_json,
+    help="Print one JSON object with the summary figures and the paths written on stdout (nothing "
+    "else goes there; messages and progress go to stderr).")
+
+
+def jsonable(x: Any) -> Any:
+    """x with numpy scalars and arrays as Python numbers and lists, paths as strings, and NaN and inf
+    as null (they are not JSON)."""
+    if isinstance(x, dict):
+        return {str(k): jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [jsonable(v) for v in x]
+    if hasattr(x, "tolist"):                     # numpy scalars and arrays
+        return jsonable(x.tolist())
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, Path):
+        return str(x)
+    return x
+
+
+def emit_json(obj: Any) -> None:
+    """The result of a command given --json: one JSON object on stdout."""
+    click.echo(json.dumps(jsonable(obj), indent=2))
 
 
 def log_line(message: str) -> None:

@@ -12,6 +12,7 @@ message on stderr; 2 the command line is wrong (click's usage errors).
 from __future__ import annotations
 
 import contextlib
+import importlib
 import os
 from collections.abc import Iterator
 from typing import Any
@@ -19,17 +20,41 @@ from typing import Any
 import click
 
 from ctrkin import __version__
-from ctrkin.cli.calibrate import calibrate_cmd
-from ctrkin.cli.collect import collect_cmd
 from ctrkin.cli.common import QUIET
-from ctrkin.cli.dataset import dataset_group
-from ctrkin.cli.evaluate import evaluate_cmd
-from ctrkin.cli.export import export_cmd
-from ctrkin.cli.mechanics import solve_cmd, sweep_cmd
-from ctrkin.cli.predict import predict_cmd
-from ctrkin.cli.reproduce import reproduce_cmd
-from ctrkin.cli.train import train_cmd
 from ctrkin.errors import CtrkinError
+
+# name: (module, attribute, the one-line help `ctrkin --help` lists). A sub-command's module (and
+# numba, torch, pandas behind it) is imported only when that command runs or shows its own help;
+# tests/cli/test_help_examples.py checks each line against the command's docstring.
+COMMANDS: dict[str, tuple[str, str, str]] = {
+    "calibrate": ("ctrkin.cli.calibrate", "calibrate_cmd",
+                  "Fit registration and TCM parameters (precurvature, stiffness ratio, α/β offsets, "
+                  "transmission length, marker offset) by bounded least squares; print them with "
+                  "standard errors."),
+    "collect": ("ctrkin.cli.collect", "collect_cmd",
+                "Record a protocol on the virtual robot (or write square/triangle IK targets)."),
+    "dataset": ("ctrkin.cli.dataset", "dataset_group",
+                "Inspect datasets, import robot logs (CSV) and split datasets."),
+    "evaluate": ("ctrkin.cli.evaluate", "evaluate_cmd",
+                 "Compare predictors with the measured tips: position (and orientation, where measured) "
+                 "errors overall and per sequence; plots of predicted vs measured tips and of error "
+                 "against joints."),
+    "export": ("ctrkin.cli.export", "export_cmd",
+               "Export MODEL_DIR (from `ctrkin train`) to an ONNX file (written atomically)."),
+    "predict": ("ctrkin.cli.predict", "predict_cmd",
+                "Predict every sample of a dataset (--data), or solve IK for a file of target poses "
+                "(--poses), with MODEL_DIR."),
+    "reproduce": ("ctrkin.cli.reproduce", "reproduce_cmd",
+                  "Collect data, train the models, run every experiment of the paper, write the report."),
+    "robot": ("ctrkin.cli.robot", "robot_group", "Robot description files: a documented template."),
+    "solve": ("ctrkin.cli.mechanics", "solve_cmd",
+              "Solve the TCM at one configuration (point-wise, no history)."),
+    "sweep": ("ctrkin.cli.mechanics", "sweep_cmd",
+              "Full inner-tube rotation forward and back at several relative translations (paper Fig. "
+              "2b), solved by continuation: writes sweep.csv and a plot of T(L) against α0."),
+    "train": ("ctrkin.cli.train", "train_cmd",
+              "Train a history-aware kinematics model (paper LSTM-MLP by default) and save it to --out."),
+}
 
 
 class DomainError(click.ClickException):
@@ -39,8 +64,26 @@ class DomainError(click.ClickException):
 
 
 class CtrkinGroup(click.Group):
-    """A group that turns ctrkin.errors exceptions into one line on stderr and exit status 1 (no
-    traceback), whether ctrkin runs from the console script or from click's CliRunner."""
+    """The `ctrkin` group: sub-commands loaded on first use (COMMANDS), and ctrkin.errors exceptions
+    turned into one line on stderr and exit status 1 (no traceback), whether ctrkin runs from the
+    console script or from click's CliRunner."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(set(COMMANDS) | set(self.commands))
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name not in self.commands and cmd_name in COMMANDS:
+            module, attribute, _ = COMMANDS[cmd_name]
+            self.add_command(getattr(importlib.import_module(module), attribute), cmd_name)
+        return self.commands.get(cmd_name)
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        """The command list from COMMANDS, without importing the commands."""
+        limit = formatter.width - 6 - max(len(name) for name in COMMANDS)
+        rows = [(name, click.Command(name, help=COMMANDS[name][2]).get_short_help_str(limit))
+                for name in sorted(COMMANDS)]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
 
     def invoke(self, ctx: click.Context) -> Any:
         try:
@@ -83,18 +126,6 @@ def cli(ctx: click.Context, quiet: bool) -> None:
     if quiet:
         ctx.meta[QUIET] = True
         ctx.with_resource(_environ("CTRKIN_NO_PROGRESS", "1"))
-
-
-cli.add_command(solve_cmd)
-cli.add_command(sweep_cmd)
-cli.add_command(collect_cmd)
-cli.add_command(train_cmd)
-cli.add_command(export_cmd)
-cli.add_command(predict_cmd)
-cli.add_command(dataset_group)
-cli.add_command(reproduce_cmd)
-cli.add_command(calibrate_cmd)
-cli.add_command(evaluate_cmd)
 
 
 def main() -> None:

@@ -13,9 +13,18 @@ import numpy as np
 import pandas as pd
 
 from ctrkin.acquisition.trajectories import PAPER_LEVELS_MM, rotation_sweep
-from ctrkin.cli.common import check_output, get_robot, overwrite_option, parse_floats, robot_option, say
-from ctrkin.geometry import POSE_COLUMNS
-from ctrkin.mechanics import follow, solve
+from ctrkin.cli.common import (
+    check_output,
+    emit_json,
+    get_robot,
+    json_option,
+    overwrite_option,
+    parse_floats,
+    robot_option,
+    say,
+)
+from ctrkin.geometry import POSE_COLUMNS, tip_azimuth
+from ctrkin.mechanics import Equilibrium, follow, solve
 from ctrkin.util.files import atomic_path
 from ctrkin.util.progress import progress_bar
 
@@ -23,31 +32,59 @@ from ctrkin.util.progress import progress_bar
 @click.command("solve", epilog="""\b
 Examples:
   ctrkin solve --q 0,0,-15,-5
-  ctrkin solve --robot paper --q 90,0,-20,0 --json""")
+  ctrkin solve --robot paper --q 90,0,-20,0 --json
+  ctrkin solve --q 180,0,-20,0 --json --backbone > eq.json""")
 @robot_option
 @click.option("--q", "q_text", required=True,
               help="Joints α1..αN (deg), β1..βN (mm), comma-separated, e.g. 0,0,-15,-5.")
-@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
-def solve_cmd(robot_spec: str, q_text: str, as_json: bool) -> None:
+@click.option("--json", "as_json", is_flag=True, help="Print the result as one JSON object.")
+@click.option("--backbone", is_flag=True,
+              help="Also give the backbone: s (mm), points (mm) and each tube's twist ψ (deg) along it "
+              "(in the JSON with --json, else as a table).")
+def solve_cmd(robot_spec: str, q_text: str, as_json: bool, backbone: bool) -> None:
     """Solve the TCM at one configuration (point-wise, no history)."""
     robot = get_robot(robot_spec)
     q = parse_floats(q_text, "--q")
     eq = solve(robot, np.array(q))
+    azimuth = azimuth_deg(eq.tip_position, q[robot.n_tubes - 1])
     if as_json:
-        click.echo(json.dumps(eq.to_dict(), indent=2))
+        d = {**eq.to_dict(), "T_L_deg": azimuth}
+        if backbone:
+            d["backbone"] = backbone_dict(eq)
+        click.echo(json.dumps(d, indent=2))
         return
     pose = eq.tip_pose
     click.echo(f"robot {robot.name}: q = {q}")
     click.echo(f"tip position (mm): {pose[0]:.4f} {pose[1]:.4f} {pose[2]:.4f}")
     click.echo(f"tip quaternion (q0, qx, qy): {pose[3]:.6f} {pose[4]:.6f} {pose[5]:.6f}")
+    click.echo(f"T(L), tip azimuth from the outer tube's base rotation (deg): {azimuth:.3f}")
     click.echo(f"converged: {eq.converged}  stable: {eq.stable}  stability det J: "
                f"{eq.stability:.4f}  energy: {eq.energy:.4g} N·mm")
+    if backbone:
+        cols = ["s_mm", "x_mm", "y_mm", "z_mm"] + [f"psi_{i + 1}_deg" for i in range(robot.n_tubes)]
+        rows = np.column_stack([eq.s, eq.backbone, eq.twist])
+        click.echo(pd.DataFrame(rows, columns=cols).to_csv(index=False, float_format="%.6g"), nl=False)
+
+
+def azimuth_deg(tip_position: np.ndarray, outer_alpha_deg: float) -> float:
+    """T(L) (deg) of one tip position (3,) mm, wrapped to (−180, 180] (one configuration has no
+    history to unwrap along)."""
+    a = float(tip_azimuth(tip_position, outer_alpha_deg))
+    return 180.0 - (180.0 - a) % 360.0
+
+
+def backbone_dict(eq: Equilibrium) -> dict[str, object]:
+    """The backbone of an equilibrium for JSON: s (K,) mm, points (K, 3) mm, twist ψ (K, N) deg
+    (null where a tube has ended)."""
+    return {"s_mm": eq.s.tolist(), "points_mm": eq.backbone.tolist(),
+            "twist_deg": [[float(v) if np.isfinite(v) else None for v in row] for row in eq.twist]}
 
 
 @click.command("sweep", epilog="""\b
 Examples:
   ctrkin sweep --out out/sweep
-  ctrkin sweep --translations 4,20 --step 2 --out out/sweep-coarse""")
+  ctrkin sweep --translations 4,20 --step 2 --out out/sweep-coarse
+  ctrkin sweep --translations 8,16 --step 5 --out out/sweep-json --json > sweep.json""")
 @robot_option
 @click.option("--translations", default=",".join(str(v) for v in PAPER_LEVELS_MM),
               show_default=True, help="Relative translations d = β_N − β_1 (mm).")
@@ -57,8 +94,9 @@ Examples:
 @click.option("--out", "out_dir", default="out/sweep", show_default=True,
               type=click.Path(file_okay=False), help="Output folder for sweep.csv and sweep.png.")
 @overwrite_option()
+@json_option
 def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha: float,
-              step_deg: float, out_dir: str, overwrite: bool) -> None:
+              step_deg: float, out_dir: str, overwrite: bool, as_json: bool) -> None:
     """Full inner-tube rotation forward and back at several relative translations (paper
     Fig. 2b), solved by continuation: writes sweep.csv and a plot of T(L) against α0."""
     from ctrkin.viz.sweep import plot_sweeps
@@ -89,7 +127,13 @@ def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha
     with atomic_path(out / "sweep.csv") as tmp:
         table.to_csv(tmp, index=False)
     plot_sweeps(curves, out / "sweep.png", title=f"{robot.name}: T(L) over full inner rotations")
+    summary = []
     for d, f in zip(levels, frames, strict=True):
         snaps = f.loc[f["snap"], "alpha_1"].tolist()
         say(f"d = {d:5.1f} mm: snaps at α1 = {snaps if snaps else 'none'}")
+        summary.append({"relative_translation_mm": d, "steps": len(f), "snaps": len(snaps),
+                        "snap_alpha_1_deg": snaps, "T_L_range_deg": [f["T_L"].min(), f["T_L"].max()]})
     say(f"wrote {out / 'sweep.csv'} and {out / 'sweep.png'}")
+    if as_json:
+        emit_json({"robot": robot.name, "step_deg": step_deg, "levels": summary,
+                   "files": {"table": out / "sweep.csv", "plot": out / "sweep.png"}})

@@ -1,24 +1,37 @@
-"""`ctrkin predict`: run a trained model over a dataset; a table of predictions on stdout or in a file.
+"""`ctrkin predict`: run a trained model over a dataset, or an IK model over a file of target poses; a
+table of predictions on stdout or in a file.
 
     ctrkin predict models/fk --data data/quick                         # CSV on stdout
     ctrkin predict models/fk --data data/quick --out fk_pred.parquet   # .csv, .parquet or .json
-    ctrkin predict models/ik --data data/quick --out ik_pred.csv       # adds in_workspace, reason
+    ctrkin predict models/ik --data data/quick --out ik_pred.csv       # adds the IK flags
+    ctrkin predict models/ik --poses targets.csv --out joints.csv      # IK for target poses
+    ctrkin predict models/ik_follow --poses targets.csv --start-joints 0,0,-20,-5
 
-FK writes pred_x .. pred_qy; IK writes pred_alpha_1 .. pred_beta_N, in_workspace and reason, beside
-sequence_id and step. The dataset must come from the model's robot.
+FK writes pred_x .. pred_qy; IK writes pred_alpha_1 .. pred_beta_N and per target in_workspace,
+reason, projected (the network's joints were outside the joint limits and were moved onto them) and
+jump (an α changed by more than 20° for a target less than 1 mm away), plus residual_mm for a refined
+IK; beside sequence_id and step. The dataset must come from the model's robot. A poses file (.csv or
+.parquet) has the columns x, y, z (mm), q0, qx, qy (unit quaternion, qz = 0) in the frame of the
+model's training data, one row a target in time order; optional sequence_id (a new run where it
+changes) and step.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import click
+import numpy as np
 import pandas as pd
 
-from ctrkin.cli.common import check_output, overwrite_option, say
+from ctrkin.cli.common import check_output, overwrite_option, parse_floats, say
+from ctrkin.data.schema import INDEX_COLUMNS, POSE_COLUMNS
+from ctrkin.errors import DatasetError, ModelError
 from ctrkin.util.files import atomic_path
 
 FORMATS = (".csv", ".parquet", ".json")
+POSE_FORMATS = (".csv", ".parquet")
 
 
 def write_table(table: pd.DataFrame, path: Path) -> None:
@@ -45,37 +58,100 @@ def _check_format(_ctx: click.Context, _param: click.Parameter, value: str | Non
 @click.command("predict", epilog="""\b
 Examples:
   ctrkin predict models/fk --data data/paper > fk.csv
-  ctrkin predict models/fk --data data/paper --out fk.parquet""")
+  ctrkin predict models/fk --data data/paper --out fk.parquet
+  ctrkin predict models/ik --poses targets.csv --out joints.csv
+  ctrkin predict models/ik_follow --poses targets.csv --start-joints 0,0,-20,-5""")
 @click.argument("model_dir", type=click.Path(exists=True, file_okay=False))
-@click.option("--data", "data_dir", required=True, type=click.Path(exists=True, file_okay=False),
+@click.option("--data", "data_dir", default=None, type=click.Path(exists=True, file_okay=False),
               help="Dataset folder (from the model's robot).")
+@click.option("--poses", "poses_file", default=None, type=click.Path(exists=True, dir_okay=False),
+              help="IK model: a .csv or .parquet file of target poses, columns x, y, z (mm), q0, qx, qy "
+              "(optional sequence_id, step), in the frame of the model's training data.")
+@click.option("--start-joints", default=None, metavar="A1,..,AN,B1,..,BN",
+              help="Follow IK (follow_mlp) with --poses: the robot's joints (deg, mm) at the start of every "
+              "sequence (default: those of the nearest training target).")
 @click.option("--out", "out_file", default=None, type=click.Path(dir_okay=False), callback=_check_format,
               help="File to write, format by extension: .csv, .parquet or .json (a list of rows). "
               "Default: CSV on stdout.")
 @overwrite_option()
-def predict_cmd(model_dir: str, data_dir: str, out_file: str | None, overwrite: bool) -> None:
-    """Predict every sample of a dataset with MODEL_DIR."""
-    from ctrkin.data import Dataset
+def predict_cmd(model_dir: str, data_dir: str | None, poses_file: str | None, start_joints: str | None,
+                out_file: str | None, overwrite: bool) -> None:
+    """Predict every sample of a dataset (--data), or solve IK for a file of target poses (--poses),
+    with MODEL_DIR."""
     from ctrkin.inference import Kinematics
 
+    if (data_dir is None) == (poses_file is None):
+        raise click.UsageError("give either --data (a dataset) or --poses (a file of IK target poses)")
+    if start_joints is not None and poses_file is None:
+        raise click.UsageError("--start-joints goes with --poses")
+    if poses_file is not None and Path(poses_file).suffix.lower() not in POSE_FORMATS:
+        raise click.BadParameter(f"{poses_file!r}: a .csv or .parquet file", param_hint="--poses")
+    start = None if start_joints is None else np.array(parse_floats(start_joints, "--start-joints"))
     if out_file is not None:
         check_output(out_file, overwrite)
     kin = Kinematics.load(model_dir)
-    ds = Dataset.load(data_dir)
-    res = kin.predict(ds)
-    table = ds.frame[["sequence_id", "step"]].copy()
+    if poses_file is not None:
+        if kin.task != "ik":
+            raise ModelError(f"--poses needs an IK model; {model_dir} is an FK model (use --data)")
+        poses, table = read_poses(poses_file)
+        if start is not None:
+            kin.robot.check_joints(start)
+        sid = table["sequence_id"].to_numpy() if "sequence_id" in table else None
+        res: Any = kin.inverse(poses, sid, start_joints=start)
+    else:
+        from ctrkin.data import Dataset
+
+        ds = Dataset.load(str(data_dir))
+        res = kin.predict(ds)
+        table = ds.frame[INDEX_COLUMNS].copy()
     y = res if kin.task == "fk" else res.joints
     for k, name in enumerate(kin.layout.output_names):
         table[f"pred_{name}"] = y[:, k]
+    flags = ""
     if kin.task == "ik":
         table["in_workspace"] = res.in_workspace
         table["reason"] = res.reasons
+        table["projected"] = res.projected
+        table["jump"] = res.jump
+        if kin.refined:
+            table["residual_mm"] = res.residual_mm
+        flags = (f" ({int((~res.in_workspace).sum())} targets outside the trained workspace, "
+                 f"{int(np.sum(res.projected))} projected onto the joint limits, "
+                 f"{int(np.sum(res.jump))} jumps)")
     if out_file is None:
         click.echo(table.to_csv(index=False), nl=False)
         msg = f"{len(table)} predictions"
     else:
         write_table(table, Path(out_file))
         msg = f"wrote {len(table)} predictions to {out_file}"
-    if kin.task == "ik":
-        msg += f" ({int((~res.in_workspace).sum())} targets outside the trained workspace)"
-    say(msg, err=out_file is None)
+    say(msg + flags, err=out_file is None)
+
+
+def read_poses(path: str) -> tuple[np.ndarray, pd.DataFrame]:
+    """A file of IK targets -> (poses (T, 6) mm / unit quaternion, the table of its index columns:
+    sequence_id and step where given, step = row number otherwise). Missing pose columns and
+    non-finite values are refused (DatasetError) with the rows and columns at fault."""
+    try:
+        frame = pd.read_parquet(path) if path.lower().endswith(".parquet") else pd.read_csv(path)
+    except (OSError, ValueError) as e:
+        raise DatasetError(f"cannot read the poses file {path}: {e}") from None
+    missing = [c for c in POSE_COLUMNS if c not in frame.columns]
+    if missing:
+        raise DatasetError(f"{path} lacks pose column(s) {missing}; it needs {list(POSE_COLUMNS)} (x, y, z "
+                           f"mm; q0, qx, qy the unit quaternion with qz = 0), found {list(frame.columns)}")
+    if frame.empty:
+        raise DatasetError(f"{path} has no target rows")
+    try:
+        poses = frame[list(POSE_COLUMNS)].to_numpy(dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise DatasetError(f"{path}: the pose columns must hold numbers: {e}") from None
+    bad = ~np.isfinite(poses)
+    if bad.any():
+        rows = np.nonzero(bad.any(axis=1))[0]
+        cols = [c for c, b in zip(POSE_COLUMNS, bad.any(axis=0), strict=True) if b]
+        raise DatasetError(f"{path}: {len(rows)} row(s) with NaN, empty or infinite pose values, first at "
+                           f"data row {rows[0] + 1} (columns {cols}); remove or fill them")
+    index = pd.DataFrame({"step": frame["step"] if "step" in frame else np.arange(len(frame))})
+    if "sequence_id" in frame:
+        index.insert(0, "sequence_id", frame["sequence_id"])
+    return poses, index

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import click
 
-from ctrkin.cli.common import check_output, log_line, say
+from ctrkin.cli.common import check_output, emit_json, json_option, log_line, say
 from ctrkin.data import Dataset
 
 
@@ -50,7 +50,8 @@ def _check_model_folder(out: Path, overwrite: bool) -> None:
 Examples:
   ctrkin train --task fk --data data/paper --out models/fk
   ctrkin train --task ik --model follow_mlp --data data/paper --out models/ik_follow
-  ctrkin train --list-models""")
+  ctrkin train --list-models
+  ctrkin train --task fk --data data/paper --out models/fk --json > fk_metrics.json""")
 @click.option("--list-models", is_flag=True, expose_value=False, is_eager=True, callback=_list_models,
               help="List the model registry and exit.")
 @click.option("--task", type=click.Choice(["fk", "ik"]), required=True, help="Forward or inverse kinematics.")
@@ -86,11 +87,12 @@ Examples:
 @click.option("--threads", default=2, show_default=True, help="torch CPU threads.")
 @click.option("--overwrite", is_flag=True, help="Start over even if --out holds a checkpoint or another "
               "model; replace --out if it is a folder that is not a model.")
+@json_option
 def train_cmd(task: str, data_dir: str, out_dir: str, model: str, structure: str | None,
               options: tuple[str, ...], ib: int, no_delta: bool, angles: str, output_activation: str,
               pose_source: str, split: str, max_epochs: int, patience: int, batch_size: int, lr: float,
               lr_schedule: str, loop: str, val_smoothing: float, max_seconds: float | None, seed: int,
-              threads: int, overwrite: bool) -> None:
+              threads: int, overwrite: bool, as_json: bool) -> None:
     """Train a history-aware kinematics model (paper LSTM-MLP by default) and save it to --out."""
     from ctrkin.training import TrainConfig, train
 
@@ -114,4 +116,7 @@ def train_cmd(task: str, data_dir: str, out_dir: str, model: str, structure: str
     tr = res.metrics["training"]
     say(f"trained {tr['epochs']} epochs (best {tr['best_epoch']}, val loss {tr['best_val_loss']:.4g}) "
         f"in {tr['seconds']:.1f} s; model in {res.out}")
-    say(json.dumps({k: v for k, v in res.metrics.items() if k in ("val", "test")}, indent=2))
+    if as_json:
+        emit_json({"out": res.out, "task": task, "model": model, **res.metrics})
+    else:
+        say(json.dumps({k: v for k, v in res.metrics.items() if k in ("val", "test")}, indent=2))

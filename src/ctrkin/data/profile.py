@@ -40,12 +40,11 @@ relative to it: p = R_refᵀ (p_tip − p_ref). Errors name the profile file, it
 from __future__ import annotations
 
 import re
+import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
-
-import tomllib
 
 from ctrkin.errors import DatasetError
 from ctrkin.geometry import POSITION_COLUMNS

@@ -24,7 +24,8 @@ SPLIT_KINDS = ("sequence", "random")
 @dataclass(frozen=True, eq=False)
 class Split:
     """Row indices (into the dataset frame) of each part, (n_part,) int64 sorted; kind: "sequence"
-    or "random"; n_rows: the number of rows of the frame it was made for (None: not recorded)."""
+    or "random"; n_rows: the number of rows of the frame it was made for (None: not recorded);
+    test_chosen: the test sequences were named by the user (`ctrkin dataset split --test`)."""
 
     train: np.ndarray
     val: np.ndarray
@@ -33,6 +34,7 @@ class Split:
     seed: int
     fractions: tuple[float, float, float]
     n_rows: int | None = None
+    test_chosen: bool = False
 
     def __post_init__(self) -> None:
         if self.kind not in SPLIT_KINDS:
@@ -50,7 +52,8 @@ class Split:
 
     def to_dict(self) -> dict[str, object]:
         return {"kind": self.kind, "seed": self.seed, "fractions": list(self.fractions),
-                "n_rows": self.n_rows, **{k: self.part(k).tolist() for k in SPLIT_NAMES}}
+                "n_rows": self.n_rows, **({"test_chosen": True} if self.test_chosen else {}),
+                **{k: self.part(k).tolist() for k in SPLIT_NAMES}}
 
     @classmethod
     def from_dict(cls, d: dict) -> Split:
@@ -59,7 +62,8 @@ class Split:
             f = tuple(float(v) for v in d["fractions"])
             n_rows = d.get("n_rows")
             return cls(tr, va, te, kind=str(d["kind"]), seed=int(d["seed"]),
-                       fractions=(f[0], f[1], f[2]), n_rows=None if n_rows is None else int(n_rows))
+                       fractions=(f[0], f[1], f[2]), n_rows=None if n_rows is None else int(n_rows),
+                       test_chosen=bool(d.get("test_chosen", False)))
         except KeyError as e:
             raise DatasetError(f"malformed split: missing key {e}") from None
         except (TypeError, ValueError, IndexError) as e:
@@ -162,18 +166,20 @@ def split_with_test(sequence_id: np.ndarray, labels: list[str], test: list[str],
         pick = ids[int(np.argmin(np.abs(counts - fractions[1] / tv * len(train))))]
         val, train = train[sid[train] == pick], train[sid[train] != pick]
     return Split(np.sort(train), val, np.nonzero(test_rows)[0], kind="sequence", seed=seed,
-                 fractions=fractions, n_rows=len(sid))
+                 fractions=fractions, n_rows=len(sid), test_chosen=True)
 
 
 def split_warnings(split: Split, fractions: tuple[float, float, float]) -> list[str]:
-    """Messages for parts more than FAR_FROM_RATIO away from the requested fractions."""
+    """Messages for parts more than FAR_FROM_RATIO away from the requested fractions (the advice to
+    name the test sequences only where they were not)."""
     sizes = split.sizes()
     total = max(sum(sizes.values()), 1)
+    advice = ("the test part is the sequences given with --test" if split.test_chosen
+              else "choose the test sequences with --test")
     out = []
     for name, want in zip(("train", "val", "test"), fractions, strict=True):
         got = sizes[name] / total
         if abs(got - want) > FAR_FROM_RATIO:
             out.append(f"{name} has {sizes[name]} samples ({got:.0%}) where {want:.0%} was asked: whole "
-                       "sequences cannot match the ratio; choose the test sequences with --test, or "
-                       "record more, shorter sequences")
+                       f"sequences cannot match the ratio; {advice}, or record more, shorter sequences")
     return out

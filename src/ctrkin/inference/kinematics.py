@@ -88,7 +88,7 @@ class IKStep(NamedTuple):
 
 
 def robot_differences(a: Robot, b: Robot) -> list[str]:
-    """Human-readable differences between two robot descriptions ('key: a vs b')."""
+    """Human-readable differences between two robot descriptions ('key: a vs b'), names aside."""
     out: list[str] = []
 
     def walk(x: Any, y: Any, key: str) -> None:
@@ -101,7 +101,7 @@ def robot_differences(a: Robot, b: Robot) -> list[str]:
         elif x != y:
             out.append(f"{key}: {x!r} vs {y!r}")
 
-    walk(a.to_dict(), b.to_dict(), "")
+    walk({**a.to_dict(), "name": None}, {**b.to_dict(), "name": None}, "")
     return out
 
 
@@ -165,13 +165,19 @@ class Kinematics:
         """Refine this IK model's answers on the learned FK `fk` (ctrkin.inference.refine)."""
         if self.task != "ik":
             raise ModelError("only an IK model can be refined on an FK model")
-        if fk.robot.fingerprint() != self.robot.fingerprint():
+        if fk.robot.mechanical_fingerprint() != self.robot.mechanical_fingerprint():
             raise ModelError("the FK model was trained on another robot than this IK model")
         settings = settings or RefineSettings()
         if "nearest" in settings.starts and (self.workspace is None or self.workspace.joints is None):
             raise ModelError("the 'nearest' start needs the training joints in workspace.npz; retrain the "
                              "IK model or drop 'nearest' from RefineSettings.starts")
         self.refiner = (fk, settings, FKResidual(fk, settings.tangent_weight_mm))
+
+    def __repr__(self) -> str:
+        extra = (", fold_gate" if self.fold_gate is not None else "") + (", refined" if self.refined else "")
+        where = "" if self.path is None else f", path={str(self.path)!r}"
+        return (f"Kinematics(task={self.task!r}, model={self.config.get('model')!r}, "
+                f"robot={self.robot.name!r}, n_tubes={self.layout.n_tubes}, ib={self.ib}{extra}{where})")
 
     @property
     def refined(self) -> bool:
@@ -186,12 +192,14 @@ class Kinematics:
         return self.layout.ib
 
     def check_robot(self, robot: Robot) -> None:
-        """Refuse a robot other than the one the model was trained on, saying what differs."""
-        if robot.fingerprint() != self.robot.fingerprint():
+        """Refuse a robot whose tubes or transmission differ from those the model was trained on,
+        saying what differs; the same hardware under another name is accepted."""
+        if robot.mechanical_fingerprint() != self.robot.mechanical_fingerprint():
             diffs = robot_differences(self.robot, robot)
+            mine, theirs = self.robot.mechanical_fingerprint(), robot.mechanical_fingerprint()
             raise ModelError(
-                f"this model was trained on robot {self.robot.name!r} ({self.robot.fingerprint()}), the data "
-                f"comes from robot {robot.name!r} ({robot.fingerprint()}); they differ in: "
+                f"this model was trained on robot {self.robot.name!r} ({mine}), the data comes from robot "
+                f"{robot.name!r} ({theirs}); they differ in: "
                 f"{'; '.join(diffs[:8]) or 'description'} (model first). Train a model on this robot's data.")
 
     # --- batch -----------------------------------------------------------------------------------
@@ -302,6 +310,38 @@ class Kinematics:
         assert self.frame is not None
         motion = self._recorded_motion(data, raw, bounds)[0] if self.frame.has_lag else 0
         return self.frame.outer_angle(self.robot, raw, motion)
+
+    def forward(self, joints: Dataset | np.ndarray, sequence_id: np.ndarray | None = None,
+                gate: str | None = None) -> np.ndarray:
+        """An FK model's `predict`, typed: joints (T, 2N) (deg, mm) or a Dataset -> tip poses (T, 6)."""
+        self._require("fk", "forward")
+        return np.asarray(self.predict(joints, sequence_id, gate=gate))
+
+    def inverse(self, poses: Dataset | np.ndarray, sequence_id: np.ndarray | None = None,
+                strict: bool = False, start_joints: np.ndarray | None = None) -> IKResult:
+        """An IK model's `predict`, typed: target tip poses (T, 6) (mm, unit quaternion) or a Dataset
+        -> IKResult (joints (T, 2N) deg, mm, and the per-target flags)."""
+        self._require("ik", "inverse")
+        res = self.predict(poses, sequence_id, strict=strict, start_joints=start_joints)
+        assert isinstance(res, IKResult)
+        return res
+
+    def step_pose(self, joints: np.ndarray) -> np.ndarray:
+        """An FK model's `step`, typed: joints (2N,) (deg, mm) -> tip pose (6,)."""
+        self._require("fk", "step_pose")
+        return np.asarray(self.step(joints))
+
+    def step_joints(self, pose: np.ndarray, check: bool = True, strict: bool = False) -> IKStep:
+        """An IK model's `step`, typed: target pose (6,) -> IKStep."""
+        self._require("ik", "step_joints")
+        res = self.step(pose, check=check, strict=strict)
+        assert isinstance(res, IKStep)
+        return res
+
+    def _require(self, task: str, what: str) -> None:
+        if self.task != task:
+            raise ModelError(f"{what}() needs an {task.upper()} model; this is an {self.task.upper()} model "
+                             f"({self.path or 'in memory'})")
 
     def _fold_states(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]]
                      ) -> np.ndarray:

@@ -9,6 +9,8 @@ cancels; ν enters through GJ = EI / (1 + ν).
 
 from __future__ import annotations
 
+from importlib import resources
+
 from ctrkin.robots.robot import Robot
 from ctrkin.robots.tube import Tube
 
@@ -51,3 +53,12 @@ def load_robot(spec: str) -> Robot:
     if spec in BUILTIN:
         return BUILTIN[spec]()
     return Robot.from_toml(spec)
+
+
+TEMPLATE_FILE = "robot_template.toml"
+
+
+def robot_template() -> str:
+    """The documented robot TOML template (package data robots/data/robot_template.toml): the paper
+    robot, every field commented with its unit; `ctrkin robot template` writes it."""
+    return (resources.files("ctrkin.robots") / "data" / TEMPLATE_FILE).read_text(encoding="utf-8")

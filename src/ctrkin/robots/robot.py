@@ -10,13 +10,13 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
 import tomli_w
-import tomllib
 
 from ctrkin.errors import JointError, RobotDescriptionError
 from ctrkin.robots.tube import Tube
@@ -257,6 +257,14 @@ class Robot:
         return cls.from_dict(d, source=str(p))
 
     def fingerprint(self) -> str:
-        """A short hash of the description, stored with datasets and models to detect mix-ups."""
+        """A short hash of the whole description, name included, stored with datasets and models to
+        detect a description edited after the fact."""
         blob = json.dumps(self.to_dict(), sort_keys=True).encode()
         return hashlib.sha256(blob).hexdigest()[:16]
+
+    def mechanical_fingerprint(self) -> str:
+        """A short hash of what the kinematics depend on (tubes, transmission), not the name: two
+        robots with the same one are the same hardware, whatever each file calls it."""
+        d = self.to_dict()
+        d.pop("name")
+        return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]

@@ -4,8 +4,23 @@
     train(dataset, TrainConfig(task="fk", model="lstm_mlp", ib=2), "models/fk")
 """
 
-from ctrkin.training.config import TrainConfig
-from ctrkin.training.loop import TrainResult, train
-from ctrkin.training.metrics import joint_errors, pose_errors
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ctrkin.util.lazy import lazy_attributes
+
+_WHERE = {
+    "TrainConfig": "ctrkin.training.config", "TrainResult": "ctrkin.training.loop",
+    "train": "ctrkin.training.loop", "joint_errors": "ctrkin.training.metrics",
+    "pose_errors": "ctrkin.training.metrics",
+}
 
 __all__ = ["TrainConfig", "TrainResult", "joint_errors", "pose_errors", "train"]
+
+__getattr__, __dir__ = lazy_attributes(__name__, _WHERE)
+
+if TYPE_CHECKING:
+    from ctrkin.training.config import TrainConfig
+    from ctrkin.training.loop import TrainResult, train
+    from ctrkin.training.metrics import joint_errors, pose_errors

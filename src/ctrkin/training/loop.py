@@ -403,7 +403,7 @@ def evaluate(bundle: ModelBundle, ds: Dataset, prep: Prepared) -> dict[str, Any]
         m: dict[str, Any] = {"loss": float(np.mean(np.abs(yn - prep.Y[rows]))), "rows": len(rows)}
         pred = prep.to_world(postprocess(prep.layout, prep.y_norm.inverse(yn)), rows)
         if prep.layout.task == "fk":
-            m["vs_measured"] = pose_errors(pred, ds.poses()[rows])
+            m["vs_measured"] = pose_errors(pred, ds.poses()[rows], ds.meta.get("orientation") != "absent")
             if truth is not None:  # the truth as the tracker sees it: the model's frame and sensor point
                 m["vs_true"] = pose_errors(pred, truth[rows])
             elif ds.has_truth:

@@ -14,10 +14,12 @@ def _stats(e: np.ndarray, prefix: str) -> dict[str, float]:
             f"{prefix}_max": float(np.max(np.abs(e)))}
 
 
-def pose_errors(pred: np.ndarray, ref: np.ndarray) -> dict[str, float]:
-    """pred, ref: (T, 6) tip poses -> position (mm) and orientation (deg, tip tangent) RMSE/MAE/max."""
-    return {**_stats(position_error(pred, ref), "position_mm"),
-            **_stats(tangent_angle_error(pred, ref), "orientation_deg"), "n": len(pred)}
+def pose_errors(pred: np.ndarray, ref: np.ndarray, orientation: bool = True) -> dict[str, float]:
+    """pred, ref: (T, 6) tip poses -> position (mm) and orientation (deg, tip tangent) RMSE/MAE/max.
+    orientation=False: the reference has no measured orientation (a position-only dataset, whose
+    quaternion columns are placeholders), so no orientation errors are given."""
+    angles = _stats(tangent_angle_error(pred, ref), "orientation_deg") if orientation else {}
+    return {**_stats(position_error(pred, ref), "position_mm"), **angles, "n": len(pred)}
 
 
 def joint_errors(pred: np.ndarray, ref: np.ndarray, n_tubes: int) -> dict[str, float]:

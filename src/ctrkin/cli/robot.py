@@ -1,0 +1,39 @@
+"""`ctrkin robot`: robot description files.
+
+    ctrkin robot template --out my_robot.toml      # the paper robot, every field with its unit
+    ctrkin solve --robot my_robot.toml --q 0,0,-15,-5
+"""
+
+from __future__ import annotations
+
+import click
+
+from ctrkin.cli.common import check_output, overwrite_option, say
+from ctrkin.robots.builtin import robot_template
+from ctrkin.util.files import atomic_write_text
+
+
+@click.group("robot", epilog="""\b
+Examples:
+  ctrkin robot template --out my_robot.toml""")
+def robot_group() -> None:
+    """Robot description files: a documented template."""
+
+
+@robot_group.command("template", epilog="""\b
+Examples:
+  ctrkin robot template --out my_robot.toml
+  ctrkin robot template > my_robot.toml""")
+@click.option("--out", "out_file", default=None, type=click.Path(dir_okay=False),
+              help="TOML file to write (default: stdout).")
+@overwrite_option()
+def template_cmd(out_file: str | None, overwrite: bool) -> None:
+    """A robot TOML file to edit: the paper robot (paper Table I), every field commented with its unit;
+    it loads back as the built-in `paper` robot."""
+    text = robot_template()
+    if out_file is None:
+        click.echo(text, nl=False)
+        return
+    check_output(out_file, overwrite)
+    atomic_write_text(out_file, text)
+    say(f"wrote {out_file}: edit it, then pass it as --robot {out_file}")
