@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from ctrkin import Robot, SolverSettings, Tube, paper_robot, solve, solve_many
 from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 from ctrkin.mechanics import kernels
-from ctrkin.mechanics.pointwise import _prepare
+from ctrkin.mechanics.pointwise import prepare
 
 from .reference_tcm import reference_tip
 
@@ -45,7 +45,7 @@ def test_common_rotation_turns_tip_about_z(seed: int, turn: float) -> None:
 def test_shooting_jacobian_matches_finite_differences(transmission: str, rng) -> None:
     robot = paper_robot(transmission)
     for _ in range(5):
-        pb = _prepare(robot, random_q(rng), SolverSettings())
+        pb = prepare(robot, random_q(rng), SolverSettings())
         x = rng.normal(0, 0.01, 2)
         a = pb.arrays
 
