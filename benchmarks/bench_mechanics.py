@@ -8,8 +8,9 @@ Prints, per robot: cold solve from the default guess (paper: median ≤ 1 ms goa
 1.47 s a point; TIMClab: ≤ 100 µs), warm continuation step inside `follow` and the public warm path
 `solve(q, guess=previous)` along 1° sweeps (paper ≤ 35 µs, TIMClab ≤ 60 µs), and the tip-position
 deviation from a tight-tolerance reference integration (scipy DOP853, rtol 1e-12; goal ≤ 1e-3 mm).
-The TIMClab robot is run again with the RK4 step taken from SolverSettings.tip_tol = 1e-3 mm alone
-(no 3 mm cap; keys timclab_tol_*). Runs on one core. Ends with one JSON line of the headline figures
+The default step is chosen from SolverSettings.tip_tol = 1e-3 mm; the TIMClab robot is run again at
+the fixed 3 mm step of earlier versions (tip_tol=None, step=3, angle_step=0.15; keys
+timclab_3mm_*). Runs on one core. Ends with one JSON line of the headline figures
 (medians in µs, errors in mm).
 """
 
@@ -17,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 import time
@@ -168,14 +168,14 @@ def main() -> None:
             "timclab_robot_warm_solve_us": np.median(warm) * 1e6,
             "timclab_max_tip_error_mm": err_t.max(), "max_tip_error_mm": max(err.max(), err_t.max())}
 
-    fast = SolverSettings(step=math.inf, tip_tol=1e-3)
-    print(f"TIMClab robot, step from tip_tol = 1e-3 mm alone ({rk4_step(robot_arrays(robot), fast):.1f} mm "
+    fixed = SolverSettings(tip_tol=None, step=3.0, angle_step=0.15)
+    print(f"TIMClab robot, the fixed step of earlier versions ({rk4_step(robot_arrays(robot), fixed):.1f} mm "
           "where curved)")
-    cold = bench_cold(robot, timclab_configs(args.n), fast)
-    step, warm = bench_warm(robot, sweeps, ["flush", "+15 mm", "+30 mm"], fast)
-    err_f = bench_accuracy(robot, timclab_configs(args.n_ref, seed=1), fast)
-    out |= {"timclab_tol_cold_us": np.median(cold) * 1e6, "timclab_tol_warm_us": np.median(step) * 1e6,
-            "timclab_tol_warm_solve_us": np.median(warm) * 1e6, "timclab_tol_max_tip_error_mm": err_f.max()}
+    cold = bench_cold(robot, timclab_configs(args.n), fixed)
+    step, warm = bench_warm(robot, sweeps, ["flush", "+15 mm", "+30 mm"], fixed)
+    err_f = bench_accuracy(robot, timclab_configs(args.n_ref, seed=1), fixed)
+    out |= {"timclab_3mm_cold_us": np.median(cold) * 1e6, "timclab_3mm_warm_us": np.median(step) * 1e6,
+            "timclab_3mm_warm_solve_us": np.median(warm) * 1e6, "timclab_3mm_max_tip_error_mm": err_f.max()}
     print(json.dumps({k: float(f"{v:.4g}") for k, v in out.items()}))
 
 

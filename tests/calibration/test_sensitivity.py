@@ -12,7 +12,7 @@ import pytest
 from ctrkin.calibration.fit import _Jacobian, initial_registration
 from ctrkin.calibration.params import ParameterSet
 from ctrkin.calibration.sensitivity import tip_jacobian
-from ctrkin.mechanics.pointwise import _integrate, _prepare, cold_solution
+from ctrkin.mechanics.pointwise import _integrate, cold_solution, prepare
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS
 from ctrkin.robots.robot import Robot
 from ctrkin.robots.tube import Section
@@ -25,7 +25,7 @@ ATOL = 1e-6
 
 
 def _tip(robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    pb = _prepare(robot, q, DEFAULT_SETTINGS, checked=True)
+    pb = prepare(robot, q, DEFAULT_SETTINGS, checked=True)
     x, conv, *_ = cold_solution(pb, DEFAULT_SETTINGS)
     assert conv
     tip, tan, _, _ = _integrate(pb, x, record=False)
@@ -61,7 +61,7 @@ def test_tip_jacobian_matches_central_differences(transmission):
     joints = robot.project_joints(to_ctrkin(robot, configurations(4, seed=3)))
     n = robot.n_tubes
     for q in joints:
-        pb = _prepare(robot, q, DEFAULT_SETTINGS, checked=True)
+        pb = prepare(robot, q, DEFAULT_SETTINGS, checked=True)
         x, conv, *_ = cold_solution(pb, DEFAULT_SETTINGS)
         assert conv
         tip, jp, tan, jt = tip_jacobian(pb, x)

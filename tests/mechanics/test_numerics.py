@@ -10,7 +10,7 @@ import pytest
 from ctrkin import SolverSettings, paper_robot, solve
 from ctrkin.acquisition.trajectories import rotation_sweep
 from ctrkin.mechanics import kernels
-from ctrkin.mechanics.pointwise import _integrate, _prepare
+from ctrkin.mechanics.pointwise import _integrate, prepare
 from ctrkin.robots import timclab_robot
 
 from .reference_tcm import reference_tip
@@ -63,7 +63,7 @@ def test_straight_stretch_in_one_step_is_exact(rng) -> None:
     """A stretch where every present tube is straight is one RK4 step; subdividing it as a
     curved stretch would be changes nothing (residual, Jacobian, det H, tip) beyond round-off."""
     for robot, q in ((PAPER, paper_q(rng)), (TIMCLAB, timclab_q(rng))):
-        pb = _prepare(robot, q, SolverSettings())
+        pb = prepare(robot, q, SolverSettings())
         bounds, kap, present, nsteps, nsample = pb.grid
         straight = ~(kap != 0.0).any(axis=1)
         assert straight.any() and (nsteps[straight] == 1).all()
@@ -89,7 +89,7 @@ def test_final_pass_equals_a_separate_backbone_pass(rng) -> None:
     """The tip, tangent and energy of the final Newton pass are those of integrating (M3) afresh."""
     for robot, q in ((PAPER, paper_q(rng)), (TIMCLAB, timclab_q(rng))):
         eq = solve(robot, q)
-        tip, tan, energy, _ = _integrate(eq._problem, eq.x, record=False)
+        tip, tan, energy, _ = _integrate(eq.problem, eq.x, record=False)
         np.testing.assert_allclose(eq.tip_position, tip, atol=1e-12)
         np.testing.assert_allclose(eq.tip_tangent, tan, atol=1e-12)
         assert eq.energy == pytest.approx(energy, rel=1e-12)
@@ -102,7 +102,7 @@ def test_warm_step_takes_three_passes() -> None:
     prev = solve(PAPER, Q[0])
     passes = []
     for q in Q[1:]:
-        pb = _prepare(PAPER, q, SolverSettings())
+        pb = prepare(PAPER, q, SolverSettings())
         a = pb.arrays
         x, body = np.empty(2), np.empty(7)
         out = kernels.newton(prev.x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,

@@ -37,6 +37,53 @@ def test_joint_limits() -> None:
         r.check_joints(np.vstack([ok[0], bad[0]]))
 
 
+
+def _first_violation(lengths: np.ndarray, beta: np.ndarray) -> str | None:
+    """The joint inequalities written out one by one (DESIGN.md conventions), in the order
+    check_joints reports them; None if all hold."""
+    n, tol = len(lengths), 1e-9
+    tips = beta + lengths
+    if beta[-1] > tol:
+        return f"beta_{n} must be <= 0"
+    if tips[-1] < -tol:
+        return f"tube {n} tip"
+    for i in range(n - 1):
+        if beta[i] > beta[i + 1] + tol:
+            return f"beta_{i + 1} <= beta_{i + 2} is required"
+        if tips[i] < tips[i + 1] - tol:
+            return f"beta_{i + 1} \\+ L_{i + 1} >= beta_{i + 2} \\+ L_{i + 2} is required"
+    return None
+
+
+def test_one_joint_check_agrees_with_the_inequalities(rng) -> None:
+    """is_valid, check_joints on a row and on a trajectory are one vectorised check: they agree
+    with the inequalities written out, and the error names the first violated one (seeded draws,
+    half of them on the boundaries, where the 1e-9 mm slack decides)."""
+    from ctrkin.robots import timclab_robot
+
+    for r in (paper_robot(), timclab_robot()):
+        n, lengths = r.n_tubes, r.lengths
+        for _ in range(300):
+            beta = -rng.uniform(0, 1.2 * lengths) + rng.uniform(0, 5, n) * (rng.random(n) < 0.1)
+            if rng.random() < 0.5:  # snap some translations onto a limit, ± round-off or ± 2e-9
+                i = rng.integers(n)
+                beta[i] = [0.0, -lengths[i], beta[min(i + 1, n - 1)],
+                           beta[min(i + 1, n - 1)] + lengths[min(i + 1, n - 1)] - lengths[i]
+                           ][rng.integers(4)] + rng.choice([0.0, 2e-9, -2e-9])
+            q = np.r_[rng.uniform(-400, 400, n), beta]
+            expect = _first_violation(lengths, beta)
+            assert bool(r.is_valid(q[None])[0]) is (expect is None)
+            if expect is None:
+                r.check_joints(q)
+                continue
+            with pytest.raises(JointError, match=expect):
+                r.check_joints(q)
+            with pytest.raises(JointError, match="row 1"):
+                r.check_joints(np.vstack([np.r_[np.zeros(n), -lengths], q]))  # row 0 valid
+        assert not r.is_valid(np.r_[np.zeros(n), np.full(n, np.nan)][None])[0]
+        with pytest.raises(JointError, match="NaN or inf at row 0"):
+            r.check_joints(np.r_[np.inf, np.zeros(2 * n - 1)])
+
 def test_toml_round_trip(tmp_path) -> None:
     r = Robot((Tube.from_sections(0.5, 0.3, [(40, 0.0), (10, 0.01), (10, 0.03)]),
                Tube(0.9, 0.6, 20, 15, 1 / 40, youngs_modulus=60, poisson_ratio=0.3)),

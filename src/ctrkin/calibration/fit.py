@@ -174,7 +174,7 @@ class _Jacobian:
         for t, eq in enumerate(eqs):
             if eq is None:
                 continue
-            _, jp, _, jt = tip_jacobian(eq._problem, eq.x)
+            _, jp, _, jt = tip_jacobian(eq.problem, eq.x)
             jm = jp + model.marker_mm * jt                      # p_marker = p + d t
             b = basis.copy()
             for k, i in beta_cols:   # the stops are piecewise linear in β: exact off their corners

@@ -20,7 +20,7 @@ import numpy as np
 
 from ctrkin.errors import CtrkinError
 from ctrkin.geometry import Registration, quat_from_tangent
-from ctrkin.mechanics.pointwise import Equilibrium, _prepare, _solve_prepared
+from ctrkin.mechanics.pointwise import Equilibrium, prepare, solve_prepared
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS
 from ctrkin.robots.robot import Robot
 
@@ -57,8 +57,8 @@ class CalibratedTCM:
         tan = np.full((len(Q), 3), np.nan)
         eqs: list[Equilibrium | None] = [None] * len(Q)
         for i, q in enumerate(Q):
-            eq = _solve_prepared(_prepare(self.robot, q, DEFAULT_SETTINGS, checked=True), None,
-                                 DEFAULT_SETTINGS)
+            eq = solve_prepared(prepare(self.robot, q, DEFAULT_SETTINGS, checked=True), None,
+                                DEFAULT_SETTINGS)
             if eq.converged:
                 pos[i] = eq.tip_position + self.marker_mm * eq.tip_tangent
                 tan[i] = eq.tip_tangent

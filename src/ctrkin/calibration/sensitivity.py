@@ -1,5 +1,5 @@
 """Exact parameter Jacobian of the point-wise TCM tip: forward-mode differentiation of the discrete
-RK4 map (the one mechanics.kernels integrates, on the same grid) plus the implicit function theorem
+RK4 map (mechanics.rk4, the step mechanics.kernels takes, on the same grid) plus the implicit function theorem
 for the shooting unknowns. No finite differences, one integration per sample.
 
 Parameters per tube i (the "mechanical basis", 5N columns, in this order):
@@ -26,15 +26,20 @@ import numpy as np
 from numba import njit
 
 from ctrkin.mechanics.kernels import S_TOL
-from ctrkin.mechanics.pointwise import _Problem
+from ctrkin.mechanics.pointwise import Problem
+from ctrkin.mechanics.rk4 import rk4_stepper, rk4_work
 
 N_BASIS = 5   # c, ρ, α, β, e per tube
 
 
-@njit(cache=True)
-def _tangent_rhs(z, Z, kap, dkap, rho, drho, pres, k, f, F, dux, duy):
-    """f = (M1)-(M3) at z (nz,); F = ∂f/∂z Z + ∂f/∂θ (nz, M). kap (N,) 1/mm and dkap (N, M) its
-    tangent; rho (N,) = k/GJ and drho (N, M); pres (N,) 0/1; k (N,) bending stiffness."""
+@njit(cache=True, inline="always")
+def _tangent_rhs(z, Z, _zb, p, _with_var, _with_body, f, F, _dzb):
+    """The tangent system for mechanics.rk4: f = (M1)-(M3) at z (nz,); F = ∂f/∂z Z + ∂f/∂θ
+    + (dh/h) f (nz, M). p = (kap (N,) 1/mm and dkap (N, M) its tangent, rho (N,) = k/GJ and drho
+    (N, M), pres (N,) 0/1, k (N,) bending stiffness, dux, duy (M,) scratch, dh (M,) the tangent of
+    the step h, h). The last term moves the step with the grid: d/dθ (z + h f) = Z + h (F + (dh/h) f),
+    so the tangent of the RK4 map with a moving step is the RK4 map of this system."""
+    kap, dkap, rho, drho, pres, k, dux, duy, dh, h = p
     n = k.shape[0]
     n2 = 2 * n
     m = Z.shape[1]
@@ -94,6 +99,14 @@ def _tangent_rhs(z, Z, kap, dkap, rho, drho, pres, k, f, F, dux, duy):
             F[o + 3 * row, col] = -duy[col] * c2 - uy * d2
             F[o + 3 * row + 1, col] = dux[col] * c2 + ux * d2
             F[o + 3 * row + 2, col] = duy[col] * c0 + uy * d0 - dux[col] * c1 - ux * d1
+    for col in range(m):
+        g = dh[col] / h
+        if g != 0.0:
+            for j in range(f.shape[0]):
+                F[j, col] += g * f[j]
+
+
+_step = rk4_stepper(_tangent_rhs)
 
 
 @njit(cache=True)
@@ -140,16 +153,8 @@ def tangent_shoot(x, alpha, beta, extra, tips, rigid, k, rho, bounds, owner, kap
     for b in range(bounds.shape[0]):
         if owner[b] >= 0:
             db[b, n + 3 * n + owner[b]] = 1.0
-    k1 = np.empty(nz)
-    k2 = np.empty(nz)
-    k3 = np.empty(nz)
-    k4 = np.empty(nz)
-    K1 = np.empty((nz, m))
-    K2 = np.empty((nz, m))
-    K3 = np.empty((nz, m))
-    K4 = np.empty((nz, m))
-    zt = np.empty(nz)
-    Zt = np.empty((nz, m))
+    w = rk4_work(nz, m, 0)
+    no_body = np.empty(0)
     dux = np.empty(m)
     duy = np.empty(m)
     dh = np.empty(m)
@@ -161,30 +166,9 @@ def tangent_shoot(x, alpha, beta, extra, tips, rigid, k, rho, bounds, owner, kap
         for i in range(n):
             kp[i] = kap[seg, i]
             dkap[i, n + i] = kap[seg, i]          # ∂(c κ)/∂c at c = 1
-        pr = present[seg]
+        p = (kp, dkap, rho, drho, present[seg], k, dux, duy, dh, h)
         for _ in range(ns):
-            _tangent_rhs(z, Z, kp, dkap, rho, drho, pr, k, k1, K1, dux, duy)
-            for j in range(nz):
-                zt[j] = z[j] + 0.5 * h * k1[j]
-                for col in range(m):
-                    Zt[j, col] = Z[j, col] + 0.5 * (dh[col] * k1[j] + h * K1[j, col])
-            _tangent_rhs(zt, Zt, kp, dkap, rho, drho, pr, k, k2, K2, dux, duy)
-            for j in range(nz):
-                zt[j] = z[j] + 0.5 * h * k2[j]
-                for col in range(m):
-                    Zt[j, col] = Z[j, col] + 0.5 * (dh[col] * k2[j] + h * K2[j, col])
-            _tangent_rhs(zt, Zt, kp, dkap, rho, drho, pr, k, k3, K3, dux, duy)
-            for j in range(nz):
-                zt[j] = z[j] + h * k3[j]
-                for col in range(m):
-                    Zt[j, col] = Z[j, col] + dh[col] * k3[j] + h * K3[j, col]
-            _tangent_rhs(zt, Zt, kp, dkap, rho, drho, pr, k, k4, K4, dux, duy)
-            for j in range(nz):
-                incr = k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]
-                z[j] += h / 6.0 * incr
-                for col in range(m):
-                    Z[j, col] += (dh[col] * incr
-                                  + h * (K1[j, col] + 2.0 * K2[j, col] + 2.0 * K3[j, col] + K4[j, col])) / 6.0
+            _step(z, Z, no_body, h, p, True, False, w)
         for i in range(n):
             if not done[i] and tips[i] <= bounds[seg + 1] + S_TOL:
                 done[i] = True
@@ -201,7 +185,7 @@ def tangent_shoot(x, alpha, beta, extra, tips, rigid, k, rho, bounds, owner, kap
     return r, dr, tip, dtip, tan, dtan
 
 
-def grid_owners(pb: _Problem) -> np.ndarray:
+def grid_owners(pb: Problem) -> np.ndarray:
     """(M+1,) the tube whose base position each grid point moves with (−1: s = 0, fixed).
 
     Grid points are tube tips and section ends, β_i + Σ section lengths (kernels.build_grid)."""
@@ -220,10 +204,10 @@ def grid_owners(pb: _Problem) -> np.ndarray:
     return owner
 
 
-def tip_jacobian(pb: _Problem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def tip_jacobian(pb: Problem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Tip position (3,) mm, its Jacobian (3, 5N) w.r.t. the mechanical basis (module docstring),
     unit tangent (3,) and its Jacobian (3, 5N), at the converged shooting solution x (N,) rad/mm of
-    problem pb (mechanics.pointwise._prepare)."""
+    problem pb (mechanics.pointwise.prepare)."""
     a = pb.arrays
     n = a.k.shape[0]
     beta = pb.q[n:]

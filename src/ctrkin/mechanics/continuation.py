@@ -10,7 +10,6 @@ stable one (the basin the released twist falls into).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -20,16 +19,15 @@ from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 from ctrkin.geometry import tip_azimuth, tip_pose
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
 from ctrkin.mechanics.pointwise import (
-    _NO_BODY,
     Equilibrium,
-    _finish,
-    _newton,
-    _prepare,
-    _search,
-    _stable,
-    _twisted_guesses,
+    NewtonResult,
     cold_solution,
+    equilibrium,
+    newton,
+    prepare,
+    search,
     solve,
+    twisted_guesses,
 )
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS, SolverSettings
 from ctrkin.robots.robot import Robot
@@ -78,7 +76,7 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     the same joint increment); Newton then starts from the predictor x + t·velocity.
     """
     q_from = prev.q
-    arr = prev._problem.arrays
+    arr = prev.problem.arrays
     x = prev.x
     det = prev.stability
     t = 0.0
@@ -89,18 +87,18 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     while t < 1.0:
         t_try = min(1.0, t + dt)
         q_try = q_from + (q_to - q_from) * t_try
-        pb = _prepare(robot, q_try, settings, checked=True, arr=arr)
+        pb = prepare(robot, q_try, settings, checked=True, arr=arr)
         guess = x if velocity is None else x + (t_try - t) * velocity
-        sol = _newton(pb, guess, settings, work)
-        if (_stable(sol) and _distance(sol[0], x, pb.arrays.lengths) <= JUMP_RAD
-                and abs(sol[4] - det) <= DET_SLACK + DET_RATE * det):
-            x, det, t, last = sol[0], sol[4], t_try, (pb, sol)
+        sol = newton(pb, guess, settings, work)
+        if (sol.stable and _distance(sol.x, x, pb.arrays.lengths) <= JUMP_RAD
+                and abs(sol.det_j - det) <= DET_SLACK + DET_RATE * det):
+            x, det, t, last = sol.x, sol.det_j, t_try, (pb, sol)
             dt = min(2.0 * dt, 1.0)
             continue
         if work[0] > settings.max_search_steps:
             # continuation too costly (an extreme robot): give up this step, reported not converged
-            pb = _prepare(robot, q_to, settings, checked=True, arr=arr)
-            last = (pb, (x, False, 0, math.inf, det, math.nan, _NO_BODY))
+            pb = prepare(robot, q_to, settings, checked=True, arr=arr)
+            last = (pb, NewtonResult.failed(x, det))
             break
         if velocity is not None:  # retry from the plain warm start before sub-stepping
             velocity = None
@@ -109,18 +107,18 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
             dt *= 0.5
             continue
         # fold: no stable equilibrium near the current one, however small the step
-        guesses = [x, *_twisted_guesses(pb, x), *_twisted_guesses(pb, np.zeros_like(x))]
-        found = [c for c in _search(pb, guesses, settings, work) if _stable(c)]
+        guesses = [x, *twisted_guesses(pb, x), *twisted_guesses(pb, np.zeros_like(x))]
+        found = [c for c in search(pb, guesses, settings, work) if c.stable]
         if found:
-            sol = min(found, key=lambda c: _distance(c[0], x, pb.arrays.lengths))
+            sol = min(found, key=lambda c: _distance(c.x, x, pb.arrays.lengths))
         else:
             sol = cold_solution(pb, settings, work)
         # a fold was crossed: that is a snap unless the search only re-found the same branch
-        snapped = snapped or _distance(sol[0], x, pb.arrays.lengths) > SAME_BRANCH_RAD
-        x, det, t, last = sol[0], sol[4], t_try, (pb, sol)
+        snapped = snapped or _distance(sol.x, x, pb.arrays.lengths) > SAME_BRANCH_RAD
+        x, det, t, last = sol.x, sol.det_j, t_try, (pb, sol)
         dt = 1.0 - t
     assert last is not None
-    return _finish(*last), snapped
+    return equilibrium(*last), snapped
 
 
 def _check_start(robot: Robot, start: Equilibrium) -> None:
@@ -132,8 +130,8 @@ def _check_start(robot: Robot, start: Equilibrium) -> None:
         raise RobotDescriptionError(
             f"start is an equilibrium of a {start.x.shape[0]}-tube robot; this robot has "
             f"{robot.n_tubes} tubes: solve the start on the same robot")
-    if start._problem.arrays is not robot_arrays(robot) and not _same_arrays(
-            start._problem.arrays, robot_arrays(robot)):
+    if start.problem.arrays is not robot_arrays(robot) and not _same_arrays(
+            start.problem.arrays, robot_arrays(robot)):
         raise RobotDescriptionError(
             "start was solved on another robot (tubes or transmission differ): solve the start "
             "on the robot you follow")

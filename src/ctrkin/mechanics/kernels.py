@@ -19,6 +19,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ctrkin.mechanics.rk4 import rk4_stepper, rk4_work
+
 S_TOL = 1e-9  # mm: two breakpoints closer than this are the same point
 
 
@@ -157,6 +159,18 @@ def _deriv(y, phi, kap, pres, k, gj, dy, dphi, with_var, cs, sn):
 
 
 @njit(cache=True, inline="always")
+def det(a):
+    """Determinant of a square matrix (M, M): closed form for M ≤ 2 (the shooting Jacobian and H of
+    two and three tubes), LU (np.linalg.det) above."""
+    n = a.shape[0]
+    if n == 1:
+        return a[0, 0]
+    if n == 2:
+        return a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+    return np.linalg.det(a)
+
+
+@njit(cache=True, inline="always")
 def _relative_det(phi, gj):
     """det H(s): relative angles ψi − ψN (i < N) as functions of the relative base twist rates
     yj = xj − xN under zero net torque Σ GJ x = 0 (x = D y). On a straight robot det H > 0 for
@@ -177,11 +191,7 @@ def _relative_det(phi, gj):
                 d = (1.0 if r == j else 0.0) - gj[j] / gsum
                 acc += (phi[i, r] - phi[n - 1, r]) * d
             h[i, j] = acc
-    if m == 1:
-        return h[0, 0]
-    if m == 2:
-        return h[0, 0] * h[1, 1] - h[0, 1] * h[1, 0]
-    return np.linalg.det(h)
+    return det(h)
 
 
 @njit(cache=True)
@@ -222,16 +232,6 @@ def _solve_linear(a, b, out):
             acc -= m[row, j] * out[j]
         out[row] = acc / m[row, row]
     return True
-
-
-@njit(cache=True)
-def _det(a):
-    n = a.shape[0]
-    if n == 1:
-        return a[0, 0]
-    if n == 2:
-        return a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
-    return np.linalg.det(a)
 
 
 NB = 13  # body state: p (3) mm, R row-major (9), elastic energy (1) N·mm
@@ -280,62 +280,24 @@ def _body_deriv(zb, ux, uy, y, kap, pres, k, gj, cs, sn, dzb):
 
 
 @njit(cache=True, inline="always")
-def _stage(y, phi, zb, kp, pr, k, gj, with_var, with_body, dy, dphi, dzb, cs, sn):
+def _rhs(y, phi, zb, p, with_var, with_body, dy, dphi, dzb):
+    """The TCM as an RK4 system (mechanics.rk4): (M2) and its variation always, (M3) and the energy
+    if with_body. p = (κ (N,), present (N,), k, gj, cs, sn): the stretch's precurvature and tubes,
+    the stiffnesses and two (N,) scratch arrays for cos ψ, sin ψ."""
+    kp, pr, k, gj, cs, sn = p
     ux, uy = _deriv(y, phi, kp, pr, k, gj, dy, dphi, with_var, cs, sn)
     if with_body:
         _body_deriv(zb, ux, uy, y, kp, pr, k, gj, cs, sn, dzb)
 
 
-@njit(cache=True, inline="always")
-def _advance(y, phi, zb, f, dy, dphi, dzb, with_var, with_body, yt, pt, zt):
-    """RK4 stage state: yt = y + f dy, pt = Φ + f dΦ (if with_var), zt = zb + f dzb (if with_body)."""
-    for j in range(y.shape[0]):
-        yt[j] = y[j] + f * dy[j]
-    if with_var:
-        for j in range(phi.shape[0]):
-            for c in range(phi.shape[1]):
-                pt[j, c] = phi[j, c] + f * dphi[j, c]
-    if with_body:
-        for j in range(NB):
-            zt[j] = zb[j] + f * dzb[j]
-
-
-@njit(cache=True, inline="always")
-def _rk4_step(y, phi, zb, h, kp, pr, k, gj, with_var, with_body, w):
-    """One classical RK4 step of (M2), of its variation (differentiated stage by stage, so the
-    Jacobian is exact for the discrete map) if with_var, and of (M3) and the energy if with_body.
-    w: work arrays (_work)."""
-    k1, k2, k3, k4, q1, q2, q3, q4, yt, pt, cs, sn, b1, b2, b3, b4, zt, _ = w
-    _stage(y, phi, zb, kp, pr, k, gj, with_var, with_body, k1, q1, b1, cs, sn)
-    _advance(y, phi, zb, 0.5 * h, k1, q1, b1, with_var, with_body, yt, pt, zt)
-    _stage(yt, pt, zt, kp, pr, k, gj, with_var, with_body, k2, q2, b2, cs, sn)
-    _advance(y, phi, zb, 0.5 * h, k2, q2, b2, with_var, with_body, yt, pt, zt)
-    _stage(yt, pt, zt, kp, pr, k, gj, with_var, with_body, k3, q3, b3, cs, sn)
-    _advance(y, phi, zb, h, k3, q3, b3, with_var, with_body, yt, pt, zt)
-    _stage(yt, pt, zt, kp, pr, k, gj, with_var, with_body, k4, q4, b4, cs, sn)
-    n2 = y.shape[0]
-    nc = phi.shape[1]
-    h6 = h / 6.0
-    for j in range(n2):
-        y[j] += h6 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-        if with_var:
-            for c in range(nc):
-                phi[j, c] += h6 * (q1[j, c] + 2.0 * q2[j, c] + 2.0 * q3[j, c] + q4[j, c])
-    if with_body:
-        for j in range(NB):
-            zb[j] += h6 * (b1[j] + 2.0 * b2[j] + 2.0 * b3[j] + b4[j])
+_rk4_step = rk4_stepper(_rhs)
 
 
 @njit(cache=True)
 def _work(n):
-    """Work arrays of _rk4_step: k1..k4 (2N,), q1..q4 (2N, N), yt, pt, cs, sn, b1..b4 (NB,), zt,
-    and a (2N, N) copy of Φ at the start of a stretch (_integrate)."""
-    n2 = 2 * n
-    return (np.empty(n2), np.empty(n2), np.empty(n2), np.empty(n2),
-            np.empty((n2, n)), np.empty((n2, n)), np.empty((n2, n)), np.empty((n2, n)),
-            np.empty(n2), np.empty((n2, n)), np.empty(n), np.empty(n),
-            np.empty(NB), np.empty(NB), np.empty(NB), np.empty(NB), np.empty(NB),
-            np.empty((n2, n)))
+    """Work arrays of _integrate: those of the RK4 step (rk4_work), cs, sn (N,) and a (2N, N)
+    copy of Φ at the start of a stretch."""
+    return rk4_work(2 * n, n, NB), np.empty(n), np.empty(n), np.empty((2 * n, n))
 
 
 @njit(cache=True)
@@ -391,8 +353,8 @@ def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
     """
     n = k.shape[0]
     _init_state(x, alpha, beta, rigid, k, gj, y, phi, zb)
-    phi_a = w[17]
-    p_int = w[9]
+    rk, cs, sn, phi_a = w
+    p_int = rk[13]  # a stage state of Φ, free between stretches
     done = np.zeros(n, dtype=np.bool_)
     min_tip = tips.min()
     min_det = np.inf
@@ -420,7 +382,7 @@ def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
         if sampled:
             phi_a[:, :] = phi
         for st in range(ns):
-            _rk4_step(y, phi, zb, h, kap[seg], present[seg], k, gj, with_var, with_body, w)
+            _rk4_step(y, phi, zb, h, (kap[seg], present[seg], k, gj, cs, sn), with_var, with_body, rk)
             if check and a + (st + 1) * h <= min_tip + S_TOL:
                 d = _relative_det(phi, gj)
                 if d < min_det:
@@ -576,7 +538,7 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, ns
         _tip(zb, body_out)
         converged = sane(body_out, tips)
     x_out[:] = x
-    return converged, it, rn, _det(jac), mdet, shoots
+    return converged, it, rn, det(jac), mdet, shoots
 
 
 @njit(cache=True)

@@ -3,7 +3,10 @@
 Without a guess, Newton starts from untwisted tubes (uz(0) = 0); if that gives no stable equilibrium,
 a fixed set of twisted guesses is tried and the stable equilibrium of lowest elastic energy is kept.
 That is a solve with no history: the paper's "TCM" baseline. History (which of several stable
-equilibria the robot is in) is the job of `follow`.
+equilibria the robot is in) is the job of `follow` (mechanics.continuation), which builds on the
+pieces here: `prepare` (joints to a `Problem`: grid and kernel inputs), `newton` (one damped Newton
+solve, a `NewtonResult`), `search` and `twisted_guesses` (multi-start), `cold_solution` and
+`equilibrium` (a NewtonResult as an `Equilibrium`).
 """
 
 from __future__ import annotations
@@ -11,6 +14,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -33,7 +37,8 @@ class Equilibrium:
     first access);
     stability: det of the shooting Jacobian ∂uz(tips)/∂uz(0) (1 for a straight robot, 0 at a fold);
     conjugate: min over the coupled length of det H (see kernels._relative_det);
-    stable: converged and both are > 0; energy: elastic energy (N·mm).
+    stable: converged and both are > 0; energy: elastic energy (N·mm); problem: the prepared
+    configuration it was solved on (grid and kernel inputs, `prepare`).
     """
 
     q: np.ndarray
@@ -46,12 +51,12 @@ class Equilibrium:
     energy: float
     residual: float
     iterations: int
-    _problem: _Problem = field(repr=False)
+    problem: Problem = field(repr=False)
 
     @functools.cached_property
     def _records(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Backbone and twist along s, integrated on first use (a solve needs only the tip)."""
-        return _integrate(self._problem, self.x, record=True)[3]
+        return _integrate(self.problem, self.x, record=True)[3]
 
     @property
     def s(self) -> np.ndarray:
@@ -85,9 +90,9 @@ class Equilibrium:
     def base_twist(self) -> np.ndarray:
         """(N,) deg: twist stored in each tube's transmission, ψi(0) − αi = −βi uiz(0) (M4)."""
         n = self.x.shape[0]
-        if self._problem.arrays.rigid:
+        if self.problem.arrays.rigid:
             return np.zeros(n)
-        return np.degrees(-self._problem.beta * self.x)
+        return np.degrees(-self.problem.beta * self.x)
 
     def to_dict(self) -> dict[str, object]:
         return {
@@ -101,8 +106,9 @@ class Equilibrium:
 
 
 @dataclass(frozen=True, eq=False)
-class _Problem:
-    """A joint configuration prepared for the kernels."""
+class Problem:
+    """A joint configuration prepared for the kernels (`prepare`): arrays of the robot, q (2N,),
+    α (N,) rad, β − transmission length (N,) mm, tips (N,) mm and the grid of kernels.build_grid."""
 
     arrays: RobotArrays
     q: np.ndarray
@@ -121,8 +127,8 @@ class _Problem:
         return int(self.grid[3].sum())
 
 
-def _prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: bool = False,
-             arr: RobotArrays | None = None) -> _Problem:
+def prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: bool = False,
+            arr: RobotArrays | None = None) -> Problem:
     """Validate q (unless checked) and build the integration grid; arr: robot_arrays(robot)."""
     qa = np.asarray(q, dtype=float) if checked else robot.check_joints(q)
     if qa.ndim != 1:
@@ -140,7 +146,7 @@ def _prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: boo
             f"a step of {h:.3g} mm; check the robot's lengths (mm) and "
             "curvatures (1/mm) or raise max_rk4_steps")
     # the kernels read β only as the twisting length −β of the compliant transmission (M4)
-    return _Problem(arr, qa, alpha, beta, tips, grid)
+    return Problem(arr, qa, alpha, beta, tips, grid)
 
 
 @functools.lru_cache(maxsize=64)
@@ -158,17 +164,43 @@ def rk4_step(arr: RobotArrays, settings: SolverSettings) -> float:
     return min(settings.step, settings.angle_step / kap, h_tol)
 
 
-# a Newton result: (x (N,) rad/mm, converged, iterations, |r|∞, det J, min det H,
-# body (7,) = tip (3,) mm, unit tangent (3,), energy N·mm from the final pass, NaN if not converged)
-Solution = tuple[np.ndarray, bool, int, float, float, float, np.ndarray]
 _NO_BODY = np.full(7, np.nan)
 _NO_BODY.setflags(write=False)
 
 
-def _newton(pb: _Problem, x0: np.ndarray, settings: SolverSettings, work: list[int] | None = None
-            ) -> Solution:
-    """Damped Newton from x0 (kernels.newton); work, if given, gets the RK4 steps spent added to
-    work[0]."""
+class NewtonResult(NamedTuple):
+    """One damped Newton solve (kernels.newton). x (N,) rad/mm: the root (the start where the
+    numerics broke down); converged: residual below tol and the sanity checks of kernels.sane passed;
+    iterations; residual |r|∞ (rad/mm); det_j: det ∂r/∂x, the stability measure; det_h: min det H,
+    the conjugate-point test; body (7,): tip (3,) mm, unit tangent (3,), elastic energy (N·mm) from
+    the final pass, NaN if not converged."""
+
+    x: np.ndarray
+    converged: bool
+    iterations: int
+    residual: float
+    det_j: float
+    det_h: float
+    body: np.ndarray
+
+    @property
+    def stable(self) -> bool:
+        return bool(self.converged and self.det_j > 0 and self.det_h > 0)
+
+    @property
+    def energy(self) -> float:
+        return float(self.body[6])
+
+    @classmethod
+    def failed(cls, x: np.ndarray, det_j: float = math.nan) -> NewtonResult:
+        """Not converged at x (NaN pose); det_j: the last stability measure known, if any."""
+        return cls(x, False, 0, math.inf, det_j, math.nan, _NO_BODY)
+
+
+def newton(pb: Problem, x0: np.ndarray, settings: SolverSettings, work: list[int] | None = None
+           ) -> NewtonResult:
+    """Damped Newton from x0 (N,) rad/mm (kernels.newton); work, if given, gets the RK4 steps spent
+    added to work[0]."""
     a = pb.arrays
     x0 = np.asarray(x0, dtype=float)
     x = np.empty(x0.shape[0])
@@ -180,14 +212,14 @@ def _newton(pb: _Problem, x0: np.ndarray, settings: SolverSettings, work: list[i
             x0, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,
             settings.tol, settings.max_iter, settings.max_step, x, body)
     except (np.linalg.LinAlgError, ZeroDivisionError, OverflowError, FloatingPointError):
-        return x0.copy(), False, 0, math.inf, math.nan, math.nan, _NO_BODY  # numerics broke down
+        return NewtonResult.failed(x0.copy())  # numerics broke down
     if work is not None:
         work[0] += shoots * pb.n_rk4
     conv = conv and rn < settings.tol and math.isfinite(x.sum())  # rn is NaN if r was
-    return x, conv, it, rn, det_j, det_h, body if conv else _NO_BODY
+    return NewtonResult(x, conv, it, rn, det_j, det_h, body if conv else _NO_BODY)
 
 
-def _integrate(pb: _Problem, x: np.ndarray, record: bool
+def _integrate(pb: Problem, x: np.ndarray, record: bool
                ) -> tuple[np.ndarray, np.ndarray, float,
                           tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
     """Tip position, tangent, energy and (if record) the grid records at base torsion x."""
@@ -204,22 +236,23 @@ def _integrate(pb: _Problem, x: np.ndarray, record: bool
     return body[:3], body[3:6], float(body[6]), recs
 
 
-def _finish(pb: _Problem, sol: Solution) -> Equilibrium:
-    x, conv, it, rn, det_j, det_h, body = sol
-    if conv:  # the final Newton pass integrated the backbone and energy (kernels.sane passed)
-        tip, tan, energy = body[:3], body[3:6], float(body[6])
+def equilibrium(pb: Problem, sol: NewtonResult) -> Equilibrium:
+    """The Equilibrium of a Newton result on problem pb."""
+    x = sol.x
+    if sol.converged:  # the final Newton pass integrated the backbone and energy (kernels.sane passed)
+        tip, tan, energy = sol.body[:3], sol.body[3:6], sol.energy
     else:
         try:
             energy = _integrate(pb, x, record=False)[2]
         except (ZeroDivisionError, OverflowError, FloatingPointError):
             energy = math.nan
         tip, tan = np.full(3, np.nan), np.full(3, np.nan)
-    return Equilibrium(q=pb.q, x=x, tip_position=tip, tip_tangent=tan, converged=conv,
-                       stability=det_j, conjugate=det_h, energy=energy, residual=rn,
-                       iterations=it, _problem=pb)
+    return Equilibrium(q=pb.q, x=x, tip_position=tip, tip_tangent=tan, converged=sol.converged,
+                       stability=sol.det_j, conjugate=sol.det_h, energy=energy,
+                       residual=sol.residual, iterations=sol.iterations, problem=pb)
 
 
-def _twisted_guesses(pb: _Problem, around: np.ndarray) -> list[np.ndarray]:
+def twisted_guesses(pb: Problem, around: np.ndarray) -> list[np.ndarray]:
     """Guesses with relative twist between tube i and the outermost tube, zero net torque.
 
     Rate scale π / (robot length): the twist needed to turn one tube half a turn against another.
@@ -238,26 +271,22 @@ def _twisted_guesses(pb: _Problem, around: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def _search(pb: _Problem, guesses: list[np.ndarray], settings: SolverSettings,
-            work: list[int] | None = None) -> list[Solution]:
+def search(pb: Problem, guesses: list[np.ndarray], settings: SolverSettings,
+           work: list[int] | None = None) -> list[NewtonResult]:
     """Distinct converged solutions from several guesses, tried in order until the RK4 steps spent
     exceed SolverSettings.max_search_steps (a bound on the time of a multi-start search); work: a
     counter shared with the caller (work[0], RK4 steps spent so far)."""
-    found: list[Solution] = []
+    found: list[NewtonResult] = []
     work = [0] if work is None else work
     for g in guesses:
         if work[0] > settings.max_search_steps:
             break
-        sol = _newton(pb, g, settings, work)
-        if not sol[1]:
+        sol = newton(pb, g, settings, work)
+        if not sol.converged:
             continue
-        if all(np.abs(sol[0] - f[0]).max() * pb.length > 1e-6 for f in found):
+        if all(np.abs(sol.x - f.x).max() * pb.length > 1e-6 for f in found):
             found.append(sol)
     return found
-
-
-def _stable(sol: Solution) -> bool:
-    return sol[1] and sol[4] > 0 and sol[5] > 0
 
 
 def solve(robot: Robot, q: np.ndarray, guess: Equilibrium | np.ndarray | None = None,
@@ -270,46 +299,47 @@ def solve(robot: Robot, q: np.ndarray, guess: Equilibrium | np.ndarray | None = 
     Invalid joints raise JointError. A failed solve returns converged=False with a NaN pose, or
     raises ConvergenceError if strict.
     """
-    pb = _prepare(robot, q, settings)
-    eq = _solve_prepared(pb, guess, settings)
+    pb = prepare(robot, q, settings)
+    eq = solve_prepared(pb, guess, settings)
     if strict and not eq.converged:
         raise ConvergenceError(f"no TCM equilibrium found at q = {pb.q.tolist()} "
                                f"(residual {eq.residual:.3g} rad/mm)")
     return eq
 
 
-def _solve_prepared(pb: _Problem, guess: Equilibrium | np.ndarray | None,
-                    settings: SolverSettings) -> Equilibrium:
+def solve_prepared(pb: Problem, guess: Equilibrium | np.ndarray | None,
+                   settings: SolverSettings) -> Equilibrium:
+    """`solve` on a prepared problem (joints already checked)."""
     n = pb.alpha.shape[0]
     if guess is not None:
         x0 = guess.x if isinstance(guess, Equilibrium) else np.asarray(guess, float)
         if x0.shape != (n,):
             raise ValueError(f"guess must have shape ({n},) (uz(0) per tube, rad/mm)")
-        return _finish(pb, _newton(pb, x0, settings))
-    return _finish(pb, cold_solution(pb, settings))
+        return equilibrium(pb, newton(pb, x0, settings))
+    return equilibrium(pb, cold_solution(pb, settings))
 
 
-def cold_solution(pb: _Problem, settings: SolverSettings, work: list[int] | None = None
-                  ) -> Solution:
+def cold_solution(pb: Problem, settings: SolverSettings, work: list[int] | None = None
+                  ) -> NewtonResult:
     """Newton from untwisted tubes; if that is not stable, the stable solution of least energy
     among twisted starts (else the least-energy converged one, else the first attempt)."""
     n = pb.alpha.shape[0]
     work = [0] if work is None else work
-    first = _newton(pb, np.zeros(n), settings, work)
-    if _stable(first) or n == 1:
+    first = newton(pb, np.zeros(n), settings, work)
+    if first.stable or n == 1:
         return first
-    cands = _search(pb, [first[0], *_twisted_guesses(pb, np.zeros(n))], settings, work)
-    pool = [c for c in cands if _stable(c)] or cands
+    cands = search(pb, [first.x, *twisted_guesses(pb, np.zeros(n))], settings, work)
+    pool = [c for c in cands if c.stable] or cands
     if not pool:
         return first
-    return min(pool, key=lambda c: float(c[6][6]))  # the energy of the final Newton pass
+    return min(pool, key=lambda c: c.energy)  # the energy of the final Newton pass
 
 
 def solve_many(robot: Robot, Q: np.ndarray, settings: SolverSettings = DEFAULT_SETTINGS
                ) -> list[Equilibrium]:
     """Independent point-wise solves (no history) of Q (T, 2N); rows are validated first."""
     Qa = robot.check_joints(np.atleast_2d(Q))
-    return [_solve_prepared(_prepare(robot, qr, settings, checked=True), None, settings)
+    return [solve_prepared(prepare(robot, qr, settings, checked=True), None, settings)
             for qr in Qa]
 
 

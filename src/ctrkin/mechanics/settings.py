@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from ctrkin.errors import CtrkinError
@@ -9,15 +10,20 @@ from ctrkin.errors import CtrkinError
 
 @dataclass(frozen=True)
 class SolverSettings:
-    """tip_tol: if set, tip-position error (mm) the RK4 step is chosen for, by the estimate
+    """tip_tol: tip-position error (mm) the RK4 step is chosen for, by the estimate
     e(h) = κ*⁵ ℓc min(L, 1/κ*) h⁴ / 120 (docs/mechanics.md: RK4's phase error (κh)⁵/120 per step of a
     rotation at rate κ*, over the precurved length ℓc, times the lever arm, at most the longest tube L
-    and the radius 1/κ* of a wound arc); step: largest RK4 step (mm) where a tube is curved (a
-    straight stretch is one exact step); angle_step: largest bending angle per RK4 step (rad). The
-    step is min(step, angle_step / κ*, (tip_tol / e(1))^¼) with κ* the robot's curvature-and-torsion
-    scale (1/mm, see `mechanics.arrays.RobotArrays.kappa_scale`). At the default (tip_tol None:
-    3 mm, 0.15 rad) e ≤ 4.2e-6 mm per mm of precurved length, ≤ 1e-3 mm up to ℓc = 240 mm;
-    `SolverSettings(step=math.inf, tip_tol=1e-3)` takes the step from the tolerance alone;
+    and the radius 1/κ* of a wound arc). Default 1e-3 mm: the measured error is 2-8× below it
+    (paper robot 2.4e-4 mm at a 5.26 mm step, TIMClab robot 1.2e-4 mm at 14.8 mm; tests/mechanics
+    check the tolerance against a tight reference); a tighter one on request, e.g.
+    `SolverSettings(tip_tol=1e-6)`; None: no tolerance, the step is min(step, angle_step / κ*).
+    step: largest RK4 step (mm) where a tube is curved (a straight stretch is one exact step),
+    default no cap; angle_step: largest turn of the state per RK4 step (rad), a guard that keeps RK4
+    where the estimate holds for loose tolerances (default 0.3: it binds on neither built-in robot at
+    1e-3 mm). The step is min(step, angle_step / κ*, (tip_tol / e(1))^¼) with κ* the robot's
+    curvature-and-torsion scale (1/mm, see `mechanics.arrays.RobotArrays.kappa_scale`);
+    `SolverSettings(tip_tol=None, step=3.0, angle_step=0.15)` is the fixed 3 mm step of earlier
+    versions (e ≤ 4.2e-6 mm per mm of precurved length);
     tol: shooting residual |uz(tip)|∞ (rad/mm);
     max_iter: Newton iterations; max_step: largest Newton update |Δuz(0)|∞ (rad/mm);
     max_rk4_steps: refuse a configuration whose grid needs more RK4 steps (a guard against
@@ -28,18 +34,16 @@ class SolverSettings:
     (5e5 RK4 steps: about 0.5 s on one core for three tubes; a paper-robot solve needs < 1e4,
     a continuation step of a paper-robot sweep, folds included, < 3e4).
 
-    RK4's error falls as step⁴: on the paper robot the tip is within 3e-5 mm of a tight-tolerance
-    reference at the default 3 mm (5e-6 mm at 2 mm, 1.3e-3 mm at 8 mm); with the curvature rule a
-    single curved tube is within 3e-6 mm per mm of curved length of the exact arc at any curvature
-    (docs/mechanics.md); benchmarks/bench_mechanics.py measures it. The estimate e(h) is 2-5× above
-    the measured error on the paper, TIMClab and high-curvature robots (tests/mechanics)."""
+    RK4's error falls as step⁴ (tests/mechanics/test_numerics.py); benchmarks/bench_mechanics.py
+    measures the tip error against the reference. The estimate e(h) is 2-8× above the measured
+    error on the paper, TIMClab and high-curvature robots (tests/mechanics)."""
 
-    tip_tol: float | None = None
-    step: float = 3.0
+    tip_tol: float | None = 1e-3
+    step: float = math.inf
     tol: float = 1e-10
     max_iter: int = 40
     max_step: float = 0.05
-    angle_step: float = 0.15
+    angle_step: float = 0.3
     max_rk4_steps: int = 200_000
     max_search_steps: int = 500_000
 

@@ -7,6 +7,7 @@ relative to the front plate (s = 0), βi ≤ 0; tube i occupies s ∈ [βi, βi 
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
@@ -41,6 +42,7 @@ def joint_names(n_tubes: int) -> list[str]:
     """Joint vector order (fixed, DESIGN.md: Conventions): α1..αN, β1..βN. These are the dataset's
     joint columns (ctrkin.data.schema) and the learned models' joint features."""
     return alpha_names(n_tubes) + beta_names(n_tubes)
+
 
 @dataclass(frozen=True)
 class Robot:
@@ -115,6 +117,27 @@ class Robot:
             out[:, n + i] = np.clip(out[:, n + i], lo, np.maximum(outer, lo))
         return out
 
+    @functools.cached_property
+    def _lengths(self) -> np.ndarray:
+        out = self.lengths
+        out.setflags(write=False)
+        return out
+
+    def _rule_message(self, rule: int) -> str:
+        """The message of inequality `rule` (joint_check.joint_violations: 0 non-finite, 1.. the
+        inequalities)."""
+        n = self.n_tubes
+        if rule == 1:
+            return f"beta_{n} must be <= 0 mm (bases behind the front plate)"
+        if rule == 2:
+            return f"tube {n} tip beta_{n} + L_{n} must be >= 0 mm (no tube pulled behind the plate)"
+        i = (rule - 3) // 2
+        if rule % 2:
+            return (f"beta_{i + 1} <= beta_{i + 2} is required (tube {i + 1} is inside "
+                    f"tube {i + 2}, so its base is further back)")
+        return (f"beta_{i + 1} + L_{i + 1} >= beta_{i + 2} + L_{i + 2} is required "
+                f"(inner tubes reach further)")
+
     def check_joints(self, q: np.ndarray) -> np.ndarray:
         """Validate joints q: (2N,) or (T, 2N) in (deg, mm); returns them as float arrays.
 
@@ -127,47 +150,20 @@ class Robot:
         except (TypeError, ValueError) as e:
             raise JointError(f"joints must be numbers (alpha deg, beta mm): {e}") from None
         n = self.n_tubes
-        if qa.ndim == 1 and qa.shape[0] == 2 * n and self._valid_single(qa):
-            return qa  # fast path for one valid configuration (the control-loop case)
         if qa.shape[-1:] != (2 * n,) or qa.ndim not in (1, 2):
             raise JointError(f"joints must have shape (2N,) or (T, 2N) with 2N = {2 * n} "
                              f"(alpha_1..alpha_N deg, beta_1..beta_N mm), got {qa.shape}")
         rows = qa.reshape(-1, 2 * n)
-        bad = ~np.isfinite(rows).all(axis=1)
-        if bad.any():
-            raise JointError(f"joints contain NaN or inf at row {int(np.argmax(bad))}")
-        beta = rows[:, n:]
-        tips = beta + self.lengths
-        problems = [
-            (beta[:, -1] > JOINT_TOL, f"beta_{n} must be <= 0 mm (bases behind the front plate)"),
-            (tips[:, -1] < -JOINT_TOL,
-             f"tube {n} tip beta_{n} + L_{n} must be >= 0 mm (no tube pulled behind the plate)"),
-        ]
-        for i in range(n - 1):
-            problems.append((beta[:, i] > beta[:, i + 1] + JOINT_TOL,
-                             f"beta_{i + 1} <= beta_{i + 2} is required (tube {i + 1} is inside "
-                             f"tube {i + 2}, so its base is further back)"))
-            problems.append((tips[:, i] < tips[:, i + 1] - JOINT_TOL,
-                             f"beta_{i + 1} + L_{i + 1} >= beta_{i + 2} + L_{i + 2} is required "
-                             f"(inner tubes reach further)"))
-        for mask, msg in problems:
-            if mask.any():
-                r = int(np.argmax(mask))
-                where = f" (row {r}: {rows[r].tolist()})" if qa.ndim == 2 else f" (q = {rows[r].tolist()})"
-                raise JointError(msg + where)
-        return qa
+        from ctrkin.robots.joint_check import joint_violations  # numba: loaded on first check
 
-    def _valid_single(self, q: np.ndarray) -> bool:
-        vals = q.tolist()
-        if not all(math.isfinite(v) for v in vals):
-            return False
-        n = self.n_tubes
-        beta = vals[n:]
-        tips = [b + t.length for b, t in zip(beta, self.tubes, strict=True)]
-        if beta[-1] > JOINT_TOL or tips[-1] < -JOINT_TOL:
-            return False
-        return all(beta[i] <= beta[i + 1] + JOINT_TOL and tips[i] >= tips[i + 1] - JOINT_TOL
-                   for i in range(n - 1))
+        codes, first = joint_violations(rows, self._lengths)
+        if first < 0:
+            return qa
+        r = int(np.argmax(codes == first))
+        if first == 0:
+            raise JointError(f"joints contain NaN or inf at row {r}")
+        where = f" (row {r}: {rows[r].tolist()})" if qa.ndim == 2 else f" (q = {rows[r].tolist()})"
+        raise JointError(self._rule_message(first) + where)
 
     def is_valid(self, q: np.ndarray) -> np.ndarray:
         """Boolean mask of valid rows for joints (T, 2N) (no exception)."""
@@ -177,13 +173,9 @@ class Robot:
         n = self.n_tubes
         if rows.ndim != 2 or rows.shape[1] != 2 * n:
             raise JointError(f"joints must have shape (2N,) or (T, 2N) with 2N = {2 * n}, got {rows.shape}")
-        beta = rows[:, n:]
-        tips = beta + self.lengths
-        ok = np.isfinite(rows).all(axis=1) & (beta[:, -1] <= JOINT_TOL) & (tips[:, -1] >= -JOINT_TOL)
-        for i in range(n - 1):
-            ok &= beta[:, i] <= beta[:, i + 1] + JOINT_TOL
-            ok &= tips[:, i] >= tips[:, i + 1] - JOINT_TOL
-        return ok
+        from ctrkin.robots.joint_check import joint_violations
+
+        return joint_violations(rows, self._lengths)[0] < 0
 
     # --- serialisation -------------------------------------------------------------------------
     def to_dict(self) -> dict[str, object]:
