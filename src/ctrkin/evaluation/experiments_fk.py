@@ -20,17 +20,16 @@ from ctrkin.evaluation.context import (
     valid_rows,
     with_headline,
 )
-from ctrkin.evaluation.metrics import (
+from ctrkin.evaluation.snapping import (
     azimuth_series,
     glitch_window,
     rotation_direction,
     snap_report,
     snap_steps,
     snap_window,
-    timing_stats,
 )
 from ctrkin.evaluation.training_runs import ABLATION, BASELINES
-from ctrkin.pose import position_error
+from ctrkin.metrics import position_error, timing_stats
 from ctrkin.viz import experiments as fig
 
 PAPER_ROW = "lstm_mlp_paper"

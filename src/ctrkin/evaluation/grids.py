@@ -8,9 +8,9 @@ from typing import Any
 import numpy as np
 
 from ctrkin.evaluation.context import FK_ROWS, IK_ROWS, RECOMMENDED, Context, summary, valid_rows
-from ctrkin.evaluation.metrics import joint_errors, timing_stats
 from ctrkin.evaluation.scales import ReproScale
 from ctrkin.evaluation.training_runs import FK_PAPER, IK_PAPER, IK_REFINED
+from ctrkin.metrics import joint_errors, timing_stats
 from ctrkin.viz import experiments as fig
 
 

@@ -1,4 +1,5 @@
-"""Training of learned kinematics (paper IV.A): configuration, data preparation, loop, metrics.
+"""Training of learned kinematics (paper IV.A): configuration, data preparation, the loop; errors
+are computed by ctrkin.metrics.
 
     from ctrkin.training import TrainConfig, train
     train(dataset, TrainConfig(task="fk", model="lstm_mlp", ib=2), "models/fk")
@@ -6,6 +7,5 @@
 
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.loop import TrainResult, train
-from ctrkin.training.metrics import joint_errors, pose_errors
 
-__all__ = ["TrainConfig", "TrainResult", "joint_errors", "pose_errors", "train"]
+__all__ = ["TrainConfig", "TrainResult", "train"]
