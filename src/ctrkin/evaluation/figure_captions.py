@@ -62,7 +62,8 @@ FIGURES = (
            "through the learned FK model and by driving the virtual robot (3-D, mm), and the "
            "predicted joints per point."),
     Figure("fig12_ik_triangle", "Fig. 12: IK along a triangle",
-           "As the square, along a triangle of 10 target poses."),
+           "As the square (Fig. 12 above), along a triangle of 10 target poses: targets, tips reached "
+           "and predicted joints."),
 )
 
 
