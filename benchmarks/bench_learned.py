@@ -29,8 +29,10 @@ import numpy as np
 
 from ctrkin.data import Dataset
 from ctrkin.inference import Kinematics
+from ctrkin.metrics import metrics_json_joint_errors as joint_errors
+from ctrkin.metrics import metrics_json_pose_errors as pose_errors
 from ctrkin.pose import position_error, tangent_angle_error
-from ctrkin.training import TrainConfig, joint_errors, pose_errors, train
+from ctrkin.training import TrainConfig, train
 from ctrkin.virtual.truth import tracker_truth
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ctrkin.data import Split
-from ctrkin.evaluation.metrics import azimuth_series, snap_score
+from ctrkin.evaluation.snapping import azimuth_series, snap_score
 from ctrkin.inference import Kinematics
 from ctrkin.robots import paper_robot
 from ctrkin.training import TrainConfig, train

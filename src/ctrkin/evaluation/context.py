@@ -11,10 +11,10 @@ import numpy as np
 
 from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.datasets import ReproData, registered_truth
-from ctrkin.evaluation.metrics import pose_errors
 from ctrkin.evaluation.tcm_baseline import TCMBaseline
 from ctrkin.evaluation.training_runs import FK_BRANCH, FK_PAPER, IK_FOLLOW, IK_PAPER, IK_REFINED
 from ctrkin.inference import Kinematics
+from ctrkin.metrics import pose_errors
 from ctrkin.models.branch_labels import branch_labels
 
 # learned rows of every FK / IK experiment: results name -> model folder. The recommended model's

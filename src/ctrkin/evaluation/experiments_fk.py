@@ -20,17 +20,16 @@ from ctrkin.evaluation.context import (
     valid_rows,
     with_headline,
 )
-from ctrkin.evaluation.metrics import (
+from ctrkin.evaluation.snapping import (
     azimuth_series,
     glitch_window,
     rotation_direction,
     snap_report,
     snap_steps,
     snap_window,
-    timing_stats,
 )
 from ctrkin.evaluation.training_runs import ABLATION, BASELINES
-from ctrkin.geometry import position_error
+from ctrkin.metrics import position_error, timing_stats
 from ctrkin.viz import experiments as fig
 
 PAPER_ROW = "lstm_mlp_paper"
@@ -70,9 +69,9 @@ def fk_comparison(ctx: Context) -> dict[str, Any]:
             m: [out[m]["position_mae_by_level_mm"].get(g, np.nan) for g in groups]
             for m in (*FK_ROWS, *BASELINES, "tcm")
         },
-        "position MAE on test sequences (mm)",
+        "position MAE (mm)",
         ctx.figures / "fig5a_model_comparison.png",
-        "Model comparison (Fig. 5a) by relative translation",
+        "FK models (Fig. 5a): position MAE on the test sequences, by relative translation d",
     )
     fig.grouped_bars(
         [f"d = {g} mm" for g in groups],
@@ -80,9 +79,9 @@ def fk_comparison(ctx: Context) -> dict[str, Any]:
             "with Δα0": [out[PAPER_ROW]["position_mae_by_level_mm"].get(g, np.nan) for g in groups],
             "without Δα0": [out[ABLATION]["position_mae_by_level_mm"].get(g, np.nan) for g in groups],
         },
-        "position MAE on test sequences (mm)",
+        "position MAE (mm)",
         ctx.figures / "fig5b_delta_ablation.png",
-        "Directional parameter Δα0 (Fig. 5b), the paper's LSTM-MLP",
+        "Δα0 (Fig. 5b): the paper's LSTM-MLP, position MAE on the test sequences",
     )
     with_d, without = out[PAPER_ROW]["position_mae_mm"], out[ABLATION]["position_mae_mm"]
     out["ablation"] = {
@@ -228,7 +227,7 @@ def random_points(ctx: Context) -> dict[str, Any]:
     out, preds = r["results"], r["preds"]
     out["n_points"] = len(rows)
     fig.points_figure(ds.poses()[rows], preds[RECOMMENDED["fk"]], preds["tcm"],
-                      ctx.figures / "fig10b_random_points.png")
+                      ctx.figures / "fig10b_random_points.png", model_label=fig.LABELS[RECOMMENDED["fk"]])
     return out
 
 
@@ -244,5 +243,5 @@ def arbitrary(ctx: Context) -> dict[str, Any]:
         out[name]["position_error_percentiles_mm"] = {f"p{q}": float(np.percentile(e, q))
                                                       for q in (50, 90, 99)}
     fig.trajectory_figure(measured, preds[RECOMMENDED["fk"]], preds["tcm"],
-                          ctx.figures / "fig10c_arbitrary.png")
+                          ctx.figures / "fig10c_arbitrary.png", model_label=fig.LABELS[RECOMMENDED["fk"]])
     return out

@@ -20,9 +20,9 @@ from ctrkin.evaluation.context import (
     valid_rows,
     with_headline,
 )
-from ctrkin.evaluation.metrics import joint_errors
 from ctrkin.evaluation.training_runs import FK_BRANCH
 from ctrkin.inference.kinematics import IKResult
+from ctrkin.metrics import joint_errors
 from ctrkin.virtual import VirtualRobot
 from ctrkin.virtual.transmission import clip_to_valid
 from ctrkin.viz import experiments as fig

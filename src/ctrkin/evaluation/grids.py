@@ -8,9 +8,9 @@ from typing import Any
 import numpy as np
 
 from ctrkin.evaluation.context import FK_ROWS, IK_ROWS, RECOMMENDED, Context, summary, valid_rows
-from ctrkin.evaluation.metrics import joint_errors, timing_stats
 from ctrkin.evaluation.scales import ReproScale
 from ctrkin.evaluation.training_runs import FK_PAPER, IK_PAPER, IK_REFINED
+from ctrkin.metrics import joint_errors, timing_stats
 from ctrkin.viz import experiments as fig
 
 
@@ -50,21 +50,24 @@ def grids(ctx: Context, scale: ReproScale) -> dict[str, Any]:
             ]
         ),
         ctx.figures / "fig7_input_buffer.png",
-        "Input buffer (Table II, Fig. 7)",
+        "Input buffer (Table II, Fig. 7): RMSE on the test sequences",
         "{:.2f}",
+        units=["mm", "mm", "deg"],
     )
     fig.grid_figure(
-        [f"IB={ib}" for ib in scale.structure_ibs],
+        [f"{q} RMSE, IB={ib}" for q in ("position", "orientation") for ib in scale.structure_ibs],
         list(scale.structure_grid),
         np.array(
             [
-                [out["structure"][f"ib{ib}_{s}"]["position_rmse_mm"] for s in scale.structure_grid]
+                [out["structure"][f"ib{ib}_{s}"][key] for s in scale.structure_grid]
+                for key in ("position_rmse_mm", "orientation_rmse_deg")
                 for ib in scale.structure_ibs
             ]
         ),
         ctx.figures / "fig8_structures.png",
-        "FK position RMSE (mm) by structure (Table III, Fig. 8)",
+        "FK by structure (Table III, Fig. 8): RMSE on the test sequences",
         "{:.2f}",
+        units=["mm"] * len(scale.structure_ibs) + ["deg"] * len(scale.structure_ibs),
     )
     return out
 

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import resource
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -15,11 +16,12 @@ import numpy as np
 from ctrkin import __version__
 from ctrkin.evaluation import experiments_fk, experiments_ik, grids
 from ctrkin.evaluation.context import FK_ROWS, IK_ROWS, RECOMMENDED, Context
-from ctrkin.evaluation.datasets import collect
+from ctrkin.evaluation.datasets import ReproData, collect
 from ctrkin.evaluation.report import write_report, write_results
 from ctrkin.evaluation.scales import ReproScale
 from ctrkin.evaluation.tcm_baseline import TCMBaseline
 from ctrkin.evaluation.training_runs import train_all
+from ctrkin.inference import Kinematics
 from ctrkin.robots.robot import Robot
 
 NOTES = [
@@ -36,6 +38,25 @@ NOTES = [
 ]
 
 
+class _Stages:
+    """Logs each stage's name as it starts and records its wall time (s) under that name."""
+
+    def __init__(self, log: Callable[[str], None]) -> None:
+        self.log = log
+        self.seconds: dict[str, float] = {}
+        self.t0 = time.perf_counter()
+
+    @contextmanager
+    def stage(self, name: str) -> Iterator[None]:
+        self.log(f"== {name}")
+        t = time.perf_counter()
+        yield
+        self.seconds[name] = time.perf_counter() - t
+
+    def total(self) -> dict[str, float]:
+        return {**self.seconds, "total": time.perf_counter() - self.t0}
+
+
 def reproduce(
     robot: Robot,
     scale: ReproScale,
@@ -46,29 +67,40 @@ def reproduce(
     executor: str = "local",
 ) -> dict[str, Any]:
     """Run the whole reproduction into `out`; workers: trainings run in parallel (one thread each);
-    executor: where they run, "local" processes or "ray" tasks (ctrkin.evaluation.executors)."""
+    executor: where they run, "local" processes or "ray" tasks (ctrkin.evaluation.executors).
+    Stages: collect data, train, fit the TCM baseline, FK experiments, IK experiments, grids,
+    timing; then results.json and report.md."""
     out = Path(out)
     figures = out / "figures"
     figures.mkdir(parents=True, exist_ok=True)
-    seconds: dict[str, float] = {}
-    t_all = time.perf_counter()
+    st = _Stages(log)
+    with st.stage("collect data on the virtual robot"):
+        data = collect(robot, scale, out / "data", robot_seed=robot_seed)
+        data.paper.save_split(out / "data" / "paper", data.paper.get_split(seed=0))
+    with st.stage("train models"):
+        models = train_all(out / "data" / "paper", scale, out / "models", workers=workers, log=log,
+                           executor=executor)
+    with st.stage("fit the TCM baseline's registration on training rows"):
+        tcm = _tcm_baseline(robot, data, scale)
+    ctx = Context(data=data, models=models, tcm=tcm, figures=figures)
+    fk, experiments = _fk_experiments(ctx, st)
+    with st.stage("IK: held-out sequences, random poses, square and triangle (Fig. 11, 12)"):
+        ik = _ik_experiments(ctx, experiments)
+    with st.stage("input buffer and structure grids (Tables II, III)"):
+        grid = grids.grids(ctx, scale)
+    with st.stage("timing"):
+        lat = grids.timing(ctx)
+    results = _results(robot, scale, robot_seed, tcm, data, models, fk, ik, experiments, grid, lat)
+    results["seconds"] = st.total()
+    results["memory"] = peak_rss_mb(workers if executor == "local" else 0)
+    written = write_results(results, out / "results.json")
+    write_report(written, out / "report.md")
+    log(f"wrote {out / 'report.md'} and {out / 'results.json'} ({results['seconds']['total']:.0f} s)")
+    return written
 
-    def stage(name: str) -> Callable[[], None]:
-        log(f"== {name}")
-        t0 = time.perf_counter()
-        return lambda: seconds.__setitem__(name, time.perf_counter() - t0)
 
-    done = stage("collect data on the virtual robot")
-    data = collect(robot, scale, out / "data", robot_seed=robot_seed)
-    data.paper.save_split(out / "data" / "paper", data.paper.get_split(seed=0))
-    done()
-
-    done = stage("train models")
-    models = train_all(out / "data" / "paper", scale, out / "models", workers=workers, log=log,
-                       executor=executor)
-    done()
-
-    done = stage("fit the TCM baseline's registration on training rows")
+def _tcm_baseline(robot: Robot, data: ReproData, scale: ReproScale) -> TCMBaseline:
+    """The paper's TCM baseline: the nominal robot, registered to the tracker on training rows."""
     tcm = TCMBaseline(robot)
     train_rows = data.paper.get_split().train
     tcm.fit_registration(
@@ -76,19 +108,13 @@ def reproduce(
         data.paper.poses()[train_rows],
         max_points=2000 if scale.name != "tiny" else 200,
     )
-    done()
+    return tcm
 
-    ctx = Context(data=data, models=models, tcm=tcm, figures=figures)
-    results: dict[str, Any] = {
-        "scale": scale.to_dict(),
-        "robot": robot.to_dict(),
-        "virtual_robot_seed": robot_seed,
-        "ctrkin_version": __version__,
-        "registration": tcm.registration.to_dict(),
-    }
-    done = stage("FK: model comparison on held-out sequences (Fig. 5)")
-    fk = experiments_fk.fk_comparison(ctx)
-    done()
+
+def _fk_experiments(ctx: Context, st: _Stages) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The FK model comparison (Fig. 5) and the FK experiments of Fig. 10 (and the snap turns)."""
+    with st.stage("FK: model comparison on held-out sequences (Fig. 5)"):
+        fk = experiments_fk.fk_comparison(ctx)
     experiments: dict[str, Any] = {}
     for name, fn in (
         ("sweeps", experiments_fk.sweeps),
@@ -96,65 +122,63 @@ def reproduce(
         ("arbitrary", experiments_fk.arbitrary),
         ("snap_turns", experiments_fk.snap_turns),
     ):
-        done = stage(f"FK experiment: {name} (Fig. 10)")
-        experiments[name] = fn(ctx)
-        done()
-    done = stage("IK: held-out sequences, random poses, square and triangle (Fig. 11, 12)")
+        with st.stage(f"FK experiment: {name} (Fig. 10)"):
+            experiments[name] = fn(ctx)
+    return fk, experiments
+
+
+def _ik_experiments(ctx: Context, experiments: dict[str, Any]) -> dict[str, Any]:
+    """IK on held-out sequences (returned) and the IK experiments (added to `experiments`)."""
     ik = experiments_ik.ik_heldout(ctx)
     experiments["ik_random"] = experiments_ik.ik_random(ctx)
     experiments["ik_square"] = experiments_ik.ik_path(ctx, "square")
     experiments["ik_triangle"] = experiments_ik.ik_path(ctx, "triangle")
-    done()
-    done = stage("input buffer and structure grids (Tables II, III)")
-    results["grids"] = grids.grids(ctx, scale)
-    done()
-    done = stage("timing")
-    lat = grids.timing(ctx)
-    done()
+    return ik
 
-    snapping = _snapping(experiments)
+
+def _results(robot: Robot, scale: ReproScale, robot_seed: int, tcm: TCMBaseline, data: ReproData,
+             models: dict[str, Kinematics], fk: dict[str, Any], ik: dict[str, Any],
+             experiments: dict[str, Any], grid: dict[str, Any], lat: dict[str, Any]) -> dict[str, Any]:
+    """The results tree of results.json (its keys in this order), before seconds and memory."""
     tcm_t = fk["tcm"]["timing"]
     f = data.paper.frame
-    results.update(
-        {
-            "dataset": {
-                "samples": len(f),
-                "sequences": int(f["sequence_id"].nunique()),
-                "snaps": int(f["snap"].sum()),
-                "outliers": int(f["outlier"].sum()),
-                "split": data.paper.get_split().sizes(),
-            },
-            "fk": fk,
-            "ik": ik,
-            "experiments": experiments,
-            "snapping": snapping,
-            "recommended": {"fk": f"models/{FK_ROWS[RECOMMENDED['fk']]}",
-                            "ik": f"models/{IK_ROWS[RECOMMENDED['ik']]}"},
-            "timing": {
-                "fk_ms_mean": lat["fk"]["ms_mean"],
-                "fk_ms_std": lat["fk"]["ms_std"],
-                "fk_us_median": lat["fk"]["us_median"],
-                "fk_paper_us_median": lat["fk_paper"]["us_median"],
-                "ik_paper_us_median": lat["ik_paper"]["us_median"],
-                "ik_refined_us_median": lat["ik_refined"]["us_median"],
-                "ik_ms_mean": lat["ik"]["ms_mean"],
-                "ik_ms_std": lat["ik"]["ms_std"],
-                "ik_us_median": lat["ik"]["us_median"],
-                "tcm_ms_mean": tcm_t["ms_mean"],
-                "tcm_ms_std": tcm_t["ms_std"],
-                "tcm_us_median": tcm_t["us_median"],
-            },
-            "training": {name: m.metrics.get("training", {}) for name, m in models.items()},
-            "notes": NOTES,
-        }
-    )
-    seconds["total"] = time.perf_counter() - t_all
-    results["seconds"] = seconds
-    results["memory"] = peak_rss_mb(workers if executor == "local" else 0)
-    written = write_results(results, out / "results.json")
-    write_report(written, out / "report.md")
-    log(f"wrote {out / 'report.md'} and {out / 'results.json'} ({seconds['total']:.0f} s)")
-    return written
+    return {
+        "scale": scale.to_dict(),
+        "robot": robot.to_dict(),
+        "virtual_robot_seed": robot_seed,
+        "ctrkin_version": __version__,
+        "registration": tcm.registration.to_dict(),
+        "grids": grid,
+        "dataset": {
+            "samples": len(f),
+            "sequences": int(f["sequence_id"].nunique()),
+            "snaps": int(f["snap"].sum()),
+            "outliers": int(f["outlier"].sum()),
+            "split": data.paper.get_split().sizes(),
+        },
+        "fk": fk,
+        "ik": ik,
+        "experiments": experiments,
+        "snapping": _snapping(experiments),
+        "recommended": {"fk": f"models/{FK_ROWS[RECOMMENDED['fk']]}",
+                        "ik": f"models/{IK_ROWS[RECOMMENDED['ik']]}"},
+        "timing": {
+            "fk_ms_mean": lat["fk"]["ms_mean"],
+            "fk_ms_std": lat["fk"]["ms_std"],
+            "fk_us_median": lat["fk"]["us_median"],
+            "fk_paper_us_median": lat["fk_paper"]["us_median"],
+            "ik_paper_us_median": lat["ik_paper"]["us_median"],
+            "ik_refined_us_median": lat["ik_refined"]["us_median"],
+            "ik_ms_mean": lat["ik"]["ms_mean"],
+            "ik_ms_std": lat["ik"]["ms_std"],
+            "ik_us_median": lat["ik"]["us_median"],
+            "tcm_ms_mean": tcm_t["ms_mean"],
+            "tcm_ms_std": tcm_t["ms_std"],
+            "tcm_us_median": tcm_t["us_median"],
+        },
+        "training": {name: m.metrics.get("training", {}) for name, m in models.items()},
+        "notes": NOTES,
+    }
 
 
 def peak_rss_mb(workers: int) -> dict[str, float]:

@@ -1,4 +1,5 @@
-"""Training of learned kinematics (paper IV.A): configuration, data preparation, loop, metrics.
+"""Training of learned kinematics (paper IV.A): configuration, data preparation, the loop; errors
+are computed by ctrkin.metrics.
 
     from ctrkin.training import TrainConfig, train
     train(dataset, TrainConfig(task="fk", model="lstm_mlp", ib=2), "models/fk")
@@ -12,15 +13,13 @@ from ctrkin.util.lazy import lazy_attributes
 
 _WHERE = {
     "TrainConfig": "ctrkin.training.config", "TrainResult": "ctrkin.training.loop",
-    "train": "ctrkin.training.loop", "joint_errors": "ctrkin.training.metrics",
-    "pose_errors": "ctrkin.training.metrics",
+    "train": "ctrkin.training.loop",
 }
 
-__all__ = ["TrainConfig", "TrainResult", "joint_errors", "pose_errors", "train"]
+__all__ = ["TrainConfig", "TrainResult", "train"]
 
 __getattr__, __dir__ = lazy_attributes(__name__, _WHERE)
 
 if TYPE_CHECKING:
     from ctrkin.training.config import TrainConfig
     from ctrkin.training.loop import TrainResult, train
-    from ctrkin.training.metrics import joint_errors, pose_errors

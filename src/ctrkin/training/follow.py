@@ -24,6 +24,7 @@ from ctrkin.data.dataset import Dataset
 from ctrkin.errors import ModelError
 from ctrkin.inference.follow import Follower
 from ctrkin.inference.kinematics import Kinematics
+from ctrkin.metrics import metrics_json_joint_errors
 from ctrkin.models.follow import follow_features, joint_noise, previous_rows
 from ctrkin.models.normalize import MinMax
 from ctrkin.models.store import CONFIG, ModelBundle, read_json, write_json
@@ -41,7 +42,6 @@ from ctrkin.training.loop import (
     setup_differences,
     split_signature,
 )
-from ctrkin.training.metrics import joint_errors
 from ctrkin.util.folders import swap_in, write_manifest
 from ctrkin.util.progress import progress_bar
 
@@ -199,7 +199,7 @@ def _evaluate(bundle: ModelBundle, workspace: Workspace, ds: Dataset, rows: dict
         r = rows[part]
         if len(r):
             pred = kin.predict(poses[r], sequence_id=sid[r]).joints
-            res[part] = {"rows": len(r), "joints": joint_errors(pred, joints[r], ds.n_tubes)}
+            res[part] = {"rows": len(r), "joints": metrics_json_joint_errors(pred, joints[r], ds.n_tubes)}
     return res
 
 

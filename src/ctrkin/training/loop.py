@@ -28,6 +28,7 @@ from ctrkin.data.schema import sequence_bounds
 from ctrkin.data.splits import split_warnings
 from ctrkin.data.tracker_view import recorded_tracker_view
 from ctrkin.errors import ModelError
+from ctrkin.metrics import metrics_json_joint_errors, metrics_json_pose_errors
 from ctrkin.models.branch import UNKNOWN_STATE, BranchNet
 from ctrkin.models.features import postprocess
 from ctrkin.models.fold_gate import FoldGate, build_fold_gate, recorded_motion
@@ -37,7 +38,6 @@ from ctrkin.models.workspace import Workspace
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.curves import plot_curves
 from ctrkin.training.data import Prepared, data_signature, prepare
-from ctrkin.training.metrics import joint_errors, pose_errors
 from ctrkin.util.files import atomic_path, atomic_write_text
 from ctrkin.util.folders import folder_lock, recover, swap_in, write_manifest
 from ctrkin.util.progress import progress_bar
@@ -403,13 +403,14 @@ def evaluate(bundle: ModelBundle, ds: Dataset, prep: Prepared) -> dict[str, Any]
         m: dict[str, Any] = {"loss": float(np.mean(np.abs(yn - prep.Y[rows]))), "rows": len(rows)}
         pred = prep.to_world(postprocess(prep.layout, prep.y_norm.inverse(yn)), rows)
         if prep.layout.task == "fk":
-            m["vs_measured"] = pose_errors(pred, ds.poses()[rows], ds.meta.get("orientation") != "absent")
+            m["vs_measured"] = metrics_json_pose_errors(pred, ds.poses()[rows],
+                                                        ds.meta.get("orientation") != "absent")
             if truth is not None:  # the truth as the tracker sees it: the model's frame and sensor point
-                m["vs_true"] = pose_errors(pred, truth[rows])
+                m["vs_true"] = metrics_json_pose_errors(pred, truth[rows])
             elif ds.has_truth:
-                m["vs_true"] = pose_errors(pred, ds.poses(true=True)[rows])
+                m["vs_true"] = metrics_json_pose_errors(pred, ds.poses(true=True)[rows])
         else:
-            m["joints"] = joint_errors(pred, ds.joints()[rows], n)
+            m["joints"] = metrics_json_joint_errors(pred, ds.joints()[rows], n)
         res[part] = m
     return res
 

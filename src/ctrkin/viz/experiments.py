@@ -24,52 +24,122 @@ def _save(fig: plt.Figure, path: str | Path) -> None:
     plt.close(fig)
 
 
-# T(L) curves of sweeps_figure: panel key -> (label, colour, line style, marker size)
-TURN_CURVES = {
-    "tcm": ("TCM (point-wise)", TCM, ".", 1.5),
-    "tcm_continued": ("TCM (continued)", "tab:green", "-", 0.8),
-    "measured": ("measured", MEAS, ".", 2.5),
-    "lstm_mlp_paper": ("LSTM-MLP (paper)", "tab:orange", ".", 1.5),
-    "lstm_mlp_branch": ("snap-aware LSTM-MLP", MODEL, "-", 1.0),
-    "lstm_mlp_branch_tcm_gate": ("snap-aware, TCM-gated", "tab:purple", "-", 0.8),
-    "lstm_mlp_branch_learned_gate": ("snap-aware, learned gate", "tab:pink", "-", 0.8),
-    "truth": ("truth", TRUE, "--", 0.8),
+# readable names of the results' predictor keys (figures, report.md)
+LABELS = {
+    "lstm_mlp_paper": "LSTM-MLP (paper)",
+    "lstm_mlp_branch": "snap-aware LSTM-MLP",
+    "lstm_mlp_branch_tcm_gate": "snap-aware, TCM-gated",
+    "lstm_mlp_branch_learned_gate": "snap-aware, learned gate",
+    "lstm_mlp_no_delta": "LSTM-MLP without Δα0",
+    "lstm_mlp_refined": "LSTM-MLP IK refined on the FK",
+    "follow_mlp": "follow IK",
+    "mlp": "MLP", "lstm": "LSTM", "cnn": "CNN", "tcn": "TCN", "resnet": "ResNet",
+    "tcm": "TCM (point-wise)",
+    "tcm_continued": "TCM (continued)",
 }
+
+# T(L) curves of sweeps_figure, drawn in this order (the recommended model last, on top): panel key
+# -> (label, colour, kind, size). kind
+# "points": markers, filled forward and open backward; "line": solid forward, dashed backward.
+TURN_CURVES = {
+    "measured": ("measured", MEAS, "points", 2.5),
+    "tcm": (LABELS["tcm"], TCM, "points", 1.5),
+    "truth": ("truth", TRUE, "line", 1.2),
+    "tcm_continued": (LABELS["tcm_continued"], "tab:green", "line", 0.9),
+    "lstm_mlp_paper": (LABELS["lstm_mlp_paper"], "tab:orange", "line", 1.0),
+    "lstm_mlp_branch": (LABELS["lstm_mlp_branch"], MODEL, "line", 1.3),
+}  # the gate ablations of the snap-aware model are scored in report.md, not drawn (too many lines)
+
+
+def _directions(a0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(T,) bool forward (α0 not decreasing, judged on the step into the row, the first row by the
+    step out of it) and (T,) bool breaks: rows that start a new stretch (direction change, or an α0
+    jump of more than 10°, e.g. a new sequence) so that lines are not drawn across them."""
+    d = np.diff(a0)
+    fw = np.r_[d[:1] >= 0, d >= 0] if len(a0) > 1 else np.ones(len(a0), bool)
+    brk = np.r_[True, (fw[1:] != fw[:-1]) | (np.abs(d) > 10.0)]
+    return fw, brk
+
+
+def _stretch(y: np.ndarray, keep: np.ndarray, brk: np.ndarray) -> np.ndarray:
+    """y with NaN outside `keep` and before each break, so that one plot call draws separate lines."""
+    out = np.where(keep, y, np.nan).astype(float)
+    starts = np.nonzero(brk)[0]
+    return np.insert(out, starts[starts > 0], np.nan)
+
+
+def _turn_axes(ax: plt.Axes, p: dict) -> None:
+    """One panel of sweeps_figure (see there)."""
+    a0 = np.asarray(p["alpha0"], float)
+    fw, brk = _directions(a0)
+    # shift T(L) by whole turns so that the measurement sits in [−180°, 180°) (unwrapping can
+    # leave it a turn away; the curves keep their relative positions)
+    ref = np.asarray(p.get("measured", p.get("truth", np.zeros(1))), float)
+    shift = 360.0 * np.round(np.nanmedian(ref) / 360.0) if np.isfinite(ref).any() else 0.0
+    for key, (_label, colour, kind, size) in TURN_CURVES.items():
+        if p.get(key) is None:
+            continue
+        y = np.asarray(p[key], float) - shift
+        if kind == "points":
+            ax.plot(a0[fw], y[fw], "o", color=colour, ms=size, mew=0, ls="none")
+            ax.plot(a0[~fw], y[~fw], "o", color=colour, ms=size, mfc="none", mew=0.5, ls="none")
+        else:
+            x = np.insert(a0, np.nonzero(brk)[0][1:], np.nan)
+            ax.plot(x, _stretch(y, fw, brk), "-", color=colour, lw=size)
+            ax.plot(x, _stretch(y, ~fw, brk), "--", color=colour, lw=size)
+    sn = np.asarray(p.get("snaps", np.zeros(len(a0), bool)), bool)
+    if sn.any() and p.get("measured") is not None:
+        ax.plot(a0[sn], np.asarray(p["measured"], float)[sn] - shift, "x", color="k", ms=8, mew=1.8)
+    ax.set_title(p["label"], fontsize=9)
+    ax.set_xlabel("α0 = α1 − αN (deg)")
+    ax.grid(alpha=0.3)
+
+
+def _turn_legend(fig: plt.Figure, keys: set[str]) -> None:
+    """One legend for all panels: every curve drawn, the two directions, and the snap marker."""
+    from matplotlib.lines import Line2D
+
+    handles = []
+    for key, (label, colour, kind, _size) in TURN_CURVES.items():
+        if key in keys:
+            handles.append(Line2D([], [], color=colour, marker="o" if kind == "points" else None,
+                                  ls="none" if kind == "points" else "-", ms=5, lw=1.5, label=label))
+    handles += [Line2D([], [], color="0.3", ls="-", label="forward (α0 increasing)"),
+                Line2D([], [], color="0.3", ls="--", label="backward"),
+                Line2D([], [], color="0.3", marker="o", ls="none", mfc="none", label="measured, backward"),
+                Line2D([], [], color="k", marker="x", ls="none", ms=8, mew=1.8, label="snap (in the data)")]
+    fig.legend(handles=handles, loc="lower center", ncol=min(6, len(handles)), fontsize=7, frameon=False)
 
 
 def sweeps_figure(panels: Sequence[dict], path: str | Path) -> None:
     """Fig. 10a: T(L) against α0 for each relative translation (or each turn). panels: dicts with
-    `label`, `alpha0` (T,), any of the TURN_CURVES keys as (T,) T(L) in deg, `snaps` (T,) bool."""
+    `label`, `alpha0` (T,) deg, any of the TURN_CURVES keys as (T,) T(L) in deg, `snaps` (T,) bool.
+    The direction of rotation is read from α0: forward solid / filled, backward dashed / open."""
     n = len(panels)
-    fig, axes = plt.subplots(1, n, figsize=(3.3 * n, 3.6), sharey=False, squeeze=False)
-    for ax, p in zip(axes[0], panels, strict=True):
-        a0 = np.asarray(p["alpha0"])
-        for key, (label, colour, style, size) in TURN_CURVES.items():
-            if p.get(key) is None:
-                continue
-            if style == ".":
-                ax.plot(a0, p[key], ".", color=colour, ms=size, label=label)
-            else:
-                ax.plot(a0, p[key], style, color=colour, lw=size, label=label)
-        sn = np.asarray(p.get("snaps", np.zeros(len(a0), bool)), bool)
-        if sn.any() and p.get("measured") is not None:
-            ax.plot(a0[sn], np.asarray(p["measured"])[sn], "x", color="k", ms=7, label="snap")
-        ax.set_title(p["label"], fontsize=9)
-        ax.set_xlabel("α0 (deg)")
-        ax.grid(alpha=0.3)
-    axes[0][0].set_ylabel("T(L) (deg)")
-    axes[0][0].legend(fontsize=6, markerscale=3)
-    _save(fig, path)
+    cols = min(n, 3)
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.6 * cols, 3.6 * rows + 1.0), squeeze=False)
+    for ax, p in zip(axes.flat, panels, strict=False):
+        _turn_axes(ax, p)
+    for ax in list(axes.flat)[n:]:
+        ax.set_visible(False)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("T(L) (deg)")
+    _turn_legend(fig, {k for p in panels for k in TURN_CURVES if p.get(k) is not None})
+    fig.tight_layout(rect=(0, 0.1 if rows == 1 else 0.06, 1, 1))
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
 
 
 def points_figure(measured: np.ndarray, model: np.ndarray, tcm: np.ndarray, path: str | Path,
-                  title: str = "Random points") -> None:
+                  title: str = "Random points", model_label: str = LABELS["lstm_mlp_branch"]) -> None:
     """Fig. 10b: target points (x–y and x–z views, numbered) and per-point position errors."""
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.8))
     for ax, (i, j, lab) in zip(axes[:2], [(0, 1, "x–y"), (0, 2, "x–z")], strict=True):
-        ax.plot(tcm[:, i], tcm[:, j], "s", color=TCM, mfc="none", label="TCM")
+        ax.plot(tcm[:, i], tcm[:, j], "s", color=TCM, mfc="none", label=LABELS["tcm"])
         ax.plot(measured[:, i], measured[:, j], "o", color=MEAS, label="measured")
-        ax.plot(model[:, i], model[:, j], "+", color=MODEL, ms=9, label="LSTM-MLP")
+        ax.plot(model[:, i], model[:, j], "+", color=MODEL, ms=9, label=model_label)
         for num, p in enumerate(measured, start=1):
             ax.annotate(str(num), (p[i], p[j]), fontsize=6, xytext=(2, 2), textcoords="offset points")
         ax.set_xlabel("xyz"[i] + " (mm)")
@@ -78,9 +148,10 @@ def points_figure(measured: np.ndarray, model: np.ndarray, tcm: np.ndarray, path
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7)
     k = np.arange(1, len(measured) + 1)
-    axes[2].bar(k - 0.2, np.linalg.norm(tcm[:, :3] - measured[:, :3], axis=1), 0.4, color=TCM, label="TCM")
+    axes[2].bar(k - 0.2, np.linalg.norm(tcm[:, :3] - measured[:, :3], axis=1), 0.4, color=TCM,
+                label=LABELS["tcm"])
     axes[2].bar(k + 0.2, np.linalg.norm(model[:, :3] - measured[:, :3], axis=1), 0.4, color=MODEL,
-                label="LSTM-MLP")
+                label=model_label)
     axes[2].set_xlabel("point")
     axes[2].set_ylabel("position error (mm)")
     axes[2].legend(fontsize=7)
@@ -88,13 +159,14 @@ def points_figure(measured: np.ndarray, model: np.ndarray, tcm: np.ndarray, path
     _save(fig, path)
 
 
-def trajectory_figure(measured: np.ndarray, model: np.ndarray, tcm: np.ndarray, path: str | Path) -> None:
+def trajectory_figure(measured: np.ndarray, model: np.ndarray, tcm: np.ndarray, path: str | Path,
+                      model_label: str = LABELS["lstm_mlp_branch"]) -> None:
     """Fig. 10c: the arbitrary path (x–y and x–z) and the distribution of position errors."""
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.8))
     for ax, (i, j) in zip(axes[:2], [(0, 1), (0, 2)], strict=True):
-        ax.plot(tcm[:, i], tcm[:, j], "-", color=TCM, lw=1, label="TCM")
+        ax.plot(tcm[:, i], tcm[:, j], "-", color=TCM, lw=1, label=LABELS["tcm"])
         ax.plot(measured[:, i], measured[:, j], "-", color=MEAS, lw=2, label="measured")
-        ax.plot(model[:, i], model[:, j], "-", color=MODEL, lw=1, label="LSTM-MLP")
+        ax.plot(model[:, i], model[:, j], "-", color=MODEL, lw=1, label=model_label)
         ax.set_xlabel("xyz"[i] + " (mm)")
         ax.set_ylabel("xyz"[j] + " (mm)")
         ax.grid(alpha=0.3)
@@ -103,8 +175,8 @@ def trajectory_figure(measured: np.ndarray, model: np.ndarray, tcm: np.ndarray, 
     e_mod = np.linalg.norm(model[:, :3] - measured[:, :3], axis=1)
     top = float(np.nanmax(np.r_[e_tcm, e_mod, 1.0]))
     bins = np.linspace(0, top, 40)
-    axes[2].hist(e_tcm, bins, color=TCM, alpha=0.5, density=True, label="TCM")
-    axes[2].hist(e_mod, bins, color=MODEL, alpha=0.6, density=True, label="LSTM-MLP")
+    axes[2].hist(e_tcm, bins, color=TCM, alpha=0.5, density=True, label=LABELS["tcm"])
+    axes[2].hist(e_mod, bins, color=MODEL, alpha=0.6, density=True, label=model_label)
     axes[2].set_xlabel("position error (mm)")
     axes[2].set_ylabel("density")
     axes[2].legend(fontsize=7)
@@ -148,6 +220,9 @@ def ik_path_figure(targets: np.ndarray, reached_fk: np.ndarray, reached_robot: n
     ax3.plot(*targets[:, :3].T, "o-", color=MEAS, label="target")
     ax3.plot(*reached_fk[:, :3].T, "+-", color=MODEL, label="IK → FK model")
     ax3.plot(*reached_robot[:, :3].T, "x--", color="tab:green", label="IK → robot")
+    ax3.set_xlabel("x (mm)", fontsize=8)
+    ax3.set_ylabel("y (mm)", fontsize=8)
+    ax3.set_zlabel("z (mm)", fontsize=8)
     ax3.set_title(title, fontsize=9)
     ax3.legend(fontsize=6)
     k = np.arange(1, len(targets) + 1)
@@ -171,11 +246,12 @@ def ik_path_figure(targets: np.ndarray, reached_fk: np.ndarray, reached_robot: n
 def grouped_bars(groups: Sequence[str], series: dict[str, Sequence[float]], ylabel: str,
                  path: str | Path, title: str) -> None:
     """Fig. 5: one bar per series in each group (e.g. models × relative translation levels)."""
-    fig, ax = plt.subplots(figsize=(max(6, 1.1 * len(groups) * max(1, len(series)) / 2), 3.8))
+    fig, ax = plt.subplots(figsize=(min(11, max(6, 0.3 * len(groups) * max(1, len(series)))), 3.8))
     w = 0.8 / max(1, len(series))
     x = np.arange(len(groups))
     for k, (name, vals) in enumerate(series.items()):
-        ax.bar(x + (k - (len(series) - 1) / 2) * w, vals, w, label=name)
+        ax.bar(x + (k - (len(series) - 1) / 2) * w, vals, w, label=LABELS.get(name, name),
+               color=TCM if name == "tcm" else f"C{k}")
     ax.set_xticks(x, groups)
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=10)
@@ -185,16 +261,30 @@ def grouped_bars(groups: Sequence[str], series: dict[str, Sequence[float]], ylab
 
 
 def grid_figure(rows: Sequence[str], cols: Sequence[str], values: np.ndarray, path: str | Path,
-                title: str, fmt: str = "{:.3f}") -> None:
-    """Tables II/III as a heat map (Fig. 7, 8): values (len(rows), len(cols))."""
-    fig, ax = plt.subplots(figsize=(1.2 * len(cols) + 2, 0.6 * len(rows) + 1.5))
-    im = ax.imshow(values, cmap="viridis_r", aspect="auto")
-    ax.set_xticks(range(len(cols)), cols)
-    ax.set_yticks(range(len(rows)), rows)
-    for i in range(len(rows)):
-        for j in range(len(cols)):
-            if np.isfinite(values[i, j]):
-                ax.text(j, i, fmt.format(values[i, j]), ha="center", va="center", fontsize=8, color="w")
-    fig.colorbar(im, ax=ax)
-    ax.set_title(title, fontsize=10)
+                title: str, fmt: str = "{:.3f}", units: Sequence[str] | None = None) -> None:
+    """Tables II/III as heat maps (Fig. 7, 8): values (len(rows), len(cols)); units (len(rows),):
+    the unit of each row (default: one unit). Rows of one unit share one colour scale and colour
+    bar, so that mm and deg never share a scale; darker is larger (worse, for errors)."""
+    values = np.asarray(values, float)
+    units = list(units) if units is not None else [""] * len(rows)
+    groups = list(dict.fromkeys(units))
+    idx = [[i for i, u in enumerate(units) if u == g] for g in groups]
+    fig, axes = plt.subplots(len(groups), 1, squeeze=False,
+                             figsize=(1.3 * len(cols) + 3.2, 0.55 * len(rows) + 1.0 * len(groups) + 0.6),
+                             gridspec_kw={"height_ratios": [len(i) for i in idx]})
+    for ax, unit, sel in zip(axes[:, 0], groups, idx, strict=True):
+        v = values[sel]
+        finite = v[np.isfinite(v)]
+        lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
+        im = ax.imshow(v, cmap="viridis_r", aspect="auto", vmin=lo, vmax=hi if hi > lo else lo + 1e-9)
+        ax.set_xticks(range(len(cols)), cols)
+        ax.set_yticks(range(len(sel)), [rows[i] for i in sel])
+        for i in range(len(sel)):
+            for j in range(len(cols)):
+                if np.isfinite(v[i, j]):
+                    dark = (v[i, j] - lo) / (hi - lo) > 0.5 if hi > lo else False
+                    ax.text(j, i, fmt.format(v[i, j]), ha="center", va="center", fontsize=8,
+                            color="w" if dark else "k")
+        fig.colorbar(im, ax=ax, label=unit)
+    axes[0, 0].set_title(title, fontsize=10)
     _save(fig, path)

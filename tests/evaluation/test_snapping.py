@@ -1,62 +1,19 @@
-"""Metrics on hand-computed cases."""
+"""Snap scoring (T(L) rule, event matching, windows) on hand-computed cases."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from ctrkin.evaluation.metrics import (
+from ctrkin.evaluation.snapping import (
     azimuth_series,
-    error_stats,
     glitch_window,
-    joint_errors,
-    pose_errors,
     rotation_direction,
     snap_report,
     snap_score,
     snap_steps,
     snap_window,
 )
-from ctrkin.pose import quat_from_tangent
-
-
-def test_error_stats_hand_computed() -> None:
-    s = error_stats(np.array([3.0, -4.0]))
-    assert s == {"rmse": pytest.approx(np.sqrt(12.5)), "mae": 3.5, "max": 4.0, "median": 3.5,
-                 "n": 2}
-    assert np.isnan(error_stats(np.array([1.0, np.nan]))["rmse"])  # a failure is not hidden
-
-
-def test_pose_errors_position_and_tangent_angle() -> None:
-    a = np.array([[0, 0, 0, 1.0, 0, 0]])
-    t = np.array([0.0, np.sin(np.radians(30)), np.cos(np.radians(30))])
-    b = np.r_[3.0, 4.0, 0.0, quat_from_tangent(t)][None]
-    e = pose_errors(b, a)
-    assert e["position_mm"]["rmse"] == pytest.approx(5.0)
-    assert e["orientation_deg"]["rmse"] == pytest.approx(30.0)
-
-
-def test_antipodal_quaternions_have_zero_orientation_error() -> None:
-    q = quat_from_tangent(np.array([0.3, -0.2, 0.9]))
-    a = np.r_[0, 0, 0, q][None]
-    b = np.r_[0, 0, 0, -q][None]
-    assert pose_errors(a, b)["orientation_deg"]["max"] == pytest.approx(0.0, abs=1e-6)
-
-
-def test_joint_errors_norms() -> None:
-    pred = np.array([[3.0, 4.0, -1.0, 0.0]])
-    ref = np.zeros((1, 4))
-    e = joint_errors(pred, ref, 2)
-    assert e["alpha_deg"]["rmse"] == pytest.approx(5.0) and e["beta_mm"]["rmse"] == pytest.approx(1.0)
-
-
-def test_joint_errors_wrap_full_turns() -> None:
-    pred = np.array([[359.0, 10.0, -1.0, 0.0], [-170.0, 720.0, -1.0, 0.0]])
-    ref = np.array([[-1.0, 370.0, -1.0, 0.0], [170.0, 0.0, -1.0, 0.0]])
-    e = joint_errors(pred, ref, 2)
-    assert e["alpha_deg"]["max"] == pytest.approx(20.0)  # (0, 0) and (20, 0)
-    assert e["alpha_deg"]["rmse"] == pytest.approx(np.sqrt(200.0))
-    assert e["beta_mm"]["max"] == 0.0
 
 
 def test_azimuth_wraps_across_180_and_is_relative_to_outer_alpha() -> None:

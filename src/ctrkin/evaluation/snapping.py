@@ -1,9 +1,6 @@
-"""Error metrics (DESIGN.md: Evaluation) and snap prediction by the paper's 10° T(L) rule.
-
-Position error: Euclidean (mm). Orientation error: the angle between tip tangents (deg), which is
-what a 5-DOF sensor observes (q and −q give the same tangent). Joint error: per sample, the
-Euclidean norm of the α error (deg) and of the β error (mm) (paper III.A), then RMSE/MAE/max.
-"""
+"""Snap prediction scored by the paper's 10° T(L) rule (DESIGN.md: Conventions): T(L) series, snap
+events, their matching against a reference, and the row windows around snaps and encoder glitches.
+Pose and joint errors are in ctrkin.metrics."""
 
 from __future__ import annotations
 
@@ -12,55 +9,9 @@ from typing import Any
 
 import numpy as np
 
-from ctrkin.pose import position_error, tangent_angle_error, tip_azimuth
+from ctrkin.pose import tip_azimuth
 
 SNAP_THRESHOLD_DEG = 10.0  # paper II.B: a snap is a step where T(L) changes by more than 10°
-
-
-def error_stats(e: np.ndarray) -> dict[str, float]:
-    """RMSE, MAE, max and median of errors e (any shape); NaN entries count as failures (NaN result)."""
-    e = np.abs(np.asarray(e, dtype=float).ravel())
-    if e.size == 0:
-        return {"rmse": float("nan"), "mae": float("nan"), "max": float("nan"), "median": float("nan"),
-                "n": 0}
-    return {
-        "rmse": float(np.sqrt(np.mean(e**2))),
-        "mae": float(np.mean(e)),
-        "max": float(np.max(e)),
-        "median": float(np.median(e)),
-        "n": int(e.size),
-    }
-
-
-def pose_errors(
-    pred: np.ndarray, ref: np.ndarray, mask: np.ndarray | None = None
-) -> dict[str, dict[str, float]]:
-    """pred, ref: (T, 6) poses -> {"position_mm": stats, "orientation_deg": stats} over rows in mask."""
-    pred, ref = np.asarray(pred, float), np.asarray(ref, float)
-    if mask is not None:
-        pred, ref = pred[mask], ref[mask]
-    return {
-        "position_mm": error_stats(position_error(pred, ref)),
-        "orientation_deg": error_stats(tangent_angle_error(pred, ref)),
-    }
-
-
-def wrap_deg(a: np.ndarray) -> np.ndarray:
-    """Angles (deg) wrapped to [−180, 180)."""
-    return (np.asarray(a, float) + 180.0) % 360.0 - 180.0
-
-
-def joint_errors(pred: np.ndarray, ref: np.ndarray, n_tubes: int) -> dict[str, dict[str, float]]:
-    """pred, ref: (T, 2N) joints (deg, mm) -> {"alpha_deg": stats, "beta_mm": stats}.
-
-    α differences are wrapped to [−180°, 180°): data angles are unwrapped, but a tube turned by a full
-    turn is the same configuration, which no pose can tell apart."""
-    d = np.asarray(pred, float) - np.asarray(ref, float)
-    d[:, :n_tubes] = wrap_deg(d[:, :n_tubes])
-    return {
-        "alpha_deg": error_stats(np.linalg.norm(d[:, :n_tubes], axis=1)),
-        "beta_mm": error_stats(np.linalg.norm(d[:, n_tubes:], axis=1)),
-    }
 
 
 def azimuth_series(
@@ -168,17 +119,6 @@ def snap_window(snap: np.ndarray, bounds: list[tuple[int, int]], width: int = 2)
         for n in np.nonzero(snap[a:b])[0]:
             out[a + n : min(a + n + width, b)] = True
     return out
-
-
-def timing_stats(seconds: np.ndarray) -> dict[str, float]:
-    """Per-prediction times (s) -> mean and std in ms, median in µs."""
-    t = np.asarray(seconds, float)
-    return {
-        "ms_mean": float(t.mean() * 1e3),
-        "ms_std": float(t.std() * 1e3),
-        "us_median": float(np.median(t) * 1e6),
-        "n": int(t.size),
-    }
 
 
 def rotation_direction(joints: np.ndarray, n_tubes: int, bounds: list[tuple[int, int]]) -> np.ndarray:
