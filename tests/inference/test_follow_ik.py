@@ -104,7 +104,7 @@ def test_follower_inverts_the_outer_tubes_play(follow_dir):
 
     kin = Kinematics.load(follow_dir)
     f = kin._follower
-    f.lag = (2.0, 0.0)                                   # λ = 2° whatever the translations
+    f.lag, f.hold_deg = (2.0, 0.0), 0.0                  # λ = 2° whatever the translations; exact
     q0 = np.array([10.0, 30.0, -20.0, 0.0])
     f.reset(q0)
     assert f.joints[1] == pytest.approx(32.0) and f.tube == f.motor == 30.0
@@ -118,3 +118,24 @@ def test_follower_inverts_the_outer_tubes_play(follow_dir):
     play(np.array(motors)[:, None], np.full((len(theta), 1), 4.0), np.array([30.0]), tube)
     np.testing.assert_allclose(tube[:, 0], theta, atol=1e-12)
     assert motors[3] == motors[2] and motors[4] == pytest.approx(30.5)   # still: no move; back: θ − λ
+
+
+def test_follower_holds_the_motor_through_small_reversals(follow_dir):
+    """A reversal of the outer tube smaller than hold_deg keeps the motor (the tube stays, within
+    hold_deg of the network's angle) instead of a trip of 2λ through the play."""
+    kin = Kinematics.load(follow_dir)
+    f = kin._follower
+    f.lag, f.hold_deg = (2.0, 0.0), 0.5
+    q0 = np.array([10.0, 30.0, -20.0, 0.0])
+    f.reset(q0)
+
+    def motor(theta):
+        q = q0.copy()
+        q[1] = theta + 2.0
+        return f._backlash_inverse(q)[1]
+
+    assert motor(30.2) == 30.0                     # at rest, less than hold_deg: nothing moves
+    assert motor(31.0) == pytest.approx(33.0)      # forward: θ + λ
+    assert motor(31.1) == pytest.approx(33.1)      # on along the taken-up side, however small
+    assert motor(30.8) == pytest.approx(33.1) and f.tube == pytest.approx(31.1)   # small reversal: held
+    assert motor(30.0) == pytest.approx(28.0)      # a reversal beyond hold_deg: θ − λ

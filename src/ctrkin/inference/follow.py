@@ -25,6 +25,8 @@ from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle
 from ctrkin.models.workspace import Workspace
 
+HOLD_DEG = 0.5   # a reversal of the outer tube smaller than this keeps the motor (no trip through the play)
+
 
 class Follower:
     """Step-by-step state of a follow IK model (bundle) with its training workspace."""
@@ -46,6 +48,7 @@ class Follower:
         self.lag = (float(lag[0]), float(lag[1]))     # the outer tube's lag λ(β) (models.outer_lag)
         self.joints: np.ndarray | None = None        # where the robot is, as the network sees it
         self.target: np.ndarray | None = None        # the previous target of this sequence
+        self.hold_deg = HOLD_DEG
         self.tube = np.nan                           # the outer tube's angle (deg), NaN: not known yet
         self.motor = np.nan                          # the outer motor's last command (deg)
 
@@ -81,12 +84,13 @@ class Follower:
             return out
         lam = self._lag(q)
         theta = float(q[self.n - 1]) - lam
-        if theta > self.tube + 1e-9:
-            out[self.n - 1] = theta + lam
-        elif theta < self.tube - 1e-9:
+        if theta > self.tube + self.hold_deg or (theta > self.tube and self.motor - self.tube > 0):
+            out[self.n - 1] = theta + lam          # forward, or on along the side the play is taken up
+        elif theta < self.tube - self.hold_deg or (theta < self.tube and self.motor - self.tube < 0):
             out[self.n - 1] = theta - lam
-        else:
+        else:                                      # a reversal smaller than hold_deg: the tube stays
             out[self.n - 1] = self.motor
+            return out
         self.tube, self.motor = theta, float(out[self.n - 1])
         return out
 
