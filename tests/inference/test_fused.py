@@ -35,13 +35,18 @@ def _load(folder, name: str, fused: bool) -> Kinematics:
     0.4°/mm · overlap (ctrkin.models.outer_lag), with the fold gate or ("lagged_learned") without."""
     if name == "learned":
         return Kinematics(ModelBundle.load(folder), fused=fused)
-    if name.startswith("lagged"):
+    if name == "lagged":               # the frame replaced after loading: the fused step follows
+        kin = Kinematics.load(folder, fused=fused)
+        assert kin.frame is not None
+        kin.frame = replace(kin.frame, lag=(2.0, 0.4))
+        return kin
+    if name == "lagged_learned":       # and a fold gate attached after construction, then removed
         bundle = ModelBundle.load(folder)
         assert bundle.frame is not None
-        bundle = replace(bundle, frame=OuterFrame(bundle.frame.registration, (2.0, 0.4)))
-        kin = Kinematics(bundle, fused=fused)
-        if name == "lagged":
-            kin.fold_gate = FoldGate.load(folder)
+        lagged = replace(bundle, frame=OuterFrame(bundle.frame.registration, (2.0, 0.4)))
+        kin = Kinematics(lagged, fused=fused)
+        kin.fold_gate = FoldGate.load(folder)
+        kin.fold_gate = None
         return kin
     return Kinematics.load(folder, fused=fused)
 

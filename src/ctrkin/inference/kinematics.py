@@ -47,7 +47,7 @@ from ctrkin.models.features import (
     window_index,
 )
 from ctrkin.models.fold_gate import FOLD_GATE_FILE, FoldGate, outer_motion, recorded_motion, run_continues
-from ctrkin.models.frame import local_tips_to_world
+from ctrkin.models.frame import OuterFrame, local_tips_to_world
 from ctrkin.models.outer_lag import lag_deg
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle, read_json
@@ -117,7 +117,7 @@ class Kinematics:
         self.layout = bundle.layout
         self.robot = bundle.robot
         self.config = bundle.config
-        self.frame = bundle.frame
+        self._frame = bundle.frame
         self.net = bundle.net.eval()
         self.workspace = workspace
         self.metrics = metrics or {}
@@ -154,7 +154,17 @@ class Kinematics:
     @fold_gate.setter
     def fold_gate(self, gate: FoldGate | None) -> None:
         self._fold_gate = gate
-        self._fused = FusedFK.build(self) if self._use_fused else None
+        self._fused = FusedFK.build(self) if self._use_fused else None      # it holds the gate's tables
+
+    @property
+    def frame(self) -> OuterFrame | None:
+        """The outer-tube frame of a model that learned in it (ctrkin.models.frame)."""
+        return self._frame
+
+    @frame.setter
+    def frame(self, frame: OuterFrame | None) -> None:
+        self._frame = frame
+        self._fused = FusedFK.build(self) if self._use_fused else None      # it holds the registration
 
     @property
     def fused(self) -> bool:
