@@ -57,10 +57,12 @@ def _sigmoid_inplace(x: np.ndarray, bits: np.ndarray) -> None:
 def _lstm_rows(inp: np.ndarray, shared: bool, w_ih: np.ndarray, w_hh: np.ndarray, b: np.ndarray,
                h_prev: np.ndarray, c_prev: np.ndarray, h_new: np.ndarray, c_new: np.ndarray,
                g: np.ndarray, t: np.ndarray, bits: np.ndarray) -> None:
-    """One LSTM cell update for each of R chains (torch gate order i, f, g, o).
+    """One LSTM cell update for each of R chains (torch gate order i, f, g, o), in place.
 
-    inp: (R, in) inputs (row 0 only if `shared`); h_prev, c_prev: (R, H) chain states before this
-    step, row j is the chain that becomes row j+1; row 0 of the result starts from zero state.
+    inp: (R, in) inputs (row 0 only if `shared`); h_prev, c_prev: (R, H) chain states, row j is the
+    chain that becomes row j+1; row 0 of the result starts from zero state. The result is computed
+    in h_new, c_new (scratch) and copied back into h_prev, c_prev, so the state arrays keep their
+    identity (the fused FK step, ctrkin.inference.fused, holds them).
     w_ih, w_hh, b have the cell-candidate rows doubled, so that tanh(g) = 2·σ(2g) − 1 comes out of
     one sigmoid pass over all gates. Scratch: g (R, 4H), t (R, H), bits (R·4H,) int64.
     """
@@ -94,6 +96,18 @@ def _lstm_rows(inp: np.ndarray, shared: bool, w_ih: np.ndarray, w_hh: np.ndarray
     for r in range(r_count):
         for u in range(hid):
             h_new[r, u] = g[r, 3 * hid + u] * (2.0 * t[r, u] - 1.0)    # σ(o)·tanh(c)
+    h_prev[:, :] = h_new
+    c_prev[:, :] = c_new
+
+
+@numba.njit(cache=True)
+def _push_history(hist: np.ndarray, rows: np.ndarray, shared: bool) -> None:
+    """hist (IB, IB, W): chain j's outputs at its positions 0..j. Chain j−1 becomes chain j and each
+    chain j appends its new output rows[j] (rows[0] for all if `shared`)."""
+    for j in range(hist.shape[0] - 1, 0, -1):
+        hist[j] = hist[j - 1]
+    for j in range(hist.shape[0]):
+        hist[j, j] = rows[0] if shared else rows[j]
 
 
 @numba.njit(cache=True, fastmath=True)
@@ -315,8 +329,6 @@ class StreamingEngine:
             if kind == "lstm":
                 _lstm_rows(inp, shared, w[0], w[1], w[2], self._h[k], self._c[k], self._h2[k], self._c2[k],
                            self._g[k], self._t[k], self._bits[k])
-                self._h[k], self._h2[k] = self._h2[k], self._h[k]
-                self._c[k], self._c2[k] = self._c2[k], self._c[k]
                 inp = self._h[k]
             else:
                 if shared:  # a Dense first layer on identical rows: compute once, copy
@@ -326,9 +338,6 @@ class StreamingEngine:
                     _dense_rows(inp, w[0], w[1], self._rows[k], True)
                 inp = self._rows[k]
             shared = False
-        hist = self._hist
-        hist[1:] = hist[:-1].copy()                      # chain j-1 becomes chain j
-        for j in range(self.ib):
-            hist[j, j] = inp[0] if shared else inp[j]
-        window = hist[self.ib - 1]                       # retiring chain: the full window
+        _push_history(self._hist, inp, shared)
+        window = self._hist[self.ib - 1]                 # retiring chain: the full window
         return window.reshape(1, -1) if self.pooling == "flatten" else window[-1:].copy()

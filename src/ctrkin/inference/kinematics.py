@@ -11,7 +11,9 @@
 
 Batch and streaming give the same numbers: both see windows of the IB latest steps of a sequence,
 padded at its start by repeating the first step. Streaming runs LSTM-MLP/LSTM/MLP models in a numba
-engine (ctrkin.inference.engine); other architectures fall back to torch on a kept window.
+engine (ctrkin.inference.engine); other architectures fall back to torch on a kept window. An FK
+LSTM-MLP (one LSTM layer, the paper's structure) runs each whole step in one numba call
+(ctrkin.inference.fused), bit for bit the reference path; `fused=False` keeps to the reference path.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from ctrkin.errors import ModelError
 from ctrkin.inference.batch import padded_rows, seqnet_predict, seqnet_trunk
 from ctrkin.inference.engine import StreamingEngine
 from ctrkin.inference.follow import Follower
+from ctrkin.inference.fused import DECLINED, FusedFK
 from ctrkin.inference.guards import FKGuard, check_pose_step, real_array
 from ctrkin.inference.refine import FKResidual, RefineSettings, refine
 from ctrkin.models.branch import BranchNet
@@ -44,7 +47,7 @@ from ctrkin.models.features import (
     window_index,
 )
 from ctrkin.models.fold_gate import FOLD_GATE_FILE, FoldGate, outer_motion, recorded_motion, run_continues
-from ctrkin.models.frame import local_tips_to_world
+from ctrkin.models.frame import OuterFrame, local_tips_to_world
 from ctrkin.models.outer_lag import lag_deg
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle, read_json
@@ -109,12 +112,12 @@ class Kinematics:
     """A trained FK or IK model with its feature layout, normalisation, robot and (IK) workspace."""
 
     def __init__(self, bundle: ModelBundle, workspace: Workspace | None = None,
-                 metrics: dict[str, Any] | None = None, path: Path | None = None) -> None:
+                 metrics: dict[str, Any] | None = None, path: Path | None = None, fused: bool = True) -> None:
         self.bundle = bundle
         self.layout = bundle.layout
         self.robot = bundle.robot
         self.config = bundle.config
-        self.frame = bundle.frame
+        self._frame = bundle.frame
         self.net = bundle.net.eval()
         self.workspace = workspace
         self.metrics = metrics or {}
@@ -136,21 +139,51 @@ class Kinematics:
         self._follower = Follower(bundle, workspace) if self.layout.follow else None
         # a snap-aware FK's fold gate (ctrkin.models.fold_gate) and its streaming state: branch
         # state (−1 at a start), the outer tube's last rotation m_N and its previous angle
-        self.fold_gate: FoldGate | None = None
+        self._fold_gate: FoldGate | None = None
         self._gate_state, self._outer_motion, self._outer_prev = -1, 0, math.nan
         self._lag_beta, self._lag = b"", 0.0      # the outer lag λ(β) of the last β (ctrkin.models.frame)
+        # the whole FK step in one numba call where the model allows (ctrkin.inference.fused)
+        self._use_fused = fused
+        self._fused = FusedFK.build(self) if fused else None
+
+    @property
+    def fold_gate(self) -> FoldGate | None:
+        """A snap-aware FK's fold gate (None: its learned gate decides the branch)."""
+        return self._fold_gate
+
+    @fold_gate.setter
+    def fold_gate(self, gate: FoldGate | None) -> None:
+        self._fold_gate = gate
+        self._fused = FusedFK.build(self) if self._use_fused else None      # it holds the gate's tables
+
+    @property
+    def frame(self) -> OuterFrame | None:
+        """The outer-tube frame of a model that learned in it (ctrkin.models.frame)."""
+        return self._frame
+
+    @frame.setter
+    def frame(self, frame: OuterFrame | None) -> None:
+        self._frame = frame
+        self._fused = FusedFK.build(self) if self._use_fused else None      # it holds the registration
+
+    @property
+    def fused(self) -> bool:
+        """Whether FK steps run as one numba call where the model allows (ctrkin.inference.fused);
+        False: the reference path."""
+        return self._fused is not None
 
     # --- loading ---------------------------------------------------------------------------------
     @classmethod
-    def load(cls, path: str | Path) -> Kinematics:
-        """Load a model folder written by `ctrkin train`."""
+    def load(cls, path: str | Path, fused: bool = True) -> Kinematics:
+        """Load a model folder written by `ctrkin train`. fused=False: FK steps take the reference
+        path (engine kernels called one by one from Python) even where the fused step applies."""
         src = Path(path)
         bundle = ModelBundle.load(src)
         ws = Workspace.load(src) if (src / WORKSPACE_FILE).is_file() else None
         if bundle.layout.task == "ik" and ws is None:
             raise ModelError(f"{src} is an IK model without {WORKSPACE_FILE}; retrain it with ctrkin train")
         metrics = read_json(src / "metrics.json") if (src / "metrics.json").is_file() else {}
-        kin = cls(bundle, ws, metrics, src)
+        kin = cls(bundle, ws, metrics, src, fused)
         if (src / FOLD_GATE_FILE).is_file() and isinstance(kin.net, BranchNet):
             kin.fold_gate = FoldGate.load(src)
         if (src / REFINE_FILE).is_file():
@@ -490,6 +523,11 @@ class Kinematics:
 
         FK returns the (6,) tip pose; IK an IKStep(joints, in_workspace, reason) (check=False skips the
         workspace test, strict=True raises ModelError outside it)."""
+        if (self._fused is not None and type(x) is np.ndarray and x.dtype == np.float64
+                and x.shape == (self.layout.raw_width,) and x.flags.c_contiguous):
+            y = self._fused_step(x)
+            if y is not None:
+                return y
         raw = real_array(x)
         if raw.shape != (self.layout.raw_width,):
             raise ModelError(f"step() expects shape ({self.layout.raw_width},), got {raw.shape}")
@@ -543,6 +581,23 @@ class Kinematics:
         q = self.robot.project_joints(y[None])[0]
         return self._ik_step(raw, q, bool(np.any(np.abs(q - y) > 1e-9)), check, strict)
 
+    def _fused_step(self, raw: np.ndarray) -> np.ndarray | None:
+        """The FK step in one numba call (ctrkin.inference.fused) on this object's streaming state;
+        None where it declines (the reference path then raises with its message)."""
+        assert self._fused is not None and self._guard is not None and self._engine is not None
+        shift = self._shift
+        if self._prev is None or shift is None:       # a sequence's first step fixes its whole turns
+            shift = self._guard.step(raw, None)[1]
+        lag = self._lag_at(raw) if self.frame is not None and self.frame.has_lag else 0.0
+        y, st = self._fused.step(raw, shift, self._prev, self._gate_state, self._outer_motion,
+                                 self._outer_prev, lag)
+        if st.gate_state == DECLINED:
+            return None
+        self._shift, self._prev = shift, self._fused.prev
+        self._gate_state, self._outer_motion, self._outer_prev = st.gate_state, st.outer_motion, st.outer_prev
+        self._engine._fresh, self._engine.state = False, st.branch
+        return y
+
     def _motion_after(self, a_n: float) -> int:
         """m_N after the outer motor reaches a_n (deg) as the next step."""
         if not math.isnan(self._outer_prev) and abs(a_n - self._outer_prev) > 1e-9:
@@ -569,11 +624,16 @@ class Kinematics:
             return a_n
         if self.fold_gate is None:
             self._outer_motion, self._outer_prev = self._motion_after(outer), outer
-        beta = raw[n:].tobytes()
+        return a_n - self._lag_at(raw) * self._outer_motion
+
+    def _lag_at(self, raw: np.ndarray) -> float:
+        """λ(β) (deg) of the outer frame's lag at joints raw (2N,), cached for the last β."""
+        assert self.frame is not None
+        beta = raw[self.layout.n_tubes:].tobytes()
         if self._lag_beta != beta:
             self._lag_beta = beta
             self._lag = float(lag_deg(self.robot, raw[None], self.frame.lag)[0])
-        return a_n - self._lag * self._outer_motion
+        return self._lag
 
     def _ik_step(self, raw: np.ndarray, q: np.ndarray, projected: bool, check: bool, strict: bool
                  ) -> IKStep:

@@ -40,6 +40,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from ctrkin.errors import ModelError
 from ctrkin.mechanics.folds import fold_angles
@@ -56,7 +57,8 @@ FOLD_STEP_DEG = 0.5         # the table's sweep step
 @dataclass(frozen=True, eq=False)
 class FoldGate:
     """axes: per tube, the grid of β (mm, increasing); forward, backward: fold tables φ± (deg) of
-    shape (len(axes[0]), …); widen_deg: c; outer_lag_deg: κ; band_deg: half-width of the band."""
+    shape (len(axes[0]), …); widen_deg: c; outer_lag_deg: κ; band_deg: half-width of the band.
+    `tables` holds the same grid flattened for the numba kernels (`gate_step`, the fused FK step)."""
 
     axes: tuple[np.ndarray, ...]
     forward: np.ndarray
@@ -64,7 +66,10 @@ class FoldGate:
     widen_deg: float = 0.0
     outer_lag_deg: float = 0.0
     band_deg: float = BAND_DEG
-    _cache: dict[tuple[float, ...], tuple[float, float]] = field(default_factory=dict, init=False, repr=False)
+    tables: GateTables = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "tables", GateTables.of(self))
 
     def folds(self, betas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """betas (T, N) -> the nominal folds φ+ (T,), φ− (T,) in deg, interpolated."""
@@ -72,60 +77,35 @@ class FoldGate:
         if betas.shape[1] != len(self.axes):
             raise ModelError(f"the fold gate is for {len(self.axes)} tubes, got translations of shape "
                              f"{betas.shape}")
-        return _interpolate(self.axes, self.forward, betas), _interpolate(self.axes, self.backward, betas)
+        tb = self.tables
+        x = np.ascontiguousarray(betas)
+        return (_interpolate_rows(tb.axes, tb.start, tb.size, tb.forward, x),
+                _interpolate_rows(tb.axes, tb.start, tb.size, tb.backward, x))
 
     def thresholds(self, betas: np.ndarray, outer_motion: np.ndarray | float = 0.0
                    ) -> tuple[np.ndarray, np.ndarray]:
         """betas (T, N), outer_motion m_N (T,) or scalar -> switching phases θ+, θ− (T,) deg, θ+ ≥ θ−."""
         fwd, bwd = self.folds(betas)
-        lag = self.outer_lag_deg * np.asarray(outer_motion, float)
-        hi = np.where(fwd >= MIN_FOLD_DEG, fwd + self.widen_deg - lag, self.band_deg)
-        lo = np.where(bwd <= -MIN_FOLD_DEG, bwd - self.widen_deg - lag, -self.band_deg)
-        return np.maximum(hi, lo), lo
+        motion = np.ascontiguousarray(np.broadcast_to(np.asarray(outer_motion, float), fwd.shape))
+        return _threshold_rows(fwd, bwd, motion, self.widen_deg, self.outer_lag_deg, self.band_deg)
 
     def states(self, alpha0: np.ndarray, betas: np.ndarray, outer_motion: np.ndarray,
                bounds: list[tuple[int, int]], continues: list[bool] | None = None) -> np.ndarray:
         """(T,) int8 branch states along each sequence. alpha0 (T,) deg, betas (T, N) mm,
         outer_motion (T,) m_N (ctrkin.models.fold_gate.outer_motion); continues: per sequence, True
         where it continues the previous one's run (the branch is kept across the unrecorded move)."""
-        phi = phase_deg(alpha0)
+        phi = np.ascontiguousarray(phase_deg(alpha0), dtype=np.float64)
         hi, lo = self.thresholds(betas, outer_motion)
-        s = np.zeros(len(phi), dtype=np.int8)
-        cur = -1
-        for k, (a, b) in enumerate(bounds):
-            if continues is None or not continues[k]:
-                cur = -1
-            for t in range(a, b):
-                cur = self._next(cur, float(phi[t]), float(hi[t]), float(lo[t]))
-                s[t] = cur
-        return s
+        keep = np.zeros(len(bounds), dtype=np.bool_) if continues is None else np.asarray(continues, np.bool_)
+        edges = np.asarray(bounds, dtype=np.int64).reshape(-1, 2)
+        return _relay_scan(phi, hi, lo, edges, keep, self.band_deg)
 
     def step(self, state: int, alpha0: float, betas: np.ndarray, outer_motion: int) -> int:
         """The state after one step from `state` (−1: a sequence start)."""
-        hi, lo = self._cached(betas, outer_motion)
-        return self._next(state, float(alpha0) % 360.0 - 180.0, hi, lo)     # phase_deg, scalar
-
-    def _cached(self, betas: np.ndarray, outer_motion: int) -> tuple[float, float]:
-        key = (*np.asarray(betas, float).tolist(), int(outer_motion))
-        if key not in self._cache:                          # thresholds of recent translations
-            if len(self._cache) > 4096:
-                self._cache.clear()
-            hi, lo = self.thresholds(np.asarray(key[:-1])[None], float(outer_motion))
-            self._cache[key] = (float(hi[0]), float(lo[0]))
-        return self._cache[key]
-
-    def _next(self, cur: int, phi: float, hi: float, lo: float) -> int:
-        if phi > self.band_deg:
-            return 1
-        if phi < -self.band_deg:
-            return 0
-        if cur < 0:
-            return int(phi > 0.0)
-        if cur == 0 and phi >= hi:
-            return 1
-        if cur == 1 and phi < lo:
-            return 0
-        return cur
+        tb = self.tables
+        return int(gate_step(state, float(alpha0), np.ascontiguousarray(betas, dtype=np.float64),
+                             float(outer_motion), tb.axes, tb.start, tb.size, tb.forward, tb.backward,
+                             self.widen_deg, self.outer_lag_deg, self.band_deg))
 
     # --- files -----------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, object]:
@@ -255,29 +235,130 @@ def _fit_offsets(gate: FoldGate, joints: np.ndarray, snap: np.ndarray, bounds: l
     return float(coef[0]), float(coef[1]) if len(coef) > 1 else 0.0
 
 
-def _interpolate(axes: tuple[np.ndarray, ...], table: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Multilinear interpolation of `table` on the grid `axes` at points x (T, D), clamped."""
-    out = np.zeros(len(x))
-    idx, frac = [], []
-    for d, ax in enumerate(axes):
-        if len(ax) == 1:
-            idx.append(np.zeros(len(x), int))
-            frac.append(np.zeros(len(x)))
+@dataclass(frozen=True, eq=False)
+class GateTables:
+    """A FoldGate's grid for numba: axes: the β axes concatenated, axis d at start[d]:start[d]+size[d];
+    forward, backward: the fold tables flattened in C order."""
+
+    axes: np.ndarray
+    start: np.ndarray
+    size: np.ndarray
+    forward: np.ndarray
+    backward: np.ndarray
+
+    @classmethod
+    def of(cls, gate: FoldGate) -> GateTables:
+        size = np.array([len(a) for a in gate.axes], dtype=np.int64)
+        start = np.concatenate([[0], np.cumsum(size)[:-1]]).astype(np.int64)
+        return cls(np.ascontiguousarray(np.concatenate(gate.axes), dtype=np.float64), start, size,
+                   np.ascontiguousarray(gate.forward, dtype=np.float64).ravel(),
+                   np.ascontiguousarray(gate.backward, dtype=np.float64).ravel())
+
+
+# The kernels below are compiled without fastmath on purpose: batch (`states`) and streaming
+# (`step`, the fused FK step) must take the same decisions at a threshold to the last bit.
+
+@njit(cache=True)
+def _interpolate_point(axes: np.ndarray, start: np.ndarray, size: np.ndarray, table: np.ndarray,
+                       x: np.ndarray) -> float:
+    """Multilinear interpolation of a flattened table on the grid (GateTables) at x (D,), clamped."""
+    dims = len(size)
+    idx = np.zeros(dims, dtype=np.int64)
+    frac = np.zeros(dims)
+    for d in range(dims):
+        a, m = start[d], size[d]
+        if m == 1:
             continue
-        xd = np.clip(x[:, d], ax[0], ax[-1])
-        i = np.clip(np.searchsorted(ax, xd, side="right") - 1, 0, len(ax) - 2)
-        idx.append(i)
-        frac.append((xd - ax[i]) / (ax[i + 1] - ax[i]))
-    for corner in range(2 ** len(axes)):
-        w = np.ones(len(x))
-        pos = []
-        for d in range(len(axes)):
+        xd = min(max(x[d], axes[a]), axes[a + m - 1])
+        i = 0
+        while i < m and axes[a + i] <= xd:       # searchsorted(side="right")
+            i += 1
+        i = min(max(i - 1, 0), m - 2)
+        idx[d] = i
+        frac[d] = (xd - axes[a + i]) / (axes[a + i + 1] - axes[a + i])
+    out = 0.0
+    for corner in range(2 ** dims):
+        w, flat = 1.0, 0
+        for d in range(dims):
             bit = (corner >> d) & 1
-            if len(axes[d]) == 1 and bit:
+            if size[d] == 1 and bit:
                 w = w * 0.0
-                pos.append(idx[d])
-                continue
-            w = w * (frac[d] if bit else 1.0 - frac[d])
-            pos.append(idx[d] + bit)
-        out += w * table[tuple(pos)]
+                pos = idx[d]
+            else:
+                w = w * (frac[d] if bit else 1.0 - frac[d])
+                pos = idx[d] + bit
+            flat = flat * size[d] + pos
+        out += w * table[flat]
     return out
+
+
+@njit(cache=True)
+def _interpolate_rows(axes: np.ndarray, start: np.ndarray, size: np.ndarray, table: np.ndarray,
+                      x: np.ndarray) -> np.ndarray:
+    """_interpolate_point at each row of x (T, D) -> (T,)."""
+    out = np.empty(x.shape[0])
+    for r in range(x.shape[0]):
+        out[r] = _interpolate_point(axes, start, size, table, x[r])
+    return out
+
+
+@njit(cache=True)
+def _threshold_pair(fwd: float, bwd: float, motion: float, widen: float, lag: float, band: float
+                    ) -> tuple[float, float]:
+    """θ+, θ− (deg) from the folds φ± at one translation and m_N (module docstring)."""
+    shift = lag * motion
+    hi = fwd + widen - shift if fwd >= MIN_FOLD_DEG else band
+    lo = bwd - widen - shift if bwd <= -MIN_FOLD_DEG else -band
+    return max(hi, lo), lo
+
+
+@njit(cache=True)
+def _threshold_rows(fwd: np.ndarray, bwd: np.ndarray, motion: np.ndarray, widen: float, lag: float,
+                    band: float) -> tuple[np.ndarray, np.ndarray]:
+    hi, lo = np.empty(len(fwd)), np.empty(len(fwd))
+    for r in range(len(fwd)):
+        hi[r], lo[r] = _threshold_pair(fwd[r], bwd[r], motion[r], widen, lag, band)
+    return hi, lo
+
+
+@njit(cache=True)
+def _relay(cur: int, phi: float, hi: float, lo: float, band: float) -> int:
+    """The relay of the module docstring: the state after a step at phase phi from `cur`."""
+    if phi > band:
+        return 1
+    if phi < -band:
+        return 0
+    if cur < 0:
+        return 1 if phi > 0.0 else 0
+    if cur == 0 and phi >= hi:
+        return 1
+    if cur == 1 and phi < lo:
+        return 0
+    return cur
+
+
+@njit(cache=True)
+def _relay_scan(phi: np.ndarray, hi: np.ndarray, lo: np.ndarray, bounds: np.ndarray, keep: np.ndarray,
+                band: float) -> np.ndarray:
+    """States (T,) int8 along sequences bounds (S, 2); keep (S,): carry the state from the one before."""
+    s = np.zeros(len(phi), dtype=np.int8)
+    cur = -1
+    for k in range(bounds.shape[0]):
+        if not keep[k]:
+            cur = -1
+        for t in range(bounds[k, 0], bounds[k, 1]):
+            cur = _relay(cur, phi[t], hi[t], lo[t], band)
+            s[t] = cur
+    return s
+
+
+@njit(cache=True)
+def gate_step(state: int, alpha0: float, betas: np.ndarray, motion: float, axes: np.ndarray,
+              start: np.ndarray, size: np.ndarray, forward: np.ndarray, backward: np.ndarray,
+              widen: float, lag: float, band: float) -> int:
+    """FoldGate.step on its GateTables: the state after one step at α0 (deg, α1 − αN), betas (N,) mm
+    and m_N, from `state` (−1: a sequence start)."""
+    fwd = _interpolate_point(axes, start, size, forward, betas)
+    bwd = _interpolate_point(axes, start, size, backward, betas)
+    hi, lo = _threshold_pair(fwd, bwd, motion, widen, lag, band)
+    return _relay(state, alpha0 % 360.0 - 180.0, hi, lo, band)     # phase_deg, scalar

@@ -82,16 +82,9 @@ class OuterFrame:
 
     def to_world_one(self, y: np.ndarray, alpha_outer_deg: float) -> np.ndarray:
         """to_world of one (6,) pose in scalar arithmetic (the streaming path)."""
-        pos, tan = local_tips_to_world(np.asarray(y, np.float64)[None], np.array([alpha_outer_deg]),
-                                       self.registration.rotation, self.registration.translation)
         out = np.empty(6)
-        out[:3] = pos[0]
-        t0, t1, t2 = tan[0]
-        nt = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
-        t0, t1, t2 = t0 / nt, t1 / nt, t2 / nt
-        q0, q1, q2 = 1.0 + t2, -t1, t0                # geometry.quat_from_tangent
-        nq = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
-        out[3:] = (0.0, 1.0, 0.0) if nq < 1e-12 else (q0 / nq, q1 / nq, q2 / nq)
+        pose_to_world(np.asarray(y, np.float64), float(alpha_outer_deg), self.registration.rotation,
+                      self.registration.translation, out)
         return out
 
     def to_dict(self) -> dict[str, object]:
@@ -107,6 +100,29 @@ class OuterFrame:
 
 
 @njit(cache=True)
+def _tip_to_world(y: np.ndarray, alpha_outer_deg: float, R: np.ndarray, t: np.ndarray
+                  ) -> tuple[float, float, float, float, float, float]:
+    """One pose y (≥6,) in the outer tube's frame (quaternion need not be unit), αN deg -> tracker-frame
+    position and unit tangent (6 floats)."""
+    a = math.radians(alpha_outer_deg)
+    c, s = math.cos(a), math.sin(a)
+    w, qx, qy = y[3], y[4], y[5]
+    nq = math.sqrt(w * w + qx * qx + qy * qy)
+    if nq < 1e-12:
+        nq = 1.0
+    w, qx, qy = w / nq, qx / nq, qy / nq
+    tl0, tl1, tl2 = 2 * w * qy, -2 * w * qx, 1 - 2 * (qx * qx + qy * qy)   # R(q) e3
+    p0, p1, p2 = c * y[0] - s * y[1], s * y[0] + c * y[1], y[2]
+    v0, v1, v2 = c * tl0 - s * tl1, s * tl0 + c * tl1, tl2
+    return (R[0, 0] * p0 + R[0, 1] * p1 + R[0, 2] * p2 + t[0],
+            R[1, 0] * p0 + R[1, 1] * p1 + R[1, 2] * p2 + t[1],
+            R[2, 0] * p0 + R[2, 1] * p1 + R[2, 2] * p2 + t[2],
+            R[0, 0] * v0 + R[0, 1] * v1 + R[0, 2] * v2,
+            R[1, 0] * v0 + R[1, 1] * v1 + R[1, 2] * v2,
+            R[2, 0] * v0 + R[2, 1] * v1 + R[2, 2] * v2)
+
+
+@njit(cache=True)
 def local_tips_to_world(y: np.ndarray, alpha_outer_deg: np.ndarray, R: np.ndarray, t: np.ndarray
                         ) -> tuple[np.ndarray, np.ndarray]:
     """y (K, ≥6) poses in the outer tube's frame (quaternion need not be unit), αN (K,) deg ->
@@ -116,20 +132,25 @@ def local_tips_to_world(y: np.ndarray, alpha_outer_deg: np.ndarray, R: np.ndarra
     pos = np.empty((k_count, 3))
     tan = np.empty((k_count, 3))
     for k in range(k_count):
-        a = math.radians(alpha_outer_deg[k])
-        c, s = math.cos(a), math.sin(a)
-        w, qx, qy = y[k, 3], y[k, 4], y[k, 5]
-        nq = math.sqrt(w * w + qx * qx + qy * qy)
-        if nq < 1e-12:
-            nq = 1.0
-        w, qx, qy = w / nq, qx / nq, qy / nq
-        tl0, tl1, tl2 = 2 * w * qy, -2 * w * qx, 1 - 2 * (qx * qx + qy * qy)   # R(q) e3
-        p0, p1, p2 = c * y[k, 0] - s * y[k, 1], s * y[k, 0] + c * y[k, 1], y[k, 2]
-        v0, v1, v2 = c * tl0 - s * tl1, s * tl0 + c * tl1, tl2
-        for i in range(3):
-            pos[k, i] = R[i, 0] * p0 + R[i, 1] * p1 + R[i, 2] * p2 + t[i]
-            tan[k, i] = R[i, 0] * v0 + R[i, 1] * v1 + R[i, 2] * v2
+        pos[k, 0], pos[k, 1], pos[k, 2], tan[k, 0], tan[k, 1], tan[k, 2] = _tip_to_world(
+            y[k], alpha_outer_deg[k], R, t)
     return pos, tan
+
+
+@njit(cache=True)
+def pose_to_world(y: np.ndarray, alpha_outer_deg: float, R: np.ndarray, t: np.ndarray, out: np.ndarray
+                  ) -> None:
+    """OuterFrame.to_world of one pose y (6,) -> out (6,): the tracker-frame position and the unit
+    quaternion of the tangent (geometry.quat_from_tangent; the x axis at a tangent pointing straight back)."""
+    out[0], out[1], out[2], t0, t1, t2 = _tip_to_world(y, alpha_outer_deg, R, t)
+    nt = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+    t0, t1, t2 = t0 / nt, t1 / nt, t2 / nt
+    q0, q1, q2 = 1.0 + t2, -t1, t0
+    nq = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
+    if nq < 1e-12:
+        out[3], out[4], out[5] = 0.0, 1.0, 0.0
+    else:
+        out[3], out[4], out[5] = q0 / nq, q1 / nq, q2 / nq
 
 
 @njit(cache=True)
