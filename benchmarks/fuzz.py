@@ -51,9 +51,9 @@ from ctrkin import Robot, Tube, follow, paper_robot, solve
 from ctrkin.data import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
 from ctrkin.data.schema import POSE_COLUMNS
-from ctrkin.mechanics.settings import DEFAULT_SETTINGS
 from ctrkin.errors import CtrkinError
 from ctrkin.inference import Kinematics
+from ctrkin.mechanics.settings import DEFAULT_SETTINGS
 from ctrkin.pose import tangent_from_quat
 from ctrkin.training import TrainConfig, train
 from ctrkin.training.demo import sweep_dataset
