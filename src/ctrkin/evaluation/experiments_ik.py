@@ -23,6 +23,8 @@ from ctrkin.evaluation.context import (
 from ctrkin.evaluation.training_runs import FK_BRANCH
 from ctrkin.inference.kinematics import IKResult
 from ctrkin.metrics import joint_errors
+from ctrkin.models.fold_gate import outer_motion, recorded_motion
+from ctrkin.models.outer_lag import lag_deg
 from ctrkin.virtual import VirtualRobot
 from ctrkin.virtual.transmission import clip_to_valid
 from ctrkin.viz import experiments as fig
@@ -123,7 +125,25 @@ def ik_heldout(ctx: Context) -> dict[str, Any]:
         }
         if ctx.models[folder].layout.follow:
             out[name]["from_robot_start"] = _from_robot_start(ctx, folder, rows, sid, b)
+            out[name]["joint_alpha_median_tube_deg"] = _tube_alpha_median(ctx, folder, res.joints, rows, b)
     return with_headline(out, "ik")
+
+
+def _tube_alpha_median(ctx: Context, folder: str, joints: np.ndarray, rows: np.ndarray,
+                       b: list[tuple[int, int]]) -> float:
+    """Median α error (deg, wrapped) of the outer tube's angle rather than its motor's: both the
+    recorded and the predicted αN less λ(β)·m_N (the follow IK's outer lag, ctrkin.models.outer_lag;
+    m_N of the recording followed across its runs, of the prediction from rest), so that motor
+    commands on either side of the play for the same tube angle count as equal."""
+    ds = ctx.data.paper
+    lag = ctx.models[folder].follower_lag
+    n = ds.n_tubes
+    rec = ds.joints()[rows].copy()
+    m_rec, _ = recorded_motion(ds.frame, ds.joints(), ds.sequence_bounds(), n)
+    ours = np.array(joints, float)
+    rec[:, n - 1] -= lag_deg(ds.robot, rec, lag) * m_rec[rows]
+    ours[:, n - 1] -= lag_deg(ds.robot, ours, lag) * outer_motion(joints, b, n)
+    return joint_errors(ours, rec, n)["alpha_deg"]["median"]
 
 
 def _from_robot_start(ctx: Context, folder: str, rows: np.ndarray, sid: np.ndarray,

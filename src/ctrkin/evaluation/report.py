@@ -249,6 +249,10 @@ def _ik_experiments(r: dict[str, Any]) -> list[str]:
                 + [f"{_f(ikh[m]['tip_error_mm'])} mm, {_f(100 * ikh[m]['within_1mm_fraction'], 0)} %, "
                    f"α median {_f(ikh[m]['joint_alpha_median_deg'], 1)}°, {ikh[m]['flagged_jumps']} "
                    f"α jumps flagged" for m in IK_REPORT_ROWS])
+    tube = ikh["follow_mlp"].get("joint_alpha_median_tube_deg")
+    if tube is not None:
+        rows.append(["held-out, follow IK, α median of the outer tube's angle (the play removed)", "–",
+                     "", "", f"{_f(tube, 1)}°"])
     fs = ikh["follow_mlp"].get("from_robot_start")
     if fs:
         rows.append(["held-out, follow IK from the robot's start joints", "–", "", "",

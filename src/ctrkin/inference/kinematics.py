@@ -581,6 +581,14 @@ class Kinematics:
         q = self.robot.project_joints(y[None])[0]
         return self._ik_step(raw, q, bool(np.any(np.abs(q - y) > 1e-9)), check, strict)
 
+    @property
+    def follower_lag(self) -> tuple[float, float]:
+        """A follow IK's outer lag (a deg, b deg/mm) of λ = a + b·overlap (ctrkin.models.outer_lag);
+        (0, 0) for a follow IK trained before it, ModelError for any other model."""
+        if self._follower is None:
+            raise ModelError("follower_lag applies to a follow IK model (follow_mlp) only")
+        return self._follower.lag
+
     def _fused_step(self, raw: np.ndarray) -> np.ndarray | None:
         """The FK step in one numba call (ctrkin.inference.fused) on this object's streaming state;
         None where it declines (the reference path then raises with its message)."""
