@@ -144,7 +144,7 @@ class Kinematics:
         self._lag_beta, self._lag = b"", 0.0      # the outer lag λ(β) of the last β (ctrkin.models.frame)
         # the whole FK step in one numba call where the model allows (ctrkin.inference.fused)
         self._use_fused = fused
-        self._fused = FusedFK.build(self) if fused else None
+        self._rebuild_fused()
 
     @property
     def fold_gate(self) -> FoldGate | None:
@@ -154,7 +154,7 @@ class Kinematics:
     @fold_gate.setter
     def fold_gate(self, gate: FoldGate | None) -> None:
         self._fold_gate = gate
-        self._fused = FusedFK.build(self) if self._use_fused else None      # it holds the gate's tables
+        self._rebuild_fused()                       # it holds the gate's tables
 
     @property
     def frame(self) -> OuterFrame | None:
@@ -164,7 +164,10 @@ class Kinematics:
     @frame.setter
     def frame(self, frame: OuterFrame | None) -> None:
         self._frame = frame
-        self._fused = FusedFK.build(self) if self._use_fused else None      # it holds the registration
+        self._rebuild_fused()                       # it holds the registration and the lag flag
+
+    def _rebuild_fused(self) -> None:
+        self._fused = FusedFK.build(self) if self._use_fused else None
 
     @property
     def fused(self) -> bool:
