@@ -32,13 +32,15 @@ def fused_dirs(model_dirs, sweeps, tmp_path_factory):
 def _load(folder, name: str, fused: bool) -> Kinematics:
     """name "learned": the snap-aware model without its fold gate (Kinematics from the bundle alone),
     so that its learned gate decides; "lagged…": its outer frame given an outer lag λ(β) = 2° +
-    0.4°/mm · overlap (ctrkin.models.outer_lag), with the fold gate or ("lagged_learned") without."""
+    0.4°/mm · overlap (ctrkin.models.outer_lag), with the fold gate and lagged inputs (as trained) or
+    ("lagged_learned") without either (commanded inputs: a folder from before lagged_inputs)."""
     if name == "learned":
         return Kinematics(ModelBundle.load(folder), fused=fused)
     if name == "lagged":               # the frame replaced after loading: the fused step follows
         kin = Kinematics.load(folder, fused=fused)
         assert kin.frame is not None
         kin.frame = replace(kin.frame, lag=(2.0, 0.4))
+        assert kin.frame.lags_inputs
         return kin
     if name == "lagged_learned":       # and a fold gate attached after construction, then removed
         bundle = ModelBundle.load(folder)

@@ -131,22 +131,27 @@ def test_onnx_branch_model_carries_its_state(model_dirs, sweeps, tmp_path):
     assert np.abs(out - ref).max() < ONNX_TOL
 
 
-def test_probe_equals_step(model_dirs, sweeps):
-    """probe(K candidates) returns what step would for each, and advances nothing."""
-    kin = Kinematics.load(model_dirs["fk_branch"])
+@pytest.mark.parametrize("lagged", [False, True])
+def test_probe_equals_step(model_dirs, sweeps, lagged):
+    """probe(K candidates) returns what step would for each, and advances nothing; also with an
+    outer lag and lagged inputs, for candidates that turn the outer motor either way or not."""
+    load = (lambda: _lagged(model_dirs, inputs=True)) if lagged else (
+        lambda: Kinematics.load(model_dirs["fk_branch"]))
+    kin = load()
     q = sweeps.joints()[:40]
     kin.reset()
     for row in q[:20]:
         kin.step(row)
-    cands = q[20:25]
+    cands = q[20:25].copy()
+    cands[:, 1] += [-2.0, -1.0, 0.0, 1.0, 2.0]
     poses, _ = kin.probe(cands)
     for k, c in enumerate(cands):
-        twin = Kinematics.load(model_dirs["fk_branch"])
+        twin = load()
         twin.reset()
         for row in q[:20]:
             twin.step(row)
         np.testing.assert_allclose(twin.step(c), poses[k], atol=1e-9)
-    np.testing.assert_allclose(kin.step(q[20]), poses[0], atol=1e-9)   # probe left the stream as it was
+    np.testing.assert_allclose(kin.step(cands[0]), poses[0], atol=1e-9)   # probe left the stream as it was
 
 
 def test_branch_states_override_the_gate(model_dirs, sweeps):
@@ -187,12 +192,13 @@ def test_streaming_workspace_check_matches_batch(model_dirs, sweeps):
     np.testing.assert_array_equal(flags, batch.in_workspace)
 
 
-def _lagged(model_dirs):
-    """The snap-aware model with an outer-tube lag λ = 0.8° + 0.4°/mm · overlap put into its frame."""
+def _lagged(model_dirs, inputs: bool = False, lag: tuple[float, float] = (0.8, 0.4)):
+    """The snap-aware model with an outer-tube lag λ = 0.8° + 0.4°/mm · overlap put into its frame;
+    inputs: its network sees αN − λ·m_N (OuterFrame.lagged_inputs) as models trained since do."""
     from dataclasses import replace
 
     kin = Kinematics.load(model_dirs["fk_branch"])
-    kin.frame = replace(kin.frame, lag=(0.8, 0.4))
+    kin.frame = replace(kin.frame, lag=lag, lagged_inputs=inputs)
     return kin
 
 
@@ -204,12 +210,13 @@ def _outer_moves(sweeps):
 
 
 def test_outer_lag_turns_the_frame_batch_and_streaming_alike(model_dirs, sweeps):
-    """With a lag the frame turns with αN − λ(β)·m_N: batch equals streaming, rows at rest are
-    unchanged, and rows after an outer turn are turned about the registered axis by ∓λ."""
+    """With a lag (and commanded inputs, as folders from before lagged_inputs) the frame turns with
+    αN − λ(β)·m_N: batch equals streaming, rows at rest are unchanged, and rows after an outer turn
+    are turned about the registered axis by ∓λ."""
     from ctrkin.models.fold_gate import outer_motion
     from ctrkin.robots.overlap import curved_overlap
 
-    kin, plain = _lagged(model_dirs), Kinematics.load(model_dirs["fk_branch"])
+    kin, plain = _lagged(model_dirs), _lagged(model_dirs, lag=(0.0, 0.0))
     q, sid = _outer_moves(sweeps)
     batch, ref = kin.predict(q, sequence_id=sid), plain.predict(q, sequence_id=sid)
     bounds = [(0, 120), (120, 240)]
@@ -226,18 +233,45 @@ def test_outer_lag_turns_the_frame_batch_and_streaming_alike(model_dirs, sweeps)
         assert turn == pytest.approx(-lam[k] * m[k], abs=1e-6)
 
 
-def test_onnx_takes_the_outer_lag(model_dirs, sweeps, tmp_path):
-    """A frame with a lag exports an "outer_lag_deg" input; fed λ(β)·m_N it gives predict's poses."""
+def test_lagged_inputs_see_the_outer_tubes_angle(model_dirs, sweeps):
+    """With lagged inputs the network sees αN − λ(β)·m_N as its αN: the model answers at joints q
+    exactly as the same network without a lag answers at q with αN so turned (same branch states),
+    and batch equals streaming."""
+    from ctrkin.models.fold_gate import outer_motion
+    from ctrkin.robots.overlap import curved_overlap
+
+    kin, plain = _lagged(model_dirs, inputs=True), _lagged(model_dirs, lag=(0.0, 0.0))
+    q, sid = _outer_moves(sweeps)
+    bounds = [(0, 120), (120, 240)]
+    m = outer_motion(q, bounds, kin.layout.n_tubes)
+    turned = q.copy()
+    turned[:, 1] -= (0.8 + 0.4 * curved_overlap(kin.robot, q)) * m
+    states = (np.arange(len(q)) // 30 % 2).astype(float)
+    got = kin.predict(q, sequence_id=sid, branch_states=states)
+    want = plain.predict(turned, sequence_id=sid, branch_states=states)
+    assert np.abs(got - want).max() < 1e-9
+    commanded = _lagged(model_dirs).predict(q, sequence_id=sid, branch_states=states)
+    assert np.abs(got - commanded)[m != 0].max() > 1e-3          # the inputs did change
+    batch = kin.predict(q, sequence_id=sid)
+    assert np.abs(batch - _stream(kin, q, bounds)).max() < STREAM_TOL
+
+
+@pytest.mark.parametrize("inputs", [False, True])
+def test_onnx_takes_the_outer_lag(model_dirs, sweeps, tmp_path, inputs):
+    """A frame with a lag exports an "outer_lag_deg" input; fed λ(β)·m_N it gives predict's poses.
+    With lagged inputs the window's αN already is the frame's angle: no such input."""
     import json
 
     from ctrkin.models.fold_gate import outer_motion
     from ctrkin.models.outer_lag import lag_deg
 
-    kin = _lagged(model_dirs)
+    kin = _lagged(model_dirs, inputs=inputs)
     path = export_onnx(kin, tmp_path / "lag.onnx")
     sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     meta = {p.key: p.value for p in __import__("onnx").load(str(path)).metadata_props}
     assert json.loads(meta["ctrkin.outer_lag_deg"]) == [0.8, 0.4]
+    assert json.loads(meta["ctrkin.lagged_inputs"]) is inputs
+    assert ("outer_lag_deg" in {i.name for i in sess.get_inputs()}) is not inputs
     q, sid = _outer_moves(sweeps)
     bounds = [(0, 120), (120, 240)]
     ref = kin.predict(q, sequence_id=sid, gate="learned")
@@ -248,7 +282,9 @@ def test_onnx_takes_the_outer_lag(model_dirs, sweeps, tmp_path):
     for a, b in bounds:
         state = np.array([0.5], np.float32)
         for t in range(a, b):
-            feed = {"window": windows[t:t + 1], "state": state, "outer_lag_deg": lag[t:t + 1]}
+            feed = {"window": windows[t:t + 1], "state": state}
+            if not inputs:
+                feed["outer_lag_deg"] = lag[t:t + 1]
             y, state = sess.run(None, feed)
             out[t] = y[0]
     assert np.abs(out - ref).max() < ONNX_TOL

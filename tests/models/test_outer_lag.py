@@ -83,3 +83,20 @@ def test_frame_turns_with_the_lagged_outer_tube_and_keeps_old_files():
     assert back.lag == (A, B)
     old = {k: v for k, v in frame.to_dict().items() if k != "outer_lag_deg"}
     assert OuterFrame.from_dict(old).lag == (0.0, 0.0) and not OuterFrame.from_dict(old).has_lag
+
+
+def test_lagged_inputs_replace_the_outer_angle_and_older_frames_keep_theirs():
+    """OuterFrame.network_joints: αN becomes the frame's angle only for a lagged frame with
+    lagged_inputs; folders without the key (before it) keep commanded inputs."""
+    reg = Registration(np.eye(3), np.zeros(3), 0.0)
+    q = np.array([[10.0, 30.0, -20.0, 0.0], [5.0, 31.0, -4.0, 0.0]])
+    angles = np.array([24.0, 32.0])
+    lagged = OuterFrame(reg, (A, B), lagged_inputs=True)
+    np.testing.assert_array_equal(lagged.network_joints(q, angles), [[10.0, 24.0, -20.0, 0.0],
+                                                                   [5.0, 32.0, -4.0, 0.0]])
+    assert q[0, 1] == 30.0                                           # the caller's joints untouched
+    for frame in (OuterFrame(reg, (A, B)), OuterFrame(reg, (0.0, 0.0), lagged_inputs=True)):
+        assert frame.network_joints(q, angles) is q
+    assert OuterFrame.from_dict(lagged.to_dict()).lags_inputs
+    old = {k: v for k, v in lagged.to_dict().items() if k != "lagged_inputs"}
+    assert not OuterFrame.from_dict(old).lags_inputs

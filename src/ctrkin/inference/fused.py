@@ -82,20 +82,30 @@ def _fk_step(raw, shift, prev, started, prev_out, cfg, guard, norm,
     (gate state, m_N, αN, branch state) or a gate state DECLINED (nothing changed).
 
     shift (2N,): the sequence's whole turns; prev (2N,): the previous shifted joints (started);
-    prev_out (2N,): receives this step's. cfg: (N, phase, delta, flatten, relu output, gate kind,
-    outer frame, its lag). guard: (lengths, α lo, α hi); norm: (x lo, x span, clip lo, clip hi, y lo,
-    y span).
+    prev_out (2N,): receives this step's (as the network sees them). cfg: (N, phase, delta, flatten,
+    relu output, gate kind, outer frame, its lag, its lagged inputs). guard: (lengths, α lo, α hi);
+    norm: (x lo, x span, clip lo, clip hi, y lo, y span).
     The LSTM (w_ih, w_hh, b) and its chains h, c (scratch h2, c2, g, t, bits), history hist, input
     row x (1, F) are the StreamingEngine's; fresh: the sequence's first step. head_w, head_b: per
     Dense layer (B, out, in), (B, out) for B branches; out_w, out_b likewise; gate_w, gate_b: the
     learned gate's two layers. tables, gate_consts: the fold gate's GateTables and (c, κ, band);
     rot, trans: the outer frame's registration; lag: its outer lag λ(β) (deg) at these joints."""
-    n, phase, delta, flatten, relu_out, gate_kind, outer_frame, has_lag = cfg
+    n, phase, delta, flatten, relu_out, gate_kind, outer_frame, has_lag, lagged_inputs = cfg
     if not _joints_ok(raw, shift, n, guard[0], guard[1], guard[2]):
         return DECLINED, motion, outer_prev, branch
     xlo, xspan, clip_lo, clip_hi, ylo, yspan = norm
-    # features (ctrkin.models.features: α, β, α0, [sin α0, cos α0], Δα0), clipped and normalised
     q = raw - shift
+    a0_cmd = q[0] - q[n - 1]                    # the commanded α0: the fold gate's input
+    # m_N from αN as given (Kinematics._motion_after), followed by the fold gate or the lagged frame
+    if gate_kind == GATE_FOLD or has_lag:
+        a_n = raw[n - 1]
+        if not math.isnan(outer_prev) and abs(a_n - outer_prev) > 1e-9:
+            motion = 1 if a_n > outer_prev else -1
+        outer_prev = a_n
+    outer = q[n - 1] - lag * motion if has_lag else q[n - 1]    # the frame's angle (Kinematics._step_angle)
+    if lagged_inputs:                           # the network sees it as αN (OuterFrame.network_joints)
+        q[n - 1] = outer
+    # features (ctrkin.models.features: α, β, α0, [sin α0, cos α0], Δα0), clipped and normalised
     a0 = q[0] - q[n - 1]                                             # eq. (1)
     d_a0 = a0 - (prev[0] - prev[n - 1]) if started else 0.0          # eq. (2)
     prev_out[:] = q
@@ -111,14 +121,8 @@ def _fk_step(raw, shift, prev, started, prev_out, cfg, guard, norm,
         f[k] = d_a0
     for j in range(f.size):
         f[j] = (min(max(f[j], clip_lo[j]), clip_hi[j]) - xlo[j]) / xspan[j]
-    # m_N from αN as given (Kinematics._motion_after), followed by the fold gate or the lagged frame
-    if gate_kind == GATE_FOLD or has_lag:
-        a_n = raw[n - 1]
-        if not math.isnan(outer_prev) and abs(a_n - outer_prev) > 1e-9:
-            motion = 1 if a_n > outer_prev else -1
-        outer_prev = a_n
     if gate_kind == GATE_FOLD:                   # the relay on the shifted joints (Kinematics._fold_step)
-        gate_state = gate_step(gate_state, a0, q[n:], float(motion), tables[0], tables[1], tables[2],
+        gate_state = gate_step(gate_state, a0_cmd, q[n:], float(motion), tables[0], tables[1], tables[2],
                                tables[3], tables[4], gate_consts[0], gate_consts[1], gate_consts[2])
         branch = 1.0 if gate_state > 0.5 else 0.0
     # the engine (StreamingEngine.step, one LSTM layer): a fresh sequence feeds its first step IB times
@@ -146,7 +150,7 @@ def _fk_step(raw, shift, prev, started, prev_out, cfg, guard, norm,
     _dense_rows(z, out_w[head], out_b[head], yn, relu_out)
     local = yn[0] * yspan + ylo
     if outer_frame:                              # at αN less the lag (Kinematics._step_angle)
-        pose_to_world(local, q[n - 1] - lag * motion if has_lag else q[n - 1], rot, trans, y)
+        pose_to_world(local, outer, rot, trans, y)
     else:
         y[:] = local
         nq = math.sqrt(y[3] * y[3] + y[4] * y[4] + y[5] * y[5])
@@ -200,7 +204,8 @@ class FusedFK:
         self.rot = np.eye(3) if reg is None else np.ascontiguousarray(reg.rotation, dtype=np.float64)
         self.trans = np.zeros(3) if reg is None else np.ascontiguousarray(reg.translation, dtype=np.float64)
         self.cfg = (n, layout.angle_encoding == "phase", layout.delta, engine.pooling == "flatten",
-                    engine.relu_out, gate_kind, reg is not None, kin.frame is not None and kin.frame.has_lag)
+                    engine.relu_out, gate_kind, reg is not None, kin.frame is not None and kin.frame.has_lag,
+                    kin.frame is not None and kin.frame.lags_inputs)
         self.prev = np.zeros(2 * n)        # the last step's shifted joints (Kinematics._prev)
         self._none = np.zeros(2 * n)
 

@@ -264,8 +264,18 @@ class Kinematics:
         """(T, IB, F) un-normalised feature windows, step changes clipped to their training range as
         in `predict`: the input of the exported ONNX model."""
         raw, bounds = self._raw_from(data, sequence_id)
-        feats = self._clip_deltas(sequence_features(self.layout, raw, bounds))
+        net_raw, _ = self._network_joints(data, raw, bounds)
+        feats = self._clip_deltas(sequence_features(self.layout, net_raw, bounds))
         return feats[window_index(bounds, self.ib)]
+
+    def _network_joints(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]]
+                        ) -> tuple[np.ndarray, np.ndarray | None]:
+        """An FK's inputs as its network sees them (OuterFrame.network_joints: αN less the outer lag
+        where it learned so) and the outer frame's angles (T,) (None without a frame)."""
+        if self.task != "fk" or self.frame is None:
+            return raw, None
+        angles = self._frame_angles(data, raw, bounds)
+        return self.frame.network_joints(raw, angles), angles
 
     def predict_normalised(self, Xn: np.ndarray, batch: int = 65536) -> np.ndarray:
         """Xn: (B, IB, F) normalised windows -> (B, O) network outputs (normalised); torch, no grad."""
@@ -299,7 +309,8 @@ class Kinematics:
             return self._predict_follow(raw, bounds, strict, start_joints)
         if self.task == "ik" and self.refiner is not None:
             return self._predict_refined(raw, bounds, strict)
-        feats = self._x_norm.transform(self._clip_deltas(sequence_features(self.layout, raw, bounds)))
+        net_raw, angles = self._network_joints(data, raw, bounds)
+        feats = self._x_norm.transform(self._clip_deltas(sequence_features(self.layout, net_raw, bounds)))
         if branch_states is not None and not isinstance(self.net, BranchNet):
             raise ModelError("branch_states needs a branch model (lstm_mlp_branch)")
         if gate is not None and (not isinstance(self.net, BranchNet) or gate not in ("fold", "learned")
@@ -324,7 +335,7 @@ class Kinematics:
             yn = self.predict_normalised(feats[window_index(bounds, self.ib)])
         y = postprocess(self.layout, self._y_norm.inverse(yn))
         if self.task == "fk":
-            return y if self.frame is None else self.frame.to_world(y, self._frame_angles(data, raw, bounds))
+            return y if self.frame is None or angles is None else self.frame.to_world(y, angles)
         ok, dist, reasons = self._workspace_check(raw, strict)
         joints = self.robot.project_joints(y)
         projected = np.any(np.abs(joints - y) > 1e-9, axis=1)
@@ -459,8 +470,9 @@ class Kinematics:
         Q = np.atleast_2d(np.asarray(Q, float))
         if self._guard is not None and len(Q):
             Q = Q - (self._shift if self._shift is not None else self._guard.shift(Q[0]))
-        prev = Q if self._prev is None else np.broadcast_to(self._prev, Q.shape)
-        xn = self._x_norm.transform(self._clip_deltas(pair_features(self.layout, Q, prev)))
+        net_q = Q if self.frame is None else self.frame.network_joints(Q, self._probe_angles(Q))
+        prev = net_q if self._prev is None else np.broadcast_to(self._prev, Q.shape)
+        xn = self._x_norm.transform(self._clip_deltas(pair_features(self.layout, net_q, prev)))
         given = None
         if self.fold_gate is not None:
             given = np.array([self._fold_step(q)[0] for q in Q], dtype=np.float64)
@@ -542,11 +554,15 @@ class Kinematics:
         if self._follower is not None:
             q, projected = self._follower.step(raw)
             return self._ik_step(raw, q, projected, check, strict)
+        net_raw = raw
+        if self.frame is not None and self.frame.lags_inputs:      # αN less the outer lag
+            net_raw = raw.copy()
+            net_raw[self.layout.n_tubes - 1] -= self._lag_at(raw) * self._motion_after(outer)
         if self._fast_fk:
             n = self.layout.n_tubes
-            a0 = raw[0] - raw[n - 1]
+            a0 = net_raw[0] - net_raw[n - 1]
             feat = np.empty(self.layout.n_inputs)
-            feat[: 2 * n] = raw
+            feat[: 2 * n] = net_raw
             feat[2 * n] = a0
             k = 2 * n + 1
             if self.layout.angle_encoding == "phase":
@@ -556,8 +572,8 @@ class Kinematics:
             if self.layout.delta:
                 feat[k] = 0.0 if self._prev is None else a0 - (self._prev[0] - self._prev[n - 1])
         else:
-            feat = step_features(self.layout, raw, self._prev)
-        self._prev = raw
+            feat = step_features(self.layout, net_raw, self._prev)
+        self._prev = net_raw
         if len(self._dcols):
             feat[self._dcols] = np.minimum(np.maximum(feat[self._dcols], self._dlo), self._dhi)
         xn = self._x_norm.transform(feat)

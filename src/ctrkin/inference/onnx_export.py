@@ -13,7 +13,10 @@ new one, to be fed back at the next step. The graph holds its learned gate: it p
 A model whose outer frame has a transmission lag (ctrkin.models.frame, outer_lag) has one more input
 "outer_lag_deg": (B,) float32, λ(β)·m_N: how far the outer tube lags its command (deg; 0 at rest,
 λ after a forward turn of the outer motor, −λ after a backward one); metadata "ctrkin.outer_lag_deg"
-holds (a, b) of λ = a + b·curved_overlap(β) (ctrkin.robots.overlap).
+holds (a, b) of λ = a + b·curved_overlap(β) (ctrkin.robots.overlap). A model that learned with
+lagged inputs (OuterFrame.lagged_inputs, every such model trained since) has no such input: its
+window's αN column is already the outer tube's angle αN − λ(β)·m_N (Kinematics.feature_windows), and
+"ctrkin.outer_lag_deg" holds (a, b) so that a caller can compute it; "ctrkin.lagged_inputs" says so.
 """
 
 from __future__ import annotations
@@ -42,7 +45,8 @@ class ExportWrapper(nn.Module):
         self.x_norm, self.y_norm = kin.bundle.x_norm.torch(), kin.bundle.y_norm.torch()
         self.fk = kin.task == "fk"
         self.frame = kin.frame is not None
-        self.lag = kin.frame is not None and kin.frame.has_lag
+        # a lagged frame needs λ(β)·m_N as an input, unless the window's αN already is the frame's angle
+        self.lag = kin.frame is not None and kin.frame.has_lag and not kin.frame.lags_inputs
         self.rot: torch.Tensor
         self.trans: torch.Tensor
         reg = kin.frame.registration if kin.frame is not None else None
@@ -123,8 +127,9 @@ def export_onnx(kin: Kinematics, path: str | Path, opset: int = 17) -> Path:
         meta = {"task": kin.task, "ib": str(kin.ib), "input_names": json.dumps(list(kin.layout.input_names)),
                 "output_names": json.dumps(list(kin.layout.output_names)),
                 "robot_fingerprint": kin.robot.fingerprint(), "model": kin.config.model}
-        if wrapper.lag and kin.frame is not None:
+        if kin.frame is not None and kin.frame.has_lag:
             meta["outer_lag_deg"] = json.dumps(list(kin.frame.lag))   # λ = a + b·overlap(β), deg
+            meta["lagged_inputs"] = json.dumps(kin.frame.lags_inputs)
         for k, v in meta.items():
             p = model.metadata_props.add()
             p.key, p.value = f"ctrkin.{k}", v

@@ -12,6 +12,13 @@ nominal TCM (point-wise solves; paper IV.A maps TCM and model coordinates the sa
 then learns a function of the relative joints, and the residual dependence on αN that a real robot
 has (imperfections, registration error) from αN itself, which stays an input. Predictions are turned
 back exactly, so the model's outputs are tracker-frame poses like any other FK model's.
+
+With an outer lag (ctrkin.models.outer_lag) the outer tube points at αN − λ(β)·m_N, not at its motor's
+αN. A model trained with `lagged_inputs` also sees that angle as its αN input (and α0 = α1 − it,
+eq. 1): the relative rotation of the tubes, which decides where a fold lies, is then the tubes' own.
+Without it the network learns the folds at the commanded α0 of its training rows, nearly all recorded
+after a forward outer turn (m_N = +1), and places them λ early on a turn from rest (issue 8: the
+full-scale snap magnitude, 10° → 0.6°).
 """
 
 from __future__ import annotations
@@ -38,10 +45,25 @@ class OuterFrame:
 
     registration: Registration
     lag: tuple[float, float] = (0.0, 0.0)
+    lagged_inputs: bool = False
 
     @property
     def has_lag(self) -> bool:
         return self.lag != (0.0, 0.0)
+
+    @property
+    def lags_inputs(self) -> bool:
+        """Whether the network's αN input is the frame's angle αN − λ(β)·m_N (module docstring)."""
+        return self.lagged_inputs and self.has_lag
+
+    def network_joints(self, joints: np.ndarray, angles: np.ndarray) -> np.ndarray:
+        """(T, 2N) the joints the network sees: `joints` (T, 2N) with αN replaced by the frame's
+        angles (T,) deg where the model learned so (lags_inputs), else `joints` itself."""
+        if not self.lags_inputs:
+            return joints
+        out = np.array(joints, dtype=float)
+        out[:, out.shape[1] // 2 - 1] = angles
+        return out
 
     def outer_angle(self, robot: Robot, joints: np.ndarray, motion: np.ndarray | int) -> np.ndarray:
         """(T,) deg the angle the frame turns with: αN − λ(β)·m_N (αN itself without a lag).
@@ -88,13 +110,14 @@ class OuterFrame:
         return out
 
     def to_dict(self) -> dict[str, object]:
-        return {"frame": "outer", **self.registration.to_dict(), "outer_lag_deg": list(self.lag)}
+        return {"frame": "outer", **self.registration.to_dict(), "outer_lag_deg": list(self.lag),
+                "lagged_inputs": self.lagged_inputs}
 
     @classmethod
     def from_dict(cls, d: dict) -> OuterFrame:
         try:
             a, b = (float(v) for v in d.get("outer_lag_deg", (0.0, 0.0)))   # older folders: no lag
-            return cls(Registration.from_dict(d), (a, b))
+            return cls(Registration.from_dict(d), (a, b), bool(d.get("lagged_inputs", False)))
         except (KeyError, ValueError, TypeError) as e:
             raise ModelError(f"bad outer-frame entry: {e}") from None
 

@@ -53,7 +53,8 @@ def outer_frame(ds: Dataset, joints: np.ndarray, poses: np.ndarray, train: np.nd
                 ) -> tuple[OuterFrame, np.ndarray]:
     """The outer tube's frame of an FK model and the (T,) angle it turns with at each row: the
     registration fitted on training rows, then the outer tube's lag (ctrkin.models.outer_lag) from
-    training rows at rest and after outer turns, with m_N followed across the runs of ds."""
+    training rows at rest and after outer turns, with m_N followed across the runs of ds. The network
+    sees the frame's angle as its αN input (OuterFrame.lagged_inputs)."""
     n = ds.n_tubes
     frame = OuterFrame.fit(ds.robot, joints[train], poses[train], seed=seed)
     bounds = ds.sequence_bounds()
@@ -61,7 +62,8 @@ def outer_frame(ds: Dataset, joints: np.ndarray, poses: np.ndarray, train: np.nd
     use = np.zeros(len(joints), dtype=bool)
     use[train] = True
     local = frame.to_local(poses, joints[:, n - 1])
-    frame = replace(frame, lag=fit_outer_lag(ds.robot, joints, local, motion, bounds, use))
+    lag = fit_outer_lag(ds.robot, joints, local, motion, bounds, use)
+    frame = replace(frame, lag=lag, lagged_inputs=True)
     return frame, frame.outer_angle(ds.robot, joints, motion)
 
 
@@ -110,12 +112,13 @@ def prepare(ds: Dataset, cfg: TrainConfig, branches: bool = False) -> Prepared:
     layout = cfg.layout(ds.n_tubes)
     raw_in, target = inputs_and_targets(ds, cfg.task, cfg.pose_source)
     bounds = ds.sequence_bounds()
-    feats = sequence_features(layout, raw_in, bounds)
     split, rows = split_rows(ds, cfg)
-    frame, outer_deg = None, None
+    frame, outer_deg, net_in = None, None, raw_in
     if cfg.target_frame == "outer":     # FK targets in the outer tube's frame (ctrkin.models.frame)
         frame, outer_deg = outer_frame(ds, raw_in, target, rows["train"], cfg.seed)
         target = frame.to_local(target, outer_deg)
+        net_in = frame.network_joints(raw_in, outer_deg)
+    feats = sequence_features(layout, net_in, bounds)
     x_norm = MinMax.fit(feats[rows["train"]])
     y_norm = MinMax.fit(target[rows["train"]])
     X = windows(x_norm.transform(feats), bounds, layout.ib).astype(np.float32)
