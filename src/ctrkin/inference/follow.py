@@ -20,7 +20,7 @@ import numpy as np
 from ctrkin.errors import ModelError
 from ctrkin.inference.engine import StreamingEngine
 from ctrkin.models.follow import follow_features, substeps
-from ctrkin.models.outer_lag import lag_deg
+from ctrkin.models.outer_lag import lag_one
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle
 from ctrkin.models.workspace import Workspace
@@ -65,7 +65,7 @@ class Follower:
             self._at_rest(joints)
 
     def _lag(self, q: np.ndarray) -> float:
-        return 0.0 if self.lag == (0.0, 0.0) else float(lag_deg(self.robot, q[None], self.lag)[0])
+        return 0.0 if self.lag == (0.0, 0.0) else lag_one(self.robot, q, self.lag)
 
     def _at_rest(self, q: np.ndarray) -> None:
         """The robot stands at motor joints q, its outer tube at rest (m_N = 0: tube = motor). The

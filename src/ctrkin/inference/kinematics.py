@@ -48,7 +48,7 @@ from ctrkin.models.features import (
 )
 from ctrkin.models.fold_gate import FOLD_GATE_FILE, FoldGate, outer_motion, recorded_motion, run_continues
 from ctrkin.models.frame import OuterFrame, local_tips_to_world
-from ctrkin.models.outer_lag import lag_deg
+from ctrkin.models.outer_lag import lag_one
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle, read_json
 from ctrkin.models.workspace import WORKSPACE_FILE, Workspace
@@ -659,7 +659,7 @@ class Kinematics:
         beta = raw[self.layout.n_tubes:].tobytes()
         if self._lag_beta != beta:
             self._lag_beta = beta
-            self._lag = float(lag_deg(self.robot, raw[None], self.frame.lag)[0])
+            self._lag = lag_one(self.robot, raw, self.frame.lag)
         return self._lag
 
     def _ik_step(self, raw: np.ndarray, q: np.ndarray, projected: bool, check: bool, strict: bool

@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from ctrkin.robots.overlap import curved_overlap
+from ctrkin.robots.overlap import curved_overlap, curved_overlap_one
 from ctrkin.robots.robot import Robot
 
 SETTLED_DEG = 15.0    # inner travel since its last reversal before a row counts (dead band ≤ 13°)
@@ -42,6 +42,12 @@ def lag_deg(robot: Robot, joints: np.ndarray, coef: tuple[float, float]) -> np.n
     if b == 0.0:
         return np.full(len(np.atleast_2d(joints)), a)
     return a + b * curved_overlap(robot, joints)
+
+
+def lag_one(robot: Robot, q: np.ndarray, coef: tuple[float, float]) -> float:
+    """λ(β) deg of (1) for one joint vector q (2N,) in scalar arithmetic (the streaming steps)."""
+    a, b = coef
+    return a if b == 0.0 else a + b * curved_overlap_one(robot, q[robot.n_tubes:])
 
 
 def fit_outer_lag(robot: Robot, joints: np.ndarray, local: np.ndarray, motion: np.ndarray,

@@ -7,6 +7,8 @@ wind-up, ctrkin.virtual.transmission; a learned model's outer-tube lag, ctrkin.m
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from ctrkin.robots.robot import Robot
@@ -36,3 +38,25 @@ def curved_overlap(robot: Robot, Q: np.ndarray) -> np.ndarray:
     mid = 0.5 * (pts[:, 1:] + pts[:, :-1])  # (T, 2K-1)
     cover = ((a[:, None, :] <= mid[:, :, None]) & (mid[:, :, None] < b[:, None, :])).sum(axis=2)
     return ((cover >= 2) * np.diff(pts, axis=1)).sum(axis=1)
+
+
+def curved_overlap_one(robot: Robot, beta: np.ndarray) -> float:
+    """`curved_overlap` of one joint vector in scalar arithmetic (a streaming step's ~3 µs against
+    the vectorised function's ~25 µs on one row): beta (N,) translations (mm) -> mm."""
+    spans = []
+    for i, t in enumerate(robot.tubes):
+        cum = 0.0
+        for s in t.sections:
+            if s.curvature != 0.0 and s.length > 0:
+                b = float(beta[i]) + cum
+                spans.append((max(b, 0.0), max(b + s.length, 0.0)))
+            cum += s.length
+    if len(spans) < 2:
+        return 0.0
+    pts = sorted(p for span in spans for p in span)
+    total = 0.0
+    for lo, hi in itertools.pairwise(pts):
+        mid = 0.5 * (lo + hi)
+        if sum(1 for a, b in spans if a <= mid < b) >= 2:
+            total += hi - lo
+    return total
