@@ -23,8 +23,6 @@ tip turns with φ). The median per translation set, then (a, b) by least squares
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ctrkin.robots.overlap import curved_overlap, curved_overlap_one
@@ -154,5 +152,5 @@ def _settled(alpha1: np.ndarray, bounds: list[tuple[int, int]]) -> np.ndarray:
                 s = 1 if d > 0 else -1
                 travel = travel + abs(d) if s == cur else abs(d)
                 cur = s
-            out[t] = travel >= SETTLED_DEG and not math.isnan(d)
+            out[t] = travel >= SETTLED_DEG
     return out
