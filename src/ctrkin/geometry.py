@@ -1,6 +1,6 @@
 """Geometry: the tip-pose convention, quaternion and tangent conversions, and rigid transforms.
 
-Every stage uses these (DESIGN.md: Conventions, fixed); nothing else re-derives them. A tip pose is
+Every stage uses these (docs/design.md: Conventions, fixed); nothing else re-derives them. A tip pose is
 (x, y, z, q0, qx, qy) in mm and a unit quaternion with qz = 0: the minimal rotation that turns the
 base z axis onto the tip tangent, as a 5-DOF electromagnetic sensor reports it (roll about the
 tangent is unobservable). Full quaternions are (w, x, y, z), scalar first. General rotation maths

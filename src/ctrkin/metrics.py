@@ -1,5 +1,5 @@
 """Errors in physical units, in one place for training (metrics.json) and evaluation (results.json)
-(DESIGN.md: Evaluation).
+(docs/design.md: Evaluation).
 
 Per sample:
   position error     Euclidean distance of the tip positions (mm)               pose.position_error

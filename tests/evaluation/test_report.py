@@ -12,6 +12,7 @@ import pytest
 
 from ctrkin.evaluation.figure_captions import FIGURES
 from ctrkin.evaluation.report import TINY_WARNING, describe_structure, write_report
+from ctrkin.evaluation.results import ReproResults
 
 RESULTS = Path(__file__).with_name("tiny_results.json")
 NUMBER = re.compile(r"^(–|-?\d+(\.\d+)?)$")
@@ -26,7 +27,7 @@ def _report(results: dict[str, Any], folder: Path, pngs: tuple[str, ...] = ()) -
     (folder / "figures").mkdir()
     for stem in pngs:
         (folder / "figures" / f"{stem}.png").write_bytes(b"png")
-    write_report(results, folder / "report.md")
+    write_report(ReproResults.from_dict(results), folder / "report.md")
     return (folder / "report.md").read_text()
 
 

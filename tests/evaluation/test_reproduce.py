@@ -11,8 +11,8 @@ from typing import Any
 import pytest
 
 from ctrkin import paper_robot
-from ctrkin.evaluation.report import REQUIRED_KEYS, lookup
 from ctrkin.evaluation.reproduce import reproduce
+from ctrkin.evaluation.results import ReproResults
 from ctrkin.evaluation.scales import get_scale
 from ctrkin.inference import Kinematics
 
@@ -39,21 +39,25 @@ def tiny_run(tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_every_required_key_is_finite(tiny_run) -> None:
+def test_results_json_is_the_results_and_every_headline_figure_is_finite(tiny_run) -> None:
     out, results = tiny_run
     on_disk = json.loads((out / "results.json").read_text())
-    for key in REQUIRED_KEYS:
-        value = lookup(on_disk, key)
-        assert on_disk[key] == value  # flat copy for tools that read dotted keys
-        assert lookup(results, key) == value
-        if key.startswith("recommended."):      # a model folder that Kinematics.load opens
-            assert Kinematics.load(out / value).task == key.split(".")[1], key
-            continue
-        if key.endswith(("timing_error_steps", "magnitude_error_deg")) and value is None:
-            assert lookup(on_disk, key.rsplit(".", 1)[0] + ".n_matched") == 0, key   # undefined: no match
+    assert ReproResults.from_dict(on_disk) == results               # the nested tree reads back whole
+    flat = results.flat()
+    assert list(on_disk)[-len(flat):] == list(flat)                # the flat copies come last, in order
+    for key, value in flat.items():
+        assert on_disk[key] == value, key                          # for tools that read dotted keys
+    for task, folder in (("fk", results.recommended.fk), ("ik", results.recommended.ik)):
+        assert Kinematics.load(out / folder).task == task          # a model folder that loads
+    undefined = set()      # a snap timing or magnitude error without a matched snap is undefined (None)
+    for model, score in results.snapping.per_model.items():
+        if score["n_matched"] == 0:
+            undefined |= {f"snapping.{model}.timing_error_steps", f"snapping.{model}.magnitude_error_deg"}
+    for key, value in flat.items():
+        if key.startswith("recommended.") or (value is None and key in undefined):
             continue
         assert isinstance(value, (int, float)) and math.isfinite(value), key
-    assert on_disk["dataset"]["samples"] == 2 * 4 * 721  # tiny: 2 levels × 4 outer angles × 721
+    assert results.dataset.samples == 2 * 4 * 721  # tiny: 2 levels × 4 outer angles × 721
 
 
 @pytest.mark.slow
@@ -83,20 +87,19 @@ def test_rerun_reuses_data_and_models(tiny_run) -> None:
     data_stamp = (out / "data" / "paper" / "data.parquet").stat().st_mtime_ns
     again = reproduce(paper_robot(), get_scale("tiny"), out, log=lambda _m: None)
     assert (out / "data" / "paper" / "data.parquet").stat().st_mtime_ns == data_stamp
-    for name, info in first["training"].items():  # no epoch trained again
-        assert again["training"][name]["epochs"] == info["epochs"]
-        assert again["training"][name]["seconds"] == info["seconds"]
-    fk_first, fk_again = first["fk"]["lstm_mlp"], again["fk"]["lstm_mlp"]
+    for name, info in first.training.items():  # no epoch trained again
+        assert again.training[name]["epochs"] == info["epochs"]
+        assert again.training[name]["seconds"] == info["seconds"]
+    fk_first, fk_again = first.fk["lstm_mlp"], again.fk["lstm_mlp"]
     assert fk_again["position_rmse_mm"] == pytest.approx(fk_first["position_rmse_mm"])
-    assert again["dataset"] == first["dataset"]
+    assert again.dataset == first.dataset
 
 
 def _without_timing(tree: Any) -> Any:
     """The results minus what depends on the clock or the process (times, memory)."""
     if isinstance(tree, dict):
         return {k: _without_timing(v) for k, v in tree.items()
-                if k not in ("timing", "seconds", "memory", "training", "samples_per_s")
-                and not k.startswith("timing.")}
+                if k not in ("timing", "seconds", "memory", "training", "samples_per_s")}
     if isinstance(tree, list):
         return [_without_timing(v) for v in tree]
     return tree
@@ -110,8 +113,8 @@ def test_ray_executor_gives_the_local_results(tiny_run, tmp_path) -> None:
                        log=lambda _m: None)
     for weights in sorted((out / "models").glob("*/weights.pt")):    # the same seeds: the same bytes
         assert (tmp_path / "models" / weights.parent.name / "weights.pt").read_bytes() == weights.read_bytes()
-    assert _without_timing(on_ray) == _without_timing(local)
-    assert on_ray["memory"]["peak_rss_mb_main"] > 0
+    assert _without_timing(on_ray.to_dict()) == _without_timing(local.to_dict())
+    assert on_ray.memory.peak_rss_mb_main > 0
 
 
 def test_local_reproduction_does_not_import_ray() -> None:

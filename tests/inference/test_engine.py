@@ -8,8 +8,8 @@ import torch
 
 from ctrkin.errors import ModelError
 from ctrkin.inference.batch import padded_rows, seqnet_predict
-from ctrkin.inference.engine import StreamingEngine
 from ctrkin.models import build_model, windows
+from ctrkin.models.engine import StreamingEngine
 
 
 @pytest.mark.parametrize(("name", "structure", "ib"), [

@@ -1,4 +1,4 @@
-"""A slow, obviously-correct TCM reference (DESIGN.md: Mechanics), written independently of the
+"""A slow, obviously-correct TCM reference (docs/mechanics.md: Model), written independently of the
 kernels: scipy's DOP853 at tight tolerance on each smooth stretch, scipy root finding on uz(0).
 
 Used by the tests and by benchmarks/bench_mechanics.py to check the fast solver's accuracy.

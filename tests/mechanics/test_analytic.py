@@ -70,7 +70,7 @@ def test_straight_outer_tube_stiffens_the_arc() -> None:
     np.testing.assert_allclose(eq.tip_position, expected, atol=ARC_TOL_MM)
 
 
-# --- two-tube snapping criterion (DESIGN.md: Mechanics) ----------------------------------------
+# --- two-tube snapping criterion (docs/mechanics.md: Model) ------------------------------------
 
 KAPPA, NU = 1 / 30.0, 0.33
 

@@ -1,4 +1,4 @@
-"""Fold tables against the two-tube snapping criterion (DESIGN.md: Mechanics)."""
+"""Fold tables against the two-tube snapping criterion (docs/mechanics.md: Model)."""
 
 from __future__ import annotations
 

@@ -193,7 +193,7 @@ def test_default_step_from_tolerance_keeps_paper_robot_snaps() -> None:
     from ctrkin.mechanics.pointwise import rk4_step
     from ctrkin.robots import timclab_robot
 
-    def h_tol(robot: Robot, tol: float) -> float:  # docs/mechanics.md: e(h) = tol
+    def h_tol(robot: Robot, tol: float) -> float:  # e(h) = tol (docs/mechanics.md: Numerics)
         a = robot_arrays(robot)
         k = a.kappa_scale
         return (120 * tol / (k ** 5 * a.curved_length * min(a.lengths.max(), 1 / k))) ** 0.25

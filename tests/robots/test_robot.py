@@ -39,7 +39,7 @@ def test_joint_limits() -> None:
 
 
 def _first_violation(lengths: np.ndarray, beta: np.ndarray) -> str | None:
-    """The joint inequalities written out one by one (DESIGN.md conventions), in the order
+    """The joint inequalities written out one by one (docs/design.md: Conventions), in the order
     check_joints reports them; None if all hold."""
     n, tol = len(lengths), 1e-9
     tips = beta + lengths

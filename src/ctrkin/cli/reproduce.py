@@ -59,7 +59,7 @@ def reproduce_cmd(scale: str, robot_spec: str, robot_seed: int, workers: int, ex
         log=say,
         executor=executor,
     )
-    fk, ik = results["fk"], results["ik"]["lstm_mlp"]
+    fk, ik = results.fk, results.ik["lstm_mlp"]
     say(
         f"FK LSTM-MLP: {fk['lstm_mlp']['position_rmse_mm']:.3f} mm / "
         f"{fk['lstm_mlp']['orientation_rmse_deg']:.3f} deg (paper 0.69 mm / 0.16 deg); "

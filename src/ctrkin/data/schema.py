@@ -1,4 +1,5 @@
-"""Dataset schema (DESIGN.md: Data). One row a sample, time-ordered by `step` within `sequence_id`.
+"""Dataset schema (docs/data.md: The folder format). One row a sample, time-ordered by `step` within
+`sequence_id`.
 
 Column     dtype    unit          meaning
 sequence_id int64   -             a continuous run of the robot (the input buffer never crosses it)

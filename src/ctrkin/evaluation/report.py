@@ -1,84 +1,25 @@
-"""results.json and report.md of a reproduction: our figures beside the paper's."""
+"""report.md of a reproduction: our figures beside the paper's, from the results as written to
+results.json (ctrkin.evaluation.results)."""
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
 
 from ctrkin.evaluation import paper_numbers as P
 from ctrkin.evaluation.figure_captions import figure_section
+from ctrkin.evaluation.results import ReproResults
+from ctrkin.evaluation.scales import BUDGET_ROLES, ReproScale
 from ctrkin.models.seqnet import STRUCTURES
 from ctrkin.util.files import atomic_write_text
 from ctrkin.viz.experiments import LABELS
-
-REQUIRED_KEYS = (
-    [
-        f"fk.{m}.{k}"
-        for m in ("lstm_mlp", "lstm_mlp_paper", "lstm_mlp_branch", "tcm", "mlp", "lstm", "cnn", "tcn",
-                  "resnet")
-        for k in ("position_rmse_mm", "orientation_rmse_deg", "position_rmse_true_mm")
-    ]
-    + [f"ik.{m}.{k}" for m in ("lstm_mlp", "lstm_mlp_paper", "lstm_mlp_refined", "follow_mlp")
-       for k in ("joint_rmse_mm", "joint_rmse_deg", "tip_error_mm", "joint_alpha_median_deg")]
-    + [f"snapping.{m}.{k}" for m in ("lstm_mlp_paper", "lstm_mlp_branch", "tcm", "tcm_continued")
-       for k in ("precision", "recall", "timing_error_steps", "magnitude_error_deg")]
-    + [f"experiments.{e}.within_1mm_fraction" for e in ("ik_random", "ik_square", "ik_triangle")]
-    + ["recommended.fk", "recommended.ik"]
-    + [
-        f"experiments.{e}.position_rmse_mm"
-        for e in ("sweeps", "random_points", "arbitrary", "ik_random", "ik_square", "ik_triangle")
-    ]
-    + [
-        "snapping.precision",
-        "snapping.recall",
-        "timing.fk_ms_mean",
-        "timing.fk_ms_std",
-        "timing.ik_ms_mean",
-        "timing.tcm_ms_mean",
-        "dataset.samples",
-        "dataset.sequences",
-        "dataset.snaps",
-    ]
-)
 
 # IK rows of the experiment table, in column order
 IK_REPORT_ROWS = ("lstm_mlp_paper", "lstm_mlp_refined", "follow_mlp")
 
 
-def lookup(results: dict[str, Any], dotted: str) -> Any:
-    """results["a"]["b"]["c"] for "a.b.c"."""
-    cur: Any = results
-    for part in dotted.split("."):
-        cur = cur[part]
-    return cur
-
-
-def _clean(x: Any) -> Any:
-    """JSON-safe: NaN and inf become null (they are not JSON)."""
-    if isinstance(x, dict):
-        return {str(k): _clean(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_clean(v) for v in x]
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if hasattr(x, "item") and callable(x.item):  # numpy scalars
-        return _clean(x.item())
-    return x
-
-
-def write_results(results: dict[str, Any], path: Path) -> dict[str, Any]:
-    """Write the nested results, plus every required key flattened under its dotted name (for
-    tools that read flat keys); returns what was written."""
-    out = _clean(results)
-    for key in REQUIRED_KEYS:
-        out[key] = lookup(out, key)
-    atomic_write_text(path, json.dumps(out, indent=2))
-    return out
-
-
-def write_report(r: dict[str, Any], path: Path) -> None:
+def write_report(r: ReproResults, path: Path) -> None:
     """report.md from the results as written to results.json: one named stage per section, in the
     order a reader needs them (what ran, headline, each paper figure's table, figures, notes)."""
     sections = (
@@ -96,9 +37,9 @@ def write_report(r: dict[str, Any], path: Path) -> None:
     atomic_write_text(path, "\n\n".join("\n".join(lines) for lines in sections) + "\n")
 
 
-def _title(r: dict[str, Any]) -> list[str]:
+def _title(r: ReproResults) -> list[str]:
     """The heading, and for the tiny scale a warning that its numbers mean nothing."""
-    name = r["scale"]["name"]
+    name = r.scale.name
     lines = [f"# ctrkin reproduction of the paper ({name} scale)"]
     if name == "tiny":
         lines += ["", TINY_WARNING]
@@ -113,47 +54,44 @@ TINY_WARNING = (
 )
 
 
-def _setup(r: dict[str, Any]) -> list[str]:
+def _setup(r: ReproResults) -> list[str]:
     """What ran: robot, data, split, what "measured" and "truth" mean, and the training budgets."""
-    d = r["dataset"]
+    d = r.dataset
     return [
-        f"Robot: {r['robot']['name']} (paper Table I), virtual robot seed {r['virtual_robot_seed']}. "
-        f"Training data: the paper protocol, {d['samples']} samples in {d['sequences']} sequences "
-        f"({d['snaps']} snap samples), split by sequence 70:15:15; errors are on held-out sequences "
-        f"unless stated. Wall time {r['seconds']['total']:.0f} s. \"Measured\" is the virtual tracker "
+        f"Robot: {r.robot['name']} (paper Table I), virtual robot seed {r.virtual_robot_seed}. "
+        f"Training data: the paper protocol, {d.samples} samples in {d.sequences} sequences "
+        f"({d.snaps} snap samples), split by sequence 70:15:15; errors are on held-out sequences "
+        f"unless stated. Wall time {r.seconds['total']:.0f} s. \"Measured\" is the virtual tracker "
         "(noise, registration, sensor offset, like the paper's EM sensor); \"truth\" is the true tip "
         "seen by the tracker without noise, which hardware cannot give.",
         "",
-        _budgets(r["scale"]),
+        _budgets(r.scale),
     ]
 
 
-def _budgets(scale: dict[str, Any]) -> str:
+def _budgets(scale: ReproScale) -> str:
     """One paragraph: how this scale trained, against the paper's batch 32, lr 1e-3, ≤ 500 epochs."""
-    roles = {"main": "paper FK/IK", "branch": "snap-aware FK", "follow": "follow IK",
-             "compare": "baselines and ablation", "grid": "IB and structure grids"}
+    labels = ("paper FK/IK", "snap-aware FK", "follow IK", "baselines and ablation", "IB and structure grids")
     parts = []
-    for key, label in roles.items():
-        b = scale.get(key)
-        if isinstance(b, dict):
-            sched = "cosine decay" if b["lr_schedule"] == "cosine" else "constant lr"
-            parts.append(f"{label} batch {b['batch_size']}, lr {b['lr']:.2g} ({sched}), "
-                         f"≤ {b['epochs']} epochs")
+    for role, label in zip(BUDGET_ROLES, labels, strict=True):
+        b = getattr(scale, role)
+        sched = "cosine decay" if b.lr_schedule == "cosine" else "constant lr"
+        parts.append(f"{label} batch {b.batch_size}, lr {b.lr:.2g} ({sched}), ≤ {b.epochs} epochs")
     return ("Training differs from the paper's (batch 32, lr 1e-3, up to 500 epochs with early "
             "stopping): " + "; ".join(parts) + " (docs/reproduction.md says why).")
 
 
-def _headline(r: dict[str, Any]) -> list[str]:
+def _headline(r: ReproResults) -> list[str]:
     """Three tables whose columns each hold one kind of number: FK accuracy (vs the measurement and
     vs the truth), IK accuracy, and time per prediction."""
-    fk, ik, tm = r["fk"], r["ik"]["lstm_mlp"], r["timing"]
-    rec = r.get("recommended", {})
-    snap = r["snapping"]
-    snap_meas = snap.get(snap.get("model", ""), {}).get("vs_measured", {})
+    fk, ik, tm = r.fk, r.ik["lstm_mlp"], r.timing
+    rec = r.recommended
+    snap = r.snapping
+    snap_meas = snap.per_model.get(snap.model, {}).get("vs_measured", {})
     lines = ["## Headline", "",
-             f"Learned figures come from the recommended models: FK `{rec.get('fk')}` (the snap-aware "
+             f"Learned figures come from the recommended models: FK `{rec.fk}` (the snap-aware "
              f"LSTM-MLP; the paper's own FK LSTM-MLP is the `lstm_mlp_paper` row of the next section), IK "
-             f"`{rec.get('ik')}` (the follow IK: joint changes from the robot's current joints; the paper's "
+             f"`{rec.ik}` (the follow IK: joint changes from the robot's current joints; the paper's "
              "IK network is the `lstm_mlp_paper` column of the IK table, the IK refined on the learned FK "
              "`lstm_mlp_refined`).", "",
              "Forward kinematics, RMSE on the held-out sequences:", ""]
@@ -167,7 +105,7 @@ def _headline(r: dict[str, Any]) -> list[str]:
           _f(fk["tcm"]["position_rmse_mm"]), _f(fk["tcm"]["position_rmse_true_mm"])],
          ["snap prediction precision / recall (sweeps)", "– (shown in Fig. 10a, not scored)",
           f"{_f(snap_meas.get('precision'))} / {_f(snap_meas.get('recall'))}",
-          f"{_f(snap['precision'])} / {_f(snap['recall'])}"]]))
+          f"{_f(snap.precision)} / {_f(snap.recall)}"]]))
     lines += ["", "Inverse kinematics on the held-out sequences (joint errors against the recorded joints, "
               "α wrapped to ±180°; tip errors against the target poses):", ""]
     lines.append(_table(
@@ -181,20 +119,20 @@ def _headline(r: dict[str, Any]) -> list[str]:
     lines.append(_table(
         ["quantity", "paper", "ours", "how ours was timed"],
         [["FK time per prediction (ms)", f"{P.FK['ms_mean']} ± {P.FK['ms_std']}",
-          f"{_f(tm['fk_ms_mean'], 4)} ± {_f(tm['fk_ms_std'], 4)}",
+          f"{_f(tm.fk_ms_mean, 4)} ± {_f(tm.fk_ms_std, 4)}",
           "recommended FK, streaming: one step a call"],
          ["IK time per prediction (ms)", f"{P.IK['ms_mean']} ± {P.IK['ms_std']}",
-          f"{_f(tm['ik_ms_mean'], 4)} ± {_f(tm['ik_ms_std'], 4)}",
+          f"{_f(tm.ik_ms_mean, 4)} ± {_f(tm.ik_ms_std, 4)}",
           "recommended IK, streaming: one step a call"],
          ["TCM time per point (ms)", f"{P.TCM_MS['mean']:.0f} ± {P.TCM_MS['std']:.0f}",
-          f"{_f(tm['tcm_ms_mean'], 3)} ± {_f(tm['tcm_ms_std'], 3)}",
+          f"{_f(tm.tcm_ms_mean, 3)} ± {_f(tm.tcm_ms_std, 3)}",
           "point-wise solve on the test rows (compiled shooting)"]]))
     return lines
 
 
-def _fk_comparison(r: dict[str, Any]) -> list[str]:
+def _fk_comparison(r: ReproResults) -> list[str]:
     """Fig. 5: every FK predictor on the test sequences, and the Δα0 ablation."""
-    fk = r["fk"]
+    fk = r.fk
     rows = [[f"{LABELS.get(m, m)} (`{m}`)", _f(v["position_rmse_mm"]), _f(v["position_mae_mm"]),
              _f(v["orientation_rmse_deg"]), _f(v["position_rmse_true_mm"]),
              _f(v["away_from_snap"]["position_rmse_mm"]),
@@ -216,9 +154,9 @@ def _fk_comparison(r: dict[str, Any]) -> list[str]:
     ]
 
 
-def _fk_experiments(r: dict[str, Any]) -> list[str]:
+def _fk_experiments(r: ReproResults) -> list[str]:
     """Fig. 10: sweeps, random points, the arbitrary path and the snap turns, TCM beside learned."""
-    ex = r["experiments"]
+    ex = r.experiments
     rows = []
     for name in ("sweeps", "random_points", "arbitrary", "snap_turns"):
         e, pp = ex[name], P.EXPERIMENTS.get(name, {})
@@ -236,9 +174,9 @@ def _fk_experiments(r: dict[str, Any]) -> list[str]:
     return lines
 
 
-def _ik_experiments(r: dict[str, Any]) -> list[str]:
+def _ik_experiments(r: ReproResults) -> list[str]:
     """Fig. 11, 12: IK at random poses and along the square and triangle, and on held-out sequences."""
-    ex, ikh = r["experiments"], r["ik"]
+    ex, ikh = r.experiments, r.ik
     rows = []
     for name in ("ik_random", "ik_square", "ik_triangle"):
         e = ex[name]
@@ -270,9 +208,9 @@ def _ik_experiments(r: dict[str, Any]) -> list[str]:
     ]
 
 
-def _snap_prediction(r: dict[str, Any]) -> list[str]:
+def _snap_prediction(r: ReproResults) -> list[str]:
     """Snap events per predictor on the sweeps and snap turns, by the paper's 10° T(L) rule."""
-    ex = r["experiments"]
+    ex = r.experiments
     rows = []
     for exp in ("sweeps", "snap_turns"):
         for k, v in ex[exp]["snap_prediction"].items():
@@ -293,9 +231,9 @@ def _snap_prediction(r: dict[str, Any]) -> list[str]:
     ]
 
 
-def _grids(r: dict[str, Any]) -> list[str]:
+def _grids(r: ReproResults) -> list[str]:
     """Tables II and III: the input-buffer grid and the structure grid, S1–S5 spelled out."""
-    g = r["grids"]
+    g = r.grids
     ib_rows = [[ib, _f(v["position_rmse_mm"]), _f(v["test_loss"], 4),
                 _f(P.TABLE2_TEST_MAE["fk"].get(int(ib)), 4), _f(g["ib"]["ik"][ib]["joint_rmse_mm"]),
                 _f(g["ib"]["ik"][ib]["joint_rmse_deg"]), _f(g["ib"]["ik"][ib].get("test_loss"), 4),
@@ -328,8 +266,8 @@ def _grids(r: dict[str, Any]) -> list[str]:
     ]
 
 
-def _notes(r: dict[str, Any]) -> list[str]:
-    return ["## Notes", "", *[f"- {n}" for n in r.get("notes", [])]]
+def _notes(r: ReproResults) -> list[str]:
+    return ["## Notes", "", *[f"- {n}" for n in r.notes]]
 
 
 def describe_structure(name: str) -> str:

@@ -17,7 +17,16 @@ from ctrkin import __version__
 from ctrkin.evaluation import experiments_fk, experiments_ik, grids
 from ctrkin.evaluation.context import FK_ROWS, IK_ROWS, RECOMMENDED, Context
 from ctrkin.evaluation.datasets import ReproData, collect
-from ctrkin.evaluation.report import write_report, write_results
+from ctrkin.evaluation.report import write_report
+from ctrkin.evaluation.results import (
+    DatasetSummary,
+    Memory,
+    Recommended,
+    ReproResults,
+    Snapping,
+    Timing,
+    write_results,
+)
 from ctrkin.evaluation.scales import ReproScale
 from ctrkin.evaluation.tcm_baseline import TCMBaseline
 from ctrkin.evaluation.training_runs import train_all
@@ -65,11 +74,11 @@ def reproduce(
     workers: int = 2,
     log: Callable[[str], None] = print,
     executor: str = "local",
-) -> dict[str, Any]:
+) -> ReproResults:
     """Run the whole reproduction into `out`; workers: trainings run in parallel (one thread each);
     executor: where they run, "local" processes or "ray" tasks (ctrkin.evaluation.executors).
     Stages: collect data, train, fit the TCM baseline, FK experiments, IK experiments, grids,
-    timing; then results.json and report.md."""
+    timing; then results.json and report.md. Returns the results as written to results.json."""
     out = Path(out)
     figures = out / "figures"
     figures.mkdir(parents=True, exist_ok=True)
@@ -90,12 +99,12 @@ def reproduce(
         grid = grids.grids(ctx, scale)
     with st.stage("timing"):
         lat = grids.timing(ctx)
-    results = _results(robot, scale, robot_seed, tcm, data, models, fk, ik, experiments, grid, lat)
-    results["seconds"] = st.total()
-    results["memory"] = peak_rss_mb(workers if executor == "local" else 0)
+    seconds, memory = st.total(), peak_rss_mb(workers if executor == "local" else 0)
+    results = _results(robot, scale, robot_seed, tcm, data, models, fk, ik, experiments, grid, lat,
+                       seconds, memory)
     written = write_results(results, out / "results.json")
     write_report(written, out / "report.md")
-    log(f"wrote {out / 'report.md'} and {out / 'results.json'} ({results['seconds']['total']:.0f} s)")
+    log(f"wrote {out / 'report.md'} and {out / 'results.json'} ({written.seconds['total']:.0f} s)")
     return written
 
 
@@ -138,77 +147,77 @@ def _ik_experiments(ctx: Context, experiments: dict[str, Any]) -> dict[str, Any]
 
 def _results(robot: Robot, scale: ReproScale, robot_seed: int, tcm: TCMBaseline, data: ReproData,
              models: dict[str, Kinematics], fk: dict[str, Any], ik: dict[str, Any],
-             experiments: dict[str, Any], grid: dict[str, Any], lat: dict[str, Any]) -> dict[str, Any]:
-    """The results tree of results.json (its keys in this order), before seconds and memory."""
+             experiments: dict[str, Any], grid: dict[str, Any], lat: dict[str, Any],
+             seconds: dict[str, float], memory: Memory) -> ReproResults:
+    """The results of every stage, as results.json holds them."""
     tcm_t = fk["tcm"]["timing"]
     f = data.paper.frame
-    return {
-        "scale": scale.to_dict(),
-        "robot": robot.to_dict(),
-        "virtual_robot_seed": robot_seed,
-        "ctrkin_version": __version__,
-        "registration": tcm.registration.to_dict(),
-        "grids": grid,
-        "dataset": {
-            "samples": len(f),
-            "sequences": int(f["sequence_id"].nunique()),
-            "snaps": int(f["snap"].sum()),
-            "outliers": int(f["outlier"].sum()),
-            "split": data.paper.get_split().sizes(),
-        },
-        "fk": fk,
-        "ik": ik,
-        "experiments": experiments,
-        "snapping": _snapping(experiments),
-        "recommended": {"fk": f"models/{FK_ROWS[RECOMMENDED['fk']]}",
-                        "ik": f"models/{IK_ROWS[RECOMMENDED['ik']]}"},
-        "timing": {
-            "fk_ms_mean": lat["fk"]["ms_mean"],
-            "fk_ms_std": lat["fk"]["ms_std"],
-            "fk_us_median": lat["fk"]["us_median"],
-            "fk_paper_us_median": lat["fk_paper"]["us_median"],
-            "ik_paper_us_median": lat["ik_paper"]["us_median"],
-            "ik_refined_us_median": lat["ik_refined"]["us_median"],
-            "ik_ms_mean": lat["ik"]["ms_mean"],
-            "ik_ms_std": lat["ik"]["ms_std"],
-            "ik_us_median": lat["ik"]["us_median"],
-            "tcm_ms_mean": tcm_t["ms_mean"],
-            "tcm_ms_std": tcm_t["ms_std"],
-            "tcm_us_median": tcm_t["us_median"],
-        },
-        "training": {name: m.metrics.get("training", {}) for name, m in models.items()},
-        "notes": NOTES,
-    }
+    return ReproResults(
+        scale=scale,
+        robot=robot.to_dict(),
+        virtual_robot_seed=robot_seed,
+        ctrkin_version=__version__,
+        registration=tcm.registration.to_dict(),
+        grids=grid,
+        dataset=DatasetSummary(
+            samples=len(f),
+            sequences=int(f["sequence_id"].nunique()),
+            snaps=int(f["snap"].sum()),
+            outliers=int(f["outlier"].sum()),
+            split=data.paper.get_split().sizes(),
+        ),
+        fk=fk,
+        ik=ik,
+        experiments=experiments,
+        snapping=_snapping(experiments),
+        recommended=Recommended(fk=f"models/{FK_ROWS[RECOMMENDED['fk']]}",
+                                ik=f"models/{IK_ROWS[RECOMMENDED['ik']]}"),
+        timing=Timing(
+            fk_ms_mean=lat["fk"]["ms_mean"],
+            fk_ms_std=lat["fk"]["ms_std"],
+            fk_us_median=lat["fk"]["us_median"],
+            fk_paper_us_median=lat["fk_paper"]["us_median"],
+            ik_paper_us_median=lat["ik_paper"]["us_median"],
+            ik_refined_us_median=lat["ik_refined"]["us_median"],
+            ik_ms_mean=lat["ik"]["ms_mean"],
+            ik_ms_std=lat["ik"]["ms_std"],
+            ik_us_median=lat["ik"]["us_median"],
+            tcm_ms_mean=tcm_t["ms_mean"],
+            tcm_ms_std=tcm_t["ms_std"],
+            tcm_us_median=tcm_t["us_median"],
+        ),
+        training={name: m.metrics.get("training", {}) for name, m in models.items()},
+        notes=NOTES,
+        seconds=seconds,
+        memory=memory,
+    )
 
 
-def peak_rss_mb(workers: int) -> dict[str, float]:
+def peak_rss_mb(workers: int) -> Memory:
     """Peak resident memory (MB): this process, the largest finished local training worker, and
     the bound of both at once (this process + `workers` such workers; Ray workers are not ours)."""
     main = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0       # Linux: kB
     child = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
-    return {"peak_rss_mb_main": main, "peak_rss_mb_worker": child,
-            "peak_rss_mb_bound": main + workers * child}
+    return Memory(peak_rss_mb_main=main, peak_rss_mb_worker=child, peak_rss_mb_bound=main + workers * child)
 
 
-def _snapping(experiments: dict[str, Any]) -> dict[str, Any]:
+def _snapping(experiments: dict[str, Any]) -> Snapping:
     """Snap prediction per predictor on the sweeps (vs truth, per direction, and vs measured) and on
     the snap turns; the headline precision/recall are the recommended FK model's on the sweeps."""
     sweeps = experiments["sweeps"]["snap_prediction"]
     head = sweeps[RECOMMENDED["fk"]]
-    out: dict[str, Any] = {
-        "precision": _zero_if_undefined(head["precision"], head["n_predicted"]),
-        "recall": _zero_if_undefined(head["recall"], head["n_reference"]),
-        **{k: v for k, v in head.items() if k not in ("precision", "recall", "forward", "backward",
-                                                       "vs_measured")},
-        "model": RECOMMENDED["fk"],
-        "rule": "T(L) step > 10 deg, matched within 2 steps, vs the noise-free truth, sweeps "
-                "(per model also per direction, vs measured, and on the snap turns)",
-    }
-    for model, score in sweeps.items():
-        out[model] = {**score, "precision": _zero_if_undefined(score["precision"], score["n_predicted"]),
-                      "recall": _zero_if_undefined(score["recall"], score["n_reference"])}
-    out["snap_turns"] = experiments["snap_turns"]["snap_prediction"]
-    return out
+    return Snapping(
+        precision=_zero_if_undefined(head["precision"], head["n_predicted"]),
+        recall=_zero_if_undefined(head["recall"], head["n_reference"]),
+        **{k: head[k] for k in Snapping.HEADLINE},
+        model=RECOMMENDED["fk"],
+        rule="T(L) step > 10 deg, matched within 2 steps, vs the noise-free truth, sweeps "
+             "(per model also per direction, vs measured, and on the snap turns)",
+        per_model={model: {**score, "precision": _zero_if_undefined(score["precision"], score["n_predicted"]),
+                           "recall": _zero_if_undefined(score["recall"], score["n_reference"])}
+                   for model, score in sweeps.items()},
+        snap_turns=experiments["snap_turns"]["snap_prediction"],
+    )
 
 
 def _zero_if_undefined(value: float, denominator: int) -> float:

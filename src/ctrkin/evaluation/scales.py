@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import Any
 
 from ctrkin.errors import CtrkinError
 from ctrkin.training.config import scaled_lr
@@ -48,6 +49,17 @@ class ReproScale:
 
     def to_dict(self) -> dict[str, object]:
         return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> ReproScale:
+        """Inverse of to_dict (as read back from results.json: lists for the tuples)."""
+        levels = d["paper_levels"]
+        return cls(**{**d, **{role: Budget(**d[role]) for role in BUDGET_ROLES},
+                      "paper_levels": None if levels is None else tuple(levels),
+                      **{k: tuple(d[k]) for k in ("ib_grid", "structure_grid", "structure_ibs")}})
+
+
+BUDGET_ROLES = ("main", "branch", "follow", "compare", "grid")   # the ReproScale fields that are a Budget
 
 
 SCALES = {

@@ -1,4 +1,4 @@
-"""Snap prediction scored by the paper's 10° T(L) rule (DESIGN.md: Conventions): T(L) series, snap
+"""Snap prediction scored by the paper's 10° T(L) rule (docs/design.md: Conventions): T(L) series, snap
 events, their matching against a reference, and the row windows around snaps and encoder glitches.
 Pose and joint errors are in ctrkin.metrics."""
 

@@ -30,8 +30,8 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 from numba import njit
 
-from ctrkin.inference.engine import StreamingEngine, _dense_rows, _lstm_rows, _push_history
 from ctrkin.inference.guards import MAX_ABS_ALPHA_DEG
+from ctrkin.models.engine import StreamingEngine, _dense_rows, _lstm_rows, _push_history
 from ctrkin.models.fold_gate import gate_step
 from ctrkin.models.frame import pose_to_world
 from ctrkin.robots.robot import JOINT_TOL

@@ -11,7 +11,7 @@
 
 Batch and streaming give the same numbers: both see windows of the IB latest steps of a sequence,
 padded at its start by repeating the first step. Streaming runs LSTM-MLP/LSTM/MLP models in a numba
-engine (ctrkin.inference.engine); other architectures fall back to torch on a kept window. An FK
+engine (ctrkin.models.engine); other architectures fall back to torch on a kept window. An FK
 LSTM-MLP (one LSTM layer, the paper's structure) runs each whole step in one numba call
 (ctrkin.inference.fused), bit for bit the reference path; `fused=False` keeps to the reference path.
 """
@@ -31,12 +31,11 @@ from ctrkin.data.dataset import Dataset
 from ctrkin.data.schema import sequence_bounds
 from ctrkin.errors import ModelError
 from ctrkin.inference.batch import padded_rows, seqnet_predict, seqnet_trunk
-from ctrkin.inference.engine import StreamingEngine
-from ctrkin.inference.follow import Follower
 from ctrkin.inference.fused import DECLINED, FusedFK
 from ctrkin.inference.guards import FKGuard, check_pose_step, real_array
 from ctrkin.inference.refine import FKResidual, RefineSettings, refine
 from ctrkin.models.branch import BranchNet
+from ctrkin.models.engine import StreamingEngine
 from ctrkin.models.features import (
     check_raw,
     delta_columns,
@@ -47,6 +46,7 @@ from ctrkin.models.features import (
     window_index,
 )
 from ctrkin.models.fold_gate import FOLD_GATE_FILE, FoldGate, outer_motion, recorded_motion, run_continues
+from ctrkin.models.follower import Follower
 from ctrkin.models.frame import OuterFrame, local_tips_to_world
 from ctrkin.models.outer_lag import lag_one
 from ctrkin.models.seqnet import SeqNet
@@ -437,14 +437,7 @@ class Kinematics:
                 raise ModelError(f"start_joints must have shape ({n2},) or ({len(bounds)}, {n2}) (one row "
                                  f"per sequence), got {np.asarray(start_joints).shape}")
             starts = list(arr)
-        joints, projected = np.empty((len(raw), n2)), np.zeros(len(raw), bool)
-        try:
-            for (a, b), start in zip(bounds, starts, strict=True):
-                self._follower.reset(start)
-                for t in range(a, b):
-                    joints[t], projected[t] = self._follower.step(raw[t])
-        finally:
-            self._follower.reset()
+        joints, projected = self._follower.run(raw, bounds, starts)
         return IKResult(joints, ok, dist, reasons, projected, np.full(len(raw), np.nan),
                         _jumps(raw, joints, bounds, self.layout.n_tubes))
 

@@ -10,7 +10,7 @@ so each IK step here solves
 with p, t the tip position and unit tangent the FK model predicts for the next step after the
 robot's history (its input buffer and branch state), p*, t* the target, w = `tangent_weight_mm` mm
 per radian. Levenberg-Marquardt steps with a forward-difference Jacobian (the FK engine evaluates
-all 1 + 2N perturbed joints in one call, ctrkin.inference.engine.StreamingEngine.probe) from up to
+all 1 + 2N perturbed joints in one call, ctrkin.models.engine.StreamingEngine.probe) from up to
 three starts: the direct IK prediction, the previous solution (continuity along a path) and the
 joints of the nearest training pose. The best residual wins; among starts within `continuity_mm` of
 it, the one closest to the previous joints (so a path gets continuous joints where the pose alone

@@ -1,7 +1,7 @@
 """Where a robot snaps: the folds of its innermost-outermost pair, as a function of the translations.
 
 At full curved overlap a tube pair is bistable in a band of relative rotation around α0 = α1 − αN =
-180° (DESIGN.md: Mechanics, ψ'' = c·sin ψ about ψ = π). Turning α0 up through the band the robot
+180° (docs/mechanics.md: Model, ψ'' = c·sin ψ about ψ = π). Turning α0 up through the band the robot
 stays on its branch until that branch ends at a fold and snaps; turning back it snaps at the mirror
 fold. With φ = α0 − 180° wrapped to [−180°, 180°):
 

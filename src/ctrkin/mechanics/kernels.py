@@ -1,4 +1,4 @@
-"""Numba kernels of the torsionally compliant model (TCM), DESIGN.md: Mechanics.
+"""Numba kernels of the torsionally compliant model (TCM), docs/mechanics.md: Model.
 
 State along the arc length s ≥ 0, in a non-twisting (Bishop) backbone frame:
     y = (ψ1..ψN, u1z..uNz)     material angle and torsional curvature of each tube

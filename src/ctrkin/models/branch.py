@@ -1,4 +1,5 @@
-"""A snap-aware LSTM-MLP: the paper's network with a learned hysteron (DESIGN.md: Learned kinematics).
+"""A snap-aware LSTM-MLP: the paper's network with a learned hysteron
+(docs/learned_kinematics.md: Snap-aware FK).
 
 Why: near a fold the tip pose is a discontinuous function of the joints and of their history. A
 regression net trained with an MAE loss on the few samples at a jump learns a ramp across it, and its

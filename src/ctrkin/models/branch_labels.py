@@ -1,7 +1,7 @@
 """Which equilibrium branch each sample of a dataset is on: the labels a snap-aware model learns.
 
 A two-tube pair at full curved overlap is bistable in a band of relative rotation around α0 = 180°
-(DESIGN.md: Mechanics, ψ'' = c·sin ψ linearised about ψ = π). With φ = α0 − 180° wrapped to
+(docs/mechanics.md: Model, ψ'' = c·sin ψ linearised about ψ = π). With φ = α0 − 180° wrapped to
 [−180°, 180°):
 
     φ well below the band  -> one equilibrium, continuous with the "lower" branch (label 0)

@@ -1,4 +1,4 @@
-"""Per-step features and input-buffer windows (paper III.B, eq. 1-2; DESIGN.md: Learned kinematics).
+"""Per-step features and input-buffer windows (paper III.B, eq. 1-2; docs/learned_kinematics.md: Features).
 
 Forward kinematics (FK), N tubes, per step n:
     (α1..αN, β1..βN, α0, Δα0)      α0(n) = α1(n) − αN(n)             (eq. 1)
@@ -7,7 +7,7 @@ For the paper's two tubes this is exactly (α1, α2, β1, β2, α0, Δα0). Angl
 of the dataset (min-max on unwrapped angles is the paper's choice); `angle_encoding="sincos"` replaces
 each angle αi and α0 by (sin, cos) — Δα0 stays in degrees; `angle_encoding="phase"` keeps the paper's
 features and adds (sin α0, cos α0): the relative rotation modulo a turn, which is what decides where a
-two-tube pair's bistable band lies (centred at α0 = 180°, DESIGN.md: Mechanics), whatever the
+two-tube pair's bistable band lies (centred at α0 = 180°, docs/mechanics.md: Model), whatever the
 unwrapped α0 of the sequence.
 
 Inverse kinematics (IK), per step: the tip pose (x, y, z, q0, qx, qy) and, by default, its step change

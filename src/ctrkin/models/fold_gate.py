@@ -1,4 +1,5 @@
-"""The fold gate: a snap-aware model's branch state from the robot's folds (DESIGN.md: Learned kinematics).
+"""The fold gate: a snap-aware model's branch state from the robot's folds
+(docs/learned_kinematics.md: The fold gate).
 
 A learned gate (ctrkin.models.branch) places each switch where its classifier boundary lies, a few
 degrees from the fold, and it has to learn from a few dozen snaps how the fold moves with the

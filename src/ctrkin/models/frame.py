@@ -1,7 +1,7 @@
 """Learn tip poses in the outer tube's frame: rotation equivariance by construction.
 
 Turning every tube by the same angle turns the whole robot about its insertion axis (no gravity in
-the TCM; DESIGN.md: Frames). A network that predicts tracker-frame poses from αN has to learn that
+the TCM; docs/design.md: Frames). A network that predicts tracker-frame poses from αN has to learn that
 rotation from the outer angles in its data, and a by-sequence split holds some of those angles out
 entirely. Here the FK target is the pose expressed in a frame that turns with the outer tube:
 

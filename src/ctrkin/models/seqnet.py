@@ -1,5 +1,5 @@
 """The LSTM-MLP family (paper Fig. 4, eq. 3-7; Table III), and the LSTM and MLP baselines, as one
-layer-list network that the numpy streaming engine (ctrkin.inference.engine) can run step by step.
+layer-list network that the numpy streaming engine (ctrkin.models.engine) can run step by step.
 
 A structure is written "SEQ|HEAD": SEQ are per-step layers applied along the input buffer
 (Lh: LSTM with h units, Dh: Dense(h) + ReLU on each step), then the buffer is flattened (or, with

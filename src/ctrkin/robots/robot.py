@@ -39,7 +39,7 @@ def beta_names(n_tubes: int) -> list[str]:
 
 
 def joint_names(n_tubes: int) -> list[str]:
-    """Joint vector order (fixed, DESIGN.md: Conventions): α1..αN, β1..βN. These are the dataset's
+    """Joint vector order (fixed, docs/design.md: Conventions): α1..αN, β1..βN. These are the dataset's
     joint columns (ctrkin.data.schema) and the learned models' joint features."""
     return alpha_names(n_tubes) + beta_names(n_tubes)
 
@@ -47,7 +47,7 @@ def joint_names(n_tubes: int) -> list[str]:
 @dataclass(frozen=True)
 class Robot:
     """tubes: innermost first. transmission: "compliant" (the part s < 0 is straight but twists,
-    DESIGN.md Mechanics) or "rigid" (the tube base angle is αi at s = 0). transmission_length: (N,)
+    docs/mechanics.md: Model) or "rigid" (the tube base angle is αi at s = 0). transmission_length: (N,)
     mm of extra twisting length between each tube's actuator and its carriage, beyond the −βi inside
     the actuation unit (a calibrated parameter; empty = zeros)."""
 

@@ -1,7 +1,9 @@
 """Training of the follow IK (ctrkin.models.follow): MAE on the joint change from perturbed current
 joints to the true next joints, a fresh perturbation every epoch, early stopping on a fixed
 perturbed validation draw. Writes the same model folder as ctrkin.training.loop (plus workspace.npz
-and the outer-tube frame); a finished folder of the same configuration and data is reused.
+and the outer-tube frame); a finished folder of the same configuration and data is reused. The
+network is rolled out and scored by its stepper in the model package (ctrkin.models.follower), the
+one inference runs: training produces a model folder and imports nothing of ctrkin.inference.
 
 Unlike the generic loop it keeps no per-epoch checkpoint: a killed run starts over (the quick
 budget trains in about a minute), and the previous model stays in place until the new one is swapped in.
@@ -21,11 +23,12 @@ import torch
 from tqdm.auto import tqdm
 
 from ctrkin.data.dataset import Dataset
+from ctrkin.data.schema import sequence_bounds
 from ctrkin.errors import ModelError
-from ctrkin.inference.follow import Follower
-from ctrkin.inference.kinematics import Kinematics
 from ctrkin.metrics import metrics_json_joint_errors
+from ctrkin.models.features import check_raw
 from ctrkin.models.follow import follow_features, joint_noise, previous_rows
+from ctrkin.models.follower import Follower
 from ctrkin.models.normalize import MinMax
 from ctrkin.models.store import CONFIG, ModelBundle, read_json, write_json
 from ctrkin.models.workspace import Workspace
@@ -177,28 +180,24 @@ def _rollout(bundle: ModelBundle, poses: np.ndarray, joints: np.ndarray, bounds:
     following their recorded targets from their recorded start joints (NaN elsewhere)."""
     follower = Follower(bundle, None)
     follower.lag = (0.0, 0.0)     # recorded joints already carry the recording's outer lag
-    out = np.full(joints.shape, np.nan)
     used = np.zeros(len(joints), bool)
     used[train_rows] = True
-    for a, b in bounds:
-        if not used[a:b].any():
-            continue
-        follower.reset(joints[a])
-        for t in range(a, b):
-            out[t], _ = follower.step(poses[t])
+    followed = [(a, b) for a, b in bounds if used[a:b].any()]
+    out, _ = follower.run(poses, followed, [joints[a] for a, _ in followed])
     return out
 
 
 def _evaluate(bundle: ModelBundle, workspace: Workspace, ds: Dataset, rows: dict[str, np.ndarray],
               poses: np.ndarray, joints: np.ndarray) -> dict[str, Any]:
-    """Joint errors of following the validation and test sequences from the nearest training joints."""
-    kin = Kinematics(bundle, workspace)
+    """Joint errors of following the validation and test sequences from the nearest training joints
+    (as Kinematics.predict runs a follow IK)."""
+    follower = Follower(bundle, workspace)
     sid = ds.frame["sequence_id"].to_numpy()
     res: dict[str, Any] = {}
     for part in ("val", "test"):
         r = rows[part]
         if len(r):
-            pred = kin.predict(poses[r], sequence_id=sid[r]).joints
+            pred, _ = follower.run(check_raw(bundle.layout, poses[r]), sequence_bounds(sid[r]))
             res[part] = {"rows": len(r), "joints": metrics_json_joint_errors(pred, joints[r], ds.n_tubes)}
     return res
 

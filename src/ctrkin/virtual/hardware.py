@@ -4,7 +4,7 @@ Each tube's precurvature and bending stiffness E·I are scaled by (1 + e), e ~ N
 springback, diameter tolerance); its nominally straight part gets a small residual curvature in the
 precurvature plane, κr ~ N(0, σr²) (as-drawn nitinol tubing is not perfectly straight). Only the
 part in front of the plate (s ≥ 0) bends; inside the actuation unit the tube is held straight
-(DESIGN.md Mechanics), so the residual curvature matters more the further a tube is extended.
+(docs/mechanics.md: Model), so the residual curvature matters more the further a tube is extended.
 """
 
 from __future__ import annotations

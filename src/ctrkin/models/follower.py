@@ -11,14 +11,20 @@ stored as `outer_lag_deg` in the model's follow settings). The network learned f
 after a forward outer step, so its joints are those of a tube lagging by +λ; the motor command it
 returns is the play's inverse for the tube angle the network means (Follower._backlash_inverse), and
 a start at rest is seen by the network with the tube's angle + λ.
+
+It lives with the model (a policy's reset() / step()) because both sides run it: training rolls the
+network out along its training sequences and scores it (ctrkin.training.follow), and inference
+predicts with it (ctrkin.inference.kinematics).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from ctrkin.errors import ModelError
-from ctrkin.inference.engine import StreamingEngine
+from ctrkin.models.engine import StreamingEngine
 from ctrkin.models.follow import follow_features, substeps
 from ctrkin.models.outer_lag import lag_one
 from ctrkin.models.seqnet import SeqNet
@@ -63,6 +69,24 @@ class Follower:
         self.joints, self.target, self.tube, self.motor = None, None, np.nan, np.nan
         if joints is not None:
             self._at_rest(joints)
+
+    def run(self, targets: np.ndarray, bounds: list[tuple[int, int]],
+            starts: Sequence[np.ndarray | None] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Follow each sequence [a, b) of `bounds` through targets (T, 6) (tracker frame), from its
+        start joints (2N,) (deg, mm; None: those of the nearest training target) -> joints (T, 2N)
+        and whether each had to be projected onto the robot's limits (T,); rows outside `bounds` are
+        NaN / False. The state is reset afterwards."""
+        joints = np.full((len(targets), 2 * self.n), np.nan)
+        projected = np.zeros(len(targets), bool)
+        try:
+            for (a, b), start in zip(bounds, [None] * len(bounds) if starts is None else starts,
+                                     strict=True):
+                self.reset(start)
+                for t in range(a, b):
+                    joints[t], projected[t] = self.step(targets[t])
+        finally:
+            self.reset()
+        return joints, projected
 
     def _lag(self, q: np.ndarray) -> float:
         return 0.0 if self.lag == (0.0, 0.0) else lag_one(self.robot, q, self.lag)
