@@ -11,7 +11,7 @@
 
 The robot seed (--robot-seed) draws the virtual hardware (true tubes, offsets, registration); keep it
 the same for training and test data of one "robot". --seed draws the measurement noise, glitches
-and random configurations. Effect magnitudes can be changed with --set NAME=VALUE (see
+and random configurations. Effect magnitudes can be changed with --set KEY=VALUE (see
 docs/virtual_robot.md), e.g. --set friction_deg_per_mm=0 --set noise_mm=0.1.
 """
 
@@ -35,6 +35,7 @@ from ctrkin.cli.common import (
     robot_option,
     say,
 )
+from ctrkin.cli.from_config import parse_key_values
 from ctrkin.evaluation.scales import SCALES
 from ctrkin.virtual import VirtualConfig, VirtualConfigError, VirtualRobot
 
@@ -42,19 +43,10 @@ CHOICES = [*protocols.PROTOCOLS, *SHAPES]
 
 
 def _config(settings: tuple[str, ...]) -> VirtualConfig:
-    values: dict[str, float | int] = {}
-    for item in settings:
-        name, sep, text = item.partition("=")
-        if not sep:
-            raise click.BadParameter(f"--set takes NAME=VALUE, got {item!r}")
-        try:
-            values[name.strip()] = int(text) if name.strip() == "readings_per_sample" else float(text)
-        except ValueError:
-            raise click.BadParameter(f"--set {name}: {text!r} is not a number") from None
     try:
-        return VirtualConfig.from_dict(values)
+        return VirtualConfig(**parse_key_values(settings, "--set", VirtualConfig))
     except VirtualConfigError as e:
-        raise click.BadParameter(str(e)) from None
+        raise click.BadParameter(str(e), param_hint="--set") from None
 
 
 @click.command("collect", epilog="""\b
@@ -78,7 +70,7 @@ Examples:
               help="paper/sweeps: relative translations d = beta_N - beta_1 (mm), comma-separated "
               "(default: the protocol's; needed for robots that cannot reach d = 20 mm).")
 @click.option("--workers", default=None, type=int, help="Processes (default: all cores).")
-@click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
+@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
               help="Override a virtual robot effect magnitude (repeatable).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Output folder (written as a whole: a failure leaves the previous one).")

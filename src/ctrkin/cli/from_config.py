@@ -1,0 +1,161 @@
+"""Command-line options generated from a configuration dataclass, and the one KEY=VALUE parser.
+
+A command that runs on a configuration does not repeat its fields by hand: each field becomes an
+option with the field's name, type, default and help, so a field added to the dataclass is on the
+command line at once, with the same default.
+
+    @click.command("train")
+    @config_options(TrainConfig, aliases={"max_epochs": ("--epochs",)}, exclude=("options",))
+    def train_cmd(**settings: Any) -> None:
+        cfg = TrainConfig(**settings)
+
+Field -> option: `max_epochs` -> `--max-epochs` (and its aliases), passed to the command as
+`max_epochs`; int, float and str fields take a value of that type; `X | None` the same, default None;
+`Literal["a", "b"]` a choice; bool `--name/--no-name`. The help is the field's
+`field(metadata={"help": ...})`. A field without help, or of another type (a dict, a list), is an
+error where the command is defined, unless excluded (the command then sets it from options of its
+own).
+
+`--option KEY=VALUE` style settings go through `parse_key_values`: one error message (a usage error,
+exit status 2) and values typed by the dataclass's fields or, without one, read as int, float, bool
+(true/false) or str.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import types
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import Any, Literal, TypeVar, Union, get_args, get_origin, get_type_hints
+
+import click
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+HELP = "help"      # the metadata key of a field's help text
+
+
+def _option_name(field_name: str) -> str:
+    return "--" + field_name.replace("_", "-")
+
+
+def _click_type(hint: Any) -> tuple[Any, bool]:
+    """(click type, whether None is allowed) of a field annotation; TypeError if it has no
+    command-line form."""
+    optional = False
+    if get_origin(hint) in (Union, types.UnionType):
+        rest = [a for a in get_args(hint) if a is not type(None)]
+        if len(rest) != 1:
+            raise TypeError(f"{hint} is not one type or one type | None")
+        optional, hint = True, rest[0]
+    if get_origin(hint) is Literal and all(isinstance(a, str) for a in get_args(hint)):
+        return click.Choice(get_args(hint)), optional
+    if hint in (bool, int, float, str):
+        return hint, optional
+    raise TypeError(f"{hint} has no command-line form")
+
+
+def _default(f: dataclasses.Field[Any]) -> Any:
+    if f.default is not dataclasses.MISSING:
+        return f.default
+    if f.default_factory is not dataclasses.MISSING:
+        return f.default_factory()
+    return None
+
+
+def config_options(cls: type, *, aliases: Mapping[str, Sequence[str]] | None = None,
+                   exclude: Iterable[str] = (), required: Iterable[str] = (),
+                   defaults: Mapping[str, Any] | None = None) -> Callable[[F], F]:
+    """A decorator adding one click option per field of the dataclass `cls`, in field order.
+
+    aliases: field -> older option names that also set it (listed first in --help); exclude: fields
+    the command sets otherwise; required, defaults: where the command line differs from the
+    dataclass (a required option; another default). Options pass the field's value to the command
+    under the field's name."""
+    aliases, defaults = dict(aliases or {}), dict(defaults or {})
+    exclude, required = set(exclude), set(required)
+    hints = get_type_hints(cls)
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = (set(aliases) | set(defaults) | exclude | required) - names
+    if unknown:
+        raise TypeError(f"{cls.__name__} has no fields {sorted(unknown)}")
+    decorators = []
+    for f in dataclasses.fields(cls):
+        if f.name in exclude or not f.init:
+            continue
+        where = f"{cls.__name__}.{f.name}"
+        if not f.metadata.get(HELP):
+            raise TypeError(f"{where} has no help: field(..., metadata={{'help': ...}})")
+        try:
+            kind, _optional = _click_type(hints[f.name])
+        except TypeError as e:
+            raise TypeError(f"{where}: {e}; exclude it and give the command its own option") from None
+        name = _option_name(f.name)
+        if kind is bool:
+            name += "/" + _option_name("no_" + f.name)
+        decls = [*aliases.get(f.name, ()), name]
+        kw: dict[str, Any] = {"help": f.metadata[HELP], "show_default": True}
+        if f.name in required:
+            kw["required"] = True
+        else:
+            kw["default"] = defaults.get(f.name, _default(f))
+        decorators.append(click.option(*decls, f.name, type=kind, **kw))
+
+    def decorate(func: F) -> F:
+        for add in reversed(decorators):     # click lists the outermost decorator first
+            func = add(func)
+        return func
+
+    return decorate
+
+
+def _infer(text: str) -> Any:
+    """A value without a declared type: int, float, bool (true/false) or, failing those, the text."""
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return {"true": True, "false": False}.get(text.lower(), text)
+
+
+def _settable(config: type) -> dict[str, tuple[Any, bool]]:
+    """The fields of a dataclass that a command-line value can set: name -> (click type, optional)."""
+    hints = get_type_hints(config)
+    out = {}
+    for f in dataclasses.fields(config):
+        try:
+            out[f.name] = _click_type(hints[f.name])
+        except TypeError:
+            continue
+    return out
+
+
+def parse_key_values(items: Iterable[str], option: str, config: type | None = None) -> dict[str, Any]:
+    """("a=1", "b=x") -> {"a": 1, "b": "x"}: the KEY=VALUE settings of a repeatable `option`.
+
+    With `config` (a dataclass) the keys must be its fields (of a type `config_options` takes) and
+    each value is converted to the field's type ("none" is None where the field allows it); without,
+    a value is read as int, float, bool (true/false) or str. Anything else is a usage error
+    (click.BadParameter: exit status 2, the message on stderr)."""
+    kinds = {} if config is None else _settable(config)
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise click.BadParameter(f"expected KEY=VALUE, got {item!r}", param_hint=option)
+        if config is None:
+            out[key] = _infer(text)
+            continue
+        if key not in kinds:
+            raise click.BadParameter(f"unknown key {key!r}; one of: {', '.join(kinds)}", param_hint=option)
+        kind, optional = kinds[key]
+        if optional and text.lower() == "none":
+            out[key] = None
+            continue
+        try:
+            out[key] = click.types.convert_type(kind).convert(text, None, None)
+        except click.BadParameter as e:
+            raise click.BadParameter(f"{key}: {e.message}", param_hint=option) from None
+    return out

@@ -1,0 +1,115 @@
+"""ctrkin.cli.from_config: options generated from a dataclass, and the one KEY=VALUE parser."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import click
+import pytest
+from click.testing import CliRunner
+
+from ctrkin.cli.from_config import config_options, parse_key_values
+
+
+def _help(text: str) -> dict[str, str]:
+    return {"help": text}
+
+
+@dataclass(frozen=True)
+class Settings:
+    count: int = field(default=3, metadata=_help("How many."))
+    rate: float = field(default=0.5, metadata=_help("How fast."))
+    name: str = field(default="a", metadata=_help("Which one."))
+    mode: Literal["x", "y"] = field(default="x", metadata=_help("x or y."))
+    limit: float | None = field(default=None, metadata=_help("Upper bound, or none."))
+    check: bool = field(default=True, metadata=_help("Check it."))
+    extra: dict[str, Any] = field(default_factory=dict, metadata=_help("Anything else."))
+
+
+def _command(**kw: Any) -> click.Command:
+    @click.command()
+    @config_options(Settings, exclude=("extra",), **kw)
+    def cmd(**settings: Any) -> None:
+        click.echo(repr(Settings(**settings)))
+
+    return cmd
+
+
+def _params(cmd: click.Command, args: list[str]) -> dict[str, Any]:
+    return cmd.make_context("cmd", args).params
+
+
+def test_each_field_is_an_option_with_its_type_default_and_help() -> None:
+    cmd = _command()
+    options = {p.name: p for p in cmd.params if isinstance(p, click.Option)}
+    assert list(options) == ["count", "rate", "name", "mode", "limit", "check"]      # field order
+    assert _params(cmd, []) == {"count": 3, "rate": 0.5, "name": "a", "mode": "x", "limit": None,
+                                "check": True}
+    given = _params(cmd, ["--count", "4", "--rate", "1e-2", "--name", "b", "--mode", "y", "--limit", "2",
+                          "--no-check"])
+    assert given == {"count": 4, "rate": 0.01, "name": "b", "mode": "y", "limit": 2.0, "check": False}
+    text = CliRunner().invoke(cmd, ["--help"]).output
+    for words in ("--count INTEGER", "How many.", "[default: 3]", "--mode [x|y]", "--check / --no-check",
+                  "Upper bound, or none."):
+        assert words in text
+
+
+def test_bad_values_are_usage_errors() -> None:
+    cmd = _command()
+    for args in (["--count", "2.5"], ["--mode", "z"], ["--rate", "fast"]):
+        res = CliRunner().invoke(cmd, args)
+        assert res.exit_code == 2 and "Invalid value" in res.stderr, args
+
+
+def test_aliases_required_and_other_defaults() -> None:
+    cmd = _command(aliases={"count": ("--n",)}, required=("name",), defaults={"rate": 2.0})
+    assert _params(cmd, ["--n", "7", "--name", "c"])["count"] == 7
+    assert _params(cmd, ["--count", "7", "--name", "c"])["rate"] == 2.0
+    res = CliRunner().invoke(cmd, [])
+    assert res.exit_code == 2 and "Missing option '--name'" in res.stderr
+
+
+def test_a_field_the_command_line_cannot_take_must_be_excluded() -> None:
+    with pytest.raises(TypeError, match=r"Settings.extra: .* exclude it"):
+        config_options(Settings)
+
+    @dataclass(frozen=True)
+    class Undocumented:
+        count: int = 1
+
+    with pytest.raises(TypeError, match=r"Undocumented\.count has no help"):
+        config_options(Undocumented)
+    with pytest.raises(TypeError, match="no fields"):
+        config_options(Settings, exclude=("extra", "nope"))
+
+
+def test_key_values_are_typed_by_their_look_without_a_config() -> None:
+    got = parse_key_values(["a=1", "b=-2", "c=0.5", "d=1e-3", "e=true", "f=False", "g=L128|D64", "h=",
+                            " i =x=y"], "--option")
+    assert got == {"a": 1, "b": -2, "c": 0.5, "d": 1e-3, "e": True, "f": False, "g": "L128|D64", "h": "",
+                   "i": "x=y"}
+    assert isinstance(got["a"], int) and isinstance(got["c"], float)
+    assert parse_key_values([], "--option") == {}
+
+
+def test_key_values_are_typed_by_the_config() -> None:
+    got = parse_key_values(["count=2", "rate=1", "name=7", "mode=y", "limit=none", "check=no"], "--set",
+                           Settings)
+    assert got == {"count": 2, "rate": 1.0, "name": "7", "mode": "y", "limit": None, "check": False}
+    assert isinstance(got["rate"], float)
+
+
+@pytest.mark.parametrize(("item", "words"), [
+    ("count", "expected KEY=VALUE, got 'count'"),
+    ("=3", "expected KEY=VALUE, got '=3'"),
+    ("nope=1", "unknown key 'nope'"),
+    ("extra=1", "unknown key 'extra'"),
+    ("count=2.5", "count: '2.5' is not a valid integer"),
+    ("mode=z", "mode: 'z' is not one of 'x', 'y'"),
+])
+def test_bad_key_values_are_one_usage_error(item: str, words: str) -> None:
+    with pytest.raises(click.BadParameter) as caught:
+        parse_key_values([item], "--set", Settings)
+    assert caught.value.exit_code == 2
+    assert words in caught.value.format_message() and "--set" in caught.value.format_message()
