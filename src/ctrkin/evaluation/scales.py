@@ -6,7 +6,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from ctrkin.errors import CtrkinError
-from ctrkin.training.config import scaled_lr
+from ctrkin.training.config import LrSchedule, scaled_lr
 
 
 @dataclass(frozen=True)
@@ -19,7 +19,7 @@ class Budget:
     patience: int
     batch_size: int
     lr: float = 1e-3
-    lr_schedule: str = "constant"
+    lr_schedule: LrSchedule = "constant"
     val_smoothing: float = 0.0
     fused_adam: bool = True
 

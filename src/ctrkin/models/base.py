@@ -6,8 +6,7 @@ import torch
 from torch import nn
 
 from ctrkin.errors import ModelError
-
-OUTPUT_ACTIVATIONS = ("relu", "linear")
+from ctrkin.models.choices import OUTPUT_ACTIVATIONS
 
 
 class KinematicsNet(nn.Module):

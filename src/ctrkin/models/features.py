@@ -21,17 +21,14 @@ cross a sequence boundary: the start of a sequence is padded by repeating its fi
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
 
 import numpy as np
 
 from ctrkin.errors import ModelError
 from ctrkin.geometry import POSE_COLUMNS
+from ctrkin.models.choices import ANGLE_ENCODINGS, AngleEncoding, Task
 from ctrkin.robots.robot import alpha_names, beta_names
 
-Task = Literal["fk", "ik"]
-AngleEncoding = Literal["minmax", "sincos", "phase"]
-ANGLE_ENCODINGS = ("minmax", "sincos", "phase")
 POSE_NAMES = POSE_COLUMNS    # the pose features are named as the dataset's pose columns
 
 

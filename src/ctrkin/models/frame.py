@@ -34,8 +34,6 @@ from ctrkin.geometry import Registration, quat_from_tangent, rotate_z, tangent_f
 from ctrkin.models.outer_lag import lag_deg
 from ctrkin.robots.robot import Robot
 
-FRAMES = ("tracker", "outer")
-
 
 @dataclass(frozen=True, eq=False)
 class OuterFrame:

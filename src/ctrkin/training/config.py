@@ -5,18 +5,29 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import asdict, dataclass, field, fields
-from typing import Any
+from typing import TYPE_CHECKING, Any, Literal, get_args
 
 from ctrkin.errors import ModelError
-from ctrkin.models.base import OUTPUT_ACTIVATIONS
-from ctrkin.models.features import FeatureLayout
-from ctrkin.models.frame import FRAMES
-from ctrkin.models.registry import get_entry, resolve_options
+from ctrkin.models.choices import (
+    FRAMES,
+    OUTPUT_ACTIVATIONS,
+    AngleEncoding,
+    OutputActivation,
+    TargetFrame,
+    Task,
+)
 
-SPLITS = ("dataset", "sequence", "random")
-POSE_SOURCES = ("measured", "true")
-LR_SCHEDULES = ("constant", "cosine")
-LOOPS = ("epoch", "batch")
+if TYPE_CHECKING:
+    from ctrkin.models.features import FeatureLayout
+
+Split = Literal["dataset", "sequence", "random"]
+PoseSource = Literal["measured", "true"]
+LrSchedule = Literal["constant", "cosine"]
+Loop = Literal["epoch", "batch"]
+SPLITS: tuple[str, ...] = get_args(Split)
+POSE_SOURCES: tuple[str, ...] = get_args(PoseSource)
+LR_SCHEDULES: tuple[str, ...] = get_args(LrSchedule)
+LOOPS: tuple[str, ...] = get_args(Loop)
 PAPER_BATCH, PAPER_LR = 32, 1e-3
 
 
@@ -26,63 +37,81 @@ def scaled_lr(batch_size: int, base_lr: float = PAPER_LR, base_batch: int = PAPE
     return base_lr * math.sqrt(batch_size / base_batch)
 
 
+def _help(text: str) -> dict[str, str]:
+    """A field's metadata: its meaning, which is also its `ctrkin train --help` text."""
+    return {"help": text}
+
+
 @dataclass(frozen=True)
 class TrainConfig:
-    """Everything a training run depends on; saved as config.json beside the weights.
+    """Everything a training run depends on; saved as config.json beside the weights. Defaults are
+    the paper's setup (IV.A). Each field's help says what it means; `ctrkin train` has one option per
+    field (ctrkin.cli.from_config)."""
 
-    task: "fk" | "ik"; model: registry name (ctrkin.models.MODELS); options: model options
-    (e.g. {"structure": "S3"}); ib: input buffer (1..5 in the paper, 2 the final model); delta: the
-    directional feature Δα0 (FK) / pose deltas (IK); angle_encoding: "minmax" (paper) | "sincos";
-    output_activation: "relu" (paper eq. 7) | "linear"; pose_source: which pose columns are the FK target
-    / IK input: "measured" (tracker, as in the paper) or "true" (virtual robot only);
-    split: "dataset" (the dataset's saved split, else by sequence), "sequence", or "random" (the paper's
-    70:15:15 shuffle); lr, batch_size, max_epochs: Adam 1e-3, 32, 500 (paper); patience: early stopping
-    epochs without a val-loss improvement of min_delta; threads: torch CPU threads; drop_outliers:
-    rows flagged `outlier` are not used as targets; target_frame: FK poses learned in the "tracker"
-    frame (paper) or in the "outer" tube's frame (ctrkin.models.frame); lr_schedule: "constant"
-    (paper) or "cosine" (decay to lr/50 over max_epochs); gate_weight, unknown_prob: branch models
-    only (ctrkin.models.branch): weight of the gate's cross-entropy beside the MAE loss, and how
-    often the previous state is hidden; follow: the follow IK (ctrkin.models.follow, model
-    'follow_mlp', trained by ctrkin.training.follow); loop: "epoch" (one gather of the shuffled
-    training tensors per epoch, fused Adam: the per-batch work is the network alone) or "batch" (the
-    loop up to issue 11: index gathers and a plain Adam step per batch; kept for comparison, same batches and
-    same seeds); fused_adam: the "epoch" loop's Adam uses the fused CPU kernel (False: the default
-    kernel; the "epoch" loop is then bit-identical to the "batch" loop); val_smoothing: early
-    stopping counts epochs without an improvement of the exponential moving average of the val
-    loss with this factor (0: the raw val loss, as the paper; the best epoch's weights are still
-    chosen by the raw val loss); max_seconds: stop after this much training time (a wall-clock
-    budget; None: no limit).
-    """
-
-    task: str = "fk"
-    model: str = "lstm_mlp"
-    options: dict[str, Any] = field(default_factory=dict)
-    ib: int = 2
-    delta: bool = True
-    angle_encoding: str = "minmax"
-    output_activation: str = "relu"
-    pose_source: str = "measured"
-    split: str = "dataset"
-    split_seed: int = 0
-    lr: float = 1e-3
-    batch_size: int = 32
-    max_epochs: int = 500
-    patience: int = 20
-    min_delta: float = 0.0
-    seed: int = 0
-    threads: int = 2
-    drop_outliers: bool = True
-    target_frame: str = "tracker"
-    lr_schedule: str = "constant"
-    gate_weight: float = 0.1
-    unknown_prob: float = 0.1
-    follow: bool = False
-    loop: str = "epoch"
-    fused_adam: bool = True
-    val_smoothing: float = 0.0
-    max_seconds: float | None = None
+    task: Task = field(default="fk", metadata=_help(
+        "fk: forward kinematics (joints -> tip pose); ik: inverse (tip poses -> joints)."))
+    model: str = field(default="lstm_mlp", metadata=_help(
+        "Registry name (ctrkin.models.MODELS; `ctrkin train --list-models`)."))
+    options: dict[str, Any] = field(default_factory=dict, metadata=_help(
+        "Model options, e.g. {'structure': 'S3'} (`ctrkin train --structure S3`, `--option KEY=VALUE`)."))
+    ib: int = field(default=2, metadata=_help(
+        "Input buffer: the current step and IB-1 previous ones (1..5 in the paper, 2 the final model)."))
+    delta: bool = field(default=True, metadata=_help(
+        "The directional feature Δα0 (FK) or the pose deltas (IK); --no-delta drops it (Fig. 5b)."))
+    angle_encoding: AngleEncoding = field(default="minmax", metadata=_help(
+        "FK angle encoding: minmax (min-max of unwrapped degrees, paper), sincos, or phase (the "
+        "paper's features and sin/cos α0; ctrkin.models.features)."))
+    output_activation: OutputActivation = field(default="relu", metadata=_help(
+        "Output layer activation: relu (paper eq. 7) or linear."))
+    pose_source: PoseSource = field(default="measured", metadata=_help(
+        "Pose columns to learn from (FK target, IK input): measured (tracker, as in the paper) or true "
+        "(virtual-robot ground truth)."))
+    split: Split = field(default="dataset", metadata=_help(
+        "dataset: the dataset's saved split, else by sequence; sequence: whole sequences per part; "
+        "random: the paper's 70:15:15 per-sample shuffle."))
+    split_seed: int = field(default=0, metadata=_help("Seed of a sequence or random split."))
+    lr: float = field(default=1e-3, metadata=_help("Adam learning rate (paper 1e-3)."))
+    batch_size: int = field(default=32, metadata=_help("Batch size (paper 32)."))
+    max_epochs: int = field(default=500, metadata=_help("Maximum epochs (paper 500)."))
+    patience: int = field(default=20, metadata=_help(
+        "Early stopping: epochs without a val-loss improvement of min_delta."))
+    min_delta: float = field(default=0.0, metadata=_help(
+        "Smallest val-loss decrease that counts as an improvement for early stopping."))
+    seed: int = field(default=0, metadata=_help("Seed of the initial weights and the batch order."))
+    threads: int = field(default=2, metadata=_help("torch CPU threads."))
+    drop_outliers: bool = field(default=True, metadata=_help(
+        "Rows flagged `outlier` (encoder glitches) are not used as targets."))
+    target_frame: TargetFrame = field(default="tracker", metadata=_help(
+        "FK poses learned in the tracker frame (paper) or in the outer tube's frame (outer; "
+        "ctrkin.models.frame)."))
+    lr_schedule: LrSchedule = field(default="constant", metadata=_help(
+        "constant (paper) or cosine decay to lr/50 over max_epochs."))
+    gate_weight: float = field(default=0.1, metadata=_help(
+        "Branch models only (ctrkin.models.branch): weight of the gate's cross-entropy beside the MAE "
+        "loss."))
+    unknown_prob: float = field(default=0.1, metadata=_help(
+        "Branch models only: how often the previous branch state is hidden in training."))
+    follow: bool = field(default=False, metadata=_help(
+        "The follow IK (ctrkin.models.follow, trained by ctrkin.training.follow); model follow_mlp sets "
+        "it."))
+    loop: Loop = field(default="epoch", metadata=_help(
+        "epoch: one gather of the shuffled training tensors per epoch, fused Adam (the per-batch work "
+        "is the network alone); batch: the loop up to issue 11, index gathers and a plain Adam step per "
+        "batch (kept for comparison: same batches, same seeds)."))
+    fused_adam: bool = field(default=True, metadata=_help(
+        "The epoch loop's Adam uses the fused CPU kernel (--no-fused-adam: the default kernel; the "
+        "epoch loop is then bit-identical to the batch loop)."))
+    val_smoothing: float = field(default=0.0, metadata=_help(
+        "Early stopping on an exponential moving average of the val loss with this factor (0: the raw "
+        "val loss, as the paper); the best epoch's weights are still chosen by the raw val loss."))
+    max_seconds: float | None = field(default=None, metadata=_help(
+        "Stop after this much training time (s, wall clock; default: no limit)."))
 
     def __post_init__(self) -> None:
+        # the registry (torch, the networks) and the feature layout are imported here, not with the
+        # module: `ctrkin train --help` reads this class and should not wait for torch
+        from ctrkin.models.registry import get_entry, resolve_options
+
         if self.task not in ("fk", "ik"):
             raise ModelError(f"task must be 'fk' or 'ik', got {self.task!r}")
         entry = get_entry(self.model)
@@ -125,9 +154,10 @@ class TrainConfig:
         self.layout(2)   # validates ib and angle_encoding
 
     def layout(self, n_tubes: int) -> FeatureLayout:
-        return FeatureLayout(task=self.task, n_tubes=n_tubes, ib=self.ib,  # type: ignore[arg-type]
-                             delta=self.delta, angle_encoding=self.angle_encoding,  # type: ignore[arg-type]
-                             follow=self.follow)
+        from ctrkin.models.features import FeatureLayout
+
+        return FeatureLayout(task=self.task, n_tubes=n_tubes, ib=self.ib, delta=self.delta,
+                             angle_encoding=self.angle_encoding, follow=self.follow)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
