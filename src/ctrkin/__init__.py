@@ -17,19 +17,12 @@ from ctrkin.util.lazy import lazy_attributes
 
 __version__ = "0.1.0"
 
-_WHERE = {
-    "Equilibrium": "ctrkin.mechanics", "SolverSettings": "ctrkin.mechanics", "Trajectory": "ctrkin.mechanics",
-    "follow": "ctrkin.mechanics", "solve": "ctrkin.mechanics", "solve_many": "ctrkin.mechanics",
-    "Robot": "ctrkin.robots", "Tube": "ctrkin.robots", "load_robot": "ctrkin.robots",
-    "paper_robot": "ctrkin.robots", "Kinematics": "ctrkin.inference",
-}
-
 __all__ = ["Equilibrium", "Kinematics", "Robot", "SolverSettings", "Trajectory", "Tube", "__version__",
            "follow", "load_robot", "paper_robot", "solve", "solve_many"]
 
-__getattr__, __dir__ = lazy_attributes(__name__, _WHERE)
-
-if TYPE_CHECKING:
+if TYPE_CHECKING:   # imported on first use instead (ctrkin.util.lazy)
     from ctrkin.inference import Kinematics
     from ctrkin.mechanics import Equilibrium, SolverSettings, Trajectory, follow, solve, solve_many
     from ctrkin.robots import Robot, Tube, load_robot, paper_robot
+
+__getattr__, __dir__ = lazy_attributes(__name__, __file__)

@@ -12,17 +12,11 @@ from typing import TYPE_CHECKING
 
 from ctrkin.util.lazy import lazy_attributes
 
-_WHERE = {
-    "IKResult": "ctrkin.inference.kinematics", "IKStep": "ctrkin.inference.kinematics",
-    "Kinematics": "ctrkin.inference.kinematics", "export_onnx": "ctrkin.inference.onnx_export",
-    "Workspace": "ctrkin.inference.workspace",
-}
-
 __all__ = ["IKResult", "IKStep", "Kinematics", "Workspace", "export_onnx"]
 
-__getattr__, __dir__ = lazy_attributes(__name__, _WHERE)
-
-if TYPE_CHECKING:
+if TYPE_CHECKING:   # imported on first use instead (ctrkin.util.lazy)
     from ctrkin.inference.kinematics import IKResult, IKStep, Kinematics
     from ctrkin.inference.onnx_export import export_onnx
     from ctrkin.inference.workspace import Workspace
+
+__getattr__, __dir__ = lazy_attributes(__name__, __file__)

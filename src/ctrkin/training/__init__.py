@@ -11,15 +11,10 @@ from typing import TYPE_CHECKING
 
 from ctrkin.util.lazy import lazy_attributes
 
-_WHERE = {
-    "TrainConfig": "ctrkin.training.config", "TrainResult": "ctrkin.training.loop",
-    "train": "ctrkin.training.loop",
-}
-
 __all__ = ["TrainConfig", "TrainResult", "train"]
 
-__getattr__, __dir__ = lazy_attributes(__name__, _WHERE)
-
-if TYPE_CHECKING:
+if TYPE_CHECKING:   # imported on first use instead (ctrkin.util.lazy)
     from ctrkin.training.config import TrainConfig
     from ctrkin.training.loop import TrainResult, train
+
+__getattr__, __dir__ = lazy_attributes(__name__, __file__)
