@@ -17,8 +17,9 @@ import tomli_w
 
 from ctrkin.calibration import calibrate, leave_one_sequence_out
 from ctrkin.calibration.params import GROUPS
-from ctrkin.cli.common import check_output, emit_json, get_robot, json_option, overwrite_option, say
+from ctrkin.cli.common import check_output, emit_json, output_options, say
 from ctrkin.data.dataset import Dataset
+from ctrkin.robots import load_robot
 from ctrkin.util.files import atomic_write_text
 
 
@@ -44,8 +45,7 @@ Examples:
               help="With --loso: candidate multipliers of every prior σ, comma-separated (e.g. 0.5,1,2); "
               "with several, each fold picks one by a nested leave-one-sequence-out on its training "
               "sequences (needs >= 3 sequences).")
-@overwrite_option()
-@json_option
+@output_options
 def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str, loso: bool,
                   max_evaluations: int, no_prior: bool, prior_scales: str, overwrite: bool,
                   as_json: bool) -> None:
@@ -62,7 +62,7 @@ def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str
                                  param_hint="--prior-scales")
     check_output(out_file, overwrite)
     ds = Dataset.load(data_dir)
-    robot = get_robot(robot_spec) if robot_spec else ds.robot
+    robot = load_robot(robot_spec) if robot_spec else ds.robot
     res = calibrate(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior)
     if loso:
         res.loso = leave_one_sequence_out(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior,

@@ -25,18 +25,10 @@ from ctrkin.acquisition import protocols
 from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.acquisition.task_paths import SHAPES, task_path
-from ctrkin.cli.common import (
-    check_output,
-    emit_json,
-    get_robot,
-    json_option,
-    overwrite_option,
-    parse_floats,
-    robot_option,
-    say,
-)
+from ctrkin.cli.common import check_output, emit_json, output_options, parse_floats, robot_option, say
 from ctrkin.cli.from_config import parse_key_values
 from ctrkin.evaluation.scales import SCALES
+from ctrkin.robots import load_robot
 from ctrkin.virtual import VirtualConfig, VirtualConfigError, VirtualRobot
 
 CHOICES = [*protocols.PROTOCOLS, *SHAPES]
@@ -74,8 +66,7 @@ Examples:
               help="Override a virtual robot effect magnitude (repeatable).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Output folder (written as a whole: a failure leaves the previous one).")
-@overwrite_option()
-@json_option
+@output_options
 def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_seed: int,
                 n_points: int | None, levels: str | None, workers: int | None,
                 settings: tuple[str, ...], out_dir: str, overwrite: bool, as_json: bool) -> None:
@@ -85,7 +76,7 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
         raise click.BadParameter("--levels applies to the paper and sweeps protocols")
     level_values = None if levels is None else tuple(parse_floats(levels, "--levels"))
     out = check_output(out_dir, overwrite)
-    robot = get_robot(robot_spec)
+    robot = load_robot(robot_spec)
     virtual = VirtualRobot(robot, config, seed=robot_seed)
     if protocol in SHAPES:
         path = task_path(virtual, protocol, n_points=n_points or 10, seed=seed)

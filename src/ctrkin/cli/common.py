@@ -16,8 +16,6 @@ from typing import Any, TypeVar
 
 import click
 
-from ctrkin.robots import Robot, load_robot
-
 F = TypeVar("F", bound=Callable[..., Any])
 
 QUIET = "ctrkin.quiet"   # ctx.meta key set by `ctrkin --quiet`
@@ -112,6 +110,11 @@ def overwrite_option(force_alias: bool = False) -> Callable[[F], F]:
     return decorate
 
 
+def output_options(f: F) -> F:
+    """`--overwrite` and `--json`: the options of a command that writes an output and reports it."""
+    return overwrite_option()(json_option(f))
+
+
 def check_output(path: str | Path, overwrite: bool) -> Path:
     """The output rule: refuse (OutputExistsError) an existing file or non-empty folder `path` unless
     `overwrite`. Call it after the arguments are checked and before any work is done."""
@@ -121,10 +124,6 @@ def check_output(path: str | Path, overwrite: bool) -> Path:
     if p.is_dir() and not any(p.iterdir()):
         return p
     raise OutputExistsError(f"{p} exists; pass --overwrite to replace it (or choose another --out)")
-
-
-def get_robot(spec: str) -> Robot:
-    return load_robot(spec)
 
 
 def parse_floats(text: str, what: str) -> list[float]:

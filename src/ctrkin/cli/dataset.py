@@ -28,20 +28,13 @@ import click
 from rich.console import Console
 from rich.table import Table
 
-from ctrkin.cli.common import (
-    check_output,
-    get_robot,
-    overwrite_option,
-    parse_floats,
-    quiet,
-    robot_option,
-    say,
-)
+from ctrkin.cli.common import check_output, overwrite_option, parse_floats, quiet, robot_option, say
 from ctrkin.data.cleaning import CleaningConfig
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
 from ctrkin.data.splits import random_split, split_by_sequence, split_warnings, split_with_test
 from ctrkin.data.summary import summarize
+from ctrkin.robots import load_robot
 
 
 @click.group("dataset", epilog="""\b
@@ -215,7 +208,7 @@ def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | 
     quaternion_columns = tuple(c.strip() for c in quat_cols.split(",")) if quat_cols else ()
     mapping, unit_kw, gap = parse_map(maps), parse_units(units), parse_gap(gap_text)
     out = check_output(out_dir, overwrite or force)
-    robot = get_robot(robot_spec)
+    robot = load_robot(robot_spec)
     cfg = ImportConfig(
         mapping=mapping, quaternion_columns=quaternion_columns,
         quaternion_order=cast(Any, quat_order), sequence_gap=cast(Any, gap),

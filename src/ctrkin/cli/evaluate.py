@@ -15,7 +15,7 @@ from typing import Any
 
 import click
 
-from ctrkin.cli.common import check_output, emit_json, json_option, overwrite_option, say
+from ctrkin.cli.common import check_output, emit_json, output_options, say
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import CtrkinError
 from ctrkin.evaluation.real import evaluate
@@ -36,8 +36,7 @@ Examples:
 @click.option("--out", "out_dir", default=None, type=click.Path(file_okay=False),
               help="Folder for results.json and plots (one sub-folder per predictor when several); "
               "written as a whole: with --overwrite it replaces the folder's earlier content.")
-@overwrite_option()
-@json_option
+@output_options
 def evaluate_cmd(data_dir: str, predictors: tuple[str, ...], out_dir: str | None, overwrite: bool,
                  as_json: bool) -> None:
     """Compare predictors with the measured tips: position (and orientation, where measured) errors

@@ -13,18 +13,10 @@ import numpy as np
 import pandas as pd
 
 from ctrkin.acquisition.trajectories import PAPER_LEVELS_MM, rotation_sweep
-from ctrkin.cli.common import (
-    check_output,
-    emit_json,
-    get_robot,
-    json_option,
-    overwrite_option,
-    parse_floats,
-    robot_option,
-    say,
-)
+from ctrkin.cli.common import check_output, emit_json, output_options, parse_floats, robot_option, say
 from ctrkin.geometry import POSE_COLUMNS, tip_azimuth
 from ctrkin.mechanics import Equilibrium, follow, solve
+from ctrkin.robots import load_robot
 from ctrkin.util.files import atomic_path
 from ctrkin.util.progress import progress_bar
 
@@ -43,7 +35,7 @@ Examples:
               "(in the JSON with --json, else as a table).")
 def solve_cmd(robot_spec: str, q_text: str, as_json: bool, backbone: bool) -> None:
     """Solve the TCM at one configuration (point-wise, no history)."""
-    robot = get_robot(robot_spec)
+    robot = load_robot(robot_spec)
     q = parse_floats(q_text, "--q")
     eq = solve(robot, np.array(q))
     azimuth = azimuth_deg(eq.tip_position, q[robot.n_tubes - 1])
@@ -93,8 +85,7 @@ Examples:
 @click.option("--step", "step_deg", default=1.0, show_default=True, help="Rotation step (deg).")
 @click.option("--out", "out_dir", default="out/sweep", show_default=True,
               type=click.Path(file_okay=False), help="Output folder for sweep.csv and sweep.png.")
-@overwrite_option()
-@json_option
+@output_options
 def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha: float,
               step_deg: float, out_dir: str, overwrite: bool, as_json: bool) -> None:
     """Full inner-tube rotation forward and back at several relative translations (paper
@@ -103,7 +94,7 @@ def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha
 
     levels = parse_floats(translations, "--translations")
     out = check_output(out_dir, overwrite)
-    robot = get_robot(robot_spec)
+    robot = load_robot(robot_spec)
     n = robot.n_tubes
     frames, curves = [], []
     paths = [rotation_sweep(n, d, outer_beta, outer_alpha, step_deg) for d in levels]

@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import click
 
-from ctrkin.cli.common import get_robot, robot_option, say
+from ctrkin.cli.common import robot_option, say
 from ctrkin.evaluation.scales import SCALES, get_scale
+from ctrkin.robots import load_robot
 
 
 @click.command("reproduce", epilog="""\b
@@ -51,7 +52,7 @@ def reproduce_cmd(scale: str, robot_spec: str, robot_seed: int, workers: int, ex
     from ctrkin.evaluation.reproduce import reproduce
 
     results = reproduce(
-        get_robot(robot_spec),
+        load_robot(robot_spec),
         get_scale(scale),
         out_dir,
         robot_seed=robot_seed,
