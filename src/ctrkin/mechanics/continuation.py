@@ -14,6 +14,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -67,39 +68,29 @@ class Trajectory:
 
 
 @functools.lru_cache(maxsize=256)
-def _shift_weights(t: float, t_try: float, k: int) -> np.ndarray:
-    """(k,): weights w with x(t_try) − x(t) = Σ_j w_j x(−j) for the polynomial through the values
-    x(0), x(−1), …, x(−(k − 1)) (Lagrange basis; cached: the sub-step fractions repeat)."""
-
-    def basis(tau: float) -> list[float]:
-        w = []
-        for j in range(k):
-            v = 1.0
-            for m in range(k):
-                if m != j:
-                    v *= (tau + m) / (m - j)
-            w.append(v)
-        return w
-
-    w = np.array(basis(t_try)) - np.array(basis(t))
+def _lagrange(tau: float, k: int) -> np.ndarray:
+    """(k,): weights at τ of the polynomial through values at τ = −(k − 1), …, −1, 0 (Lagrange
+    basis; cached: the sub-step fractions repeat)."""
+    nodes = np.arange(1 - k, 1, dtype=float)
+    w = np.array([np.prod([(tau - nodes[m]) / (nodes[j] - nodes[m]) for m in range(k) if m != j])
+                  for j in range(k)])
     w.setflags(write=False)
     return w
 
 
-@dataclass(frozen=True, eq=False)
-class Predictor:
+class Predictor(NamedTuple):
     """The predictor of a continuation step: x(τ) (rad/mm) along the polynomial through the states
-    of the last k steps taken with the same joint increment, at τ = 0, −1, …, −(k − 1) (τ in steps).
+    of the last k steps taken with the same joint increment, at τ = −(k − 1), …, −1, 0 (τ in steps).
     Its error one step ahead is O(Δq^k) on a smooth branch: on the paper robot's 1° sweeps the secant
     (k = 2) leaves Newton a median residual of 7e-7 rad/mm at the start, the parabola (k = 3) 1e-8,
     and a start within √(tol / C0) ≈ 3e-7 rad/mm lets the first Newton step be the final pass
-    (kernels.newton). xs: (k, N), the latest state first."""
+    (kernels.newton). xs: (k, N), the latest state last."""
 
     xs: np.ndarray
 
-    def shift(self, t: float, t_try: float) -> np.ndarray:
-        """x(t_try) − x(t) (N,) rad/mm, t and t_try in steps from the latest state."""
-        return np.dot(_shift_weights(t, t_try, self.xs.shape[0]), self.xs)
+    def at(self, tau: float) -> np.ndarray:
+        """x(τ) (N,) rad/mm, τ in steps from the latest state."""
+        return _lagrange(tau, self.xs.shape[0]).dot(self.xs)
 
 
 def _distance(a: np.ndarray, b: np.ndarray, lengths: np.ndarray) -> float:
@@ -112,8 +103,7 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     """Continue from equilibrium `prev` to joints q_to. Returns (equilibrium, snapped).
 
     path: the states of the previous steps taken with the same joint increment (`Predictor`);
-    Newton then starts from x + path.shift(t, t_try), the current state moved along the extrapolated
-    branch, instead of from x.
+    Newton then starts from the current state moved along the extrapolated branch instead of from x.
     """
     q_from = prev.q
     arr = prev.problem.arrays
@@ -128,7 +118,10 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
         t_try = min(1.0, t + dt)
         q_try = q_from + (q_to - q_from) * t_try
         pb = prepare(robot, q_try, settings, checked=True, arr=arr)
-        guess = x if path is None else x + path.shift(t, t_try)
+        if path is None:
+            guess = x
+        else:  # x moved along the predicted branch (at the start of the step x = path.at(0))
+            guess = path.at(t_try) if t == 0.0 else x + path.at(t_try) - path.at(t)
         sol = newton(pb, guess, settings, work)
         if (sol.stable and _distance(sol.x, x, pb.arrays.lengths) <= JUMP_RAD
                 and abs(sol.det_j - det) <= DET_SLACK + DET_RATE * det):
@@ -201,12 +194,14 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     if start is not None:
         _check_start(robot, start)
     eqs: list[Equilibrium] = []
+    xs = np.empty((n_steps, robot.n_tubes))  # eqs[t].x, for the predictor
     snaps = np.zeros(n_steps, dtype=bool)
     if start is None:
         cur = solve(robot, Qa[0], settings=settings)
     else:
         cur, snaps[0] = _advance(robot, start, Qa[0], settings)
     eqs.append(cur)
+    xs[0] = cur.x
     if progress:
         progress(0)
     dq = np.diff(Qa, axis=0)
@@ -215,9 +210,10 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
         k = 1  # states behind step t on one branch, reached by the joint increment of step t
         while k < PATH_STATES and same[t - k + 1] and not snaps[t - k]:
             k += 1
-        path = Predictor(np.array([e.x for e in eqs[:-k - 1:-1]])) if k > 1 else None
+        path = Predictor(xs[t - k:t]) if k > 1 else None
         cur, snaps[t] = _advance(robot, cur, Qa[t], settings, path)
         eqs.append(cur)
+        xs[t] = cur.x
         if progress:
             progress(t)
     poses = tip_pose(np.array([e.tip_position for e in eqs]), np.array([e.tip_tangent for e in eqs]))
