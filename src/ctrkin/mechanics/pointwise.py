@@ -205,9 +205,7 @@ def newton(pb: Problem, x0: np.ndarray, settings: SolverSettings, work: list[int
     x0 = np.asarray(x0, dtype=float)
     x = np.empty(x0.shape[0])
     body = np.empty(7)
-    try:
-        if not math.isfinite(x0.sum()):
-            raise FloatingPointError
+    try:  # converged: |r| < tol and kernels.sane (a finite root and body), checked in the kernel
         conv, it, rn, det_j, det_h, shoots = kernels.newton(
             x0, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,
             settings.tol, settings.max_iter, settings.max_step, x, body)
@@ -215,7 +213,6 @@ def newton(pb: Problem, x0: np.ndarray, settings: SolverSettings, work: list[int
         return NewtonResult.failed(x0.copy())  # numerics broke down
     if work is not None:
         work[0] += shoots * pb.n_rk4
-    conv = conv and rn < settings.tol and math.isfinite(x.sum())  # rn is NaN if r was
     return NewtonResult(x, conv, it, rn, det_j, det_h, body if conv else _NO_BODY)
 
 
