@@ -12,7 +12,7 @@ from ctrkin.acquisition.trajectories import rotation_sweep
 from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 from ctrkin.mechanics import continuation, kernels
 from ctrkin.mechanics.continuation import Predictor
-from ctrkin.mechanics.pointwise import prepare
+from ctrkin.mechanics.pointwise import prepare, with_alpha
 
 ROBOT = paper_robot()
 
@@ -219,3 +219,21 @@ def test_predictor_changes_no_snap_and_no_pose(monkeypatch, d: float) -> None:
     np.testing.assert_array_equal(pred.snaps, plain.snaps)
     np.testing.assert_array_equal(pred.stable, plain.stable)
     np.testing.assert_allclose(pred.tip_poses, plain.tip_poses, rtol=0, atol=1e-6)
+
+
+def test_rotation_step_keeps_the_grid(rng) -> None:
+    """with_alpha (a continuation step that keeps β) gives the problem prepare builds afresh."""
+    base = prepare(ROBOT, np.array([10.0, 20.0, -18.0, -4.0]), SolverSettings())
+    for _ in range(20):
+        q = np.r_[rng.uniform(-720, 720, 2), base.q[2:]]
+        fresh, kept = prepare(ROBOT, q, SolverSettings()), with_alpha(base, q)
+        for u, v in zip((fresh.alpha, fresh.beta, fresh.tips, *fresh.grid),
+                        (kept.alpha, kept.beta, kept.tips, *kept.grid), strict=True):
+            np.testing.assert_array_equal(u, v)
+
+
+def test_follow_does_not_alias_the_callers_joints() -> None:
+    Q = rotation_sweep(2, 8.0, step_deg=30.0)
+    traj = follow(ROBOT, Q)
+    Q[:] = 0.0
+    assert traj.q[1, 0] == 30.0 and traj.equilibria[1].q[0] == 30.0

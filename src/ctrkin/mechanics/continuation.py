@@ -31,6 +31,7 @@ from ctrkin.mechanics.pointwise import (
     search,
     solve,
     twisted_guesses,
+    with_alpha,
 )
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS, SolverSettings
 from ctrkin.robots.robot import Robot
@@ -99,11 +100,13 @@ def _distance(a: np.ndarray, b: np.ndarray, lengths: np.ndarray) -> float:
 
 
 def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: SolverSettings,
-             path: Predictor | None = None) -> tuple[Equilibrium, bool]:
+             path: Predictor | None = None, same_grid: bool = False) -> tuple[Equilibrium, bool]:
     """Continue from equilibrium `prev` to joints q_to. Returns (equilibrium, snapped).
 
     path: the states of the previous steps taken with the same joint increment (`Predictor`);
     Newton then starts from the current state moved along the extrapolated branch instead of from x.
+    same_grid: q_to has the translations β of prev.q and prev was solved with these settings, so
+    every sub-step keeps prev's grid (`with_alpha`).
     """
     q_from = prev.q
     arr = prev.problem.arrays
@@ -116,8 +119,11 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     work = [0]      # RK4 steps spent on this step, bounded by settings.max_search_steps
     while t < 1.0:
         t_try = min(1.0, t + dt)
-        q_try = q_from + (q_to - q_from) * t_try
-        pb = prepare(robot, q_try, settings, checked=True, arr=arr)
+        q_try = q_to if t_try == 1.0 else q_from + (q_to - q_from) * t_try
+        if same_grid:
+            pb = with_alpha(prev.problem, q_try)
+        else:
+            pb = prepare(robot, q_try, settings, checked=True, arr=arr)
         if path is None:
             guess = x
         else:  # x moved along the predicted branch (at the start of the step x = path.at(0))
@@ -187,7 +193,7 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     start: the equilibrium the robot is in before Q[0] (continued to Q[0]); without it Q[0] is
     solved point-wise. progress: called with the step index after each step.
     """
-    Qa = robot.check_joints(np.atleast_2d(np.asarray(Q, dtype=float)))
+    Qa = robot.check_joints(np.atleast_2d(np.array(Q, dtype=float)))  # a copy: equilibria keep rows
     n_steps = Qa.shape[0]
     if n_steps == 0:
         raise JointError(f"follow needs at least one joint row, got Q of shape {Qa.shape}")
@@ -206,12 +212,13 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
         progress(0)
     dq = np.diff(Qa, axis=0)
     same = np.r_[False, False, (dq[1:] == dq[:-1]).all(axis=1)]  # step t repeats step t − 1
+    rotation = np.r_[False, (dq[:, robot.n_tubes:] == 0.0).all(axis=1)]  # step t keeps β
     for t in range(1, n_steps):
         k = 1  # states behind step t on one branch, reached by the joint increment of step t
         while k < PATH_STATES and same[t - k + 1] and not snaps[t - k]:
             k += 1
         path = Predictor(xs[t - k:t]) if k > 1 else None
-        cur, snaps[t] = _advance(robot, cur, Qa[t], settings, path)
+        cur, snaps[t] = _advance(robot, cur, Qa[t], settings, path, bool(rotation[t]))
         eqs.append(cur)
         xs[t] = cur.x
         if progress:

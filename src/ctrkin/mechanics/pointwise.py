@@ -4,7 +4,8 @@ Without a guess, Newton starts from untwisted tubes (uz(0) = 0); if that gives n
 a fixed set of twisted guesses is tried and the stable equilibrium of lowest elastic energy is kept.
 That is a solve with no history: the paper's "TCM" baseline. History (which of several stable
 equilibria the robot is in) is the job of `follow` (mechanics.continuation), which builds on the
-pieces here: `prepare` (joints to a `Problem`: grid and kernel inputs), `newton` (one damped Newton
+pieces here: `prepare` (joints to a `Problem`: grid and kernel inputs; `with_alpha` for new α at
+the same β), `newton` (one damped Newton
 solve, a `NewtonResult`), `search` and `twisted_guesses` (multi-start), `cold_solution` and
 `equilibrium` (a NewtonResult as an `Equilibrium`).
 """
@@ -147,6 +148,13 @@ def prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: bool
             "curvatures (1/mm) or raise max_rk4_steps")
     # the kernels read β only as the twisting length −β of the compliant transmission (M4)
     return Problem(arr, qa, alpha, beta, tips, grid)
+
+
+def with_alpha(pb: Problem, q: np.ndarray) -> Problem:
+    """The problem at valid joints q (2N,) whose translations β are those of pb.q: the grid, tips
+    and transmission lengths depend on β alone (kernels.prepare), so only α is new (a rotation
+    step of a continuation needs no new grid)."""
+    return Problem(pb.arrays, q, np.radians(q[:pb.alpha.shape[0]]), pb.beta, pb.tips, pb.grid)
 
 
 @functools.lru_cache(maxsize=64)
