@@ -237,3 +237,15 @@ def test_follow_does_not_alias_the_callers_joints() -> None:
     traj = follow(ROBOT, Q)
     Q[:] = 0.0
     assert traj.q[1, 0] == 30.0 and traj.equilibria[1].q[0] == 30.0
+
+
+def test_increments_equal_to_round_off_repeat() -> None:
+    """A linspace path's increments differ in the last bits; they still repeat (the predictor is
+    used), while a change of direction or of step does not."""
+    q = np.c_[np.linspace(0.0, 90.0, 91), np.zeros(91), np.linspace(-20.0, -2.0, 91), np.zeros(91)]
+    assert not (np.diff(q, axis=0)[1:] == np.diff(q, axis=0)[:-1]).all()  # not bit-equal
+    assert continuation._repeats(np.diff(q, axis=0)).all()
+    turn = np.r_[q[:10], q[9:0:-1]]
+    assert not continuation._repeats(np.diff(turn, axis=0))[8]
+    faster = np.r_[q[:10], q[10:30:2]]
+    assert not continuation._repeats(np.diff(faster, axis=0))[9]

@@ -94,6 +94,15 @@ class Predictor(NamedTuple):
         return _lagrange(tau, self.xs.shape[0]).dot(self.xs)
 
 
+def _repeats(dq: np.ndarray) -> np.ndarray:
+    """(T − 2,) bool: joint increment dq[t] (T − 1, 2N) equals dq[t − 1] to 1e-6 of the larger
+    component, so that a path built with linspace or a float step, whose increments differ in the
+    last bits, is extrapolated too (the predictor's error from such a spacing is ~1e-6 of a step's
+    change of x, far below the parabola's own)."""
+    scale = np.maximum(np.abs(dq[1:]), np.abs(dq[:-1])).max(axis=1, keepdims=True)
+    return (np.abs(dq[1:] - dq[:-1]) <= 1e-6 * scale).all(axis=1)
+
+
 def _distance(a: np.ndarray, b: np.ndarray, lengths: np.ndarray) -> float:
     """Largest change of twist (rad) a change of base torsion a − b (rad/mm) makes over a tube."""
     return float(np.abs((a - b) * lengths).max())
@@ -211,7 +220,7 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     if progress:
         progress(0)
     dq = np.diff(Qa, axis=0)
-    same = np.r_[False, False, (dq[1:] == dq[:-1]).all(axis=1)]  # step t repeats step t − 1
+    same = np.r_[False, False, _repeats(dq)]  # step t repeats step t − 1
     rotation = np.r_[False, (dq[:, robot.n_tubes:] == 0.0).all(axis=1)]  # step t keeps β
     for t in range(1, n_steps):
         k = 1  # states behind step t on one branch, reached by the joint increment of step t
