@@ -4,10 +4,10 @@ Without a guess, Newton starts from untwisted tubes (uz(0) = 0); if that gives n
 a fixed set of twisted guesses is tried and the stable equilibrium of lowest elastic energy is kept.
 That is a solve with no history: the paper's "TCM" baseline. History (which of several stable
 equilibria the robot is in) is the job of `follow` (mechanics.continuation), which builds on the
-pieces here: `prepare` (joints to a `Problem`: grid and kernel inputs; `with_alpha` for new α at
-the same β), `newton` (one damped Newton
-solve, a `NewtonResult`), `search` and `twisted_guesses` (multi-start), `cold_solution` and
-`equilibrium` (a NewtonResult as an `Equilibrium`).
+pieces here: `prepare` (joints to a `Problem`: grid and kernel inputs; `with_alpha`: new α at the
+same β, same grid), `newton` (one damped Newton solve, a `NewtonResult`), `search` and
+`twisted_guesses` (multi-start), `cold_solution` and `equilibrium` (a NewtonResult as an
+`Equilibrium`).
 """
 
 from __future__ import annotations
