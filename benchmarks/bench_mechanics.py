@@ -6,7 +6,9 @@ three-tube robot of the public C++ TCM of TIMClab-CAMI (issue 11, `ctrkin.robots
 
 Prints, per robot: cold solve from the default guess (paper: median ≤ 1 ms goal, the paper's TCM took
 1.47 s a point; TIMClab: ≤ 100 µs), warm continuation step inside `follow` and the public warm path
-`solve(q, guess=previous)` along 1° sweeps (paper ≤ 35 µs, TIMClab ≤ 60 µs), and the tip-position
+`solve(q, guess=previous)` along 1° sweeps (paper ≤ 35 µs, TIMClab ≤ 60 µs) with the integration
+passes a step makes (counted in an untimed run), the paper robot's warm step on a path that rotates
+and translates at once (a new grid every step; keys paper_warm_simultaneous_*), and the tip-position
 deviation from a tight-tolerance reference integration (scipy DOP853, rtol 1e-12; goal ≤ 1e-3 mm).
 The default step is chosen from SolverSettings.tip_tol = 1e-3 mm; the TIMClab robot is run again at
 the fixed 3 mm step of earlier versions (tip_tol=None, step=3, angle_step=0.15; keys
@@ -30,8 +32,9 @@ import numpy as np
 
 from ctrkin import Robot, SolverSettings, follow, paper_robot, solve
 from ctrkin.acquisition.trajectories import rotation_sweep
+from ctrkin.mechanics import continuation
 from ctrkin.mechanics.arrays import robot_arrays
-from ctrkin.mechanics.pointwise import rk4_step
+from ctrkin.mechanics.pointwise import NewtonResult, Problem, rk4_step
 from ctrkin.robots import timclab_robot
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
@@ -70,6 +73,47 @@ def timclab_sweeps() -> list[np.ndarray]:
         out.append(np.c_[q[:, 0], np.zeros((len(q), 2)), np.full(len(q), b1),
                          np.full(len(q), b2), np.zeros(len(q))])
     return out
+
+
+def simultaneous_sweeps() -> list[np.ndarray]:
+    """Paper robot, inner tube rotated 0 → 360° in 1° steps while it translates from d = 20 to
+    2 mm (0.05 mm a step, built with linspace), and back: every step changes β, so every step
+    needs a new integration grid (a rotation sweep keeps it)."""
+    a = np.linspace(0.0, 360.0, 361)
+    b1 = np.linspace(-20.0, -2.0, 361)
+    fwd = np.c_[a, np.zeros_like(a), b1, np.zeros_like(a)]
+    return [fwd, fwd[::-1]]
+
+
+def passes_per_step(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings) -> np.ndarray:
+    """Integration passes of each step of follow (all its Newton solves: sub-steps and fold
+    searches included), counted in an untimed run through a wrapper around its Newton solve."""
+    inner = continuation.newton
+    count = [0]
+
+    def counting(pb: Problem, x0: np.ndarray, st: SolverSettings, work: list[int] | None = None
+                 ) -> NewtonResult:
+        w = [0]
+        sol = inner(pb, x0, st, w)
+        count[0] += w[0] // pb.n_rk4
+        if work is not None:
+            work[0] += w[0]
+        return sol
+
+    per: list[int] = []
+    marks: list[int] = []
+    continuation.newton = counting
+    try:
+        for Qs in sweeps:
+            marks.clear()
+            follow(robot, Qs, settings=settings, progress=lambda _t: marks.append(count[0]))
+            per.extend(np.diff(marks))
+    finally:
+        continuation.newton = inner
+    p = np.array(per)
+    print(f"  integration passes per warm step: median {np.median(p):.0f}, mean {p.mean():.2f} "
+          f"({np.mean(p <= 2):.0%} of steps in one pass with the variation and the final one)")
+    return p
 
 
 def stats(t: np.ndarray) -> str:
@@ -114,7 +158,8 @@ def bench_warm(robot: Robot, sweeps: list[np.ndarray], labels: list[str],
               f"{total / len(Qs) * 1e6:.1f} µs per step on average, snap search included")
     st, wt = np.array(step_times), np.array(warm_times)
     print(f"  warm continuation step inside follow: {stats(st)}")
-    print(f"  warm solve(q, guess=previous equilibrium), 1° steps: {stats(wt)}")
+    if n_warm:
+        print(f"  warm solve(q, guess=previous equilibrium), 1° steps: {stats(wt)}")
     return st, wt
 
 
@@ -150,11 +195,20 @@ def main() -> None:
     warm_up(robot, np.array([0, 0, -10, -5.0]), settings, lambda: rotation_sweep(2, 20.0, step_deg=30.0))
     cold = bench_cold(robot, random_configs(args.n), settings)
     ds = (4.0, 8.0, 12.0, 16.0, 20.0)
-    step, warm = bench_warm(robot, [rotation_sweep(2, d) for d in ds],
-                            [f"at d = {d:4.1f} mm" for d in ds], settings)
+    sweeps = [rotation_sweep(2, d) for d in ds]
+    step, warm = bench_warm(robot, sweeps, [f"at d = {d:4.1f} mm" for d in ds], settings)
+    passes = passes_per_step(robot, sweeps, settings)
+    print("paper robot, rotating and translating at once (a new grid every step)")
+    sim = simultaneous_sweeps()
+    step_sim, _ = bench_warm(robot, sim, ["d 20 → 2 mm", "d 2 → 20 mm"], settings, n_warm=0)
+    passes_sim = passes_per_step(robot, sim, settings)
     err = bench_accuracy(robot, random_configs(args.n_ref, seed=1), settings)
     out |= {"paper_cold_us": np.median(cold) * 1e6, "paper_warm_us": np.median(step) * 1e6,
-            "paper_warm_solve_us": np.median(warm) * 1e6, "paper_max_tip_error_mm": err.max()}
+            "paper_warm_solve_us": np.median(warm) * 1e6,
+            "paper_warm_passes_median": np.median(passes), "paper_warm_passes_mean": passes.mean(),
+            "paper_warm_simultaneous_us": np.median(step_sim) * 1e6,
+            "paper_warm_simultaneous_passes_mean": passes_sim.mean(),
+            "paper_max_tip_error_mm": err.max()}
 
     robot = timclab_robot()
     print("TIMClab robot (3 tubes)")
@@ -162,10 +216,12 @@ def main() -> None:
     warm_up(robot, timclab_configs(1)[0], settings, lambda: sweeps[0][::30])
     cold = bench_cold(robot, timclab_configs(args.n), settings)
     step, warm = bench_warm(robot, sweeps, ["flush", "+15 mm", "+30 mm"], settings)
+    passes = passes_per_step(robot, sweeps, settings)
     err_t = bench_accuracy(robot, timclab_configs(args.n_ref, seed=1), settings)
     out |= {"timclab_robot_cold_us": np.median(cold) * 1e6,
             "timclab_robot_warm_us": np.median(step) * 1e6,
             "timclab_robot_warm_solve_us": np.median(warm) * 1e6,
+            "timclab_warm_passes_median": np.median(passes), "timclab_warm_passes_mean": passes.mean(),
             "timclab_max_tip_error_mm": err_t.max(), "max_tip_error_mm": max(err.max(), err_t.max())}
 
     fixed = SolverSettings(tip_tol=None, step=3.0, angle_step=0.15)

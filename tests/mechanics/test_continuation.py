@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from ctrkin import Robot, SolverSettings, Tube, follow, paper_robot, solve
 from ctrkin.acquisition.trajectories import rotation_sweep
 from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
+from ctrkin.mechanics import continuation, kernels
+from ctrkin.mechanics.continuation import Predictor
+from ctrkin.mechanics.pointwise import prepare, with_alpha
 
 ROBOT = paper_robot()
 
@@ -131,3 +136,116 @@ def test_follow_step_work_is_bounded_and_reported():
     Q = np.array([[0.0, 0.0, -30.0, -20.0], [90.0, 0.0, -30.0, -20.0]])
     traj = follow(robot, Q, settings=SolverSettings(max_search_steps=1000))
     assert not traj.converged[1] and not traj.stable[1] and np.isnan(traj.tip_poses[1]).all()
+
+
+# --- issue 11 goal 5: the predictor of a warm step --------------------------------------------
+
+@pytest.mark.parametrize("k", [2, 3, 4])
+def test_predictor_is_exact_on_polynomials_of_its_degree(k: int, rng) -> None:
+    """Through k states at τ = 0, −1, …, the predictor reproduces any polynomial of degree k − 1,
+    at the whole step and at the sub-step fractions _advance tries."""
+    coef = rng.normal(size=(k, 3))
+
+    def x(tau: float) -> np.ndarray:
+        return sum(tau ** p * coef[p] for p in range(k))
+
+    pred = Predictor(np.array([x(-j) for j in range(k - 1, -1, -1)]))
+    for tau in (0.0, 1.0, 0.5, 0.75, 1.0 / 256):
+        np.testing.assert_allclose(pred.at(tau), x(tau), rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(pred.at(0.0), x(0.0))  # the step starts exactly at the state
+
+
+def _start_residuals(Q: np.ndarray, k: int) -> np.ndarray:
+    """|r|∞ (rad/mm) of the shooting residual at the k-state prediction of each step of Q (T, 4)."""
+    xs = np.array([e.x for e in follow(ROBOT, Q).equilibria])
+    out = []
+    for t in range(k, len(Q)):
+        pb = prepare(ROBOT, Q[t], SolverSettings())
+        a = pb.arrays
+        x0 = Predictor(xs[t - k:t]).at(1.0)
+        r, jac = np.empty(2), np.empty((2, 2))
+        kernels.shoot(x0, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid, r, jac, False)
+        out.append(np.abs(r).max())
+    return np.array(out)
+
+
+def test_parabola_starts_newton_within_reach_of_the_final_pass() -> None:
+    """On 1° steps the parabola through the last three states leaves a residual below √(tol / C0)
+    = 3.2e-7 rad/mm, where kernels.newton makes its first step the final pass; the secant does not."""
+    Q = rotation_sweep(2, 12.0)[:120]
+    secant, parabola = _start_residuals(Q, 2), _start_residuals(Q, 3)
+    reach = math.sqrt(SolverSettings().tol / kernels.C0)
+    assert np.median(parabola) < reach / 10 < reach < np.median(secant)
+    assert np.mean(parabola < reach) > 0.8
+
+
+def _passes_per_step(monkeypatch, Q: np.ndarray, path_states: int) -> tuple[list[float], object]:
+    """Integration passes of every Newton solve in follow(Q), with PATH_STATES = path_states."""
+    passes: list[float] = []
+    inner = continuation.newton
+
+    def counting(pb, x0, settings, work=None):
+        w = [0]
+        sol = inner(pb, x0, settings, w)
+        passes.append(w[0] / pb.n_rk4)
+        if work is not None:
+            work[0] += w[0]
+        return sol
+
+    with monkeypatch.context() as m:
+        m.setattr(continuation, "newton", counting)
+        m.setattr(continuation, "PATH_STATES", path_states)
+        traj = follow(ROBOT, Q)
+    return passes, traj
+
+
+def test_warm_step_in_follow_takes_two_passes(monkeypatch) -> None:
+    """A 1° step inside follow: one Newton pass with the variation and the final pass (the plain
+    warm start and the secant took three), one Newton solve per step (the prediction never failed)."""
+    Q = rotation_sweep(2, 12.0)
+    passes, traj = _passes_per_step(monkeypatch, Q, continuation.PATH_STATES)
+    assert traj.n_snaps == 0 and len(passes) == len(Q) - 1
+    assert np.median(passes) == 2 and np.mean(np.array(passes) == 2) > 0.8
+    assert np.median(_passes_per_step(monkeypatch, Q, 2)[0]) == 3
+
+
+@pytest.mark.parametrize("d", [12.0, 16.0, 20.0])
+def test_predictor_changes_no_snap_and_no_pose(monkeypatch, d: float) -> None:
+    """The predictor only moves Newton's start: the same snaps, stability and poses as the plain
+    warm start (the residual tolerance, 1e-10 rad/mm, is far below the tip tolerance)."""
+    Q = rotation_sweep(2, d)
+    _, plain = _passes_per_step(monkeypatch, Q, 1)
+    pred = follow(ROBOT, Q)
+    np.testing.assert_array_equal(pred.snaps, plain.snaps)
+    np.testing.assert_array_equal(pred.stable, plain.stable)
+    np.testing.assert_allclose(pred.tip_poses, plain.tip_poses, rtol=0, atol=1e-6)
+
+
+def test_rotation_step_keeps_the_grid(rng) -> None:
+    """with_alpha (a continuation step that keeps β) gives the problem prepare builds afresh."""
+    base = prepare(ROBOT, np.array([10.0, 20.0, -18.0, -4.0]), SolverSettings())
+    for _ in range(20):
+        q = np.r_[rng.uniform(-720, 720, 2), base.q[2:]]
+        fresh, kept = prepare(ROBOT, q, SolverSettings()), with_alpha(base, q)
+        for u, v in zip((fresh.alpha, fresh.beta, fresh.tips, *fresh.grid),
+                        (kept.alpha, kept.beta, kept.tips, *kept.grid), strict=True):
+            np.testing.assert_array_equal(u, v)
+
+
+def test_follow_does_not_alias_the_callers_joints() -> None:
+    Q = rotation_sweep(2, 8.0, step_deg=30.0)
+    traj = follow(ROBOT, Q)
+    Q[:] = 0.0
+    assert traj.q[1, 0] == 30.0 and traj.equilibria[1].q[0] == 30.0
+
+
+def test_increments_equal_to_round_off_repeat() -> None:
+    """A linspace path's increments differ in the last bits; they still repeat (the predictor is
+    used), while a change of direction or of step does not."""
+    q = np.c_[np.linspace(0.0, 90.0, 91), np.zeros(91), np.linspace(-20.0, -2.0, 91), np.zeros(91)]
+    assert not (np.diff(q, axis=0)[1:] == np.diff(q, axis=0)[:-1]).all()  # not bit-equal
+    assert continuation._repeats(np.diff(q, axis=0)).all()
+    turn = np.r_[q[:10], q[9:0:-1]]
+    assert not continuation._repeats(np.diff(turn, axis=0))[8]
+    faster = np.r_[q[:10], q[10:30:2]]
+    assert not continuation._repeats(np.diff(faster, axis=0))[9]

@@ -451,7 +451,8 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, ns
     """Damped Newton on the shooting residual from x0 (rad/mm).
 
     Writes the root to x_out and, if converged, body_out (7,) = tip position (3,) mm, unit tip
-    tangent (3,), elastic energy (N·mm) (_tip); converged includes the checks of `sane`.
+    tangent (3,), elastic energy (N·mm) (_tip); converged means |r|∞ < tol and the checks of
+    `sane`. A start that is not finite returns at once, not converged (x_out = x0, |r| = inf).
     Returns (converged, iterations, |r|∞, det J, min det H, passes) where J = ∂r/∂x at the root
     (Gilbert et al. 2016 stability measure), det H the conjugate-point test (see shoot) and passes
     the number of integrations (the work, backtracking included).
@@ -463,6 +464,10 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, ns
     (rad/mm).
     """
     n = x0.shape[0]
+    x_out[:] = x0
+    for v in x0:
+        if not math.isfinite(v):  # nothing to integrate from
+            return False, 0, math.inf, math.nan, math.nan, 0
     x = x0.copy()
     r = np.empty(n)
     jac = np.empty((n, n))
@@ -536,16 +541,20 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, ns
         shoots += 1
     if converged:
         _tip(zb, body_out)
-        converged = sane(body_out, tips)
+        converged = sane(x, body_out, tips)
     x_out[:] = x
     return converged, it, rn, det(jac), mdet, shoots
 
 
 @njit(cache=True)
-def sane(body, tips):
-    """Checks a converged equilibrium must pass (body: _tip): a finite tip no farther from the base
-    than the longest tube reaches (a backbone is never longer than itself; 1e-6 relative slack for
-    round-off), a finite unit tip tangent (so a unit quaternion) and a finite energy."""
+def sane(x, body, tips):
+    """Checks a converged equilibrium must pass (x: the root, body: _tip): a finite root, a finite
+    tip no farther from the base than the longest tube reaches (a backbone is never longer than
+    itself; 1e-6 relative slack for round-off), a finite unit tip tangent (so a unit quaternion)
+    and a finite energy."""
+    for v in x:
+        if not math.isfinite(v):
+            return False
     for v in body:
         if not math.isfinite(v):
             return False

@@ -4,9 +4,10 @@ Without a guess, Newton starts from untwisted tubes (uz(0) = 0); if that gives n
 a fixed set of twisted guesses is tried and the stable equilibrium of lowest elastic energy is kept.
 That is a solve with no history: the paper's "TCM" baseline. History (which of several stable
 equilibria the robot is in) is the job of `follow` (mechanics.continuation), which builds on the
-pieces here: `prepare` (joints to a `Problem`: grid and kernel inputs), `newton` (one damped Newton
-solve, a `NewtonResult`), `search` and `twisted_guesses` (multi-start), `cold_solution` and
-`equilibrium` (a NewtonResult as an `Equilibrium`).
+pieces here: `prepare` (joints to a `Problem`: grid and kernel inputs; `with_alpha`: new α at the
+same β, same grid), `newton` (one damped Newton solve, a `NewtonResult`), `search` and
+`twisted_guesses` (multi-start), `cold_solution` and `equilibrium` (a NewtonResult as an
+`Equilibrium`).
 """
 
 from __future__ import annotations
@@ -149,6 +150,13 @@ def prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: bool
     return Problem(arr, qa, alpha, beta, tips, grid)
 
 
+def with_alpha(pb: Problem, q: np.ndarray) -> Problem:
+    """The problem at valid joints q (2N,) whose translations β are those of pb.q: the grid, tips
+    and transmission lengths depend on β alone (kernels.prepare), so only α is new (a rotation
+    step of a continuation needs no new grid)."""
+    return Problem(pb.arrays, q, np.radians(q[:pb.alpha.shape[0]]), pb.beta, pb.tips, pb.grid)
+
+
 @functools.lru_cache(maxsize=64)
 def rk4_step(arr: RobotArrays, settings: SolverSettings) -> float:
     """Largest RK4 step (mm) where a tube is curved: SolverSettings.step, or less where the robot
@@ -205,9 +213,7 @@ def newton(pb: Problem, x0: np.ndarray, settings: SolverSettings, work: list[int
     x0 = np.asarray(x0, dtype=float)
     x = np.empty(x0.shape[0])
     body = np.empty(7)
-    try:
-        if not math.isfinite(x0.sum()):
-            raise FloatingPointError
+    try:  # converged: |r| < tol and kernels.sane (a finite root and body), checked in the kernel
         conv, it, rn, det_j, det_h, shoots = kernels.newton(
             x0, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,
             settings.tol, settings.max_iter, settings.max_step, x, body)
@@ -215,7 +221,6 @@ def newton(pb: Problem, x0: np.ndarray, settings: SolverSettings, work: list[int
         return NewtonResult.failed(x0.copy())  # numerics broke down
     if work is not None:
         work[0] += shoots * pb.n_rk4
-    conv = conv and rn < settings.tol and math.isfinite(x.sum())  # rn is NaN if r was
     return NewtonResult(x, conv, it, rn, det_j, det_h, body if conv else _NO_BODY)
 
 
