@@ -117,15 +117,11 @@ class Problem:
     beta: np.ndarray   # mm, for the kernels' transmission: βi − extra transmission length
     tips: np.ndarray
     grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+    n_rk4: int         # RK4 steps of one integration pass (grid[3] summed once, not per solve)
 
     @property
     def length(self) -> float:
         return float(max(self.tips.max(), 1e-9))
-
-    @property
-    def n_rk4(self) -> int:
-        """RK4 steps of one integration pass."""
-        return int(self.grid[3].sum())
 
 
 def prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: bool = False,
@@ -147,14 +143,14 @@ def prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: bool
             f"a step of {h:.3g} mm; check the robot's lengths (mm) and "
             "curvatures (1/mm) or raise max_rk4_steps")
     # the kernels read β only as the twisting length −β of the compliant transmission (M4)
-    return Problem(arr, qa, alpha, beta, tips, grid)
+    return Problem(arr, qa, alpha, beta, tips, grid, int(grid[3].sum()))
 
 
 def with_alpha(pb: Problem, q: np.ndarray) -> Problem:
     """The problem at valid joints q (2N,) whose translations β are those of pb.q: the grid, tips
     and transmission lengths depend on β alone (kernels.prepare), so only α is new (a rotation
     step of a continuation needs no new grid)."""
-    return Problem(pb.arrays, q, np.radians(q[:pb.alpha.shape[0]]), pb.beta, pb.tips, pb.grid)
+    return Problem(pb.arrays, q, np.radians(q[:pb.alpha.shape[0]]), pb.beta, pb.tips, pb.grid, pb.n_rk4)
 
 
 @functools.lru_cache(maxsize=64)
