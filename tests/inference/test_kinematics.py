@@ -131,14 +131,16 @@ def test_onnx_branch_model_carries_its_state(model_dirs, sweeps, tmp_path):
     assert np.abs(out - ref).max() < ONNX_TOL
 
 
-@pytest.mark.parametrize("lagged", [False, True])
-def test_probe_equals_step(model_dirs, sweeps, lagged):
+@pytest.mark.parametrize(("lagged", "turns"), [(False, 0.0), (True, 0.0), (True, 720.0)])
+def test_probe_equals_step(model_dirs, sweeps, lagged, turns):
     """probe(K candidates) returns what step would for each, and advances nothing; also with an
-    outer lag and lagged inputs, for candidates that turn the outer motor either way or not."""
+    outer lag and lagged inputs, for candidates that turn the outer motor either way or not, and on
+    a sequence two turns outside the trained range (shifted by whole turns: m_N follows αN as given)."""
     load = (lambda: _lagged(model_dirs, inputs=True)) if lagged else (
         lambda: Kinematics.load(model_dirs["fk_branch"]))
     kin = load()
-    q = sweeps.joints()[:40]
+    q = sweeps.joints()[:40].copy()
+    q[:, :2] += turns
     kin.reset()
     for row in q[:20]:
         kin.step(row)

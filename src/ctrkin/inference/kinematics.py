@@ -455,48 +455,56 @@ class Kinematics:
             raise ModelError("alpha_into_range() is for FK models")
         return self._guard.nearest_turns(np.atleast_2d(np.asarray(Q, float)))
 
-    def _probe_outputs(self, Q: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _probe_outputs(self, Q: np.ndarray, what: str
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """The engine's answers for K candidate next steps Q (K, 2N), nothing advanced: (Q shifted by
-        the sequence's whole turns, de-normalised outputs (K, O), branch states (K,))."""
+        the sequence's whole turns, de-normalised outputs (K, O), branch states (K,), the outer
+        frame's angles (K,) or None without a frame). m_N follows αN as given, as in `step`."""
         if self.task != "fk" or self._engine is None:
             raise ModelError(f"{what}() needs an FK model of the LSTM-MLP family")
         Q = np.atleast_2d(np.asarray(Q, float))
+        outer = Q[:, self.layout.n_tubes - 1].copy()
         if self._guard is not None and len(Q):
             Q = Q - (self._shift if self._shift is not None else self._guard.shift(Q[0]))
-        net_q = Q if self.frame is None else self.frame.network_joints(Q, self._probe_angles(Q))
+        angles, net_q = None, Q
+        if self.frame is not None:
+            angles = self._probe_angles(Q, outer)
+            net_q = self.frame.network_joints(Q, angles)
         prev = net_q if self._prev is None else np.broadcast_to(self._prev, Q.shape)
         xn = self._x_norm.transform(self._clip_deltas(pair_features(self.layout, net_q, prev)))
         given = None
         if self.fold_gate is not None:
-            given = np.array([self._fold_step(q)[0] for q in Q], dtype=np.float64)
+            given = np.array([self._fold_step(q, float(a))[0] for q, a in zip(Q, outer, strict=True)],
+                             dtype=np.float64)
         yn, states = self._engine.probe(xn, given)
-        return Q, self._y_norm.inverse(yn), states
+        return Q, self._y_norm.inverse(yn), states, angles
 
     def probe_tips(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """FK only, the refinement's inner loop: tip positions (K, 3) and unit tangents (K, 3) in the
         tracker frame that `step` would give for each of K candidate joints Q (K, 2N); nothing is
         advanced (`probe` without the quaternion round trip)."""
-        Q, y, _ = self._probe_outputs(Q, "probe_tips")
-        if self.frame is not None:
+        Q, y, _, angles = self._probe_outputs(Q, "probe_tips")
+        if self.frame is not None and angles is not None:
             reg = self.frame.registration
-            return local_tips_to_world(y, self._probe_angles(Q), reg.rotation, reg.translation)
+            return local_tips_to_world(y, angles, reg.rotation, reg.translation)
         return local_tips_to_world(y, np.zeros(len(Q)), np.eye(3), np.zeros(3))
 
     def probe(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """FK only: the poses (K, 6) and branch states (K,) that `step` would return for each of K
         candidate joints Q (K, 2N) as the next step of the current sequence; nothing is advanced."""
-        Q, y, states = self._probe_outputs(Q, "probe")
+        Q, y, states, angles = self._probe_outputs(Q, "probe")
         y = postprocess(self.layout, y)
-        if self.frame is not None:
-            y = self.frame.to_world(y, self._probe_angles(Q))
+        if self.frame is not None and angles is not None:
+            y = self.frame.to_world(y, angles)
         return y, states
 
-    def _probe_angles(self, Q: np.ndarray) -> np.ndarray:
-        """(K,) outer-frame angles of K candidate next joints (the m_N a step to each would leave)."""
+    def _probe_angles(self, Q: np.ndarray, outer: np.ndarray) -> np.ndarray:
+        """(K,) outer-frame angles of K candidate next joints Q (K, 2N), shifted by the sequence's
+        whole turns; outer (K,): their αN as given, whose m_N a step to each would leave."""
         assert self.frame is not None
         if not self.frame.has_lag:
             return Q[:, self.layout.n_tubes - 1]
-        motion = np.array([self._motion_after(float(q[self.layout.n_tubes - 1])) for q in Q], float)
+        motion = np.array([self._motion_after(float(a)) for a in outer], float)
         return self.frame.outer_angle(self.robot, Q, motion)
 
     # --- streaming -------------------------------------------------------------------------------
@@ -547,10 +555,11 @@ class Kinematics:
         if self._follower is not None:
             q, projected = self._follower.step(raw)
             return self._ik_step(raw, q, projected, check, strict)
+        angle = math.nan if self.frame is None else self._step_angle(raw, outer)
         net_raw = raw
-        if self.frame is not None and self.frame.lags_inputs:      # αN less the outer lag
+        if self.frame is not None and self.frame.lags_inputs:      # the network sees the frame's angle
             net_raw = raw.copy()
-            net_raw[self.layout.n_tubes - 1] -= self._lag_at(raw) * self._motion_after(outer)
+            net_raw[self.layout.n_tubes - 1] = angle
         if self._fast_fk:
             n = self.layout.n_tubes
             a0 = net_raw[0] - net_raw[n - 1]
@@ -585,7 +594,9 @@ class Kinematics:
         y = self._y_norm.inverse(yn)
         if self.task == "fk":
             if self.frame is not None:
-                return self.frame.to_world_one(y, self._step_angle(raw, outer))
+                if self.frame.has_lag and self.fold_gate is None:    # m_N followed here, else by the gate
+                    self._outer_motion, self._outer_prev = self._motion_after(outer), outer
+                return self.frame.to_world_one(y, angle)
             nq = math.sqrt(y[3] * y[3] + y[4] * y[4] + y[5] * y[5])
             if nq > 1e-12:
                 y[3:6] /= nq
@@ -635,16 +646,14 @@ class Kinematics:
         return state, motion, a_n
 
     def _step_angle(self, raw: np.ndarray, outer: float) -> float:
-        """The outer frame's angle at this step (αN less the lag λ(β)·m_N; λ cached per β); m_N is
-        followed here where no fold gate follows it."""
+        """The outer frame's angle for joints raw (2N,) as the next step: αN less the lag λ(β)·m_N
+        (λ cached per β), m_N as it will be once the motor reaches αN as given (outer); nothing
+        changed."""
         assert self.frame is not None
-        n = self.layout.n_tubes
-        a_n = float(raw[n - 1])
+        a_n = float(raw[self.layout.n_tubes - 1])
         if not self.frame.has_lag:
             return a_n
-        if self.fold_gate is None:
-            self._outer_motion, self._outer_prev = self._motion_after(outer), outer
-        return a_n - self._lag_at(raw) * self._outer_motion
+        return a_n - self._lag_at(raw) * self._motion_after(outer)
 
     def _lag_at(self, raw: np.ndarray) -> float:
         """λ(β) (deg) of the outer frame's lag at joints raw (2N,), cached for the last β."""
