@@ -1,0 +1,181 @@
+"""How the learned side is laid out (issue 25): where each model family is named, where code asks
+which kind of model it holds, the longest functions and the largest modules.
+
+    python benchmarks/code_shape.py                       # this checkout's src/ctrkin
+    python benchmarks/code_shape.py --src /tmp/main/src/ctrkin --top 10
+
+Read from the source with `ast`, nothing imported:
+
+- files naming a family: modules whose code (names, attributes, imports and string constants; not
+  docstrings or comments) names one of the family's markers below, and the subpackages they lie in;
+- kind checks: `isinstance(x, C)` where C is a network or predictor class of a family, and reads of
+  the flags that said which family a model was (`.follow`, `.stateful`, `.refiner`, `.refined`,
+  `._follower`, `.fold_gate is None/not None`), outside the family's own folder (`ctrkin/families/<name>`);
+- the longest functions (lines from `def` to the last line of the body) and the modules over 500 lines.
+
+Prints the tables, then one JSON line of the figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import re
+from collections import defaultdict
+from pathlib import Path
+
+# what names a family in code: identifiers (whole words) and string constants (whole strings)
+FAMILIES = {
+    "snap_aware": {"names": {"BranchNet", "FoldGate", "fold_gate", "branch_labels", "relay_scan",
+                             "build_fold_gate", "_BranchBatch", "branch_states", "BranchRecipe",
+                             "SnapAwarePredictor", "FOLD_GATE_FILE"},
+                   "strings": {"lstm_mlp_branch"}},
+    "follow": {"names": {"Follower", "follow_features", "train_follow", "joint_noise", "substeps",
+                         "FollowRecipe", "FollowPredictor", "_follower", "follower_lag"},
+               "strings": {"follow_mlp"}},
+    "refined": {"names": {"RefineSettings", "FKResidual", "refine", "assemble_refined", "REFINE_FILE",
+                          "RefinedPredictor", "attach_fk", "refiner"},
+                "strings": {"refine.json"}},
+}
+KIND_CLASSES = {"BranchNet", "SeqNet", "CNN", "TCN", "ResNet", "KinematicsNet", "Follower", "Kinematics",
+                "FoldGate", "SequenceFK", "SnapAwarePredictor", "FollowPredictor", "RefinedPredictor"}
+FLAG_ATTRS = {"follow", "stateful", "refiner", "refined", "_follower"}
+
+
+def _docstrings(tree: ast.AST) -> set[int]:
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            body = getattr(node, "body", [])
+            if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
+                out.add(id(body[0].value))
+    return out
+
+
+def _names(tree: ast.AST) -> tuple[set[str], set[str]]:
+    """Identifiers and (non-docstring) string constants of a module."""
+    docs = _docstrings(tree)
+    names: set[str] = set()
+    strings: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Name):
+            names.add(node.id)
+        elif isinstance(node, ast.Attribute):
+            names.add(node.attr)
+        elif isinstance(node, ast.alias):
+            names |= set(node.name.split(".")) | ({node.asname} if node.asname else set())
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            names |= set(node.module.split("."))
+        elif isinstance(node, (ast.FunctionDef, ast.ClassDef, ast.AsyncFunctionDef)):
+            names.add(node.name)
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docs:
+            strings.add(node.value)
+    return names, strings
+
+
+def _own_family(rel: Path) -> str | None:
+    parts = rel.parts
+    return parts[1] if len(parts) > 2 and parts[0] == "families" else None
+
+
+def _kind_checks(tree: ast.AST) -> list[tuple[int, str]]:
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "isinstance" \
+                and len(node.args) == 2:
+            target = node.args[1]
+            classes = target.elts if isinstance(target, ast.Tuple) else [target]
+            hit = [c.id if isinstance(c, ast.Name) else c.attr for c in classes
+                   if isinstance(c, (ast.Name, ast.Attribute))]
+            hit = [h for h in hit if h in KIND_CLASSES]
+            if hit:
+                out.append((node.lineno, f"isinstance {','.join(hit)}"))
+        elif isinstance(node, ast.Attribute) and node.attr in FLAG_ATTRS and isinstance(node.ctx, ast.Load):
+            out.append((node.lineno, f".{node.attr}"))
+        elif isinstance(node, ast.Compare) and isinstance(node.left, ast.Attribute) \
+                and node.left.attr in ("fold_gate", "_fold_gate") \
+                and any(isinstance(op, (ast.Is, ast.IsNot)) for op in node.ops):
+            out.append((node.lineno, f".{node.left.attr} is (not) None"))
+    return out
+
+
+def _functions(tree: ast.AST, rel: str) -> list[tuple[int, str]]:
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            out.append((node.end_lineno - node.lineno + 1, f"{rel}:{node.lineno} {node.name}"))
+    return out
+
+
+def measure(src: Path, top: int) -> dict:
+    per_family: dict[str, set[str]] = defaultdict(set)
+    kinds: list[str] = []
+    functions: list[tuple[int, str]] = []
+    big: list[tuple[int, str]] = []
+    for path in sorted(src.rglob("*.py")):
+        rel = path.relative_to(src)
+        text = path.read_text(encoding="utf-8")
+        tree = ast.parse(text)
+        names, strings = _names(tree)
+        for fam, marks in FAMILIES.items():
+            if names & marks["names"] or strings & marks["strings"]:
+                per_family[fam].add(str(rel))
+        if _own_family(rel) is None:
+            kinds += [f"{rel}:{line} {what}" for line, what in sorted(_kind_checks(tree))]
+        functions += _functions(tree, str(rel))
+        lines = text.count("\n")
+        if lines > 500:
+            big.append((lines, str(rel)))
+    functions.sort(key=lambda f: (-f[0], f[1]))
+    fam_rows = {}
+    for fam in FAMILIES:
+        files = sorted(per_family[fam])
+        subs = sorted({f.split("/")[0] if "/" in f else "(root)" for f in files})
+        outside = [f for f in files if not re.match(rf"families/{fam}/", f)]
+        fam_rows[fam] = {"files": len(files), "subpackages": len(subs), "outside_own_folder": len(outside),
+                         "where": subs, "outside": outside}
+    return {"families": fam_rows, "kind_checks": kinds, "longest": functions[:top],
+            "big_modules": sorted(big, reverse=True)}
+
+
+def _files(rows: list[str]) -> int:
+    return len({k.split(":")[0] for k in rows})
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--src", type=Path, default=Path(__file__).resolve().parents[1] / "src" / "ctrkin")
+    ap.add_argument("--top", type=int, default=10)
+    args = ap.parse_args()
+    m = measure(args.src, args.top)
+    print(f"source: {args.src}")
+    print("\nfamily      files subpackages outside-own-folder  where")
+    for fam, r in m["families"].items():
+        print(f"{fam:11s} {r['files']:5d} {r['subpackages']:11d} {r['outside_own_folder']:18d}  "
+              f"{', '.join(r['where'])}")
+        for f in r["outside"]:
+            print(f"{'':12s}  {f}")
+    isinst = [k for k in m["kind_checks"] if " isinstance " in k]
+    flags = [k for k in m["kind_checks"] if " isinstance " not in k]
+    for title, rows in (("isinstance on model kinds", isinst), ("model-kind flag reads", flags)):
+        print(f"\n{title} outside a family's own folder: {len(rows)} in {_files(rows)} files")
+        for k in rows:
+            print(f"  {k}")
+    print("\nlongest functions (lines):")
+    for n, where in m["longest"]:
+        print(f"  {n:4d}  {where}")
+    print(f"\nmodules over 500 lines: {', '.join(f'{p} ({n})' for n, p in m['big_modules']) or 'none'}")
+    print(json.dumps({
+        **{f"{fam}_files": r["files"] for fam, r in m["families"].items()},
+        **{f"{fam}_outside_own_folder": r["outside_own_folder"] for fam, r in m["families"].items()},
+        "isinstance_sites": len(isinst), "isinstance_files": _files(isinst),
+        "flag_reads": len(flags), "flag_read_files": _files(flags),
+        "longest_function_lines": m["longest"][0][0] if m["longest"] else 0,
+        "top_function_lines": [n for n, _ in m["longest"]],
+        "modules_over_500": len(m["big_modules"]),
+    }))
+
+
+if __name__ == "__main__":
+    main()
