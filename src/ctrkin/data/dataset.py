@@ -17,12 +17,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ctrkin import __version__
 from ctrkin.data import schema
 from ctrkin.data.splits import Split, split_by_sequence
 from ctrkin.errors import DatasetError, RobotDescriptionError
 from ctrkin.robots.robot import Robot
 from ctrkin.util.folders import file_hash, folder_lock, recover, swap_in
+from ctrkin.version import __version__
 
 DATA_FILE = "data.parquet"
 META_FILE = "meta.json"

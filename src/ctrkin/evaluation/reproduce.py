@@ -13,7 +13,6 @@ from typing import Any
 
 import numpy as np
 
-from ctrkin import __version__
 from ctrkin.evaluation import experiments_fk, experiments_ik, grids
 from ctrkin.evaluation.context import FK_ROWS, IK_ROWS, RECOMMENDED, Context
 from ctrkin.evaluation.datasets import ReproData, collect
@@ -32,6 +31,7 @@ from ctrkin.evaluation.tcm_baseline import TCMBaseline
 from ctrkin.evaluation.training_runs import train_all
 from ctrkin.inference import Kinematics
 from ctrkin.robots.robot import Robot
+from ctrkin.version import __version__
 
 NOTES = [
     "The robot is the virtual robot (the TCM with perturbed tubes, backlash, friction, tracker noise, "

@@ -30,7 +30,6 @@ from typing import Any
 
 import torch
 
-from ctrkin import __version__
 from ctrkin.errors import ModelError
 from ctrkin.models.base import KinematicsNet
 from ctrkin.models.features import FeatureLayout
@@ -40,6 +39,7 @@ from ctrkin.models.registry import build_model
 from ctrkin.robots.robot import Robot
 from ctrkin.util.files import atomic_write_bytes, atomic_write_text
 from ctrkin.util.folders import check_manifest, write_manifest
+from ctrkin.version import __version__
 
 CONFIG, FEATURES, NORMALIZATION, ROBOT, WEIGHTS = ("config.json", "features.json", "normalization.json",
                                                    "robot.json", "weights.pt")
