@@ -48,6 +48,7 @@ import tomli_w
 import torch
 
 from ctrkin import Robot, Tube, follow, paper_robot, solve
+from ctrkin.acquisition.demo import sweep_dataset
 from ctrkin.data import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
 from ctrkin.data.schema import POSE_COLUMNS
@@ -56,7 +57,6 @@ from ctrkin.inference import Kinematics
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS
 from ctrkin.pose import tangent_from_quat
 from ctrkin.training import TrainConfig, train
-from ctrkin.training.demo import sweep_dataset
 
 HANG_S = 10.0
 OUTCOMES = ("ok", "clear", "flagged", "crash", "silent", "hang")

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
+from ctrkin.acquisition.demo import sweep_dataset
 from ctrkin.inference.refine_folder import assemble_refined
 from ctrkin.robots import paper_robot
 from ctrkin.training import TrainConfig, train
-from ctrkin.training.demo import sweep_dataset
 
 
 @pytest.fixture(scope="session")

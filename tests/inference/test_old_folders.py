@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ctrkin.acquisition.demo import sweep_dataset
 from ctrkin.inference import Kinematics
 from ctrkin.robots import paper_robot
-from ctrkin.training.demo import sweep_dataset
 
 FOLDERS = Path(__file__).parent / "old_folders" / "main_94a32c9"
 NAMES = ("fk_lstm_mlp", "ik_lstm_mlp", "fk_cnn", "fk_lstm_mlp_branch", "ik_follow_mlp", "ik_lstm_mlp_refined")

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
+from ctrkin.acquisition.demo import sweep_dataset
 from ctrkin.robots import paper_robot
-from ctrkin.training.demo import sweep_dataset
 
 
 @pytest.fixture(scope="session")

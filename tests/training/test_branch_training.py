@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ctrkin.acquisition.demo import sweep_dataset
 from ctrkin.data import Split
 from ctrkin.evaluation.snapping import azimuth_series, snap_score
 from ctrkin.inference import Kinematics
 from ctrkin.robots import paper_robot
 from ctrkin.training import TrainConfig, train
-from ctrkin.training.demo import sweep_dataset
 
 
 def test_branch_model_finds_both_jumps_of_a_turn_it_never_saw(tmp_path):

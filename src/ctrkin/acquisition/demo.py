@@ -1,6 +1,6 @@
 """A small TCM-made dataset for demos and tests, without the virtual robot.
 
-    from ctrkin.training.demo import sweep_dataset
+    from ctrkin.acquisition.demo import sweep_dataset
     ds = sweep_dataset(ctrkin.paper_robot(), translations=(8, 20))   # d = 20 mm snaps on the paper robot
 
 Each sequence is one paper rotation sweep (inner tube start -> +360° -> start, Fig. 2b) followed by

@@ -16,11 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ctrkin.acquisition.demo import sweep_dataset
 from ctrkin.inference import Kinematics
 from ctrkin.inference.refine_folder import assemble_refined
 from ctrkin.robots import paper_robot
 from ctrkin.training import TrainConfig, train
-from ctrkin.training.demo import sweep_dataset
 
 
 def dataset():
