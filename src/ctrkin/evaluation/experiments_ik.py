@@ -23,7 +23,7 @@ from ctrkin.evaluation.context import (
 from ctrkin.evaluation.training_runs import FK_BRANCH
 from ctrkin.inference.kinematics import IKResult
 from ctrkin.metrics import joint_errors
-from ctrkin.models.fold_gate import outer_motion, recorded_motion
+from ctrkin.models.motion import outer_motion, recorded_motion
 from ctrkin.models.outer_lag import lag_deg
 from ctrkin.virtual import VirtualRobot
 from ctrkin.virtual.transmission import clip_to_valid

@@ -45,9 +45,10 @@ from ctrkin.models.features import (
     step_features,
     window_index,
 )
-from ctrkin.models.fold_gate import FOLD_GATE_FILE, FoldGate, outer_motion, recorded_motion, run_continues
+from ctrkin.models.fold_gate import FOLD_GATE_FILE, FoldGate
 from ctrkin.models.follower import Follower
 from ctrkin.models.frame import OuterFrame, local_tips_to_world
+from ctrkin.models.motion import outer_motion, recorded_motion, run_continues
 from ctrkin.models.outer_lag import lag_one
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle, read_json

@@ -38,7 +38,6 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numba import njit
@@ -93,7 +92,7 @@ class FoldGate:
     def states(self, alpha0: np.ndarray, betas: np.ndarray, outer_motion: np.ndarray,
                bounds: list[tuple[int, int]], continues: list[bool] | None = None) -> np.ndarray:
         """(T,) int8 branch states along each sequence. alpha0 (T,) deg, betas (T, N) mm,
-        outer_motion (T,) m_N (ctrkin.models.fold_gate.outer_motion); continues: per sequence, True
+        outer_motion (T,) m_N (ctrkin.models.motion.outer_motion); continues: per sequence, True
         where it continues the previous one's run (the branch is kept across the unrecorded move)."""
         phi = np.ascontiguousarray(phase_deg(alpha0), dtype=np.float64)
         hi, lo = self.thresholds(betas, outer_motion)
@@ -145,7 +144,8 @@ def build_fold_gate(robot: Robot, joints: np.ndarray, snap: np.ndarray, bounds: 
                     progress: Callable[[int, int], None] | None = None) -> FoldGate:
     """The fold gate of `robot` over the translations of `joints` (T, 2N) (the training rows), its
     offsets fitted to the snaps flagged in `snap` (T,) within `bounds`; motion (T,): m_N of each row
-    (`outer_motion`, computed on the whole dataset so that runs are followed across the split).
+    (ctrkin.models.motion.outer_motion, computed on the whole dataset so that runs are followed
+    across the split).
     spacing_mm: grid step, widened until the grid has at most MAX_GRID_POINTS points.
     progress(done, total) after each grid point."""
     joints = np.asarray(joints, float)
@@ -168,46 +168,6 @@ def build_fold_gate(robot: Robot, joints: np.ndarray, snap: np.ndarray, bounds: 
     table = FoldGate(axes, fwd.reshape(shape), bwd.reshape(shape))
     widen, lag = _fit_offsets(table, joints, snap, bounds, np.asarray(motion), n)
     return FoldGate(axes, table.forward, table.backward, widen, lag)
-
-
-def run_continues(bounds: list[tuple[int, int]], runs: np.ndarray | None) -> list[bool]:
-    """Per sequence: does it continue the run of the sequence before it (file order)?"""
-    if runs is None:
-        return [False] * len(bounds)
-    return [k > 0 and b > a and bounds[k - 1][1] > bounds[k - 1][0] and runs[a] == runs[bounds[k - 1][1] - 1]
-            for k, (a, b) in enumerate(bounds)]
-
-
-def recorded_motion(frame: Any, joints: np.ndarray, bounds: list[tuple[int, int]], n_tubes: int
-                    ) -> tuple[np.ndarray, np.ndarray | None]:
-    """m_N (T,) of a dataset's rows and its runs (T,) (None without a `run` column): `outer_motion`
-    followed across the runs of `frame` (a Dataset's frame), its `outlier` rows skipped."""
-    runs = frame["run"].to_numpy() if "run" in frame.columns else None
-    return outer_motion(joints, bounds, n_tubes, runs, frame["outlier"].to_numpy()), runs
-
-
-def outer_motion(joints: np.ndarray, bounds: list[tuple[int, int]], n_tubes: int,
-                 runs: np.ndarray | None = None, skip: np.ndarray | None = None) -> np.ndarray:
-    """(T,) int8 m_N: the sign of the outer tube's last rotation up to each row (0: none since rest).
-    Sequences of one run (runs (T,), in file order) are one path: the unrecorded move between them
-    counts as a rotation from the end of one to the start of the next. Without runs every sequence
-    starts at rest. skip (T,): rows whose joints are not to be believed (encoder glitches)."""
-    alpha = np.asarray(joints, float)[:, n_tubes - 1].copy()
-    if skip is not None:                       # a glitch row repeats the last believed angle
-        for g in np.nonzero(skip)[0]:
-            alpha[g] = alpha[g - 1] if g > 0 else alpha[g]
-    out = np.zeros(len(alpha), dtype=np.int8)
-    cur, last = 0, 0.0
-    for (a, b), cont in zip(bounds, run_continues(bounds, runs), strict=True):
-        if not cont:                           # at rest: `last` is the end of the previous sequence
-            cur, last = 0, alpha[a] if b > a else last
-        for t in range(a, b):
-            d = alpha[t] - last
-            if abs(d) > 1e-9:
-                cur = 1 if d > 0 else -1
-            out[t] = cur
-            last = alpha[t]
-    return out
 
 
 def _fit_offsets(gate: FoldGate, joints: np.ndarray, snap: np.ndarray, bounds: list[tuple[int, int]],

@@ -12,8 +12,8 @@ from ctrkin.data.splits import Split, random_split, split_by_sequence
 from ctrkin.errors import ModelError
 from ctrkin.models.branch_labels import branch_labels, previous_labels
 from ctrkin.models.features import FeatureLayout, sequence_features, windows
-from ctrkin.models.fold_gate import recorded_motion
 from ctrkin.models.frame import OuterFrame
+from ctrkin.models.motion import recorded_motion
 from ctrkin.models.normalize import MinMax
 from ctrkin.models.outer_lag import fit_outer_lag
 from ctrkin.training.config import TrainConfig

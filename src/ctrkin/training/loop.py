@@ -31,7 +31,8 @@ from ctrkin.errors import ModelError
 from ctrkin.metrics import metrics_json_joint_errors, metrics_json_pose_errors
 from ctrkin.models.branch import UNKNOWN_STATE, BranchNet
 from ctrkin.models.features import postprocess
-from ctrkin.models.fold_gate import FoldGate, build_fold_gate, recorded_motion
+from ctrkin.models.fold_gate import FoldGate, build_fold_gate
+from ctrkin.models.motion import recorded_motion
 from ctrkin.models.registry import get_entry
 from ctrkin.models.store import ModelBundle, write_json
 from ctrkin.models.workspace import Workspace
