@@ -34,6 +34,7 @@ from ctrkin.inference.batch import padded_rows, seqnet_predict, seqnet_trunk
 from ctrkin.inference.fused import DECLINED, FusedFK
 from ctrkin.inference.guards import FKGuard, check_pose_step, real_array
 from ctrkin.inference.refine import FKResidual, RefineSettings, refine
+from ctrkin.metrics import wrap_deg
 from ctrkin.models.branch import BranchNet
 from ctrkin.models.engine import StreamingEngine
 from ctrkin.models.features import (
@@ -681,7 +682,7 @@ class Kinematics:
         if self._ik_prev is not None:
             n = self.layout.n_tubes
             moved = float(np.linalg.norm(raw[:3] - self._ik_prev[0][:3]))
-            turned = np.abs((q[:n] - self._ik_prev[1][:n] + 180.0) % 360.0 - 180.0)
+            turned = np.abs(wrap_deg(q[:n] - self._ik_prev[1][:n]))
             jump = bool(moved < JUMP_TARGET_MM and turned.max() > JUMP_DEG)
         self._ik_prev = (raw, q)
         return IKStep(q, ok, reason, projected, residual, jump)
@@ -719,6 +720,6 @@ def _jumps(targets: np.ndarray, joints: np.ndarray, bounds: list[tuple[int, int]
         if b - a < 2:
             continue
         moved = np.linalg.norm(np.diff(targets[a:b, :3], axis=0), axis=1)
-        turned = np.abs((np.diff(joints[a:b, :n], axis=0) + 180.0) % 360.0 - 180.0).max(axis=1)
+        turned = np.abs(wrap_deg(np.diff(joints[a:b, :n], axis=0))).max(axis=1)
         out[a + 1:b] = (moved < JUMP_TARGET_MM) & (turned > JUMP_DEG)
     return out

@@ -29,6 +29,7 @@ import numpy as np
 
 from ctrkin.errors import ModelError
 from ctrkin.geometry import tangent_from_quat
+from ctrkin.metrics import wrap_deg
 
 
 @dataclass(frozen=True)
@@ -161,7 +162,7 @@ def refine(res: FKResidual, starts: list[tuple[str, np.ndarray]], target: np.nda
 
 def _wrap_diff(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
     d = np.asarray(a, float) - np.asarray(b, float)
-    d[:n] = (d[:n] + 180.0) % 360.0 - 180.0
+    d[:n] = wrap_deg(d[:n])
     return d
 
 

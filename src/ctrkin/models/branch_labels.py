@@ -23,12 +23,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from ctrkin.metrics import wrap_deg
+
 BAND_DEG = 90.0
 
 
 def phase_deg(alpha0: np.ndarray) -> np.ndarray:
     """φ = α0 − 180° wrapped to [−180°, 180°) (deg)."""
-    return (np.asarray(alpha0, float) - 180.0 + 180.0) % 360.0 - 180.0
+    return wrap_deg(np.asarray(alpha0, float) - 180.0)
 
 
 def snap_events(snap: np.ndarray, a: int, b: int) -> np.ndarray:

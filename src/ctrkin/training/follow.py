@@ -25,7 +25,7 @@ from tqdm.auto import tqdm
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.schema import sequence_bounds
 from ctrkin.errors import ModelError
-from ctrkin.metrics import metrics_json_joint_errors
+from ctrkin.metrics import metrics_json_joint_errors, wrap_deg
 from ctrkin.models.features import check_raw
 from ctrkin.models.follow import follow_features, joint_noise, previous_rows
 from ctrkin.models.follower import Follower
@@ -170,7 +170,7 @@ def train_follow(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, prog
 def _on_branch(q: np.ndarray, ref: np.ndarray, n: int) -> np.ndarray:
     """(M,) rows whose joints q are within ONPOLICY_DEG / ONPOLICY_MM of ref (the recorded branch:
     the recorded next joints are then the right label; on a mirror solution they are not)."""
-    da = np.abs((q[:, :n] - ref[:, :n] + 180.0) % 360.0 - 180.0).max(axis=1)
+    da = np.abs(wrap_deg(q[:, :n] - ref[:, :n])).max(axis=1)
     return (da < ONPOLICY_DEG) & (np.abs(q[:, n:] - ref[:, n:]).max(axis=1) < ONPOLICY_MM)
 
 
