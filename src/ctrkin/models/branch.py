@@ -29,9 +29,7 @@ import torch
 from torch import nn
 
 from ctrkin.errors import ModelError
-from ctrkin.models.seqnet import SeqNet
-
-UNKNOWN_STATE = 0.5
+from ctrkin.models.seqnet import UNKNOWN_STATE, SeqNet
 
 
 class BranchNet(SeqNet):
@@ -65,6 +63,12 @@ class BranchNet(SeqNet):
         for layer in layers:
             h = torch.relu(layer(h))                         # eq. (6)
         return self.finish(out(h))                           # eq. (7)
+
+    def heads(self) -> list[tuple[nn.ModuleList, nn.Linear]]:
+        return [(self.head, self.out), (self.head1, self.out1)]
+
+    def gate_layers(self) -> nn.ModuleList | None:
+        return self.gate
 
     def gate_logit(self, h: torch.Tensor, s_prev: torch.Tensor) -> torch.Tensor:
         """h: (B, W) trunk features, s_prev: (B,) previous state -> (B,) logit of s_t = 1."""
