@@ -27,8 +27,8 @@ import numpy as np
 import torch
 
 from ctrkin.inference import Kinematics
-from ctrkin.inference.batch import padded_rows, seqnet_predict
 from ctrkin.models import SeqNet
+from ctrkin.models.batch import padded_rows, seqnet_predict
 
 
 def _latency(fn: Any, inputs: np.ndarray, warmup: int = 500) -> dict[str, float]:

@@ -200,7 +200,7 @@ def _lagged(model_dirs, inputs: bool = False, lag: tuple[float, float] = (0.8, 0
     from dataclasses import replace
 
     kin = Kinematics.load(model_dirs["fk_branch"])
-    kin.frame = replace(kin.frame, lag=lag, lagged_inputs=inputs)
+    kin.predictor.frame = replace(kin.frame, lag=lag, lagged_inputs=inputs)
     return kin
 
 

@@ -33,7 +33,8 @@ from ctrkin.training.config import TrainConfig
 def _list_models(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
     if not value or ctx.resilient_parsing:
         return
-    from ctrkin.models import MODELS, STRUCTURES
+    from ctrkin.families.registry import MODELS
+    from ctrkin.models import STRUCTURES
 
     for name, e in MODELS.items():
         click.echo(f"{name:20s} {e.description}")
@@ -45,7 +46,7 @@ def _check_model_folder(out: Path, overwrite: bool) -> None:
     """The output rule for a model folder: the same setup resumes, another model needs --overwrite
     (ctrkin.training checks both); anything else in --out is refused here unless --overwrite."""
     from ctrkin.models.store import CONFIG
-    from ctrkin.training.loop import CHECKPOINT
+    from ctrkin.training.engine import CHECKPOINT
 
     if not ((out / CONFIG).is_file() or (out / CHECKPOINT).is_file()):
         check_output(out, overwrite)

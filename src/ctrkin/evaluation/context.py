@@ -15,18 +15,17 @@ from ctrkin.evaluation.tcm_baseline import TCMBaseline
 from ctrkin.evaluation.training_runs import FK_BRANCH, FK_PAPER, IK_FOLLOW, IK_PAPER, IK_REFINED
 from ctrkin.inference import Kinematics
 from ctrkin.metrics import pose_errors
-from ctrkin.models.branch_labels import branch_labels
 
 # learned rows of every FK / IK experiment: results name -> model folder. The recommended model's
 # figures are also written under the headline name "lstm_mlp" (results.json keeps its keys).
 FK_ROWS = {"lstm_mlp_paper": FK_PAPER, "lstm_mlp_branch": FK_BRANCH}
 IK_ROWS = {"lstm_mlp_paper": IK_PAPER, "lstm_mlp_refined": IK_REFINED, "follow_mlp": IK_FOLLOW}
-# the follow IK (from the current joints, ctrkin.models.follow) reaches the targets the direct
+# the follow IK (from the current joints, ctrkin.families.follow.features) reaches the targets the direct
 # networks miss by millimetres (docs/reproduction.md)
 RECOMMENDED = {"fk": "lstm_mlp_branch", "ik": "follow_mlp"}
 # ablation rows: the snap-aware model's heads, branch state from the nominal TCM continued along the
 # same joint path (physics gate; batch evaluation only, not a streaming model), and from the model's
-# learned gate instead of its fold gate (ctrkin.models.fold_gate)
+# learned gate instead of its fold gate (ctrkin.families.snap_aware.fold_gate)
 TCM_GATED = "lstm_mlp_branch_tcm_gate"
 LEARNED_GATE = "lstm_mlp_branch_learned_gate"
 HEADLINE = "lstm_mlp"
@@ -72,15 +71,12 @@ class Context:
 
     def fk_tcm_gated(self, ds: Dataset) -> np.ndarray:
         """(T, 6) the snap-aware FK model with its branch state taken from the continued TCM (its
-        snaps labelled by the training rule, ctrkin.models.branch_labels) instead of its gate."""
+        snaps labelled by the training rule, ctrkin.families.snap_aware.labels) instead of its gate."""
         key = ("fk_tcm_gated", id(ds))
         if key not in self._cache:
             self.tcm_continued(ds)
             snaps = self._cache[("tcm_snaps", id(ds))]
-            n = ds.n_tubes
-            q = ds.joints()
-            states, _ = branch_labels(q[:, 0] - q[:, n - 1], snaps, ds.sequence_bounds())
-            self._cache[key] = np.asarray(self.models[FK_BRANCH].predict(ds, branch_states=states), float)
+            self._cache[key] = np.asarray(self.models[FK_BRANCH].predict(ds, snaps=snaps), float)
         return self._cache[key]
 
     def tcm_rows(self, ds: Dataset, rows: np.ndarray, desc: str) -> tuple[np.ndarray, np.ndarray]:

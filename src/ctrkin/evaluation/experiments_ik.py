@@ -1,6 +1,6 @@
 """Inverse-kinematics experiments: held-out sequences, 20 random poses (Fig. 11) and the square and
 triangle paths (Fig. 12), for every IK row (the paper's LSTM-MLP, and the same network refined on the
-snap-aware FK, ctrkin.inference.refine). Predicted joints are checked two ways: through the learned
+snap-aware FK, ctrkin.families.refined.refine). Predicted joints are checked two ways: through the learned
 FK model (as the paper did) and by driving the virtual robot to them (what hardware would do)."""
 
 from __future__ import annotations
@@ -103,7 +103,7 @@ def ik_heldout(ctx: Context) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for name, folder in IK_ROWS.items():
         rows = all_rows
-        if ctx.models[folder].refined:
+        if getattr(ctx.models[folder], "refined", False):
             first = np.unique(sid[all_rows])[:REFINED_HELDOUT_SEQUENCES]
             rows = all_rows[np.isin(sid[all_rows], first)]
         b = sequence_bounds(sid[rows])

@@ -29,7 +29,7 @@ class ReproScale:
     """paper_levels / paper_outer_step_deg: the training protocol (None: the protocol's own);
     main: the LSTM-MLP FK and IK models (the paper's); branch: the snap-aware FK model
     (lstm_mlp_branch, the recommended FK); follow: the follow IK (follow_mlp, the recommended IK,
-    ctrkin.models.follow); compare: baselines and the Δα0 ablation; grid: the IB and
+    ctrkin.families.follow.features); compare: baselines and the Δα0 ablation; grid: the IB and
     structure grids (Tables II, III); grid_sequences: how many training sequences the grid and
     comparison models see (None: all); ib_grid / structure_grid: what the grids cover."""
 

@@ -1,7 +1,7 @@
 """Every model a reproduction trains: the paper's LSTM-MLP FK and IK models, the snap-aware FK
 model (lstm_mlp_branch), the baselines and the Δα0 ablation (Fig. 5), and the input-buffer and
 structure grids (Tables II, III). The refined IK (the IK model refined on the snap-aware FK,
-ctrkin.inference.refine) is assembled from two trained folders, not trained.
+ctrkin.families.refined.refine) is assembled from two trained folders, not trained.
 
 All runs use the same by-sequence split of the paper dataset (saved in it), so every model is tested
 on the same held-out sequences. Grid and comparison models may see fewer training sequences
@@ -20,10 +20,10 @@ import numpy as np
 from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.executors import run_jobs
 from ctrkin.evaluation.scales import Budget, ReproScale
+from ctrkin.families.refined.folder import assemble_refined
 from ctrkin.inference import Kinematics
-from ctrkin.inference.refine_folder import assemble_refined
 from ctrkin.training.config import TrainConfig
-from ctrkin.training.loop import train
+from ctrkin.training.engine import train
 from ctrkin.util.progress import progress_bar
 
 BASELINES = ("mlp", "lstm", "cnn", "tcn", "resnet")

@@ -61,7 +61,7 @@ def _lstm_rows(inp: np.ndarray, shared: bool, w_ih: np.ndarray, w_hh: np.ndarray
     inp: (R, in) inputs (row 0 only if `shared`); h_prev, c_prev: (R, H) chain states, row j is the
     chain that becomes row j+1; row 0 of the result starts from zero state. The result is computed
     in h_new, c_new (scratch) and copied back into h_prev, c_prev, so the state arrays keep their
-    identity (the fused FK step, ctrkin.inference.fused, holds them).
+    identity (the fused FK step, ctrkin.models.fused, holds them).
     w_ih, w_hh, b have the cell-candidate rows doubled, so that tanh(g) = 2·σ(2g) − 1 comes out of
     one sigmoid pass over all gates. Scratch: g (R, 4H), t (R, H), bits (R·4H,) int64.
     """

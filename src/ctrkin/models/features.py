@@ -39,7 +39,7 @@ class FeatureLayout:
     task: "fk" (joints -> tip pose) or "ik" (tip poses -> joints); n_tubes: N; ib: input buffer length
     (current + IB−1 previous steps, 1..5 in the paper); delta: include Δα0 (FK) or the pose deltas (IK);
     angle_encoding: "minmax" (paper), "sincos" or "phase" (FK inputs only; module docstring);
-    follow: IK only, the follow IK of ctrkin.models.follow (inputs: the target in the frame of the
+    follow: IK only, the follow IK of ctrkin.families.follow.features (inputs: the target in the frame of the
     current outer tube, its step change and the current joints; outputs: the joint change).
     """
 
@@ -65,7 +65,7 @@ class FeatureLayout:
             raise ModelError(f"angle_encoding={self.angle_encoding!r} applies to FK inputs only; use "
                              "'minmax' for IK")
         if self.follow and (self.task != "ik" or self.ib != 1):
-            raise ModelError("follow=True is an IK layout with input buffer 1 (ctrkin.models.follow)")
+            raise ModelError("follow=True is an IK layout with input buffer 1 (ctrkin.families.follow)")
         n = self.n_tubes
         alphas, betas = alpha_names(n), beta_names(n)
         if self.task == "fk":
@@ -168,7 +168,7 @@ def delta_columns(layout: FeatureLayout) -> np.ndarray:
 
 def _features(layout: FeatureLayout, cur: np.ndarray, prev: np.ndarray) -> np.ndarray:
     if layout.follow:
-        raise ModelError("a follow IK's features depend on the current joints: see ctrkin.models.follow")
+        raise ModelError("a follow IK's features depend on the current joints: see ctrkin.families.follow")
     n = layout.n_tubes
     if layout.task == "ik":
         cols = [cur] + ([cur - prev] if layout.delta else [])

@@ -107,7 +107,7 @@ def _pair_lags(phi: np.ndarray, ang: np.ndarray, m: int, lam: float, rest: np.nd
         w = (target - phi[lo]) / span if span > 1e-9 else 0.0
         a_hi = ang[lo] + (ang[hi] - ang[lo] + 180.0) % 360.0 - 180.0
         a_p = (1.0 - w) * ang[lo] + w * a_hi
-        diff = wrap_deg(a_p - ang[r])
+        diff = float(wrap_deg(a_p - ang[r]))
         out.append(-diff / m)
     return out
 

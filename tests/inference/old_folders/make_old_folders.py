@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from ctrkin.acquisition.demo import sweep_dataset
+from ctrkin.families.refined.folder import assemble_refined
 from ctrkin.inference import Kinematics
-from ctrkin.inference.refine_folder import assemble_refined
 from ctrkin.robots import paper_robot
 from ctrkin.training import TrainConfig, train
 
