@@ -11,6 +11,8 @@ Read from the source with `ast`, nothing imported:
 - kind checks: `isinstance(x, C)` where C is a network or predictor class of a family, and reads of
   the flags that said which family a model was (`.follow`, `.stateful`, `.refiner`, `.refined`,
   `._follower`, `.fold_gate is None/not None`), outside the family's own folder (`ctrkin/families/<name>`);
+- report rows: modules of evaluation/ and viz/ whose strings spell a predictor row of the report (a
+  results.json key such as "lstm_mlp_branch"; a registry model name counts too);
 - the longest functions (lines from `def` to the last line of the body) and the modules over 500 lines.
 
 Prints the tables, then one JSON line of the figures.
@@ -38,6 +40,10 @@ FAMILIES = {
                           "RefinedPredictor", "attach_fk", "refiner"},
                 "strings": {"refine.json"}},
 }
+# the report's predictor rows (results.json keys): modules that spell them as strings ("tcm" aside:
+# the TCM itself is also a predictor spec of `ctrkin evaluate` and a key of the paper's numbers)
+REPORT_NAMES = {"lstm_mlp_paper", "lstm_mlp_branch", "lstm_mlp_refined", "follow_mlp", "tcm_continued",
+                "lstm_mlp_branch_tcm_gate", "lstm_mlp_branch_learned_gate"}
 KIND_CLASSES = {"BranchNet", "SeqNet", "CNN", "TCN", "ResNet", "KinematicsNet", "Follower", "Kinematics",
                 "FoldGate", "SequenceFK", "SnapAwarePredictor", "FollowPredictor", "RefinedPredictor"}
 FLAG_ATTRS = {"follow", "stateful", "refiner", "refined", "_follower"}
@@ -113,6 +119,7 @@ def measure(src: Path, top: int) -> dict:
     kinds: list[str] = []
     functions: list[tuple[int, str]] = []
     big: list[tuple[int, str]] = []
+    named: list[str] = []
     for path in sorted(src.rglob("*.py")):
         rel = path.relative_to(src)
         text = path.read_text(encoding="utf-8")
@@ -121,6 +128,8 @@ def measure(src: Path, top: int) -> dict:
         for fam, marks in FAMILIES.items():
             if names & marks["names"] or strings & marks["strings"]:
                 per_family[fam].add(str(rel))
+        if rel.parts[0] in ("evaluation", "viz") and strings & REPORT_NAMES:
+            named.append(str(rel))
         if _own_family(rel) is None:
             kinds += [f"{rel}:{line} {what}" for line, what in sorted(_kind_checks(tree))]
         functions += _functions(tree, str(rel))
@@ -135,7 +144,7 @@ def measure(src: Path, top: int) -> dict:
         outside = [f for f in files if not re.match(rf"families/{fam}/", f)]
         fam_rows[fam] = {"files": len(files), "subpackages": len(subs), "outside_own_folder": len(outside),
                          "where": subs, "outside": outside}
-    return {"families": fam_rows, "kind_checks": kinds, "longest": functions[:top],
+    return {"families": fam_rows, "kind_checks": kinds, "longest": functions[:top], "report_names": named,
             "big_modules": sorted(big, reverse=True)}
 
 
@@ -162,6 +171,8 @@ def main() -> None:
         print(f"\n{title} outside a family's own folder: {len(rows)} in {_files(rows)} files")
         for k in rows:
             print(f"  {k}")
+    print(f"\nmodules spelling the report's predictor rows: {len(m['report_names'])}: "
+          f"{', '.join(m['report_names'])}")
     print("\nlongest functions (lines):")
     for n, where in m["longest"]:
         print(f"  {n:4d}  {where}")
@@ -174,6 +185,7 @@ def main() -> None:
         "longest_function_lines": m["longest"][0][0] if m["longest"] else 0,
         "top_function_lines": [n for n, _ in m["longest"]],
         "modules_over_500": len(m["big_modules"]),
+        "report_name_modules": len(m["report_names"]),
     }))
 
 

@@ -20,16 +20,12 @@ import numpy as np
 from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.executors import run_jobs
 from ctrkin.evaluation.scales import Budget, ReproScale
+from ctrkin.evaluation.table import ABLATION, BASELINES, FK_BRANCH, FK_PAPER, IK_FOLLOW, IK_PAPER, IK_REFINED
 from ctrkin.families.refined.folder import assemble_refined
 from ctrkin.inference import Kinematics
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.engine import train
 from ctrkin.util.progress import progress_bar
-
-BASELINES = ("mlp", "lstm", "cnn", "tcn", "resnet")
-ABLATION = "lstm_mlp_no_delta"
-FK_PAPER, FK_BRANCH = "fk_lstm_mlp", "fk_lstm_mlp_branch"
-IK_PAPER, IK_REFINED, IK_FOLLOW = "ik_lstm_mlp", "ik_lstm_mlp_refined", "ik_follow_mlp"
 
 
 @dataclass(frozen=True)
@@ -56,8 +52,8 @@ def plan_runs(scale: ReproScale) -> list[Run]:
         )
 
     runs = [
-        Run("fk_lstm_mlp", "main", cfg(scale.main, task="fk")),
-        Run("ik_lstm_mlp", "main", cfg(scale.main, task="ik")),
+        Run(FK_PAPER, "main", cfg(scale.main, task="fk")),
+        Run(IK_PAPER, "main", cfg(scale.main, task="ik")),
         Run(FK_BRANCH, "main", cfg(scale.branch, task="fk", model="lstm_mlp_branch")),
         Run(IK_FOLLOW, "main", cfg(scale.follow, task="ik", model="follow_mlp")),
     ]
