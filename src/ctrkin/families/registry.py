@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from ctrkin.errors import ModelError
-from ctrkin.families import follow, gru, refined, sequence, snap_aware
+from ctrkin.families import follow, refined, sequence, snap_aware
 from ctrkin.models.base import KinematicsNet
 from ctrkin.models.features import FeatureLayout
 from ctrkin.models.predictor import Family, ModelEntry, Opened, Predictor
@@ -32,7 +32,6 @@ FAMILIES: tuple[Family, ...] = (
     snap_aware.FAMILY,     # lstm_mlp_branch
     follow.FAMILY,         # follow_mlp
     refined.FAMILY,        # an IK folder refined on an FK folder (refine.json)
-    gru.FAMILY,            # gru_mlp
 )
 
 MODELS: dict[str, ModelEntry] = {e.name: e for f in FAMILIES for e in f.entries}
