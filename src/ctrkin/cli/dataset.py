@@ -29,6 +29,7 @@ from rich.console import Console
 from rich.table import Table
 
 from ctrkin.cli.common import check_output, overwrite_option, parse_floats, quiet, robot_option, say
+from ctrkin.cli.from_config import config_options
 from ctrkin.data.cleaning import CleaningConfig
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
@@ -157,6 +158,13 @@ def parse_gap(text: str) -> float | str | None:
                                  param_hint="--sequence-gap") from None
 
 
+# The command line differs from ImportConfig only here: older option names; --map, --quaternion,
+# --units and --sequence-gap are read into mapping, quaternion_columns, the units and sequence_gap,
+# and --keep-outliers / --no-average into its CleaningConfig.
+IMPORT_ALIASES = {"quaternion_order": ("--quat-order",), "drop_invalid_joints": ("--drop-invalid",)}
+IMPORT_OWN = ("mapping", "quaternion_columns", "sequence_gap", "cleaning")
+
+
 @dataset_group.command("import", epilog="""\b
 Examples:
   ctrkin dataset import robot_log.csv --robot paper --units rad,m --out data/mylog
@@ -175,30 +183,21 @@ Examples:
                    "ty, tz, sequence_id, time, step, snap). Repeatable or comma-separated. Columns "
                    "already named like a field need no mapping.")
 @click.option("--units", "units", multiple=True, metavar="UNITS",
-              help="Units of the log, e.g. 'rad,m' or 'angles=rad,beta=mm,position=m' "
-                   "(default deg, mm).")
+              help="Units of the log in one option, e.g. 'rad,m' or 'angles=rad,beta=mm,position=m' "
+                   "(over --angle-unit, --beta-unit, --position-unit).")
 @click.option("--quaternion", "quat_cols", default=None, metavar="C1,C2,C3,C4",
               help="Four log columns holding a full quaternion, in --quat-order.")
-@click.option("--quat-order", type=click.Choice(["wxyz", "xyzw"]), default="wxyz", show_default=True,
-              help="Order of the --quaternion columns.")
 @click.option("--sequence-gap", "gap_text", default="auto", show_default=True,
               help="Without sequence_id: start a new sequence after a time gap larger than this "
                    "(log time unit), 'auto' (10x the median time step) or 'none'.")
-@click.option("--drop-invalid", is_flag=True, help="Drop rows whose joints are outside the robot's "
-              "limits instead of failing.")
-@click.option("--drop-incomplete", is_flag=True, help="Drop rows with empty or NaN cells instead of "
-              "failing.")
+@config_options(ImportConfig, aliases=IMPORT_ALIASES, exclude=IMPORT_OWN)
 @click.option("--keep-outliers", is_flag=True, help="Keep outliers, flagged outlier = True, instead "
               "of dropping them (the paper dropped them).")
 @click.option("--no-average", is_flag=True, help="Do not average repeated readings of one sample.")
-@click.option("--unwrap", is_flag=True, help="Unwrap alpha (for logs wrapping angles to ±180°).")
-@click.option("--delimiter", default=",", show_default=True, help="CSV field separator.")
 @overwrite_option(force_alias=True)
 def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | None, out_dir: str,
-               maps: tuple[str, ...], units: tuple[str, ...],
-               quat_cols: str | None, quat_order: str, gap_text: str, drop_invalid: bool,
-               drop_incomplete: bool, keep_outliers: bool, no_average: bool, unwrap: bool,
-               delimiter: str, overwrite: bool, force: bool) -> None:
+               maps: tuple[str, ...], units: tuple[str, ...], quat_cols: str | None, gap_text: str,
+               keep_outliers: bool, no_average: bool, overwrite: bool, force: bool, **settings: Any) -> None:
     """Import robot logs LOG_FILES (CSV, one row a tracker reading) into one cleaned dataset: repeated
     readings averaged, encoder glitches and pose outliers removed, snaps detected (see docs/data.md,
     and docs/real_robot.md for import profiles). Without --profile, one file."""
@@ -206,16 +205,13 @@ def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | 
         raise click.UsageError("several log files need --profile (one sequence per file); without a "
                                "profile import one file")
     quaternion_columns = tuple(c.strip() for c in quat_cols.split(",")) if quat_cols else ()
-    mapping, unit_kw, gap = parse_map(maps), parse_units(units), parse_gap(gap_text)
+    mapping, gap = parse_map(maps), parse_gap(gap_text)
     out = check_output(out_dir, overwrite or force)
     robot = load_robot(robot_spec)
     cfg = ImportConfig(
-        mapping=mapping, quaternion_columns=quaternion_columns,
-        quaternion_order=cast(Any, quat_order), sequence_gap=cast(Any, gap),
-        drop_invalid_joints=drop_invalid, drop_incomplete=drop_incomplete, unwrap=unwrap,
-        delimiter=delimiter,
+        mapping=mapping, quaternion_columns=quaternion_columns, sequence_gap=cast(Any, gap),
         cleaning=CleaningConfig(average_repeats=not no_average, outliers="flag" if keep_outliers else "drop"),
-        **cast(Any, unit_kw))
+        **{**settings, **parse_units(units)})
     if profile_file is not None:
         from ctrkin.data.profile import load_profile
         from ctrkin.data.profile_import import import_with_profile
