@@ -113,3 +113,44 @@ def test_bad_key_values_are_one_usage_error(item: str, words: str) -> None:
         parse_key_values([item], "--set", Settings)
     assert caught.value.exit_code == 2
     assert words in caught.value.format_message() and "--set" in caught.value.format_message()
+
+
+@pytest.mark.parametrize(("command", "config", "own"), [
+    ("ctrkin.cli.train:train_cmd", "ctrkin.training.config:TrainConfig",
+     {"options": ("structure", "model_options")}),
+    ("ctrkin.cli.dataset:import_cmd", "ctrkin.data.import_config:ImportConfig",
+     {"mapping": ("maps",), "quaternion_columns": ("quat_cols",), "sequence_gap": ("gap_text",),
+      "cleaning": ("keep_outliers", "no_average")}),
+    ("ctrkin.cli.reproduce:reproduce_cmd", "ctrkin.evaluation.scales:ReproduceConfig", {}),
+])
+def test_commands_take_every_field_of_their_config(command: str, config: str, own: dict) -> None:
+    """Each field of the command's configuration is an option of the command (with the field's help
+    where the command generates it), or one the command reads into that field itself (`own`)."""
+    import dataclasses
+    import importlib
+
+    def load(spec: str) -> Any:
+        module, name = spec.split(":")
+        return getattr(importlib.import_module(module), name)
+
+    cmd, cfg = load(command), load(config)
+    params = {p.name: p for p in cmd.params}
+    for f in dataclasses.fields(cfg):
+        if f.name in own:
+            assert all(p in params for p in own[f.name]), f.name
+        else:
+            assert f.name in params, f.name
+            assert params[f.name].help == f.metadata["help"], f.name
+
+
+def test_the_reproduce_config_names_every_scale_and_refuses_bad_values() -> None:
+    from typing import get_args
+
+    from ctrkin.errors import CtrkinError
+    from ctrkin.evaluation.scales import SCALES, ReproduceConfig, Scale
+
+    assert set(get_args(Scale)) == set(SCALES)
+    with pytest.raises(CtrkinError, match="workers"):
+        ReproduceConfig(workers=0)
+    with pytest.raises(CtrkinError, match="executor"):
+        ReproduceConfig(executor="cluster")  # type: ignore[arg-type]

@@ -1,12 +1,18 @@
-"""How big a reproduction is: data sizes and training budgets of `ctrkin reproduce --scale`."""
+"""How big a reproduction is (data sizes and training budgets of `ctrkin reproduce --scale`), and the
+typed configuration of a reproduction (`ctrkin reproduce` is generated from it). A light module: the
+command line reads it without importing the networks."""
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
-from typing import Any
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from typing import TYPE_CHECKING, Any, Literal, get_args
 
 from ctrkin.errors import CtrkinError
 from ctrkin.training.config import LrSchedule, scaled_lr
+
+if TYPE_CHECKING:
+    from ctrkin.evaluation.results import ReproResults
 
 
 @dataclass(frozen=True)
@@ -110,3 +116,47 @@ def get_scale(name: str) -> ReproScale:
     if name not in SCALES:
         raise CtrkinError(f"unknown scale {name!r}; choose one of {sorted(SCALES)}")
     return SCALES[name]
+
+
+Scale = Literal["full", "quick", "tiny"]
+Executor = Literal["local", "ray"]
+
+
+def _help(text: str) -> dict[str, str]:
+    """A field's metadata: its meaning, which is also its `ctrkin reproduce --help` text."""
+    return {"help": text}
+
+
+@dataclass(frozen=True)
+class ReproduceConfig:
+    """What a reproduction runs on (`ctrkin reproduce` has one option per field, ctrkin.cli.from_config)."""
+
+    scale: Scale = field(default="quick", metadata=_help(
+        "quick: ~12 min on 2 cores; full: the paper's protocol (~208k samples), batch 1024 with early "
+        "stopping (the paper: batch 32, up to 500 epochs), ~30 min on 2 cores; tiny: a smoke test of "
+        "every step."))
+    robot: str = field(default="paper", metadata=_help(
+        "Built-in robot name (paper, timclab) or path to a robot TOML file."))
+    robot_seed: int = field(default=0, metadata=_help("The virtual hardware draw."))
+    workers: int = field(default=2, metadata=_help(
+        "Models trained in parallel (one thread each); with --executor ray and no RAY_ADDRESS, the CPUs "
+        "of the local Ray instance."))
+    executor: Executor = field(default="local", metadata=_help(
+        "local: spawned processes; ray: one Ray task per training, on the cluster at RAY_ADDRESS or a "
+        "local instance (pip install 'ctrkin[ray]')."))
+    out: str = field(default="out/reproduce", metadata=_help("Output folder."))
+
+    def __post_init__(self) -> None:
+        get_scale(self.scale)
+        if self.executor not in get_args(Executor):
+            raise CtrkinError(f"executor must be one of {get_args(Executor)}, got {self.executor!r}")
+        if not isinstance(self.workers, int) or self.workers < 1:
+            raise CtrkinError(f"workers must be an integer >= 1, got {self.workers!r}")
+
+    def run(self, log: Callable[[str], None] = print) -> ReproResults:
+        """The reproduction of this configuration (ctrkin.evaluation.reproduce)."""
+        from ctrkin.evaluation.reproduce import reproduce
+        from ctrkin.robots import load_robot
+
+        return reproduce(load_robot(self.robot), get_scale(self.scale), self.out, robot_seed=self.robot_seed,
+                         workers=self.workers, log=log, executor=self.executor)
