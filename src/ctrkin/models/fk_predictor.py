@@ -17,17 +17,14 @@ motor last turned and its previous angle (ctrkin.models.motion), and the outer l
 from __future__ import annotations
 
 import math
-from collections import deque
 from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
-import torch
 
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import ModelError
 from ctrkin.models.batch import padded_rows, seqnet_predict
-from ctrkin.models.engine import StreamingEngine
 from ctrkin.models.features import pair_features, postprocess, sequence_features, step_features, window_index
 from ctrkin.models.frame import OuterFrame, local_tips_to_world
 from ctrkin.models.fused import DECLINED, Clip, FusedFK, Relay
@@ -48,11 +45,8 @@ class FKPredictor(BasePredictor):
                                                      "reset": frozenset({"outer_motion", "continue_run"})}
 
     def __init__(self, bundle: ModelBundle, seqnet: SeqNet | None, fused: bool = True) -> None:
-        super().__init__(bundle)
+        super().__init__(bundle, None, seqnet)
         self._frame = bundle.frame
-        self._seqnet = seqnet
-        self._engine = StreamingEngine(seqnet) if seqnet is not None else None
-        self._window: deque[np.ndarray] = deque(maxlen=self.layout.ib)
         self._prev: np.ndarray | None = None
         self._fast = self.layout.angle_encoding in ("minmax", "phase")
         # input checks and whole-turn α shifts, the same in predict and step (ctrkin.models.guards)
@@ -228,9 +222,7 @@ class FKPredictor(BasePredictor):
             self._gate_state, self._outer_motion, self._outer_prev = -1, int(outer_motion), math.nan
         self._prev = None
         self._shift = None
-        self._window.clear()
-        if self._engine is not None:
-            self._engine.reset()
+        self.reset_stream()
 
     def step(self, x: np.ndarray, check: bool = True, strict: bool = False) -> np.ndarray:
         """One step: joints x (2N,) (deg, mm) -> the (6,) tip pose."""
@@ -254,14 +246,7 @@ class FKPredictor(BasePredictor):
         if len(self._dcols):
             feat[self._dcols] = np.minimum(np.maximum(feat[self._dcols], self._dlo), self._dhi)
         xn = self._x_norm.transform(feat)
-        if self._engine is not None:
-            yn = self._engine.step(xn, self._state_before(raw, outer))
-        else:
-            if not self._window:
-                self._window.extend([xn] * (self.ib - 1))
-            self._window.append(xn)
-            with torch.inference_mode():
-                yn = self.net(torch.tensor(np.array(self._window)[None], dtype=torch.float32))[0].numpy()
+        yn = self.network_step(xn, self._state_before(raw, outer) if self._engine is not None else None)
         y = self._y_norm.inverse(yn)
         if self.frame is not None:
             if self.frame.has_lag and not self._follows_motion:    # m_N followed here, else by the gate

@@ -3,6 +3,7 @@ inputs of a batch (a Dataset or an array of one or more sequences) and the netwo
 
 from __future__ import annotations
 
+from collections import deque
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -12,7 +13,9 @@ import torch
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.schema import sequence_bounds
 from ctrkin.errors import ModelError
+from ctrkin.models.engine import StreamingEngine
 from ctrkin.models.features import check_raw, delta_columns, sequence_features, window_index
+from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle
 from ctrkin.models.workspace import Workspace
 from ctrkin.robots.robot import Robot
@@ -50,12 +53,18 @@ def check_robot(model: Robot, robot: Robot) -> None:
 
 class BasePredictor:
     """The common part of a family's predictor (ctrkin.models.predictor.Predictor): bundle and IK
-    workspace, the network in eval mode, the step-change columns clipped to their training range."""
+    workspace, the network in eval mode, the step-change columns clipped to their training range, and
+    the network's streaming step: seqnet, the bundle's network where it is a SeqNet, runs in the numba
+    engine (ctrkin.models.engine); other networks run torch on a kept window."""
 
     accepts: ClassVar[dict[str, frozenset[str]]] = {"predict": frozenset(), "reset": frozenset()}
 
-    def __init__(self, bundle: ModelBundle, workspace: Workspace | None = None) -> None:
+    def __init__(self, bundle: ModelBundle, workspace: Workspace | None = None,
+                 seqnet: SeqNet | None = None) -> None:
         self.bundle = bundle
+        self._seqnet = seqnet
+        self._engine = StreamingEngine(seqnet) if seqnet is not None else None
+        self._window: deque[np.ndarray] = deque(maxlen=bundle.layout.ib)
         self.layout = bundle.layout
         self.robot = bundle.robot
         self.config = bundle.config
@@ -120,6 +129,26 @@ class BasePredictor:
         """The raw inputs (T, 2N | 6) as the network sees them (an FK in the outer tube's frame with
         an outer lag sees the frame's angle as αN)."""
         return raw
+
+    def network_step(self, xn: np.ndarray, state: float | None = None) -> np.ndarray:
+        """(O,) normalised outputs of the network at one step of normalised features xn (F,): the
+        engine's (state: a state-carrying net's state from outside), or torch on the window of the
+        IB latest steps, a sequence's first step repeated to fill it."""
+        if self._engine is not None:
+            return self._engine.step(xn, state)
+        if not self._window:
+            self._window.extend([xn] * (self.ib - 1))
+        self._window.append(xn)
+        window = torch.tensor(np.array(self._window)[None], dtype=torch.float32)
+        with torch.inference_mode():
+            out: np.ndarray = self.net(window)[0].numpy()
+        return out
+
+    def reset_stream(self) -> None:
+        """The network's streaming state back to a sequence start."""
+        self._window.clear()
+        if self._engine is not None:
+            self._engine.reset()
 
     def clip_deltas(self, feats: np.ndarray) -> np.ndarray:
         """Step-change features clipped to their training range (the model knows only the step sizes

@@ -6,16 +6,13 @@ networks run torch on windows."""
 
 from __future__ import annotations
 
-from collections import deque
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 
 from ctrkin.data.dataset import Dataset
 from ctrkin.models.batch import padded_rows, seqnet_predict
-from ctrkin.models.engine import StreamingEngine
 from ctrkin.models.features import postprocess, sequence_features, step_features, window_index
 from ctrkin.models.ik import IKResult, IKStep, StepFlags, jumps, target_pose, workspace_check
 from ctrkin.models.onnx_graph import write_onnx
@@ -29,10 +26,7 @@ class DirectIK(BasePredictor):
     """A direct IK model (module docstring). seqnet: the bundle's network where it is a SeqNet."""
 
     def __init__(self, bundle: ModelBundle, workspace: Workspace | None, seqnet: SeqNet | None) -> None:
-        super().__init__(bundle, workspace)
-        self._seqnet = seqnet
-        self._engine = StreamingEngine(seqnet) if seqnet is not None else None
-        self._window: deque[np.ndarray] = deque(maxlen=self.layout.ib)
+        super().__init__(bundle, workspace, seqnet)
         self._prev: np.ndarray | None = None
         self._flags = StepFlags(workspace, self.layout.n_tubes)
 
@@ -55,10 +49,8 @@ class DirectIK(BasePredictor):
 
     def reset(self) -> None:
         self._prev = None
-        self._window.clear()
         self._flags.reset()
-        if self._engine is not None:
-            self._engine.reset()
+        self.reset_stream()
 
     def step(self, x: np.ndarray, check: bool = True, strict: bool = False) -> IKStep:
         """One target pose (6,) -> IKStep (check=False skips the workspace test, strict=True raises
@@ -68,16 +60,7 @@ class DirectIK(BasePredictor):
         self._prev = raw
         if len(self._dcols):
             feat[self._dcols] = np.minimum(np.maximum(feat[self._dcols], self._dlo), self._dhi)
-        xn = self._x_norm.transform(feat)
-        if self._engine is not None:
-            yn = self._engine.step(xn)
-        else:
-            if not self._window:
-                self._window.extend([xn] * (self.ib - 1))
-            self._window.append(xn)
-            with torch.inference_mode():
-                yn = self.net(torch.tensor(np.array(self._window)[None], dtype=torch.float32))[0].numpy()
-        y = self._y_norm.inverse(yn)
+        y = self._y_norm.inverse(self.network_step(self._x_norm.transform(feat)))
         q = self.robot.project_joints(y[None])[0]
         ok, reason = self._flags.check(raw, check, strict)
         return self._flags.answer(raw, q, ok, reason, bool(np.any(np.abs(q - y) > 1e-9)))
