@@ -1,5 +1,6 @@
 """Make the model folders of tests/inference/test_old_folders.py (run once, on main 94a32c9, before
-the model families moved into ctrkin.families; kept to say how the folders were made).
+the model families moved into ctrkin.families; kept to say how the folders were made; its imports
+are today's paths: on main they were ctrkin.training.demo and ctrkin.inference.refine_folder).
 
     python tests/inference/old_folders/make_old_folders.py tests/inference/old_folders/main_94a32c9
 
