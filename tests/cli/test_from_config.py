@@ -55,6 +55,26 @@ def test_each_field_is_an_option_with_its_type_default_and_help() -> None:
         assert words in text
 
 
+@dataclass(frozen=True)
+class Levels:
+    levels: tuple[float, ...] = field(default=(8.0, 20.0), metadata=_help("Which levels."))
+    names: tuple[str, ...] | None = field(default=None, metadata=_help("Which names, or none."))
+
+
+def test_a_tuple_field_is_a_comma_separated_list() -> None:
+    @click.command()
+    @config_options(Levels)
+    def cmd(**settings: Any) -> None:
+        click.echo(repr(Levels(**settings)))
+
+    assert _params(cmd, ["--names", "a,b"])["names"] == ("a", "b") and _params(cmd, [])["names"] is None
+    assert _params(cmd, [])["levels"] == (8.0, 20.0)
+    assert _params(cmd, ["--levels", "4, 12,20"])["levels"] == (4.0, 12.0, 20.0)
+    assert "[default: 8.0,20.0]" in CliRunner().invoke(cmd, ["--help"]).output
+    with pytest.raises(click.BadParameter):
+        _params(cmd, ["--levels", "4,x"])
+
+
 def test_bad_values_are_usage_errors() -> None:
     cmd = _command()
     for args in (["--count", "2.5"], ["--mode", "z"], ["--rate", "fast"]):
