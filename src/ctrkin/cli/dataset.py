@@ -21,19 +21,20 @@
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, cast
+from typing import Any, Literal, cast
 
 import click
 from rich.console import Console
 from rich.table import Table
 
-from ctrkin.cli.common import check_output, overwrite_option, parse_floats, quiet, robot_option, say
+from ctrkin.cli.common import check_output, overwrite_option, quiet, robot_option, say
 from ctrkin.cli.from_config import config_options
 from ctrkin.data.cleaning import CleaningConfig
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
-from ctrkin.data.splits import random_split, split_by_sequence, split_warnings, split_with_test
+from ctrkin.data.splits import Split, random_split, split_by_sequence, split_warnings, split_with_test
 from ctrkin.data.summary import summarize
 from ctrkin.robots import load_robot
 
@@ -228,39 +229,56 @@ def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | 
 
 
 # --- split -----------------------------------------------------------------------------------------
+def _help(text: str) -> dict[str, str]:
+    return {"help": text}
+
+
+@dataclass(frozen=True)
+class SplitConfig:
+    """How `ctrkin dataset split` splits a dataset (one option per field)."""
+
+    kind: Literal["sequence", "random"] = field(default="sequence", metadata=_help(
+        "sequence: whole sequences per part (no leakage through the input buffer); random: the paper's "
+        "per-sample shuffle."))
+    seed: int = field(default=0, metadata=_help("Seed of the shuffle."))
+    fractions: tuple[float, ...] = field(default=(0.7, 0.15, 0.15), metadata=_help(
+        "Train, validation, test fractions."))
+    test: tuple[str, ...] | None = field(default=None, metadata=_help(
+        "Sequences for the test part, by name (file stem for imported logs) or index, comma-separated; "
+        "the rest is split into train and validation by --fractions."))
+
+    def __post_init__(self) -> None:
+        if len(self.fractions) != 3:
+            raise click.BadParameter(f"three fractions needed, got {list(self.fractions)}",
+                                     param_hint="--fractions")
+
+    def make(self, ds: Dataset) -> Split:
+        """The split of `ds` (DatasetError: fractions that do not sum to 1, unknown test sequences)."""
+        frac = (self.fractions[0], self.fractions[1], self.fractions[2])
+        sid = ds.frame["sequence_id"].to_numpy()
+        if self.test is not None:
+            labels = [str(v) for v in ds.meta.get("sequence_labels") or []]
+            return split_with_test(sid, labels, list(self.test), frac, seed=self.seed)
+        if self.kind == "sequence":
+            return split_by_sequence(sid, frac, seed=self.seed)
+        return random_split(len(ds.frame), frac, seed=self.seed)
+
+
 @dataset_group.command("split", epilog="""\b
 Examples:
   ctrkin dataset split data/paper --fractions 0.8,0.1,0.1 --seed 2
   ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate""")
 @click.argument("folder", type=click.Path(exists=True, file_okay=False))
-@click.option("--kind", type=click.Choice(["sequence", "random"]), default="sequence", show_default=True,
-              help="sequence: whole sequences per part (no leakage through the input buffer); "
-                   "random: the paper's per-sample shuffle.")
-@click.option("--seed", default=0, show_default=True, help="Seed of the shuffle.")
-@click.option("--fractions", default="0.7,0.15,0.15", show_default=True,
-              help="Train, validation, test fractions.")
-@click.option("--test", "test_seqs", default=None, metavar="NAMES|INDICES",
-              help="Sequences for the test part, by name (file stem for imported logs) or index, "
-                   "comma-separated; the rest is split into train and validation by --fractions.")
-def split_cmd(folder: str, kind: str, seed: int, fractions: str, test_seqs: str | None) -> None:
+@config_options(SplitConfig)
+def split_cmd(folder: str, **settings: Any) -> None:
     """Make a train/validation/test split of the dataset in FOLDER and save it as split.json. Warns
     when the parts are far from the requested fractions (few, unequal sequences)."""
-    f = parse_floats(fractions, "--fractions")
-    if len(f) != 3:
-        raise click.BadParameter(f"three fractions needed, got {f}", param_hint="--fractions")
+    cfg = SplitConfig(**settings)
     ds = Dataset.load(folder)
-    frac = (f[0], f[1], f[2])
-    if test_seqs is not None:
-        labels = [str(v) for v in ds.meta.get("sequence_labels") or []]
-        split = split_with_test(ds.frame["sequence_id"].to_numpy(), labels,
-                                [t.strip() for t in test_seqs.split(",") if t.strip()], frac, seed=seed)
-    elif kind == "sequence":
-        split = split_by_sequence(ds.frame["sequence_id"].to_numpy(), frac, seed=seed)
-    else:
-        split = random_split(len(ds.frame), frac, seed=seed)
+    split = cfg.make(ds)
     ds.save_split(folder, split)
     sizes = split.sizes()
-    say(f"{folder}: {kind} split, seed {seed}: train {sizes['train']}, val {sizes['val']}, "
+    say(f"{folder}: {cfg.kind} split, seed {cfg.seed}: train {sizes['train']}, val {sizes['val']}, "
         f"test {sizes['test']} samples -> {Path(folder) / 'split.json'}")
-    for w in split_warnings(split, frac):
+    for w in split_warnings(split, (cfg.fractions[0], cfg.fractions[1], cfg.fractions[2])):
         click.echo(f"warning: {w}", err=True)
