@@ -18,6 +18,8 @@ docs/virtual_robot.md), e.g. --set friction_deg_per_mm=0 --set noise_mm=0.1.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
+from typing import Any
 
 import click
 
@@ -25,9 +27,9 @@ from ctrkin.acquisition import protocols
 from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.acquisition.task_paths import SHAPES, task_path
-from ctrkin.cli.common import check_output, emit_json, output_options, parse_floats, robot_option, say
-from ctrkin.cli.from_config import parse_key_values
-from ctrkin.evaluation.scales import SCALES
+from ctrkin.cli.common import check_output, emit_json, output_options, say
+from ctrkin.cli.from_config import config_options, parse_key_values
+from ctrkin.evaluation.scales import SCALES, Scale
 from ctrkin.robots import load_robot
 from ctrkin.virtual import VirtualConfig, VirtualConfigError, VirtualRobot
 
@@ -41,43 +43,63 @@ def _config(settings: tuple[str, ...]) -> VirtualConfig:
         raise click.BadParameter(str(e), param_hint="--set") from None
 
 
+def _help(text: str) -> dict[str, str]:
+    return {"help": text}
+
+
+@dataclass(frozen=True)
+class CollectConfig:
+    """What `ctrkin collect` records (one option per field; the virtual robot's effect magnitudes
+    are VirtualConfig's, set by --set KEY=VALUE)."""
+
+    protocol: str = field(default="paper", metadata=_help("What to record: " + ", ".join(CHOICES) + "."))
+    scale: Scale = field(default="quick", metadata=_help(
+        "Size of the paper protocol (the others do not depend on it). full: the paper's (~208k samples); "
+        "quick: 3 levels x 4 outer angles (~8.6k); tiny: 2 levels x 4 outer angles (~5.8k), the data of "
+        "reproduce --scale tiny."))
+    robot: str = field(default="paper", metadata=_help(
+        "Built-in robot name (paper, timclab) or path to a robot TOML file."))
+    seed: int = field(default=0, metadata=_help("Noise, glitches, random configurations."))
+    robot_seed: int = field(default=0, metadata=_help("The virtual hardware draw."))
+    n_points: int | None = field(default=None, metadata=_help(
+        "random-points: number of targets (default 20); square/triangle: number of path points (default "
+        "10, as in the paper)."))
+    levels: tuple[float, ...] | None = field(default=None, metadata=_help(
+        "paper/sweeps: relative translations d = beta_N - beta_1 (mm), comma-separated (default: the "
+        "protocol's; needed for robots that cannot reach d = 20 mm)."))
+    workers: int | None = field(default=None, metadata=_help("Processes (default: all cores)."))
+
+    def __post_init__(self) -> None:
+        if self.protocol not in CHOICES:
+            raise click.BadParameter(f"{self.protocol!r} is not one of {', '.join(CHOICES)}",
+                                     param_hint="--protocol")
+        if self.levels is not None and self.protocol not in ("paper", "sweeps"):
+            raise click.BadParameter("--levels applies to the paper and sweeps protocols")
+
+
 @click.command("collect", epilog="""\b
 Examples:
   ctrkin collect --protocol paper --scale tiny --out data/paper-tiny
   ctrkin collect --protocol random-points --n-points 20 --seed 1 --out data/random
   ctrkin collect --protocol sweeps --set noise_mm=0.1 --out data/sweeps-noisy
   ctrkin collect --protocol sweeps --levels 8 --out data/sweeps-8 --json > collect.json""")
-@click.option("--protocol", type=click.Choice(CHOICES), required=True, help="What to record.")
-@click.option("--scale", type=click.Choice(sorted(SCALES)), default="quick", show_default=True,
-              help="Size of the paper protocol (the others do not depend on it). full: the paper's "
-              "(~208k samples); quick: 3 levels x 4 outer angles (~8.6k); tiny: 2 levels x 4 outer angles "
-              "(~5.8k), the data of reproduce --scale tiny.")
-@robot_option
-@click.option("--seed", default=0, show_default=True, help="Noise, glitches, random configurations.")
-@click.option("--robot-seed", default=0, show_default=True, help="The virtual hardware draw.")
-@click.option("--n-points", default=None, type=int,
-              help="random-points: number of targets (default 20); square/triangle: number of path "
-              "points (default 10, as in the paper).")
-@click.option("--levels", default=None,
-              help="paper/sweeps: relative translations d = beta_N - beta_1 (mm), comma-separated "
-              "(default: the protocol's; needed for robots that cannot reach d = 20 mm).")
-@click.option("--workers", default=None, type=int, help="Processes (default: all cores).")
+@click.option("--protocol", type=click.Choice(CHOICES), required=True,
+              help=CollectConfig.__dataclass_fields__["protocol"].metadata["help"])
+@config_options(CollectConfig, exclude=("protocol",))
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
               help="Override a virtual robot effect magnitude (repeatable).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Output folder (written as a whole: a failure leaves the previous one).")
 @output_options
-def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_seed: int,
-                n_points: int | None, levels: str | None, workers: int | None,
-                settings: tuple[str, ...], out_dir: str, overwrite: bool, as_json: bool) -> None:
+def collect_cmd(settings: tuple[str, ...], out_dir: str, overwrite: bool, as_json: bool,
+                **options: Any) -> None:
     """Record a protocol on the virtual robot (or write square/triangle IK targets)."""
     config = _config(settings)
-    if levels is not None and protocol not in ("paper", "sweeps"):
-        raise click.BadParameter("--levels applies to the paper and sweeps protocols")
-    level_values = None if levels is None else tuple(parse_floats(levels, "--levels"))
+    cfg = CollectConfig(**options)
+    protocol, scale, seed, n_points = cfg.protocol, cfg.scale, cfg.seed, cfg.n_points
     out = check_output(out_dir, overwrite)
-    robot = load_robot(robot_spec)
-    virtual = VirtualRobot(robot, config, seed=robot_seed)
+    robot = load_robot(cfg.robot)
+    virtual = VirtualRobot(robot, config, seed=cfg.robot_seed)
     if protocol in SHAPES:
         path = task_path(virtual, protocol, n_points=n_points or 10, seed=seed)
         path.save(out)
@@ -86,8 +108,8 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
             emit_json({"protocol": protocol, "robot": robot.name, "targets": len(path.poses), "out": out})
         return
     kw: dict[str, object] = {"n_points": n_points or 20} if protocol == "random-points" else {}
-    if level_values is not None:
-        kw["levels"] = level_values
+    if cfg.levels is not None:
+        kw["levels"] = cfg.levels
     if protocol == "paper" and scale == "tiny":
         tiny = SCALES["tiny"]
         kw.setdefault("levels", tiny.paper_levels)
@@ -95,7 +117,7 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
     protocol_scale = SCALES[scale].protocol_scale
     plan = protocols.build(protocol, robot, scale=protocol_scale, seed=seed, **kw)  # type: ignore[arg-type]
     t0 = time.perf_counter()
-    ds = record(plan, virtual, seed=seed, workers=workers)
+    ds = record(plan, virtual, seed=seed, workers=cfg.workers)
     elapsed = time.perf_counter() - t0
     ds.save(out)
     f = ds.frame
@@ -103,7 +125,7 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
         f"{int(f['snap'].sum())} snap samples, {int(f['outlier'].sum())} encoder glitches; "
         f"{elapsed:.1f} s ({len(f) / max(elapsed, 1e-9):.0f} samples/s)")
     summary: dict[str, object] = {
-        "protocol": protocol, "scale": scale, "robot": robot.name, "seed": seed, "robot_seed": robot_seed,
+        "protocol": protocol, "scale": scale, "robot": robot.name, "seed": seed, "robot_seed": cfg.robot_seed,
         "samples": len(f), "sequences": int(f["sequence_id"].nunique()), "snap_samples": int(f["snap"].sum()),
         "encoder_glitches": int(f["outlier"].sum()), "seconds": elapsed, "out": out}
     if protocol in ("paper", "sweeps"):
