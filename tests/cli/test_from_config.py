@@ -144,6 +144,8 @@ def test_bad_key_values_are_one_usage_error(item: str, words: str) -> None:
     ("ctrkin.cli.reproduce:reproduce_cmd", "ctrkin.evaluation.scales:ReproduceConfig", {}),
     ("ctrkin.cli.dataset:split_cmd", "ctrkin.cli.dataset:SplitConfig", {}),
     ("ctrkin.cli.collect:collect_cmd", "ctrkin.cli.collect:CollectConfig", {}),
+    ("ctrkin.cli.mechanics:solve_cmd", "ctrkin.cli.mechanics:SolveConfig", {}),
+    ("ctrkin.cli.mechanics:sweep_cmd", "ctrkin.cli.mechanics:SweepConfig", {}),
 ])
 def test_commands_take_every_field_of_their_config(command: str, config: str, own: dict) -> None:
     """Each field of the command's configuration is an option of the command (with the field's help

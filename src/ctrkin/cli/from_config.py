@@ -51,7 +51,11 @@ class CommaList(click.ParamType):
         if isinstance(value, tuple):
             return value
         parts = [p.strip() for p in str(value).split(",") if p.strip()]
-        return tuple(self.item.convert(p, param, ctx) for p in parts)
+        try:
+            return tuple(self.item.convert(p, param, ctx) for p in parts)
+        except click.BadParameter:
+            self.fail(f"expected comma-separated {self.name.split(',')[0].lower()} values, got {value!r}",
+                      param, ctx)
 
 
 def _click_type(hint: Any) -> tuple[Any, bool]:
