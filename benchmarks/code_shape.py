@@ -13,7 +13,11 @@ Read from the source with `ast`, nothing imported:
   `._follower`, `.fold_gate is None/not None`), outside the family's own folder (`ctrkin/families/<name>`);
 - report rows: modules of evaluation/ and viz/ whose strings spell a predictor row of the report (a
   results.json key such as "lstm_mlp_branch"; a registry model name counts too);
-- the longest functions (lines from `def` to the last line of the body) and the modules over 500 lines.
+- the longest functions (lines from `def` to the last line of the body) and the modules over 500 lines;
+- import circles: module sets that import each other round (every import, in functions too; the
+  root package's lazy table aside), those through the learned side (models, families, training,
+  inference) listed, and the modules that import a name from the package root (`from ctrkin import
+  __version__` lifts the root above every stage).
 
 Prints the tables, then one JSON line of the figures.
 """
@@ -114,12 +118,55 @@ def _functions(tree: ast.AST, rel: str) -> list[tuple[int, str]]:
     return out
 
 
+LEARNED = ("models", "families", "training", "inference")
+
+
+def _module(rel: Path) -> str:
+    parts = ("ctrkin", *rel.with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imports(tree: ast.AST, module: str, is_package: bool) -> tuple[set[str], bool]:
+    """The ctrkin names `module` imports (`a.b` and `a.b.Name` for `from a.b import Name`), and
+    whether it imports a name from the package root itself."""
+    package = module.split(".") if is_package else module.split(".")[:-1]
+    out: set[str] = set()
+    root = False
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = package[:len(package) - node.level + 1] if node.level else []
+            name = ".".join([*base, *([node.module] if node.module else [])])
+            out |= {name} | {f"{name}.{a.name}" for a in node.names}
+            root |= name == "ctrkin"
+    return {m for m in out if m.startswith("ctrkin.")}, root
+
+
+def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Sets of modules that reach each other through imports (more than one module each)."""
+    reach: dict[str, set[str]] = {}
+    for start in graph:
+        seen: set[str] = set()
+        todo = list(graph[start])
+        while todo:
+            m = todo.pop()
+            if m not in seen:
+                seen.add(m)
+                todo += graph.get(m, ())
+        reach[start] = seen
+    groups = {frozenset({m} | {o for o in reach[m] if m in reach[o]}) for m in graph if m in reach[m]}
+    return sorted(sorted(g) for g in groups if len(g) > 1)
+
+
 def measure(src: Path, top: int) -> dict:
     per_family: dict[str, set[str]] = defaultdict(set)
     kinds: list[str] = []
     functions: list[tuple[int, str]] = []
     big: list[tuple[int, str]] = []
     named: list[str] = []
+    raw: dict[str, set[str]] = {}
+    root_importers: list[str] = []
     for path in sorted(src.rglob("*.py")):
         rel = path.relative_to(src)
         text = path.read_text(encoding="utf-8")
@@ -133,6 +180,10 @@ def measure(src: Path, top: int) -> dict:
         if _own_family(rel) is None:
             kinds += [f"{rel}:{line} {what}" for line, what in sorted(_kind_checks(tree))]
         functions += _functions(tree, str(rel))
+        module = _module(rel)
+        raw[module], root = _imports(tree, module, path.name == "__init__.py")
+        if root and module != "ctrkin":
+            root_importers.append(str(rel))
         lines = text.count("\n")
         if lines > 500:
             big.append((lines, str(rel)))
@@ -144,7 +195,21 @@ def measure(src: Path, top: int) -> dict:
         outside = [f for f in files if not re.match(rf"families/{fam}/", f)]
         fam_rows[fam] = {"files": len(files), "subpackages": len(subs), "outside_own_folder": len(outside),
                          "where": subs, "outside": outside}
-    return {"families": fam_rows, "kind_checks": kinds, "longest": functions[:top], "report_names": named,
+    graph = {}
+    for module, imported in raw.items():
+        targets = set()
+        for name in imported:            # `ctrkin.a.b.Name` -> the module ctrkin.a.b
+            parts = name.split(".")
+            hit = next((".".join(parts[:k]) for k in range(len(parts), 1, -1)
+                        if ".".join(parts[:k]) in raw), None)
+            if hit is not None and hit != module:
+                targets.add(hit)
+        graph[module] = targets
+    circles = _circles(graph)
+    learned = [c for c in circles if any(m.split(".")[1] in LEARNED for m in c)]
+    return {"families": fam_rows, "circles": circles, "learned_circles": learned,
+            "root_importers": root_importers, "kind_checks": kinds, "longest": functions[:top],
+            "report_names": named,
             "big_modules": sorted(big, reverse=True)}
 
 
@@ -176,6 +241,11 @@ def main() -> None:
     print("\nlongest functions (lines):")
     for n, where in m["longest"]:
         print(f"  {n:4d}  {where}")
+    print(f"\nimport circles: {len(m['circles'])}, through the learned side: {len(m['learned_circles'])}")
+    for c in m["circles"]:
+        print(f"  {'(learned) ' if c in m['learned_circles'] else ''}{' <-> '.join(c)}")
+    print(f"modules importing from the package root: {len(m['root_importers'])}: "
+          f"{', '.join(m['root_importers']) or 'none'}")
     print(f"\nmodules over 500 lines: {', '.join(f'{p} ({n})' for n, p in m['big_modules']) or 'none'}")
     print(json.dumps({
         **{f"{fam}_files": r["files"] for fam, r in m["families"].items()},
@@ -186,6 +256,8 @@ def main() -> None:
         "top_function_lines": [n for n, _ in m["longest"]],
         "modules_over_500": len(m["big_modules"]),
         "report_name_modules": len(m["report_names"]),
+        "import_circles": len(m["circles"]), "learned_import_circles": len(m["learned_circles"]),
+        "root_importers": len(m["root_importers"]),
     }))
 
 

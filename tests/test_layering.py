@@ -179,6 +179,22 @@ def test_no_import_circles_on_the_learned_side() -> None:
     assert not cycles, cycles
 
 
+# the circles of the lower stages (a package's lazy table and its submodule, a numba kernel imported in
+# a function, a package named as the anchor of its data files), all there at main 94a32c9: known, and
+# no new one may join them
+KNOWN_CIRCLES = [
+    ["ctrkin.data", "ctrkin.data.dataset"],
+    ["ctrkin.mechanics", "ctrkin.mechanics.continuation", "ctrkin.mechanics.pointwise"],
+    ["ctrkin.robots", "ctrkin.robots.builtin"],
+    ["ctrkin.robots.joint_check", "ctrkin.robots.robot"],
+]
+
+
+def test_no_import_circles_beyond_the_known_ones() -> None:
+    extra = [c for c in import_cycles() if c not in KNOWN_CIRCLES]
+    assert not extra, extra
+
+
 def test_the_family_rules_see_a_family_importing_another() -> None:
     code = "from ctrkin.families.follow.stepper import Follower\n"
     assert _family("ctrkin.families.snap_aware.recipe") == "snap_aware"

@@ -28,9 +28,14 @@ Examples:
               help="Output folder.")
 def reproduce_cmd(**settings: Any) -> None:
     """Collect data, train the models, run every experiment of the paper, write the report."""
+    from ctrkin.evaluation.reproduce import reproduce
+    from ctrkin.evaluation.scales import get_scale
     from ctrkin.evaluation.table import HEADLINE, TCM_ROW
+    from ctrkin.robots import load_robot
 
-    results = ReproduceConfig(**settings).run(log=say)
+    cfg = ReproduceConfig(**settings)
+    results = reproduce(load_robot(cfg.robot), get_scale(cfg.scale), cfg.out, robot_seed=cfg.robot_seed,
+                        workers=cfg.workers, log=say, executor=cfg.executor)
     fk, ik = results.fk, results.ik[HEADLINE]
     say(
         f"FK LSTM-MLP: {fk[HEADLINE]['position_rmse_mm']:.3f} mm / "

@@ -12,7 +12,6 @@ import numpy as np
 from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.datasets import ReproData, registered_truth
 from ctrkin.evaluation.scales import ReproScale
-from ctrkin.evaluation.table import FK_BRANCH
 from ctrkin.evaluation.tcm_baseline import TCMBaseline
 from ctrkin.metrics import pose_errors
 
@@ -52,14 +51,15 @@ class Context:
             self._cache[key], self._cache[("tcm_snaps", id(ds))] = poses, snaps
         return self._cache[key]
 
-    def fk_tcm_gated(self, ds: Dataset) -> np.ndarray:
-        """(T, 6) the snap-aware FK model with its branch state taken from the continued TCM (its
-        snaps labelled by the training rule, ctrkin.families.snap_aware.labels) instead of its gate."""
-        key = ("fk_tcm_gated", id(ds))
+    def fk_tcm_gated(self, name: str, ds: Dataset) -> np.ndarray:
+        """(T, 6) the snap-aware FK model `name` with its branch state taken from the continued TCM
+        (its snaps labelled by the training rule, ctrkin.families.snap_aware.labels) instead of its
+        gate."""
+        key = (f"{name}|tcm_gated", id(ds))
         if key not in self._cache:
             self.tcm_continued(ds)
             snaps = self._cache[("tcm_snaps", id(ds))]
-            self._cache[key] = np.asarray(self.models[FK_BRANCH].predict(ds, snaps=snaps), float)
+            self._cache[key] = np.asarray(self.models[name].predict(ds, snaps=snaps), float)
         return self._cache[key]
 
     def tcm_rows(self, ds: Dataset, rows: np.ndarray, desc: str) -> tuple[np.ndarray, np.ndarray]:

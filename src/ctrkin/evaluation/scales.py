@@ -4,15 +4,11 @@ command line reads it without importing the networks."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
-from typing import TYPE_CHECKING, Any, Literal, get_args
+from typing import Any, Literal, get_args
 
 from ctrkin.errors import CtrkinError
 from ctrkin.training.config import LrSchedule, scaled_lr
-
-if TYPE_CHECKING:
-    from ctrkin.evaluation.results import ReproResults
 
 
 @dataclass(frozen=True)
@@ -152,11 +148,3 @@ class ReproduceConfig:
             raise CtrkinError(f"executor must be one of {get_args(Executor)}, got {self.executor!r}")
         if not isinstance(self.workers, int) or self.workers < 1:
             raise CtrkinError(f"workers must be an integer >= 1, got {self.workers!r}")
-
-    def run(self, log: Callable[[str], None] = print) -> ReproResults:
-        """The reproduction of this configuration (ctrkin.evaluation.reproduce)."""
-        from ctrkin.evaluation.reproduce import reproduce
-        from ctrkin.robots import load_robot
-
-        return reproduce(load_robot(self.robot), get_scale(self.scale), self.out, robot_seed=self.robot_seed,
-                         workers=self.workers, log=log, executor=self.executor)

@@ -75,7 +75,7 @@ def _learned_gate(ctx: Context, ds: Dataset) -> np.ndarray:
 
 
 def _tcm_gated(ctx: Context, ds: Dataset) -> np.ndarray:
-    return ctx.fk_tcm_gated(ds)
+    return ctx.fk_tcm_gated(FK_BRANCH, ds)
 
 
 # --- the predictors -------------------------------------------------------------------------------
