@@ -11,10 +11,13 @@ Protocols (each returns a `Plan`; every random draw comes from `seed`):
                  through 360° in 10° increments; at each outer angle the inner tube turns 0 → 360 → 0°
                  in 1° increments (721 samples, one sequence). The outer translation cycles over
                  βN ∈ {0, −2.5, −5} mm across the outer angles, so the training data also covers the
-                 outer-tube translation range of the `arbitrary` path. Full scale: 8 levels
-                 (d = 4, 8, 10, 12, 14, 16, 18, 20 mm, denser where the curved overlap makes the robot
-                 nonlinear) × 36 angles × 721 = 207,648 samples (the paper: 212,527). Quick scale:
-                 d = 4, 12, 20 mm × 4 angles × 721 = 8,652 samples. Each level is one run (parallel).
+                 outer-tube translation range of the `arbitrary` path. Its size per scale
+                 (PAPER_SIZES; `ctrkin collect --scale` and `ctrkin reproduce --scale` train on the
+                 same): full, the paper's, 8 levels (d = 4, 8, 10, 12, 14, 16, 18, 20 mm, denser
+                 where the curved overlap makes the robot nonlinear) × 36 angles × 721 = 207,648
+                 samples (the paper: 212,527); quick, d = 4, 10, 15, 20 mm × 18 angles (20° steps)
+                 × 721 = 51,912; tiny, d = 4, 20 mm × 4 angles (90° steps) × 721 = 5,768. Each
+                 level is one run (parallel).
   sweeps         Fig. 2b, 6, 10a: the outer tube fixed at α = 0, βN = 0; the inner tube turns
                  0 → 360 → 0° at d = 4, 8, 12, 16, 20 mm (the paper's β12 = 15..55), one run.
   snap-turns     ctrkin's test of snap prediction off the protocol grid: full inner turns
@@ -31,6 +34,7 @@ Protocols (each returns a `Plan`; every random draw comes from `seed`):
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -40,11 +44,38 @@ from ctrkin.acquisition.trajectories import PAPER_LEVELS_MM
 from ctrkin.errors import JointError
 from ctrkin.robots.robot import Robot
 
-Scale = Literal["quick", "full"]
-SCALES = ("quick", "full")
+Scale = Literal["tiny", "quick", "full"]
+SCALES = ("tiny", "quick", "full")
+
+
+@dataclass(frozen=True)
+class PaperSize:
+    """The size of the paper protocol at one scale.
+
+    Parameters
+    ----------
+    levels_mm : tuple of float
+        Relative translations d = βN − β1 (mm), one run each.
+    outer_step_deg : float
+        The outer tube's increment (deg) between the recorded inner turns.
+    """
+
+    levels_mm: tuple[float, ...]
+    outer_step_deg: float
+
+    def n_samples(self, inner_step_deg: float = 1.0) -> int:
+        """Recorded samples: levels × outer angles × one inner turn 0 → 360 → 0°."""
+        per_turn = 2 * round(360.0 / inner_step_deg) + 1
+        return len(self.levels_mm) * len(np.arange(0.0, 360.0 - 1e-9, self.outer_step_deg)) * per_turn
+
 
 PAPER_FULL_LEVELS_MM = (4.0, 8.0, 10.0, 12.0, 14.0, 16.0, 18.0, 20.0)
-PAPER_QUICK_LEVELS_MM = (4.0, 12.0, 20.0)
+# One table for `ctrkin collect --scale` and `ctrkin reproduce --scale` (evaluation/scales.py reads it)
+PAPER_SIZES = {
+    "full": PaperSize(PAPER_FULL_LEVELS_MM, 10.0),          # the paper's: 207,648 samples
+    "quick": PaperSize((4.0, 10.0, 15.0, 20.0), 20.0),      # 51,912: the README's main job
+    "tiny": PaperSize((4.0, 20.0), 90.0),                   # 5,768: the CI test of the pipeline
+}
 PAPER_OUTER_BETAS_MM = (0.0, -2.5, -5.0)
 ARBITRARY_START = {"alpha_inner": 360.0, "alpha_outer": 0.0, "beta_inner": -20.0, "beta_outer": 0.0}
 ARBITRARY_END = {"alpha_inner": 0.0, "alpha_outer": 360.0, "beta_inner": -10.0, "beta_outer": -5.0}
@@ -96,17 +127,33 @@ def inner_turn(n_tubes: int, alpha_outer: float, beta_outer: float, d: float,
 def paper(robot: Robot, scale: Scale = "full", seed: int = 0,
           levels: tuple[float, ...] | None = None, step_deg: float = 1.0,
           outer_step_deg: float | None = None) -> Plan:
-    """The paper's training protocol (Sec. III.A). One run per level, 36 (quick: 4) sequences each.
+    """The paper's training protocol (Sec. III.A): one run per level, one sequence per outer angle.
 
-    outer_step_deg: the outer tube's increment (default 10° full, 90° quick).
-    seed is unused (the protocol is deterministic; noise is seeded by the recorder) but kept so every
-    protocol has the same signature.
+    Parameters
+    ----------
+    robot : Robot
+        The robot whose joints the plan commands.
+    scale : {"full", "quick", "tiny"}
+        The size (PAPER_SIZES): the levels and outer step used where not given.
+    seed : int
+        Unused (the protocol is deterministic; the recorder seeds the noise), kept so that every
+        protocol has the same signature.
+    levels : tuple of float, optional
+        Relative translations d (mm) instead of the scale's.
+    step_deg : float
+        The inner tube's increment (deg).
+    outer_step_deg : float, optional
+        The outer tube's increment (deg) instead of the scale's.
+
+    Returns
+    -------
+    Plan
     """
     _check_scale(scale)
     n = robot.n_tubes
-    lv = tuple(float(v) for v in (levels if levels is not None else
-                                  (PAPER_FULL_LEVELS_MM if scale == "full" else PAPER_QUICK_LEVELS_MM)))
-    outer = outer_step_deg if outer_step_deg is not None else (10.0 if scale == "full" else 90.0)
+    size = PAPER_SIZES[scale]
+    lv = tuple(float(v) for v in (levels if levels is not None else size.levels_mm))
+    outer = outer_step_deg if outer_step_deg is not None else size.outer_step_deg
     if not 0 < outer <= 360:
         raise ValueError(f"outer_step_deg must be in (0, 360], got {outer}")
     angles = tuple(float(a) for a in np.arange(0.0, 360.0 - 1e-9, outer))

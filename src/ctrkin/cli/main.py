@@ -106,8 +106,8 @@ def _environ(name: str, value: str) -> Iterator[None]:
 
 
 @click.group(cls=CtrkinGroup, context_settings={"help_option_names": ["-h", "--help"]}, epilog="""\b
-Progress is one updating line on a terminal and a few lines (25/50/75/100 %) in a log or pipe;
-CTRKIN_NO_PROGRESS=1 (or --quiet) turns it off.
+Progress is one updating line on a terminal; in a log or pipe, a line at 25/50/75/100 % and at
+least one a minute while work goes on. CTRKIN_NO_PROGRESS=1 (or --quiet) turns it off.
 Exit status: 0 done; 1 the input is wrong for the task (invalid joints, robot mismatch, bad data,
 an existing output without --overwrite), one line on stderr; 2 a usage error.
 
