@@ -47,6 +47,9 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "reproduce": ("ctrkin.cli.reproduce", "reproduce_cmd",
                   "Collect data, train the models, run every experiment of the paper, write the report."),
     "robot": ("ctrkin.cli.robot", "robot_group", "Robot description files: a documented template."),
+    "show": ("ctrkin.cli.show", "show_cmd",
+             "Draw the robot's 3-D shape (tubes with their diameters, the tip's path, snaps marked), or "
+             "animate a sweep with its snap."),
     "solve": ("ctrkin.cli.mechanics", "solve_cmd",
               "Solve the TCM at one configuration (point-wise, no history)."),
     "sweep": ("ctrkin.cli.mechanics", "sweep_cmd",
