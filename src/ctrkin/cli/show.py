@@ -9,6 +9,7 @@
 from __future__ import annotations
 
 import itertools
+from pathlib import Path
 
 import click
 import numpy as np
@@ -98,11 +99,21 @@ def show_cmd(robot_spec: str, q_texts: tuple[str, ...], sweep_text: str | None, 
         Q, marks = _path(configs, n)
         what = "1 configuration" if len(configs) == 1 else f"a path through {len(configs)} configurations"
         default = "shape.png"
-    out = check_output(out_file or default, overwrite)
     robot.check_joints(Q)
-    suffix = out.suffix.lower()
+    target = Path(out_file or default)
+    suffix = target.suffix.lower()
     if suffix not in (".png", ".gif", ".mp4"):
-        raise click.BadParameter(f"{out}: write a .png, .gif or .mp4", param_hint="--out")
+        raise click.BadParameter(f"{target}: write a .png, .gif or .mp4", param_hint="--out")
+    if suffix != ".png":
+        from ctrkin.viz.animation import writer_for
+
+        try:
+            writer_for(target)
+        except ValueError as e:
+            raise click.BadParameter(str(e), param_hint="--out") from None
+        if frames is not None and frames < 2:
+            raise click.BadParameter("an animation needs at least 2 frames", param_hint="--frames")
+    out = check_output(target, overwrite)
     trajectory = follow(robot, Q)
     snaps = np.flatnonzero(trajectory.snaps)
     if suffix == ".png":
@@ -114,14 +125,8 @@ def show_cmd(robot_spec: str, q_texts: tuple[str, ...], sweep_text: str | None, 
                    snaps=trajectory.snaps if len(Q) > 1 else None,
                    tips=trajectory.tip_poses[:, :3] if len(Q) > 1 else None)
     else:
-        from ctrkin.viz.animation import animate_path, writer_for
+        from ctrkin.viz.animation import animate_path
 
-        try:
-            writer_for(out)
-        except ValueError as e:
-            raise click.BadParameter(str(e), param_hint="--out") from None
-        if frames is not None and frames < 2:
-            raise click.BadParameter("an animation needs at least 2 frames", param_hint="--frames")
         animate_path(robot, Q, trajectory, out, frames=frames or 120, spacing=spacing,
                      title=f"{robot.name}: {what}")
     say(f"{what}: {len(Q)} steps, {len(snaps)} snap(s)"
