@@ -1,6 +1,6 @@
 """`ctrkin collect`: record a protocol on the virtual robot into a dataset folder.
 
-    ctrkin collect --protocol paper --scale quick --seed 0 --out data/paper-quick
+    ctrkin collect --protocol paper --scale quick --out data/paper-quick      # reproduce --scale quick's data
     ctrkin collect --protocol paper --scale full --out data/paper            # the paper's ~208k samples
     ctrkin collect --protocol paper --scale tiny --out data/paper-tiny       # reproduce --scale tiny's data
     ctrkin collect --protocol sweeps --out data/sweeps
@@ -27,7 +27,6 @@ from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.acquisition.task_paths import SHAPES, task_path
 from ctrkin.cli.common import check_output, emit_json, output_options, parse_floats, robot_option, say
 from ctrkin.cli.from_config import parse_key_values
-from ctrkin.evaluation.scales import SCALES
 from ctrkin.robots import load_robot
 from ctrkin.virtual import VirtualConfig, VirtualConfigError, VirtualRobot
 
@@ -48,10 +47,11 @@ Examples:
   ctrkin collect --protocol sweeps --set noise_mm=0.1 --out data/sweeps-noisy
   ctrkin collect --protocol sweeps --levels 8 --out data/sweeps-8 --json > collect.json""")
 @click.option("--protocol", type=click.Choice(CHOICES), required=True, help="What to record.")
-@click.option("--scale", type=click.Choice(sorted(SCALES)), default="quick", show_default=True,
-              help="Size of the paper protocol (the others do not depend on it). full: the paper's "
-              "(~208k samples); quick: 3 levels x 4 outer angles (~8.6k); tiny: 2 levels x 4 outer angles "
-              "(~5.8k), the data of reproduce --scale tiny.")
+@click.option("--scale", type=click.Choice(sorted(protocols.SCALES)), default="quick", show_default=True,
+              help="Size of the paper protocol, the training data of `reproduce --scale` of the same "
+              "name (the other protocols do not depend on it). full: the paper's, 8 levels x 36 outer "
+              "angles (207,648 samples); quick: 4 levels x 18 outer angles (51,912); tiny: 2 levels x 4 "
+              "outer angles (5,768).")
 @robot_option
 @click.option("--seed", default=0, show_default=True, help="Noise, glitches, random configurations.")
 @click.option("--robot-seed", default=0, show_default=True, help="The virtual hardware draw.")
@@ -88,12 +88,7 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
     kw: dict[str, object] = {"n_points": n_points or 20} if protocol == "random-points" else {}
     if level_values is not None:
         kw["levels"] = level_values
-    if protocol == "paper" and scale == "tiny":
-        tiny = SCALES["tiny"]
-        kw.setdefault("levels", tiny.paper_levels)
-        kw["outer_step_deg"] = tiny.paper_outer_step_deg
-    protocol_scale = SCALES[scale].protocol_scale
-    plan = protocols.build(protocol, robot, scale=protocol_scale, seed=seed, **kw)  # type: ignore[arg-type]
+    plan = protocols.build(protocol, robot, scale=scale, seed=seed, **kw)  # type: ignore[arg-type]
     t0 = time.perf_counter()
     ds = record(plan, virtual, seed=seed, workers=workers)
     elapsed = time.perf_counter() - t0
