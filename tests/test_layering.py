@@ -1,6 +1,7 @@
 """The stages import in one direction (docs/design.md: Data flow): hardware sits between the virtual
-robot and acquisition; the model folder is the centre of the learned side, `training` only produces one and `inference` only consumes one, neither knows the
-virtual robot, and only `cli` and `evaluation` sit above them. Every import counts, including those
+robot and acquisition; the model folder is the centre of the learned side, `training` only
+produces one and `inference` only consumes one, neither knows the virtual robot or the hardware,
+and only `cli` and `evaluation` sit above them. Every import counts, including those
 inside functions and under TYPE_CHECKING, and module paths named in strings (lazy attribute tables,
 importlib)."""
 

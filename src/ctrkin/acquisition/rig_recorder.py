@@ -44,6 +44,7 @@ from ctrkin import __version__
 from ctrkin.acquisition.plan import Plan, move
 from ctrkin.data import Dataset, schema
 from ctrkin.data.cleaning import CleaningConfig, snap_mask
+from ctrkin.errors import CtrkinError, JointError
 from ctrkin.geometry import RigidTransform, quat_from_tangent, quaternion_to_matrix
 from ctrkin.hardware.interfaces import (
     STATUSES,
@@ -64,6 +65,10 @@ OWNED_FILES = (LOG_FILE, SESSION_FILE, "data.parquet", "meta.json", "split.json"
 
 class RigInterrupted(RigStop):
     """Ctrl-C during a collection: the motors were stopped, what was recorded is kept."""
+
+
+class CollectionMismatch(CtrkinError):
+    """--out holds a collection made with another protocol, parameters or rig file."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,7 +146,7 @@ class RigCollection:
         for key in ("plan_sha256", "rig_fingerprint"):
             if stored.get(key) != self.info[key]:
                 what = "protocol or its parameters" if key == "plan_sha256" else "rig file"
-                raise HardwareError(f"{self.out} holds a collection made with another {what}; resume it "
+                raise CollectionMismatch(f"{self.out} holds a collection made with another {what}; resume it "
                                     "with the same command, or pass --overwrite to start over")
         samples = self.journal.read()
         need = self.rig.tracker.readings
@@ -215,6 +220,9 @@ class RigCollection:
         except (RigStop, HardwareError) as e:
             self._halt()
             raise type(e)(f"{e}; {self._kept()}") from None
+        except JointError as e:         # a joint limit: a safety stop like the others
+            self._halt()
+            raise RigStop(f"refused to move: {e}; motors stopped; {self._kept()}") from None
         except Exception:
             self._halt()
             raise

@@ -10,12 +10,16 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from ctrkin.cli.common import check_output, emit_json, say
 from ctrkin.errors import CtrkinError
 from ctrkin.util.folders import folder_lock
+
+if TYPE_CHECKING:
+    from ctrkin.acquisition.rig_recorder import RigCollection
 
 
 def collect_on_rig(rig_file: str, protocol: str, scale: str, seed: int, n_points: int | None,
@@ -47,7 +51,7 @@ def collect_on_rig(rig_file: str, protocol: str, scale: str, seed: int, n_points
         try:
             ds = collection.run()
         except (RigInterrupted, RigStop, HardwareError) as e:
-            kept = _write_partial(collection, write_dataset, out)
+            kept = _write_partial(collection, out)
             click.echo(f"{'stopped' if isinstance(e, RigInterrupted) else 'error'}: {e}", err=True)
             if kept:
                 click.echo(f"the {kept} samples recorded so far are in {out} (data.parquet, meta.json: "
@@ -64,13 +68,14 @@ def collect_on_rig(rig_file: str, protocol: str, scale: str, seed: int, n_points
                    "complete": ds.meta["collection"]["complete"], "out": out})
 
 
-def _write_partial(collection: object, write: object, out: Path) -> int:
-    """The dataset of what the journal holds (0 when it holds nothing yet)."""
+def _write_partial(collection: RigCollection, out: Path) -> int:
+    """Write the dataset of what the journal holds; returns its samples (0: nothing yet)."""
+    from ctrkin.acquisition.rig_recorder import write_dataset
     from ctrkin.hardware.interfaces import HardwareError
 
     try:
-        ds = collection.dataset(complete=False)  # type: ignore[attr-defined]
+        ds = collection.dataset(complete=False)
     except HardwareError:
         return 0
-    write(ds, out)  # type: ignore[operator]
+    write_dataset(ds, out)
     return len(ds.frame)

@@ -69,11 +69,11 @@ class _Table:
         self.d, self.where = dict(d), where
         self.used: set[str] = set()
 
-    def _get(self, key: str, default: Any) -> Any:
+    def _get(self, key: str, default: Any, what: str = "") -> Any:
         self.used.add(key)
         if key not in self.d:
             if default is _REQUIRED:
-                raise RigError(f"{self.where}: needs {key} = ...")
+                raise RigError(f"{self.where}: needs {key} = ...{what}")
             return default
         return self.d[key]
 
@@ -81,7 +81,7 @@ class _Table:
         if key not in self.d and default is not _REQUIRED:
             self.used.add(key)
             return float(default)
-        v = self._get(key, default)
+        v = self._get(key, default, what)
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
             raise RigError(f"{self.where} {key}: must be a finite number{what}, got {v!r}")
         if positive and v <= 0:
@@ -89,7 +89,7 @@ class _Table:
         return float(v)
 
     def integer(self, key: str, default: Any = None, lo: int | None = None, what: str = "") -> int:
-        v = self._get(key, default)
+        v = self._get(key, default, what)
         if isinstance(v, bool) or not isinstance(v, int) or (lo is not None and v < lo):
             bound = f" >= {lo}" if lo is not None else ""
             raise RigError(f"{self.where} {key}: must be a whole number{bound}{what}, got {v!r}")
