@@ -32,7 +32,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
                   "transmission length, marker offset) by bounded least squares; print them with "
                   "standard errors."),
     "collect": ("ctrkin.cli.collect", "collect_cmd",
-                "Record a protocol on the virtual robot (or write square/triangle IK targets)."),
+                "Record a protocol on the virtual robot or on a rig (or write square/triangle IK "
+                "targets)."),
     "dataset": ("ctrkin.cli.dataset", "dataset_group",
                 "Inspect datasets, import robot logs (CSV) and split datasets."),
     "evaluate": ("ctrkin.cli.evaluate", "evaluate_cmd",
