@@ -70,6 +70,7 @@ def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str
     d = res.model.robot.to_dict()
     d["name"] = f"{robot.name}-calibrated"
     d["calibration"] = {**res.model.to_dict(), "dataset": str(data_dir),
+                        "data_sha256": ds.meta.get("data_sha256"), "prior": not no_prior,
                         "fit": json.loads(json.dumps(res.to_dict(), default=float, allow_nan=True)
                                           .replace("NaN", "null"))}
     atomic_write_text(out_file, tomli_w.dumps(cast(dict[str, Any], _drop_none(d))))
