@@ -156,7 +156,7 @@ def compare(ds: Dataset, pred: np.ndarray, part: np.ndarray | None = None) -> di
     sid = ds.frame["sequence_id"].to_numpy()
     part = np.full(len(sid), "", dtype=object) if part is None else part
     order = [TRAIN, VAL, TEST, IN_SAMPLE_REG, IN_SAMPLE_CAL, HELD_OUT, NOT_USED]
-    present = sorted({str(p) for p in part.tolist() if p}, key=lambda p: (order + [p]).index(p))
+    present = sorted({str(p) for p in part.tolist() if p}, key=lambda p: [*order, p].index(p))
     per_part = {p: _stats(pos_e, ang_e, part == p) for p in present}
     per = {}
     for name, k in zip(sequence_names(ds), np.unique(sid), strict=True):
