@@ -197,11 +197,11 @@ def joint_coverage(joints_train: np.ndarray, joints_other: np.ndarray, names: li
         return out
     for k, name in enumerate(names):
         t, o = joints_train[:, k], joints_other[:, k]
-        if np.ptp(t) <= tol and np.ptp(o) > tol:
+        if np.ptp(t) <= tol and np.abs(o - t[0]).max() > tol:
             unit = "deg" if name.startswith("alpha") else "mm"
-            out.append(f"{name} never moved in training (always {t[0]:.4g} {unit}) but moves over "
-                       f"[{o.min():.4g}, {o.max():.4g}] {unit} in the held-out rows: its effect is unknown "
-                       "to the model there")
+            out.append(f"{name} never moved in training (always {t[0]:.4g} {unit}) but the held-out rows "
+                       f"take it over [{o.min():.4g}, {o.max():.4g}] {unit}: its effect is unknown to the "
+                       "model there")
     return out
 
 
