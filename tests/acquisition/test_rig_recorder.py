@@ -186,3 +186,16 @@ def test_a_move_outside_the_limits_is_refused_before_the_motors_move(tmp_path):
         collection.run()
     assert abs(actuator.read()[0] - 30.0) < 0.1     # the last move it made (to an encoder count)
     assert len(collection.dataset(complete=False).frame) == 2
+
+
+def test_replaying_a_recorded_collection_gives_its_dataset_again(tmp_path):
+    rig = virtual_rig()
+    plan = small_paper_plan(rig.robot)
+    first = collect(plan, rig, tmp_path / "rec")
+    replay = parse_rig({"robot": "paper", "home": rig.home.tolist(),
+                        "actuator": {"kind": "replay", "log": str(tmp_path / "rec" / LOG_FILE)},
+                        "tracker": {"kind": "replay", "log": str(tmp_path / "rec" / LOG_FILE), "readings": 3,
+                                    "registration": IDENTITY}}, source="replay.toml")
+    again = collect(plan, replay, tmp_path / "again")
+    cols = [c for c in first.frame.columns if c != "time"]
+    pd.testing.assert_frame_equal(again.frame[cols], first.frame[cols])

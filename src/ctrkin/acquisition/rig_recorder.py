@@ -244,8 +244,8 @@ class RigCollection:
                 homed = True
             else:
                 here = self.actuator.read()
-            for q in move(here, steps[0].q, self.rig.robot.n_tubes):   # approach, not recorded
-                self._move(q)
+            for q in move(here, steps[0].q, self.rig.robot.n_tubes)[:-1]:   # approach, not recorded;
+                self._move(q)                                              # the run's first step ends it
             for step in steps:
                 encoder = self._move(step.q)
                 if step.key is not None and step.key not in done:
