@@ -58,21 +58,20 @@ class VirtualActuator(Actuator):
         return out
 
     def begin_run(self, index: int) -> None:
+        """The run starts from rest where the motors are (the home joints for ideal motors)."""
         self.shared.run = index
-        self._rest()
+        self._rest(None if self.inner is None else self.inner.read())
 
-    def _rest(self) -> None:
+    def _rest(self, q: np.ndarray | None = None) -> None:
         s = self.shared
-        self.joints = self._quantise(self.rig.home)
+        self.joints = self._quantise(self.rig.home) if q is None else np.array(q, dtype=float)
         s.state = s.virtual.rest(self.joints)
         s.pose = s.state.equilibrium.tip_pose
         s.moves, s.reads = 0, 0
         self._stopped = False
 
     def home(self) -> np.ndarray:
-        if self.inner is not None:
-            self.inner.home()
-        self._rest()
+        self._rest(None if self.inner is None else self.inner.home())
         return self.joints.copy()
 
     def move(self, q: np.ndarray, velocity: np.ndarray) -> np.ndarray:
