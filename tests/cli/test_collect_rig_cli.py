@@ -40,6 +40,8 @@ def test_collect_on_the_virtual_rig_and_the_output_rule(tmp_path):
                                  "--out", str(out)])
     assert r.exit_code == 1 and "another protocol" in r.output
     assert len(Dataset.load(out).frame) == 721                   # the collection there is untouched
+    r = _collect("--rig", rig, "--out", str(tmp_path / "x"), "--set", "noise_mm=0.1", "--robot-seed", "2")
+    assert r.exit_code == 2 and "--robot-seed, --set: not used with --rig" in r.output
 
 
 def test_dry_run_of_the_paper_rig_drives_simulated_canopen_nodes(tmp_path):

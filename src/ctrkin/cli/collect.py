@@ -104,6 +104,14 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
     if rig_file is not None:
         from ctrkin.cli.collect_rig import collect_on_rig
 
+        ctx = click.get_current_context()
+        options = {"robot_spec": "--robot", "robot_seed": "--robot-seed", "settings": "--set"}
+        given = [o for p, o in options.items()
+                 if ctx.get_parameter_source(p) == click.core.ParameterSource.COMMANDLINE]
+        if given:
+            raise click.BadParameter(f"{', '.join(given)}: not used with --rig (the rig file names the "
+                                     "robot, and its [virtual] table the virtual robot's seeds and "
+                                     "settings)", param_hint="--rig")
         if protocol in SHAPES:
             raise click.BadParameter("square and triangle are IK targets, not a collection; drop --rig",
                                      param_hint="--rig")
