@@ -70,7 +70,8 @@ def test_a_two_tube_profile_refuses_a_three_tube_log(tmp_path):
                                           (30, "configuration lasts 20 rows: set [groups] count = 20")])
 def test_a_wrong_readings_per_configuration_count_is_refused(tmp_path, count, words):
     log, *_ = three_tube_log(tmp_path / "three.csv")
-    profile = parse_profile(PROFILE3.read_text().replace("count = 20", f"count = {count}"), 3, "p.toml")
+    profile = parse_profile(PROFILE3.read_text().replace("joints_unchanged = true", f"count = {count}"), 3,
+                            "p.toml")
     with pytest.raises(DatasetError) as e:
         import_with_profile([log], profile, Robot.from_toml(ROBOT3))
     assert words in str(e.value) and "p.toml" in str(e.value)
