@@ -8,7 +8,8 @@ The logs are read where they lie (never copied into the repository); without the
 says so and exits 0. Reports, for each set: samples after cleaning; the nominal TCM with a fitted
 registration only, and the calibrated TCM (registration, precurvature, stiffness ratio, α/β offsets,
 transmission length, marker offset), both leave-one-sequence-out (each file predicted by a fit to
-the others); for OptiTrack also the learned FK (LSTM-MLP) trained on the −90..90° sweep and the
+the others), and the calibration with per-tube bending stiffness added (`bending_stiffness`, not a
+default group); for OptiTrack also the learned FK (LSTM-MLP) trained on the −90..90° sweep and the
 random points (validation: 15 % of their rows) and tested on the held-out −45..45° sweep: the mean
 prediction of FK_SEEDS networks that differ only in their seed (averaging removes the seed-to-seed
 variance), for each angle encoding in FK_ENCODINGS; the encoding whose average has the lower
@@ -39,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from ctrkin.calibration import leave_one_sequence_out
+from ctrkin.calibration.params import GROUPS
 from ctrkin.data.profile import load_profile
 from ctrkin.data.profile_import import import_with_profile
 from ctrkin.data.splits import split_with_test_val_rows
@@ -209,6 +211,11 @@ def main() -> None:
         for seq, e in calibrated["per_sequence"].items():
             note = f"nominal {nominal['per_sequence'][seq]:.3f}, prior scale {calibrated['prior_scale'][seq]}"
             rows.append((name, f"  held out {seq}", f"{e:.3f} mm", note))
+        bending = leave_one_sequence_out(ds, groups=(*GROUPS, "bending_stiffness"), prior_scales=PRIOR_SCALES)
+        res[f"{name}_tcm_calibrated_bending_loso_mm"] = round(bending["mean_mm"], 3)
+        rows.append((name, "TCM calibrated + per-tube bending stiffness (LOSO)",
+                     f"{bending['mean_mm']:.3f} mm", "calibrate --fit ...,bending_stiffness; per file " + " ".join(
+                         f"{e:.3f}" for e in bending["per_sequence"].values())))
         t_exact, t_fd = jacobian_speedup(ds)
         rows.append((name, "calibration Jacobian: exact / forward differences",
                      f"{t_exact * 1e3:.0f} ms", f"{t_fd * 1e3:.0f} ms ({t_fd / t_exact:.1f}x)"))
@@ -235,7 +242,8 @@ def main() -> None:
         print(f"{r[0]:10s} {r[1]:{width}s} {r[2]:>12s}  {r[3]}")
     print(f"({time.time() - t0:.0f} s)")
     order = ["optitrack_samples", "optitrack_tcm_nominal_mm", "optitrack_tcm_calibrated_loso_mm",
-             "optitrack_fk_heldout_mm", "ndi_samples", "ndi_tcm_nominal_mm", "ndi_tcm_calibrated_loso_mm",
+             "optitrack_tcm_calibrated_bending_loso_mm", "optitrack_fk_heldout_mm", "ndi_samples",
+             "ndi_tcm_nominal_mm", "ndi_tcm_calibrated_loso_mm", "ndi_tcm_calibrated_bending_loso_mm",
              "three_tube_samples", "three_tube_tcm_nominal_mm", "three_tube_tcm_calibrated_loso_mm",
              "three_tube_fk_heldout_mm"]
     (args.out / "report.json").write_text(json.dumps({k: res[k] for k in order}, indent=2))
