@@ -215,7 +215,7 @@ def main() -> None:
         res[f"{name}_tcm_calibrated_bending_loso_mm"] = round(bending["mean_mm"], 3)
         per_file = " ".join(f"{e:.3f}" for e in bending["per_sequence"].values())
         rows.append((name, "TCM calibrated + per-tube bending stiffness (LOSO)",
-                     f"{bending['mean_mm']:.3f} mm", f"calibrate --fit ...,bending_stiffness; per file {per_file}"))
+                     f"{bending['mean_mm']:.3f} mm", f"--fit ...,bending_stiffness; per file {per_file}"))
         t_exact, t_fd = jacobian_speedup(ds)
         rows.append((name, "calibration Jacobian: exact / forward differences",
                      f"{t_exact * 1e3:.0f} ms", f"{t_fd * 1e3:.0f} ms ({t_fd / t_exact:.1f}x)"))
