@@ -32,7 +32,7 @@ seed = 5
 
 def _command(rig: Path, out: Path) -> list[str]:
     return [sys.executable, "-m", "ctrkin.cli.main", "collect", "--rig", str(rig), "--protocol", "sweeps",
-            "--levels", "4,12", "--out", str(out)]
+            "--levels", "4,12,20", "--out", str(out)]
 
 
 def _env() -> dict[str, str]:
@@ -64,13 +64,14 @@ def test_interrupted_and_killed_collections_resume_to_the_uninterrupted_dataset(
     subprocess.run(_command(rig, whole), env=_env(), check=True, capture_output=True)
     out = tmp_path / "cut"
     journal = out / "readings.csv"
-    assert _run_until(_command(rig, out), journal, 1 + 3 * 200, signal.SIGINT) == 130   # Ctrl-C
+    # early in the 2163 samples, so that a loaded machine cannot finish before the signal lands
+    assert _run_until(_command(rig, out), journal, 1 + 3 * 50, signal.SIGINT) == 130    # Ctrl-C
     part = Dataset.load(out)                                   # what was recorded was kept
-    assert 200 <= len(part.frame) < 1442 and not part.meta["collection"]["complete"]
-    assert _run_until(_command(rig, out), journal, 1 + 3 * 900, signal.SIGKILL) == -signal.SIGKILL
+    assert 50 <= len(part.frame) < 2163 and not part.meta["collection"]["complete"]
+    assert _run_until(_command(rig, out), journal, 1 + 3 * 700, signal.SIGKILL) == -signal.SIGKILL
     done = subprocess.run(_command(rig, out), env=_env(), capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert "resuming" in done.stderr
     a, b = Dataset.load(out), Dataset.load(whole)
-    assert a.meta["collection"]["complete"] and len(a.frame) == 1442
+    assert a.meta["collection"]["complete"] and len(a.frame) == 2163
     pd.testing.assert_frame_equal(a.frame.drop(columns=["time"]), b.frame.drop(columns=["time"]))
