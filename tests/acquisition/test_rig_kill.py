@@ -41,7 +41,9 @@ def _env() -> dict[str, str]:
 
 def _run_until(cmd: list[str], journal: Path, lines: int, sig: int) -> int:
     """Start `cmd`, send `sig` once the journal has `lines` lines; returns the exit status."""
-    p = subprocess.Popen(cmd, env=_env(), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    # SIGINT as an interactive shell leaves it (a background pytest inherits it ignored)
+    p = subprocess.Popen(cmd, env=_env(), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 240
     try:
         while time.monotonic() < deadline and p.poll() is None:

@@ -5,6 +5,7 @@ Ctrl-C (KeyboardInterrupt delivered to the main thread) and resume. Everything i
 from __future__ import annotations
 
 import _thread
+import signal
 import threading
 import time
 from pathlib import Path
@@ -81,7 +82,16 @@ def _interrupt_when(path: Path, lines: int) -> threading.Thread:
     return t
 
 
-def test_ctrl_c_stops_keeps_the_journal_and_resume_gives_the_uninterrupted_result(tmp_path):
+@pytest.fixture
+def ctrl_c():
+    """Python's own Ctrl-C handler for the test (a shell that starts pytest in the background
+    ignores SIGINT, and interrupt_main then does nothing)."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old)
+
+
+def test_ctrl_c_stops_keeps_the_journal_and_resume_gives_the_uninterrupted_result(tmp_path, ctrl_c):
     rig = virtual_rig()
     plan = small_paper_plan(rig.robot)
     whole = collect(plan, rig, tmp_path / "whole")
