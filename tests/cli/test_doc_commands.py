@@ -36,7 +36,7 @@ from scipy.spatial.transform import Rotation
 from ctrkin.cli.main import cli
 from ctrkin.mechanics import follow, solve
 from ctrkin.robots import load_robot, paper_robot
-from tests.lab_logs import configurations, ndi_log, optitrack_log, to_ctrkin
+from tests.lab_logs import configurations, ndi_lab_log, ndi_log, optitrack_log, to_ctrkin
 
 REPO = Path(__file__).resolve().parents[2]
 DOCS = [REPO / "README.md", *sorted((REPO / "docs").rglob("*.md"))]
@@ -57,6 +57,8 @@ SKIP: dict[str, str] = {
     "ctrkin reproduce --scale tiny": "90 s (warm numba cache) to 147 s (cold) on the two-core dev "
     "machine, this test's whole budget; the same tiny pipeline runs in tests/evaluation/"
     "test_reproduce.py, the command's arguments in tests/cli/test_reproduce_cli.py",
+    "ctrkin collect --rig examples/rigs/paper.toml": "drives the paper's EPOS4 motors and reads its "
+    "Aurora; its dry run (paper_dry_run.toml, the same drives simulated) runs instead",
 }
 
 ENV = {"CTRKIN_NO_PROGRESS": "1"}
@@ -87,6 +89,16 @@ def comet_logs(root: Path) -> None:
         lab_q = configurations(6, seed=10 + k)
         ndi_log(_mkdir(base / "ndi-2tube") / f"{name}.csv", lab_q, _tips("comet_nylon_ndi.toml", lab_q), rot,
                 np.array([73.2, 91.3, -1295.6]))
+    robot3 = load_robot(str(REPO / "examples" / "robots" / "comet_nylon_ndi_3tube.toml"))
+    for k in range(3):          # three-tube logs (docs/real_robot.md: Three tubes), lab joints, 20 readings
+        rng = np.random.default_rng(20 + k)
+        travel = np.cumsum(np.column_stack([rng.integers(0, 41, 6), rng.integers(0, 46, 6),
+                                            rng.integers(0, 46, 6)]), axis=1).astype(float)
+        rot3 = rng.integers(-45, 46, (6, 3)).astype(float)
+        q = np.column_stack([rot3[:, ::-1], travel[:, ::-1] - [250.0, 170.0, 90.0]])
+        tips = np.array([solve(robot3, qk).tip_pose[:3] for qk in q])
+        ndi_lab_log(_mkdir(base / "ndi-3tube") / f"2023-11-2{k}_01-00-00.csv", travel, rot3,
+                    np.repeat(tips[:, None, :], 20, axis=1), rot, np.array([73.2, 91.3, -1295.6]))
 
 
 def lab_logs(root: Path) -> None:

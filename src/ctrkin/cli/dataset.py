@@ -16,6 +16,7 @@
 
     ctrkin dataset split data/mylog --kind random --seed 0 --fractions 0.7,0.15,0.15
     ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate   # test sequence by name
+    ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate --val-rows 0.15
 """
 
 from __future__ import annotations
@@ -32,7 +33,13 @@ from ctrkin.cli.common import check_output, overwrite_option, parse_floats, quie
 from ctrkin.data.cleaning import CleaningConfig
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
-from ctrkin.data.splits import random_split, split_by_sequence, split_warnings, split_with_test
+from ctrkin.data.splits import (
+    random_split,
+    split_by_sequence,
+    split_warnings,
+    split_with_test,
+    split_with_test_val_rows,
+)
 from ctrkin.data.summary import summarize
 from ctrkin.robots import load_robot
 
@@ -235,7 +242,8 @@ def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | 
 @dataset_group.command("split", epilog="""\b
 Examples:
   ctrkin dataset split data/paper --fractions 0.8,0.1,0.1 --seed 2
-  ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate""")
+  ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate
+  ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate --val-rows 0.15""")
 @click.argument("folder", type=click.Path(exists=True, file_okay=False))
 @click.option("--kind", type=click.Choice(["sequence", "random"]), default="sequence", show_default=True,
               help="sequence: whole sequences per part (no leakage through the input buffer); "
@@ -246,7 +254,12 @@ Examples:
 @click.option("--test", "test_seqs", default=None, metavar="NAMES|INDICES",
               help="Sequences for the test part, by name (file stem for imported logs) or index, "
                    "comma-separated; the rest is split into train and validation by --fractions.")
-def split_cmd(folder: str, kind: str, seed: int, fractions: str, test_seqs: str | None) -> None:
+@click.option("--val-rows", "val_rows", default=None, type=float, metavar="FRACTION",
+              help="With --test: validation is this fraction of the other sequences' rows, drawn at "
+                   "random, instead of whole sequences (with few sequences a whole one is spent on "
+                   "validation); the split of benchmarks/bench_realdata.py is --val-rows 0.15.")
+def split_cmd(folder: str, kind: str, seed: int, fractions: str, test_seqs: str | None,
+              val_rows: float | None) -> None:
     """Make a train/validation/test split of the dataset in FOLDER and save it as split.json. Warns
     when the parts are far from the requested fractions (few, unequal sequences)."""
     f = parse_floats(fractions, "--fractions")
@@ -254,10 +267,18 @@ def split_cmd(folder: str, kind: str, seed: int, fractions: str, test_seqs: str 
         raise click.BadParameter(f"three fractions needed, got {f}", param_hint="--fractions")
     ds = Dataset.load(folder)
     frac = (f[0], f[1], f[2])
+    if val_rows is not None and test_seqs is None:
+        raise click.BadParameter("--val-rows needs --test (the held-out sequences)", param_hint="--val-rows")
     if test_seqs is not None:
         labels = [str(v) for v in ds.meta.get("sequence_labels") or []]
-        split = split_with_test(ds.frame["sequence_id"].to_numpy(), labels,
-                                [t.strip() for t in test_seqs.split(",") if t.strip()], frac, seed=seed)
+        names = [t.strip() for t in test_seqs.split(",") if t.strip()]
+        sid = ds.frame["sequence_id"].to_numpy()
+        if val_rows is not None:
+            split = split_with_test_val_rows(sid, labels, names, val_rows, seed=seed)
+            kind = f"test {','.join(names)}, validation {val_rows:.0%} of the other rows"
+            frac = split.fractions
+        else:
+            split = split_with_test(sid, labels, names, frac, seed=seed)
     elif kind == "sequence":
         split = split_by_sequence(ds.frame["sequence_id"].to_numpy(), frac, seed=seed)
     else:

@@ -32,13 +32,15 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
                   "transmission length, marker offset) by bounded least squares; print them with "
                   "standard errors."),
     "collect": ("ctrkin.cli.collect", "collect_cmd",
-                "Record a protocol on the virtual robot (or write square/triangle IK targets)."),
+                "Record a protocol on the virtual robot or on a rig (or write square/triangle IK "
+                "targets)."),
     "dataset": ("ctrkin.cli.dataset", "dataset_group",
                 "Inspect datasets, import robot logs (CSV) and split datasets."),
     "evaluate": ("ctrkin.cli.evaluate", "evaluate_cmd",
                  "Compare predictors with the measured tips: position (and orientation, where measured) "
-                 "errors overall and per sequence; plots of predicted vs measured tips and of error "
-                 "against joints."),
+                 "errors per part (training, validation, held out, in-sample), per sequence and overall; "
+                 "plots of predicted vs measured tips, of error against joints and of the error per "
+                 "sequence."),
     "export": ("ctrkin.cli.export", "export_cmd",
                "Export MODEL_DIR (from `ctrkin train`) to an ONNX file (written atomically)."),
     "predict": ("ctrkin.cli.predict", "predict_cmd",
