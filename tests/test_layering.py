@@ -1,9 +1,11 @@
-"""The stages import in one direction (docs/design.md: Data flow): the model folder is the centre of
-the learned side, `training` only produces one and `inference` only consumes one, neither knows the
-virtual robot, and only `cli` and `evaluation` sit above them. The model families (docs/design.md:
-Model families) sit between the shared `models` and those two: a family imports no other family and
-not the registry, and `training` and `inference` reach the families only through the registry. No
-module imports itself back through others (no import circles). Every import counts, including those
+"""The stages import in one direction (docs/design.md: Data flow): hardware sits between the virtual
+robot and acquisition; the model folder is the centre of the learned side, `training` only
+produces one and `inference` only consumes one, neither knows the virtual robot or the hardware,
+and only `cli` and `evaluation` sit above them. The model families (docs/design.md: Model families)
+sit between the shared `models` and those two: a family imports no other family and not the
+registry, and `training` and `inference` reach the families only through the registry. No module
+of the learned side imports itself back through others (no import circles), and no new circle
+joins the known ones of the lower stages. Every import counts, including those
 inside functions and under TYPE_CHECKING, and module paths named in strings (lazy attribute tables,
 importlib)."""
 
@@ -18,10 +20,17 @@ MODULE_PATH = re.compile(r"ctrkin(\.\w+)+")
 
 # subpackage -> subpackages it must not import
 FORBIDDEN = {
-    "models": {"families", "training", "inference", "evaluation", "cli", "virtual"},
-    "families": {"training", "inference", "evaluation", "cli", "virtual"},
-    "training": {"inference", "evaluation", "cli", "virtual"},
-    "inference": {"training", "evaluation", "cli", "virtual"},
+    # hardware sits between the virtual robot and acquisition: it may drive the virtual robot, and
+    # only acquisition (and what sits above it) runs protocols on it
+    "robots": {"hardware", "virtual", "acquisition"},
+    "mechanics": {"hardware", "virtual", "acquisition"},
+    "virtual": {"hardware", "acquisition"},
+    "hardware": {"acquisition", "data", "calibration", "models", "families", "training", "inference",
+                 "evaluation", "cli"},
+    "models": {"families", "training", "inference", "evaluation", "cli", "virtual", "hardware"},
+    "families": {"training", "inference", "evaluation", "cli", "virtual", "hardware"},
+    "training": {"inference", "evaluation", "cli", "virtual", "hardware"},
+    "inference": {"training", "evaluation", "cli", "virtual", "hardware"},
 }
 REGISTRY = "ctrkin.families.registry"
 ABOVE_ALL = {"cli": {"cli"}, "evaluation": {"cli", "evaluation"}}   # imported only by these

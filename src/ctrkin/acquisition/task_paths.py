@@ -43,8 +43,20 @@ CORNER = {"relative_rotation_deg": 90.0, "relative_translation_mm": 10.0, "beta_
 
 @dataclass(frozen=True, eq=False)
 class TaskPath:
-    """shape: "square" | "triangle"; poses (P, 6) target tip poses (x, y, z mm, q0, qx, qy);
-    corners (C, 6) corner poses; corner_joints (C, 2N) their joints (deg, mm); meta: provenance."""
+    """IK target poses along a square or a triangle (paper Fig. 12).
+
+    Attributes
+    ----------
+    shape : {"square", "triangle"}
+    poses : ndarray, shape (P, 6)
+        Target tip poses (x, y, z mm, q0, qx, qy).
+    corners : ndarray, shape (C, 6)
+        The corner poses.
+    corner_joints : ndarray, shape (C, 2N)
+        The corners' joints (deg, mm).
+    meta : dict
+        Provenance: corner joints and poses, robot, seed, version.
+    """
 
     shape: str
     poses: np.ndarray
@@ -53,6 +65,7 @@ class TaskPath:
     meta: dict[str, Any]
 
     def save(self, folder: str | Path) -> Path:
+        """Write ``targets.csv`` (step, x, y, z, q0, qx, qy) and ``meta.json`` into `folder`."""
         out = Path(folder)
         out.mkdir(parents=True, exist_ok=True)
         frame = pd.DataFrame(self.poses, columns=schema.POSE_COLUMNS)
@@ -65,10 +78,24 @@ class TaskPath:
 
 def task_path(virtual: VirtualRobot, shape: str, n_points: int = 10, seed: int = 0,
               corner: dict[str, float] | None = None) -> TaskPath:
-    """The `shape` path of n_points target poses for `virtual` (see module docstring).
+    """Target poses along a square or a triangle that the virtual robot can reach (module docstring).
 
-    seed turns the whole polygon about the insertion axis by a seeded angle (so different seeds give
-    different, equally reachable paths).
+    Parameters
+    ----------
+    virtual : VirtualRobot
+        The robot whose true tip poses make the corners.
+    shape : {"square", "triangle"}
+    n_points : int
+        Targets, spaced evenly along the closed polygon (at least its corners).
+    seed : int
+        Turns the whole polygon about the insertion axis by a seeded angle (different seeds give
+        different, equally reachable paths).
+    corner : dict, optional
+        The corner configuration (default `CORNER`: relative rotation, relative translation, βN).
+
+    Returns
+    -------
+    TaskPath
     """
     if shape not in SHAPES:
         raise ValueError(f"shape must be one of {sorted(SHAPES)}, got {shape!r}")
@@ -111,7 +138,18 @@ def task_path(virtual: VirtualRobot, shape: str, n_points: int = 10, seed: int =
 
 
 def load_targets(folder: str | Path) -> tuple[np.ndarray, dict[str, Any]]:
-    """Read a task path folder -> (poses (P, 6), meta)."""
+    """Read a folder written by `TaskPath.save` (`ctrkin collect --protocol square|triangle`).
+
+    Returns
+    -------
+    poses : ndarray, shape (P, 6)
+    meta : dict
+
+    Raises
+    ------
+    DatasetError
+        If the folder is not a task path.
+    """
     src = Path(folder)
     if not (src / TARGETS_FILE).is_file() or not (src / META_FILE).is_file():
         raise DatasetError(f"{src} is not a task path: it needs {TARGETS_FILE} and {META_FILE} "

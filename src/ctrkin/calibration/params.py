@@ -5,6 +5,10 @@ Groups (`--fit`): registration (rotation vector rad, translation mm: 6), precurv
 scale of the nominal curvature), stiffness_ratio (per tube EI/GJ = 1 + ν, bounded by ν ∈ [0, 0.49]),
 alpha_offset and beta_offset (all tubes but the outermost: a common rotation or translation of all
 tubes is the registration's), transmission_length (per tube, mm), marker (tip-marker distance, mm).
+Not fitted unless asked (`--fit ...,bending_stiffness`): bending_stiffness, per tube but the
+outermost a scale of E (so of E·I and G·J together; the unloaded TCM depends on the tubes'
+stiffnesses only through their ratios, so the outermost tube's E is the reference), for tubes of
+one robot whose E differs (nylon tubes drawn from different stock).
 
 Prior (`prior=True`, the default): each physical parameter has a Gaussian prior about its nominal
 value with the standard deviation in PRIOR_SIGMA, chosen from what a lab knows before calibrating
@@ -29,10 +33,13 @@ from ctrkin.robots.robot import Robot
 from ctrkin.robots.tube import Section
 
 PRIOR_SIGMA = {"curvature_scale": 0.15, "stiffness_ratio": 0.2, "alpha_offset": 10.0, "beta_offset": 5.0,
-               "transmission_length": 100.0, "marker_mm": 10.0}
+               "transmission_length": 100.0, "marker_mm": 10.0, "bending_scale": 0.3}
 GROUPS = ("registration", "precurvature", "stiffness_ratio", "alpha_offset", "beta_offset",
           "transmission_length", "marker")
+OPTIONAL_GROUPS = ("bending_stiffness",)      # fitted only when named (--fit)
+ALL_GROUPS = GROUPS + OPTIONAL_GROUPS
 PHYSICAL = GROUPS[1:]
+BENDING_SCALE_BOUNDS = (0.3, 3.0)
 
 
 @dataclass(frozen=True)
@@ -52,9 +59,9 @@ class ParameterSet:
     def __post_init__(self) -> None:
         if not self.prior_scale > 0:
             raise CtrkinError(f"prior_scale must be > 0, got {self.prior_scale}")
-        bad = [g for g in self.groups if g not in GROUPS]
+        bad = [g for g in self.groups if g not in ALL_GROUPS]
         if bad:
-            raise CtrkinError(f"unknown calibration group(s) {bad}; choose from {list(GROUPS)}")
+            raise CtrkinError(f"unknown calibration group(s) {bad}; choose from {list(ALL_GROUPS)}")
 
     def layout(self) -> list[tuple[str, str, float, float, float]]:
         """(name, unit, nominal, lower, upper) per fitted parameter."""
@@ -70,6 +77,9 @@ class ParameterSet:
         for i, t in enumerate(self.robot.tubes):
             if "stiffness_ratio" in self.groups:
                 out.append((f"stiffness_ratio_{i + 1}", "-", 1.0 + t.poisson_ratio, 1.0, 1.49))
+        for i in range(n - 1):
+            if "bending_stiffness" in self.groups:
+                out.append((f"bending_scale_{i + 1}", "-", 1.0, *BENDING_SCALE_BOUNDS))
         for i in range(n - 1):
             if "alpha_offset" in self.groups:
                 out.append((f"alpha_offset_{i + 1}", "deg", 0.0, -self.max_offset_deg, self.max_offset_deg))
@@ -117,7 +127,9 @@ class ParameterSet:
             ratio = v.get(f"stiffness_ratio_{i + 1}", 1.0 + t.poisson_ratio)
             secs = tuple(Section(s.length, s.curvature * scale) for s in t.sections)
             tubes.append(dataclasses.replace(t, curvature=t.curvature * scale, sections=secs,
-                                             poisson_ratio=float(np.clip(ratio - 1.0, 0.0, 0.499))))
+                                             poisson_ratio=float(np.clip(ratio - 1.0, 0.0, 0.499)),
+                                             youngs_modulus=t.youngs_modulus * v.get(f"bending_scale_{i + 1}",
+                                                                                     1.0)))
         tl = tuple(v.get(f"transmission_length_{i + 1}", (self.robot.transmission_length or (0.0,) * n)[i])
                    for i in range(n))
         robot = dataclasses.replace(self.robot, tubes=tuple(tubes),

@@ -35,7 +35,8 @@ Examples:
 @click.option("--out", "out_file", required=True, type=click.Path(dir_okay=False),
               help="Calibrated robot file to write (a normal robot file plus a [calibration] table).")
 @click.option("--fit", "fit", default=",".join(GROUPS), show_default=True,
-              help="Parameter groups to fit, comma-separated.")
+              help="Parameter groups to fit, comma-separated; also bending_stiffness (per tube a scale "
+              "of E, relative to the outermost tube: tubes whose E differs), not fitted by default.")
 @click.option("--loso", is_flag=True, help="Also report leave-one-sequence-out error (one refit per "
               "sequence).")
 @click.option("--max-evaluations", default=60, show_default=True, help="Least-squares evaluations.")
@@ -70,6 +71,7 @@ def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str
     d = res.model.robot.to_dict()
     d["name"] = f"{robot.name}-calibrated"
     d["calibration"] = {**res.model.to_dict(), "dataset": str(data_dir),
+                        "data_sha256": ds.meta.get("data_sha256"), "prior": not no_prior,
                         "fit": json.loads(json.dumps(res.to_dict(), default=float, allow_nan=True)
                                           .replace("NaN", "null"))}
     atomic_write_text(out_file, tomli_w.dumps(cast(dict[str, Any], _drop_none(d))))

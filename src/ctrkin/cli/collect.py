@@ -1,6 +1,6 @@
 """`ctrkin collect`: record a protocol on the virtual robot into a dataset folder.
 
-    ctrkin collect --protocol paper --scale quick --seed 0 --out data/paper-quick
+    ctrkin collect --protocol paper --scale quick --out data/paper-quick      # reproduce --scale quick's data
     ctrkin collect --protocol paper --scale full --out data/paper            # the paper's ~208k samples
     ctrkin collect --protocol paper --scale tiny --out data/paper-tiny       # reproduce --scale tiny's data
     ctrkin collect --protocol sweeps --out data/sweeps
@@ -8,6 +8,12 @@
     ctrkin collect --protocol random-points --n-points 20 --seed 1 --out data/random
     ctrkin collect --protocol arbitrary --out data/arbitrary
     ctrkin collect --protocol square --out data/square        # IK targets, not a dataset
+    ctrkin collect --rig examples/rigs/paper.toml --protocol paper --scale full --out data/rig-paper
+
+With --rig the protocol runs on the rig the file describes (motors over CANopen and an NDI tracker,
+or the virtual robot, or a replayed log; docs/hardware.md): the same dataset format, tracker
+readings averaged, safety checks before every move, Ctrl-C stops the motors, and the same command
+resumes an interrupted collection.
 
 The robot seed (--robot-seed) draws the virtual hardware (true tubes, offsets, registration); keep it
 the same for training and test data of one "robot". --seed draws the measurement noise, glitches
@@ -24,13 +30,14 @@ from typing import Any
 import click
 
 from ctrkin.acquisition import protocols
+from ctrkin.acquisition.plan import Plan
 from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.acquisition.task_paths import SHAPES, task_path
 from ctrkin.cli.common import check_output, emit_json, output_options, say
 from ctrkin.cli.from_config import config_options, parse_key_values
-from ctrkin.evaluation.scales import SCALES, Scale
-from ctrkin.robots import load_robot
+from ctrkin.evaluation.scales import Scale
+from ctrkin.robots import Robot, load_robot
 from ctrkin.virtual import VirtualConfig, VirtualConfigError, VirtualRobot
 
 CHOICES = [*protocols.PROTOCOLS, *SHAPES]
@@ -50,13 +57,14 @@ def _help(text: str) -> dict[str, str]:
 @dataclass(frozen=True)
 class CollectConfig:
     """What `ctrkin collect` records (one option per field; the virtual robot's effect magnitudes
-    are VirtualConfig's, set by --set KEY=VALUE)."""
+    are VirtualConfig's, set by --set KEY=VALUE; the rig, where there is one, is --rig's file)."""
 
     protocol: str = field(default="paper", metadata=_help("What to record: " + ", ".join(CHOICES) + "."))
     scale: Scale = field(default="quick", metadata=_help(
-        "Size of the paper protocol (the others do not depend on it). full: the paper's (~208k samples); "
-        "quick: 3 levels x 4 outer angles (~8.6k); tiny: 2 levels x 4 outer angles (~5.8k), the data of "
-        "reproduce --scale tiny."))
+        "Size of the paper protocol, the training data of `reproduce --scale` of the same name (the other "
+        "protocols do not depend on it). full: the paper's, 8 levels x 36 outer angles (207,648 "
+        "samples); quick: 4 levels x 18 outer angles (51,912); tiny: 2 levels x 4 outer angles "
+        "(5,768)."))
     robot: str = field(default="paper", metadata=_help(
         "Built-in robot name (paper, timclab) or path to a robot TOML file."))
     seed: int = field(default=0, metadata=_help("Noise, glitches, random configurations."))
@@ -76,27 +84,55 @@ class CollectConfig:
         if self.levels is not None and self.protocol not in ("paper", "sweeps"):
             raise click.BadParameter("--levels applies to the paper and sweeps protocols")
 
+    def plan(self, robot: Robot) -> Plan:
+        """The plan of the protocol at its scale (tiny, quick, full) for `robot`, with these options."""
+        kw: dict[str, object] = {"n_points": self.n_points or 20} if self.protocol == "random-points" else {}
+        if self.levels is not None:
+            kw["levels"] = self.levels
+        return protocols.build(self.protocol, robot, scale=self.scale, seed=self.seed, **kw)
+
 
 @click.command("collect", epilog="""\b
 Examples:
   ctrkin collect --protocol paper --scale tiny --out data/paper-tiny
   ctrkin collect --protocol random-points --n-points 20 --seed 1 --out data/random
   ctrkin collect --protocol sweeps --set noise_mm=0.1 --out data/sweeps-noisy
-  ctrkin collect --protocol sweeps --levels 8 --out data/sweeps-8 --json > collect.json""")
+  ctrkin collect --protocol sweeps --levels 8 --out data/sweeps-8 --json > collect.json
+  ctrkin collect --rig examples/rigs/paper.toml --protocol paper --scale full --out data/rig""")
 @click.option("--protocol", type=click.Choice(CHOICES), required=True,
               help=CollectConfig.__dataclass_fields__["protocol"].metadata["help"])
 @config_options(CollectConfig, exclude=("protocol",))
+@click.option("--rig", "rig_file", default=None, type=click.Path(exists=True, dir_okay=False),
+              help="Run the protocol on the rig this TOML file describes (docs/hardware.md) instead of "
+              "the virtual robot; the robot is the rig's. Running the same command again resumes an "
+              "interrupted collection; --overwrite starts over.")
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
               help="Override a virtual robot effect magnitude (repeatable).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Output folder (written as a whole: a failure leaves the previous one).")
 @output_options
 def collect_cmd(settings: tuple[str, ...], out_dir: str, overwrite: bool, as_json: bool,
-                **options: Any) -> None:
-    """Record a protocol on the virtual robot (or write square/triangle IK targets)."""
+                rig_file: str | None, **options: Any) -> None:
+    """Record a protocol on the virtual robot or on a rig (or write square/triangle IK targets)."""
     config = _config(settings)
     cfg = CollectConfig(**options)
     protocol, scale, seed, n_points = cfg.protocol, cfg.scale, cfg.seed, cfg.n_points
+    if rig_file is not None:
+        from ctrkin.cli.collect_rig import collect_on_rig
+
+        ctx = click.get_current_context()
+        named = {"robot": "--robot", "robot_seed": "--robot-seed", "settings": "--set"}
+        given = [o for p, o in named.items()
+                 if ctx.get_parameter_source(p) == click.core.ParameterSource.COMMANDLINE]
+        if given:
+            raise click.BadParameter(f"{', '.join(given)}: not used with --rig (the rig file names the "
+                                     "robot, and its [virtual] table the virtual robot's seeds and "
+                                     "settings)", param_hint="--rig")
+        if protocol in SHAPES:
+            raise click.BadParameter("square and triangle are IK targets, not a collection; drop --rig",
+                                     param_hint="--rig")
+        collect_on_rig(rig_file, protocol, cfg.plan, out_dir, overwrite, as_json)
+        return
     out = check_output(out_dir, overwrite)
     robot = load_robot(cfg.robot)
     virtual = VirtualRobot(robot, config, seed=cfg.robot_seed)
@@ -107,15 +143,7 @@ def collect_cmd(settings: tuple[str, ...], out_dir: str, overwrite: bool, as_jso
         if as_json:
             emit_json({"protocol": protocol, "robot": robot.name, "targets": len(path.poses), "out": out})
         return
-    kw: dict[str, object] = {"n_points": n_points or 20} if protocol == "random-points" else {}
-    if cfg.levels is not None:
-        kw["levels"] = cfg.levels
-    if protocol == "paper" and scale == "tiny":
-        tiny = SCALES["tiny"]
-        kw.setdefault("levels", tiny.paper_levels)
-        kw["outer_step_deg"] = tiny.paper_outer_step_deg
-    protocol_scale = SCALES[scale].protocol_scale
-    plan = protocols.build(protocol, robot, scale=protocol_scale, seed=seed, **kw)  # type: ignore[arg-type]
+    plan = cfg.plan(robot)
     t0 = time.perf_counter()
     ds = record(plan, virtual, seed=seed, workers=cfg.workers)
     elapsed = time.perf_counter() - t0

@@ -16,6 +16,7 @@
 
     ctrkin dataset split data/mylog --kind random --seed 0 --fractions 0.7,0.15,0.15
     ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate   # test sequence by name
+    ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate --val-rows 0.15
 """
 
 from __future__ import annotations
@@ -34,7 +35,14 @@ from ctrkin.cli.from_config import config_options
 from ctrkin.data.cleaning import CleaningConfig
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
-from ctrkin.data.splits import Split, random_split, split_by_sequence, split_warnings, split_with_test
+from ctrkin.data.splits import (
+    Split,
+    random_split,
+    split_by_sequence,
+    split_warnings,
+    split_with_test,
+    split_with_test_val_rows,
+)
 from ctrkin.data.summary import summarize
 from ctrkin.robots import load_robot
 
@@ -246,11 +254,24 @@ class SplitConfig:
     test: tuple[str, ...] | None = field(default=None, metadata=_help(
         "Sequences for the test part, by name (file stem for imported logs) or index, comma-separated; "
         "the rest is split into train and validation by --fractions."))
+    val_rows: float | None = field(default=None, metadata=_help(
+        "With --test: validation is this fraction of the other sequences' rows, drawn at random, instead "
+        "of whole sequences (with few sequences a whole one is spent on validation); the split of "
+        "benchmarks/bench_realdata.py is --val-rows 0.15."))
 
     def __post_init__(self) -> None:
         if len(self.fractions) != 3:
             raise click.BadParameter(f"three fractions needed, got {list(self.fractions)}",
                                      param_hint="--fractions")
+        if self.val_rows is not None and self.test is None:
+            raise click.BadParameter("--val-rows needs --test (the held-out sequences)",
+                                     param_hint="--val-rows")
+
+    def describe(self) -> str:
+        """The kind of split, as `ctrkin dataset split` reports it."""
+        if self.test is not None and self.val_rows is not None:
+            return f"test {','.join(self.test)}, validation {self.val_rows:.0%} of the other rows"
+        return self.kind
 
     def make(self, ds: Dataset) -> Split:
         """The split of `ds` (DatasetError: fractions that do not sum to 1, unknown test sequences)."""
@@ -258,6 +279,8 @@ class SplitConfig:
         sid = ds.frame["sequence_id"].to_numpy()
         if self.test is not None:
             labels = [str(v) for v in ds.meta.get("sequence_labels") or []]
+            if self.val_rows is not None:
+                return split_with_test_val_rows(sid, labels, list(self.test), self.val_rows, seed=self.seed)
             return split_with_test(sid, labels, list(self.test), frac, seed=self.seed)
         if self.kind == "sequence":
             return split_by_sequence(sid, frac, seed=self.seed)
@@ -267,7 +290,8 @@ class SplitConfig:
 @dataset_group.command("split", epilog="""\b
 Examples:
   ctrkin dataset split data/paper --fractions 0.8,0.1,0.1 --seed 2
-  ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate""")
+  ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate
+  ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate --val-rows 0.15""")
 @click.argument("folder", type=click.Path(exists=True, file_okay=False))
 @config_options(SplitConfig)
 def split_cmd(folder: str, **settings: Any) -> None:
@@ -278,7 +302,9 @@ def split_cmd(folder: str, **settings: Any) -> None:
     split = cfg.make(ds)
     ds.save_split(folder, split)
     sizes = split.sizes()
-    say(f"{folder}: {cfg.kind} split, seed {cfg.seed}: train {sizes['train']}, val {sizes['val']}, "
+    say(f"{folder}: {cfg.describe()} split, seed {cfg.seed}: train {sizes['train']}, val {sizes['val']}, "
         f"test {sizes['test']} samples -> {Path(folder) / 'split.json'}")
-    for w in split_warnings(split, (cfg.fractions[0], cfg.fractions[1], cfg.fractions[2])):
+    f = cfg.fractions
+    frac = split.fractions if cfg.val_rows is not None else (f[0], f[1], f[2])
+    for w in split_warnings(split, frac):
         click.echo(f"warning: {w}", err=True)

@@ -32,13 +32,15 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
                   "transmission length, marker offset) by bounded least squares; print them with "
                   "standard errors."),
     "collect": ("ctrkin.cli.collect", "collect_cmd",
-                "Record a protocol on the virtual robot (or write square/triangle IK targets)."),
+                "Record a protocol on the virtual robot or on a rig (or write square/triangle IK "
+                "targets)."),
     "dataset": ("ctrkin.cli.dataset", "dataset_group",
                 "Inspect datasets, import robot logs (CSV) and split datasets."),
     "evaluate": ("ctrkin.cli.evaluate", "evaluate_cmd",
                  "Compare predictors with the measured tips: position (and orientation, where measured) "
-                 "errors overall and per sequence; plots of predicted vs measured tips and of error "
-                 "against joints."),
+                 "errors per part (training, validation, held out, in-sample), per sequence and overall; "
+                 "plots of predicted vs measured tips, of error against joints and of the error per "
+                 "sequence."),
     "export": ("ctrkin.cli.export", "export_cmd",
                "Export MODEL_DIR (from `ctrkin train`) to an ONNX file (written atomically)."),
     "predict": ("ctrkin.cli.predict", "predict_cmd",
@@ -47,6 +49,9 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "reproduce": ("ctrkin.cli.reproduce", "reproduce_cmd",
                   "Collect data, train the models, run every experiment of the paper, write the report."),
     "robot": ("ctrkin.cli.robot", "robot_group", "Robot description files: a documented template."),
+    "show": ("ctrkin.cli.show", "show_cmd",
+             "Draw the robot's 3-D shape (tubes with their diameters, the tip's path, snaps marked), or "
+             "animate a sweep with its snap."),
     "solve": ("ctrkin.cli.mechanics", "solve_cmd",
               "Solve the TCM at one configuration (point-wise, no history)."),
     "sweep": ("ctrkin.cli.mechanics", "sweep_cmd",
@@ -106,8 +111,8 @@ def _environ(name: str, value: str) -> Iterator[None]:
 
 
 @click.group(cls=CtrkinGroup, context_settings={"help_option_names": ["-h", "--help"]}, epilog="""\b
-Progress is one updating line on a terminal and a few lines (25/50/75/100 %) in a log or pipe;
-CTRKIN_NO_PROGRESS=1 (or --quiet) turns it off.
+Progress is one updating line on a terminal; in a log or pipe, a line at 25/50/75/100 % and at
+least one a minute while work goes on. CTRKIN_NO_PROGRESS=1 (or --quiet) turns it off.
 Exit status: 0 done; 1 the input is wrong for the task (invalid joints, robot mismatch, bad data,
 an existing output without --overwrite), one line on stderr; 2 a usage error.
 

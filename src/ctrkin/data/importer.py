@@ -56,11 +56,18 @@ class _Log:
     """The raw CSV with its field -> column resolution; errors name the file, line and column."""
 
     def __init__(self, path: Path, robot: Robot, cfg: ImportConfig, raw: pd.DataFrame | None = None,
-                 origins: list[tuple[str, int]] | None = None) -> None:
+                 origins: list[tuple[str, int]] | None = None, profile: str | None = None) -> None:
         """raw: the log's cells as text, already read (an import profile reads them); origins: the
-        (file, line) of each of its rows, for messages."""
+        (file, line) of each of its rows, for messages; profile: the import profile that read them
+        (messages then point at its keys, not at --map and --units, which a profile ignores)."""
         self.path, self.robot, self.cfg = path, robot, cfg
         self.origins = origins
+        self.units_hint = ("check --units and --map" if profile is None else
+                           f"check {profile}: its [columns] (positions, scale, offset, zero) and "
+                           "[pose] unit")
+        self.metres_hint = "--units position=m" if profile is None else f'{profile}: [pose] unit = "m"'
+        self.quaternion_hint = ("check --map, --quaternion and --quat-order" if profile is None else
+                                f"check {profile}: the quaternion columns and [pose] quaternion_order")
         if raw is not None:
             self.raw = raw.reset_index(drop=True)
             self.field_names: dict[str, str] = {}
@@ -270,7 +277,7 @@ class _Rows:
             read = {cols[c]: float(values[c][r]) for c in schema.beta_columns(n)}
             raise DatasetError(f"{log.where(self.line[r])}: joints outside the limits of robot "
                                f"{robot.name!r}: {reason}; columns {beta_cols} read {read} "
-                               f"({cfg.beta_unit}). Fix the log, check --units and --map, or pass "
+                               f"({cfg.beta_unit}). Fix the log, {log.units_hint}, or pass "
                                "--drop-invalid to drop such rows")
         self.keep(~invalid)
         if len(self.line) == 0:
@@ -369,7 +376,7 @@ def _dataset(s: _Cleaned, rows: _Rows, seq_labels: list[str], robot: Robot, cfg:
     warnings: list[str] = []
     if np.abs(s.position).max() < 1.0:
         warnings.append("every tip position is within 1 mm of the origin: are the positions in metres? "
-                        "(--units position=m)")
+                        f"({rows.log.metres_hint})")
     if np.median(s.tangent[:, 2]) < 0:
         warnings.append("most tip tangents point backwards (-z): check the quaternion order "
                         "(--quat-order) and the tracker-to-robot registration")
@@ -434,7 +441,7 @@ def _tangents(values: dict[str, np.ndarray], mode: str | None, line: np.ndarray,
         used = [log.columns[c] for c in names]
         extra = "" if mode == "quaternion" else " (a 5-DOF quaternion needs qz = 0)"
         raise DatasetError(f"{log.where(line[r])}: the quaternion in columns {used} has norm "
-                           f"{norm[r]:.4f}, not 1{extra}; check --map, --quaternion and --quat-order")
+                           f"{norm[r]:.4f}, not 1{extra}; {log.quaternion_hint}")
     return tangent_from_quaternion(q) if mode == "quaternion" else tangent_from_quat(q)
 
 

@@ -30,11 +30,19 @@ both comet-lab formats; examples/profiles/ has the files):
     [drop]
     all_zero = true                # preallocated rows that are all zero
 
+    [expect]                       # what this format must hold, or the log is not of this robot
+    zero = [7]                     # columns that stay 0 (an unused rotation)
+    equal = [[3, 4]]               # columns that hold the same value (a carriage moving with another)
+    hint = "a three-tube log? use comet_ndi_3tube.toml"   # added to the message when they do not
+
 Column value = scale · cell + offset. For β, `zero` is β at zero travel (mm, a number) or
 "straight_length": β = travel − the tube's straight length (the curved part starts at the front plate
-at zero travel). Orientation "tangent" needs qw, qx, qy, qz columns whose rotation turns z onto the tip
-tangent. A reference body (`[reference]` with x, y, z, qw, qx, qy, qz columns) makes the tip pose
-relative to it: p = R_refᵀ (p_tip − p_ref). Errors name the profile file, its line and the key.
+at zero travel). `[expect]` guards against a log of another robot read with this profile (a
+three-tube log read as two tubes): a column that should stay zero or equal another but does not is
+an error naming the line and the hint. Orientation "tangent" needs qw, qx, qy, qz columns whose
+rotation turns z onto the tip tangent. A reference body (`[reference]` with x, y, z, qw, qx, qy,
+qz columns) makes the tip pose relative to it: p = R_refᵀ (p_tip − p_ref). Errors name the
+profile file, its line and the key.
 """
 
 from __future__ import annotations
@@ -55,7 +63,7 @@ ORIENTATIONS = ("tangent", "marker", "absent")
 POSE_FIELDS = POSITION_COLUMNS
 QUAT_FIELDS = ("qw", "qx", "qy", "qz")
 REFERENCE_FIELDS = (*POSE_FIELDS, *QUAT_FIELDS)
-SECTIONS = {"file", "columns", "pose", "reference", "groups", "drop"}
+SECTIONS = {"file", "columns", "pose", "reference", "groups", "drop", "expect"}
 
 
 @dataclass(frozen=True)
@@ -101,6 +109,9 @@ class Profile:
     joints_unchanged: bool = False
     drop_all_zero: bool = False
     status: tuple[StatusRule, ...] = ()
+    expect_zero: tuple[int | str, ...] = ()
+    expect_equal: tuple[tuple[int | str, int | str], ...] = ()
+    expect_hint: str = ""
     source: str = "profile"
 
     def to_dict(self) -> dict[str, object]:
@@ -111,7 +122,9 @@ class Profile:
                 "reference": {k: v.to_dict() for k, v in self.reference.items()},
                 "group_count": self.group_count, "joints_unchanged": self.joints_unchanged,
                 "drop_all_zero": self.drop_all_zero,
-                "status": [{"column": s.column, "keep": list(s.keep)} for s in self.status]}
+                "status": [{"column": s.column, "keep": list(s.keep)} for s in self.status],
+                "expect": {"zero": list(self.expect_zero), "equal": [list(e) for e in self.expect_equal],
+                           "hint": self.expect_hint}}
 
 
 class _Where:
@@ -225,6 +238,14 @@ def parse_profile(text: str, n_tubes: int, source: str = "profile") -> Profile:
         raise DatasetError(f"{source}: needs a [columns] table mapping fields {allowed} to columns")
     columns: dict[str, ColumnSpec] = {}
     cols_raw = _expand_quaternion(dict(cols_raw), order, where("columns", "quaternion"))
+    profile_tubes = max((int(k.split("_")[1]) for k in cols_raw if re.fullmatch(r"(alpha|beta)_\d+", str(k))),
+                        default=0)
+    complete = all(f in cols_raw for f in joint_names(profile_tubes)) if profile_tubes else False
+    if complete and profile_tubes != n_tubes:       # a whole K-tube profile with an N-tube robot
+        raise DatasetError(f"{where('columns')}: this profile maps the joints of a {profile_tubes}-tube "
+                           f"robot (alpha_1..{profile_tubes}, beta_1..{profile_tubes}) but the robot has "
+                           f"{n_tubes} tubes; use a {n_tubes}-tube profile with this robot, or the "
+                           f"{profile_tubes}-tube robot with this profile")
     for key, value in cols_raw.items():
         w = where("columns", key)
         if key not in allowed:
@@ -282,10 +303,28 @@ def parse_profile(text: str, n_tubes: int, source: str = "profile") -> Profile:
         if not isinstance(keep, list) or not all(isinstance(k, str) for k in keep):
             raise DatasetError(f"{w}: keep must be a list of strings, got {keep!r}")
         status.append(StatusRule(_column_ref(rule["column"], w), tuple(keep)))
+    expect = d.get("expect", {})
+    unknown = set(expect) - {"zero", "equal", "hint"}
+    if unknown:
+        raise DatasetError(f"{where('expect')}: unknown key(s) {sorted(unknown)}; allowed: zero, equal, hint")
+    zero_cols = expect.get("zero", [])
+    if not isinstance(zero_cols, list):
+        raise DatasetError(f"{where('expect', 'zero')}: a list of columns, got {zero_cols!r}")
+    equal_raw = expect.get("equal", [])
+    if not isinstance(equal_raw, list) or not all(isinstance(e, list) and len(e) == 2 for e in equal_raw):
+        raise DatasetError(f"{where('expect', 'equal')}: a list of column pairs [[a, b], ...], got "
+                           f"{equal_raw!r}")
+    hint = expect.get("hint", "")
+    if not isinstance(hint, str):
+        raise DatasetError(f"{where('expect', 'hint')}: text, got {hint!r}")
     return Profile(columns=columns, header=header, delimiter=delimiter, position_unit=unit,
                    quaternion_order=order, orientation=orientation, reference=reference,
                    group_count=count, joints_unchanged=unchanged, drop_all_zero=all_zero,
-                   status=tuple(status), source=source)
+                   status=tuple(status),
+                   expect_zero=tuple(_column_ref(c, where("expect", "zero")) for c in zero_cols),
+                   expect_equal=tuple((_column_ref(a, where("expect", "equal")),
+                                       _column_ref(b, where("expect", "equal"))) for a, b in equal_raw),
+                   expect_hint=hint, source=source)
 
 
 def load_profile(path: str | Path, n_tubes: int) -> Profile:

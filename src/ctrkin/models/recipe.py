@@ -31,7 +31,7 @@ from ctrkin.data.dataset import Dataset
 from ctrkin.data.tracker_view import recorded_tracker_view
 from ctrkin.errors import ModelError
 from ctrkin.metrics import metrics_json_joint_errors, metrics_json_pose_errors
-from ctrkin.models.features import FeatureLayout, postprocess, sequence_features, windows
+from ctrkin.models.features import FeatureLayout, delta_columns, postprocess, sequence_features, windows
 from ctrkin.models.frame import OuterFrame
 from ctrkin.models.motion import recorded_motion
 from ctrkin.models.normalize import MinMax
@@ -225,9 +225,11 @@ class WindowRecipe:
              gen: torch.Generator) -> torch.Tensor:
         return torch.nn.functional.l1_loss(net(x), y)               # MAE loss (paper IV.A)
 
-    def predict_rows(self, net: torch.nn.Module, rows: np.ndarray) -> np.ndarray:
-        """Normalised outputs (len(rows), O) of the network for rows of the dataset."""
-        return predict_windows(net, self.X, rows)
+    def predict_rows(self, net: torch.nn.Module, rows: np.ndarray, X: np.ndarray | None = None
+                     ) -> np.ndarray:
+        """Normalised outputs (len(rows), O) of the network for rows of the dataset; X: the
+        normalised windows (T, IB, F) to read them from (default the training's, self.X)."""
+        return predict_windows(net, self.X if X is None else X, rows)
 
     def val_loss(self, net: torch.nn.Module) -> float:
         rows = self.rows["val"]
@@ -249,16 +251,25 @@ class WindowRecipe:
         return metrics
 
     def evaluate(self, bundle: ModelBundle) -> dict[str, Any]:
-        """Loss (normalised MAE) and physical errors on the validation and test rows."""
+        """Loss (normalised MAE) and physical errors on the validation and test rows, with the inputs
+        the trained model gets in use: step-change features clipped to their training range, as
+        `Kinematics.predict` clips them. Without it, a held-out file with larger steps than training's
+        (random configurations against sweeps) was reported on extrapolated inputs, and `ctrkin
+        evaluate` gave another figure for the same rows."""
         res: dict[str, Any] = {}
         ds = self.data.ds
         measured_fk = self.layout.task == "fk" and bundle.config.pose_source == "measured"
         truth = recorded_tracker_view(ds) if measured_fk else None
+        X = self.X
+        dcols = delta_columns(self.layout)
+        if len(dcols):                  # normalised on the training rows: their range is [0, 1]
+            X = X.copy()
+            X[..., dcols] = np.clip(X[..., dcols], 0.0, 1.0)
         for part in ("val", "test"):
             rows = self.rows[part]
             if len(rows) == 0:
                 continue
-            yn = self.predict_rows(bundle.net, rows)
+            yn = self.predict_rows(bundle.net, rows, X)
             m: dict[str, Any] = {"loss": float(np.mean(np.abs(yn - self.Y[rows]))), "rows": len(rows)}
             pred = self.to_world(postprocess(self.layout, self.y_norm.inverse(yn)), rows)
             if self.layout.task == "fk":

@@ -21,7 +21,16 @@ YOUNGS_RANGE_GPA = (1e-3, 1e3)
 
 @dataclass(frozen=True)
 class Section:
-    """A stretch of tube with constant precurvature. length: mm, curvature: 1/mm."""
+    """A stretch of tube with constant precurvature.
+
+    Attributes
+    ----------
+    length : float
+        Length (mm).
+    curvature : float
+        Precurvature κ (1/mm), 0 on a straight stretch; it lies in the tube's material frame as
+        û = (κ, 0, 0).
+    """
 
     length: float
     curvature: float
@@ -51,12 +60,33 @@ def _section(k: int, s: object) -> Section:
 
 @dataclass(frozen=True)
 class Tube:
-    """A nitinol tube: straight part at the base, then a curved part (the common case).
+    """A nitinol tube: a straight part at the base, then a curved part (the common case).
 
-    od, id: outer and inner diameter (mm); straight_length, curved_length: mm; curvature: 1/mm
-    (1 / radius of curvature); youngs_modulus: GPa; poisson_ratio: dimensionless.
-    `sections` may instead give general piecewise-constant precurvature from base to tip
-    (see `Tube.from_sections`); it is always filled in, so the mechanics reads only `sections`.
+    Validated on construction: a value outside physical bounds raises `RobotDescriptionError` with
+    what to change.
+
+    Parameters
+    ----------
+    od, id : float
+        Outer and inner diameter (mm), 0 ≤ id < od.
+    straight_length, curved_length : float
+        Lengths of the straight and the curved part (mm).
+    curvature : float
+        Precurvature of the curved part (1/mm: 1 / radius of curvature).
+    youngs_modulus : float
+        E (GPa); superelastic nitinol is ~58 GPa.
+    poisson_ratio : float
+        ν, in [0, 0.5): sets the bending-to-torsion stiffness ratio EI/GJ = 1 + ν.
+    sections : tuple of Section, optional
+        General piecewise-constant precurvature from base to tip instead (see `from_sections`);
+        always filled in, so the mechanics reads only `sections`.
+
+    Examples
+    --------
+    >>> from ctrkin import Tube
+    >>> inner = Tube(od=0.4, id=0.2, straight_length=57.0, curved_length=15.0, curvature=1 / 27)
+    >>> round(inner.length, 1), len(inner.sections)
+    (72.0, 2)
     """
 
     od: float
@@ -133,8 +163,22 @@ class Tube:
                       youngs_modulus: float = 58.0, poisson_ratio: float = 0.33) -> Tube:
         """A tube with general piecewise-constant precurvature.
 
-        sections: [(length mm, curvature 1/mm), ...] from base to tip. straight_length is set to
-        the leading straight stretch, curved_length to the rest, curvature to the first non-zero one.
+        Parameters
+        ----------
+        od, id : float
+            Outer and inner diameter (mm).
+        sections : list of (float, float)
+            (length mm, curvature 1/mm) pairs from base to tip.
+        youngs_modulus : float
+            E (GPa).
+        poisson_ratio : float
+            ν.
+
+        Returns
+        -------
+        Tube
+            With straight_length the leading straight stretch, curved_length the rest and curvature
+            the first non-zero one.
         """
         if not isinstance(sections, (list, tuple)):
             raise RobotDescriptionError(
@@ -172,6 +216,7 @@ class Tube:
         return self.bending_stiffness / (1.0 + self.poisson_ratio)
 
     def to_dict(self) -> dict[str, object]:
+        """The tube as a robot TOML file's `[[tube]]` table (sections only where not the default)."""
         d: dict[str, object] = {
             "od": self.od, "id": self.id, "straight_length": self.straight_length,
             "curved_length": self.curved_length, "curvature": self.curvature,

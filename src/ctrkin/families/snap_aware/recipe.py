@@ -108,9 +108,10 @@ class BranchRecipe(WindowRecipe):
         assert isinstance(net, BranchNet)
         return self.batch.loss(net, x, y, idx, gen)
 
-    def predict_rows(self, net: torch.nn.Module, rows: np.ndarray) -> np.ndarray:
+    def predict_rows(self, net: torch.nn.Module, rows: np.ndarray, X: np.ndarray | None = None
+                     ) -> np.ndarray:
         assert isinstance(net, BranchNet)
-        return decode_rows(net, self.X, rows, self.bounds)
+        return decode_rows(net, self.X if X is None else X, rows, self.bounds)
 
     def finish(self, bundle: ModelBundle, folder: Path, log: Log) -> dict[str, Any]:
         log("tabulating the nominal robot's folds for the fold gate")
