@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import threading
 
 import pytest
 
@@ -43,20 +44,43 @@ def test_mixed_files_from_two_trainings_are_refused(quick_ds, tmp_path):
 
 
 def test_overwrite_swaps_the_whole_folder(quick_ds, tmp_path):
+    """The folder is replaced as a whole (a file the old model had and the new one does not write is
+    gone); a file ctrkin did not write is never deleted: overwrite is refused until it is moved out
+    (issue 27: one meaning of --overwrite, nothing of the user's lost)."""
     out = tmp_path / "m"
     train(quick_ds, _cfg(), out, progress=False)
-    (out / "stale.txt").write_text("from the old model")
+    (out / "frame.json").write_text("{}")           # a model file the next model does not write
+    (out / "notes.txt").write_text("mine")
+    with pytest.raises(ModelError, match="notes.txt, which ctrkin did not write"):
+        train(quick_ds, _cfg(ib=3), out, overwrite=True, progress=False)
+    assert (out / "notes.txt").read_text() == "mine" and Kinematics.load(out).ib == 2
+    (out / "notes.txt").unlink()
     train(quick_ds, _cfg(ib=3), out, overwrite=True, progress=False)
-    assert not (out / "stale.txt").exists()          # the folder was replaced, not written over
+    assert not (out / "frame.json").exists()         # the folder was replaced, not written over
     assert Kinematics.load(out).ib == 3
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m"]   # no build, old copy or lock left
 
 
 def test_second_training_into_the_same_folder_is_refused(quick_ds, tmp_path):
-    """Two trainings into one --out both exited 0 and one silently won."""
+    """Two trainings into one --out both exited 0 and one silently won. (The lock is held here by
+    another thread: within one thread it is re-entrant.)"""
     out = tmp_path / "m"
-    with folder_lock(out, ModelError, "train"), pytest.raises(ModelError, match="another process"):
-        train(quick_ds, _cfg(), out, progress=False)
+    held, done = threading.Event(), threading.Event()
+
+    def hold() -> None:
+        with folder_lock(out, ModelError, "train"):
+            held.set()
+            done.wait(60)
+
+    t = threading.Thread(target=hold)
+    t.start()
+    held.wait(60)
+    try:
+        with pytest.raises(ModelError, match="another process"):
+            train(quick_ds, _cfg(), out, progress=False)
+    finally:
+        done.set()
+        t.join()
     train(quick_ds, _cfg(), out, progress=False)     # the lock is released
 
 

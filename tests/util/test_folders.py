@@ -12,6 +12,7 @@ import os
 import shutil
 import signal
 import sys
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -91,10 +92,25 @@ def _same(a: pd.DataFrame, b: pd.DataFrame) -> bool:
 # --- units ------------------------------------------------------------------------------------------
 
 def test_lock_refuses_a_second_writer_and_is_released(tmp_path):
+    """A second writer (here another thread; the lock is re-entrant within one thread, so that a
+    command can hold it from its first check to the library's save) is refused at once."""
     target = tmp_path / "m"
+    errors: list[Exception] = []
+
+    def second() -> None:
+        try:
+            with folder_lock(target, ModelError):
+                pass
+        except ModelError as e:
+            errors.append(e)
+
     with folder_lock(target, ModelError):
-        with pytest.raises(ModelError, match=f"pid {os.getpid()}"), folder_lock(target, ModelError):
+        with folder_lock(target, ModelError):       # the same thread again: fine
             pass
+        t = threading.Thread(target=second)
+        t.start()
+        t.join()
+    assert len(errors) == 1 and f"pid {os.getpid()}" in str(errors[0])
     with folder_lock(target, ModelError):
         pass
     assert list(tmp_path.iterdir()) == []

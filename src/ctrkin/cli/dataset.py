@@ -28,7 +28,15 @@ import click
 from rich.console import Console
 from rich.table import Table
 
-from ctrkin.cli.common import check_output, overwrite_option, parse_floats, quiet, robot_option, say
+from ctrkin.cli.common import (
+    InputPath,
+    output_folder,
+    overwrite_option,
+    parse_floats,
+    quiet,
+    robot_option,
+    say,
+)
 from ctrkin.data.cleaning import CleaningConfig
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
@@ -96,7 +104,7 @@ def print_summary(s: dict[str, Any], title: str) -> None:
 @dataset_group.command("info", epilog="""\b
 Examples:
   ctrkin dataset info data/paper --json""")
-@click.argument("folder", type=click.Path(exists=True, file_okay=False))
+@click.argument("folder", type=InputPath(file_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def info_cmd(folder: str, as_json: bool) -> None:
     """Summary of the dataset in FOLDER: samples, sequences, ranges, snaps, cleaning, noise, split."""
@@ -162,9 +170,9 @@ Examples:
   ctrkin dataset import robot_log.csv --robot paper --units rad,m --out data/mylog
   ctrkin dataset import logs/*.csv --profile examples/profiles/comet_optitrack.toml \\
       --robot examples/robots/comet_nylon_optitrack.toml --out data/optitrack""")
-@click.argument("log_files", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
+@click.argument("log_files", nargs=-1, required=True, type=InputPath(dir_okay=False))
 @robot_option
-@click.option("--profile", "profile_file", default=None, type=click.Path(exists=True, dir_okay=False),
+@click.option("--profile", "profile_file", default=None, type=InputPath(dir_okay=False),
               help="Import profile (TOML: columns by position or name, scales, travel zero, groups, "
                    "drops, reference body, orientation). With a profile, several files make one "
                    "dataset, one sequence per file, and --map/--units/--quaternion are not used.")
@@ -207,7 +215,8 @@ def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | 
                                "profile import one file")
     quaternion_columns = tuple(c.strip() for c in quat_cols.split(",")) if quat_cols else ()
     mapping, unit_kw, gap = parse_map(maps), parse_units(units), parse_gap(gap_text)
-    out = check_output(out_dir, overwrite or force)
+    out = output_folder(out_dir, "dataset", overwrite or force,
+                        inputs=[*log_files, profile_file, robot_spec])
     robot = load_robot(robot_spec)
     cfg = ImportConfig(
         mapping=mapping, quaternion_columns=quaternion_columns,
@@ -236,7 +245,7 @@ def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | 
 Examples:
   ctrkin dataset split data/paper --fractions 0.8,0.1,0.1 --seed 2
   ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate""")
-@click.argument("folder", type=click.Path(exists=True, file_okay=False))
+@click.argument("folder", type=InputPath(file_okay=False))
 @click.option("--kind", type=click.Choice(["sequence", "random"]), default="sequence", show_default=True,
               help="sequence: whole sequences per part (no leakage through the input buffer); "
                    "random: the paper's per-sample shuffle.")
@@ -246,7 +255,10 @@ Examples:
 @click.option("--test", "test_seqs", default=None, metavar="NAMES|INDICES",
               help="Sequences for the test part, by name (file stem for imported logs) or index, "
                    "comma-separated; the rest is split into train and validation by --fractions.")
-def split_cmd(folder: str, kind: str, seed: int, fractions: str, test_seqs: str | None) -> None:
+@overwrite_option(help="Replace a split.json that FOLDER already has (otherwise a different saved split "
+                  "is refused: models trained on it would no longer match).")
+def split_cmd(folder: str, kind: str, seed: int, fractions: str, test_seqs: str | None,
+              overwrite: bool) -> None:
     """Make a train/validation/test split of the dataset in FOLDER and save it as split.json. Warns
     when the parts are far from the requested fractions (few, unequal sequences)."""
     f = parse_floats(fractions, "--fractions")
@@ -262,7 +274,7 @@ def split_cmd(folder: str, kind: str, seed: int, fractions: str, test_seqs: str 
         split = split_by_sequence(ds.frame["sequence_id"].to_numpy(), frac, seed=seed)
     else:
         split = random_split(len(ds.frame), frac, seed=seed)
-    ds.save_split(folder, split)
+    ds.save_split(folder, split, overwrite=overwrite)
     sizes = split.sizes()
     say(f"{folder}: {kind} split, seed {seed}: train {sizes['train']}, val {sizes['val']}, "
         f"test {sizes['test']} samples -> {Path(folder) / 'split.json'}")

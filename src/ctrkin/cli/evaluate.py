@@ -7,19 +7,17 @@
 
 from __future__ import annotations
 
-import shutil
-import tempfile
+import contextlib
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import click
 
-from ctrkin.cli.common import check_output, emit_json, output_options, say
+from ctrkin.cli.common import InputPath, emit_json, output_folder, output_options, say
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import CtrkinError
 from ctrkin.evaluation.real import evaluate
-from ctrkin.util.folders import swap_in
+from ctrkin.util.folders import build_folder
 
 
 @click.command("evaluate", epilog="""\b
@@ -28,31 +26,28 @@ Examples:
   ctrkin evaluate --data data/optitrack --predictor robots/optitrack_cal.toml --out out/eval_cal
   ctrkin evaluate --data data/optitrack --predictor models/fk_optitrack --out out/eval_fk
   ctrkin evaluate --data data/optitrack --predictor tcm --json > eval_tcm.json""")
-@click.option("--data", "data_dir", required=True, type=click.Path(exists=True, file_okay=False),
+@click.option("--data", "data_dir", required=True, type=InputPath(file_okay=False),
               help="Dataset folder.")
 @click.option("--predictor", "predictors", required=True, multiple=True,
               help="tcm (nominal robot of the dataset, registration fitted here), a robot file "
                    "(.toml, calibrated or not) or a trained FK model folder. Repeatable.")
 @click.option("--out", "out_dir", default=None, type=click.Path(file_okay=False),
               help="Folder for results.json and plots (one sub-folder per predictor when several); "
-              "written as a whole: with --overwrite it replaces the folder's earlier content.")
+              "written as a whole (with --overwrite it replaces an earlier evaluation folder).")
 @output_options
 def evaluate_cmd(data_dir: str, predictors: tuple[str, ...], out_dir: str | None, overwrite: bool,
                  as_json: bool) -> None:
     """Compare predictors with the measured tips: position (and orientation, where measured) errors
     overall and per sequence; plots of predicted vs measured tips and of error against joints."""
     if out_dir is not None:
-        check_output(out_dir, overwrite)
+        output_folder(out_dir, "evaluation", overwrite, inputs=[data_dir, *predictors])
     ds = Dataset.load(data_dir)
     # without --out (and without --json) the printed table is the result
     show = click.echo if out_dir is None and not as_json else say
-    build = None
-    if out_dir is not None:         # written beside --out, swapped in when every predictor is done
-        target = Path(out_dir)
-        target.parent.mkdir(parents=True, exist_ok=True)
-        build = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
     results = []
-    try:
+    # written beside --out, swapped in when every predictor is done
+    with (contextlib.nullcontext(None) if out_dir is None
+          else build_folder(out_dir, "evaluation", CtrkinError, "evaluate")) as build:
         for k, spec in enumerate(predictors):
             out = None if build is None else (build if len(predictors) == 1 else build / str(k))
             res = evaluate(ds, spec, out)
@@ -60,14 +55,9 @@ def evaluate_cmd(data_dir: str, predictors: tuple[str, ...], out_dir: str | None
                             "out": None if out_dir is None else
                             (out_dir if len(predictors) == 1 else f"{out_dir}/{k}")})
             _print(spec, res, show)
-        if build is not None and out_dir is not None:
-            swap_in(build, Path(out_dir), CtrkinError)
-            build = None
-            for r in results:
-                say(f"wrote {r['out']}/results.json, tips.png, error_vs_joints.png")
-    finally:
-        if build is not None:
-            shutil.rmtree(build, ignore_errors=True)
+    if out_dir is not None:
+        for r in results:
+            say(f"wrote {r['out']}/results.json, tips.png, error_vs_joints.png")
     if as_json:
         emit_json({"data": data_dir, "predictors": results})
 

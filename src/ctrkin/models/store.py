@@ -39,7 +39,7 @@ from ctrkin.models.normalize import MinMax
 from ctrkin.models.registry import build_model
 from ctrkin.robots.robot import Robot
 from ctrkin.util.files import atomic_write_bytes, atomic_write_text
-from ctrkin.util.folders import check_manifest, write_manifest
+from ctrkin.util.folders import check_manifest, reading_folder, write_manifest
 
 CONFIG, FEATURES, NORMALIZATION, ROBOT, WEIGHTS = ("config.json", "features.json", "normalization.json",
                                                    "robot.json", "weights.pt")
@@ -150,7 +150,11 @@ class ModelBundle:
 
     @classmethod
     def load(cls, folder: str | Path) -> ModelBundle:
-        src = Path(folder)
+        with reading_folder(folder) as src:     # one version, never a mix (ctrkin.util.folders)
+            return cls._load(src)
+
+    @classmethod
+    def _load(cls, src: Path) -> ModelBundle:
         missing = [f for f in REQUIRED if not (src / f).is_file()]
         if missing:
             raise ModelError(f"{src} is not a trained ctrkin model folder: missing {missing} "
