@@ -11,6 +11,7 @@ import functools
 import hashlib
 import json
 import math
+import reprlib
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,6 +45,31 @@ def joint_names(n_tubes: int) -> list[str]:
     return alpha_names(n_tubes) + beta_names(n_tubes)
 
 
+def _lengths_mm(values: object, n_tubes: int) -> tuple[float, ...]:
+    """Robot.transmission_length as floats: empty, or one finite number >= 0 (mm) per tube. Anything
+    else (text, lists, tables, booleans) is a RobotDescriptionError naming what was given."""
+    what = (f"Robot.transmission_length needs {n_tubes} finite numbers >= 0 mm (one per tube) or "
+            f"none, got {reprlib.repr(values)}")
+    if isinstance(values, (str, bytes, dict)):
+        raise RobotDescriptionError(what)
+    try:
+        items = tuple(values)  # type: ignore[call-overload]
+    except TypeError:
+        raise RobotDescriptionError(what) from None
+    if not items:
+        return ()
+    ok = len(items) == n_tubes and all(
+        isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+        for v in items)
+    try:
+        out = tuple(float(v) for v in items) if ok else ()
+    except OverflowError:       # an int beyond float range
+        ok = False
+    if not ok or not all(math.isfinite(v) and v >= 0 for v in out):
+        raise RobotDescriptionError(what)
+    return out
+
+
 @dataclass(frozen=True)
 class Robot:
     """tubes: innermost first. transmission: "compliant" (the part s < 0 is straight but twists,
@@ -63,11 +89,8 @@ class Robot:
             raise RobotDescriptionError(
                 f"Robot.tubes must be a sequence of Tube, innermost first, got {self.tubes!r}") from None
         object.__setattr__(self, "tubes", tubes)
-        tl = tuple(float(v) for v in self.transmission_length)
+        tl = _lengths_mm(self.transmission_length, len(tubes))
         object.__setattr__(self, "transmission_length", tl)
-        if tl and (len(tl) != len(tubes) or not all(math.isfinite(v) and v >= 0 for v in tl)):
-            raise RobotDescriptionError(f"Robot.transmission_length needs {len(tubes)} finite values >= 0 mm "
-                                        f"(one per tube), got {list(tl)}")
         if len(tubes) < 1:
             raise RobotDescriptionError("Robot needs at least one tube")
         for k, t in enumerate(tubes):
