@@ -60,15 +60,23 @@ def _siblings(target: Path, pattern: str) -> list[Path]:
     for name in names:
         if rx.fullmatch(name):
             p = target.parent / name
-            if stat.S_ISDIR(os.lstat(p).st_mode):
-                out.append(p)
+            with contextlib.suppress(OSError):      # gone meanwhile (a writer's own build)
+                if stat.S_ISDIR(os.lstat(p).st_mode):
+                    out.append(p)
     return out
+
+
+def _mtime(p: Path) -> float:
+    try:
+        return p.lstat().st_mtime
+    except OSError:
+        return 0.0
 
 
 def old_copies(target: Path) -> list[Path]:
     """`.NAME.old-*` siblings of `target` left by an interrupted swap, newest first."""
     found = _siblings(target, r"old-[0-9a-f]{8}")
-    return sorted(found, key=lambda p: p.stat().st_mtime, reverse=True)
+    return sorted(found, key=_mtime, reverse=True)
 
 
 def stale_builds(target: Path) -> list[Path]:
@@ -126,7 +134,7 @@ def _missing_mid_swap(folder: Path) -> bool:
         return False
     if writer_active(folder):
         return True
-    with contextlib.suppress(OSError, RuntimeError), writer_lock(folder, RuntimeError):
+    with contextlib.suppress(OSError, RuntimeError), writer_lock(folder, RuntimeError, wait=0.0):
         recover(folder)
     return os.path.isdir(folder)
 
@@ -141,7 +149,7 @@ def tidy_if_free(target: Path) -> list[str]:
     if not (old_copies(target) or stale_builds(target)) or writer_active(target):
         return []
     try:
-        with writer_lock(target, _Busy):
+        with writer_lock(target, _Busy, wait=0.0):
             return tidy(target)
     except (_Busy, OSError):
         return []

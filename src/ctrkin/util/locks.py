@@ -11,9 +11,11 @@ its process dies, even by SIGKILL: a crash never leaves a stale lock. Re-entrant
 Reader lock: a shared flock on the folder itself (its directory), for the short time of a read; the
 writer takes it exclusive only around the swap (ctrkin.util.folders.swap_in). A reader therefore
 reads one version, old or new, never a mix; a writer waits for the reads in progress (short), never
-fails because of them. Opening a directory needs only read access, so this works in read-only
-places too; where even that is impossible the read goes on unlocked and the folder's own checks
-(hashes in meta.json / manifest.json) stand guard.
+fails because of them. So that readers which keep overlapping cannot hold a writer off, a writer
+about to swap first closes a turnstile (an exclusive flock on the parent folder, for its renames
+only) that new readers pass before they lock the folder. Opening a directory needs only read
+access, so this works in read-only places too; where even that is impossible the read goes on
+unlocked and the folder's own checks (hashes in meta.json / manifest.json) stand guard.
 """
 
 from __future__ import annotations
@@ -28,6 +30,8 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 READ_WAIT_S = 10.0          # a reader waits this long for a folder missing mid-swap to reappear
+TURNSTILE_S = 1.0           # ... and at most this long at the turnstile of a writer's swap
+WRITER_WAIT_S = 1.0         # a writer finding the lock held tries this long before it is refused
 
 _held: dict[str, tuple[int, int]] = {}        # writer locks held here: path -> (thread id, depth)
 _held_guard = threading.Lock()
@@ -61,8 +65,23 @@ def _open_lock(path: Path, error: type[Exception]) -> int:
     return fd
 
 
+def _flock_within(fd: int, seconds: float) -> bool:
+    """Take an exclusive flock on fd, trying for up to `seconds` (a reader cleaning leftovers holds
+    the writer lock for a moment; a writer is not refused for that). False if it stays held."""
+    deadline = time.monotonic() + seconds
+    while True:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return True
+        except BlockingIOError:
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.005)
+
+
 @contextlib.contextmanager
-def writer_lock(target: Path, error: type[Exception], what: str = "write") -> Iterator[None]:
+def writer_lock(target: Path, error: type[Exception], what: str = "write",
+                wait: float = WRITER_WAIT_S) -> Iterator[None]:
     """Hold the writer lock of folder `target` (module docstring); `error` if another process or
     thread holds it. The lock file is removed on release."""
     key = _key(target)
@@ -86,13 +105,11 @@ def writer_lock(target: Path, error: type[Exception], what: str = "write") -> It
     path = lock_path(target)
     while True:
         fd = _open_lock(path, error)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
+        if not _flock_within(fd, wait):
             holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "?"
             os.close(fd)
             raise error(f"{target} is being written by another process (pid {holder}); wait for it "
-                        f"to finish or {what} into another folder") from None
+                        f"to finish or {what} into another folder")
         try:
             st, fst = os.stat(path, follow_symlinks=False), os.fstat(fd)
             same = (st.st_ino, st.st_dev) == (fst.st_ino, fst.st_dev)
@@ -141,16 +158,44 @@ def _open_dir(folder: Path) -> int:
     return os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
 
 
+_reads = threading.local()       # folders (device, inode) this thread is reading now
+
+
+def _pass_turnstile(parent: Path) -> None:
+    """Wait while a writer in `parent` is swapping (it holds the parent folder's flock exclusive for
+    its renames): without this, readers that keep overlapping would hold off a writer for good.
+    Bounded (TURNSTILE_S), so that nested reads can never wait on each other in a circle."""
+    try:
+        fd = _open_dir(parent)
+    except OSError:
+        return
+    try:
+        deadline = time.monotonic() + TURNSTILE_S
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+                return
+            except BlockingIOError:
+                if time.monotonic() > deadline:
+                    return
+                time.sleep(0.001)
+    finally:
+        os.close(fd)
+
+
 @contextlib.contextmanager
 def reading(folder: Path, missing: Callable[[Path], bool] | None = None) -> Iterator[None]:
     """Hold folder steady while it is read (module docstring): a shared flock on the folder, taken
-    again if a swap replaced the folder between the open and the lock.
+    again if a swap replaced the folder between the open and the lock. Re-entrant within a thread.
 
     missing(folder): called when the folder does not exist; True if it may reappear (a swap in
     progress, ctrkin.util.folders) so the reader waits up to READ_WAIT_S for it. Otherwise, and for
     a folder that cannot be opened, the read goes on unlocked (the caller reports what is wrong)."""
+    held: set[tuple[int, int]] = getattr(_reads, "held", None) or set()
+    _reads.held = held
     deadline = time.monotonic() + READ_WAIT_S
     while True:
+        _pass_turnstile(folder.parent)
         try:
             fd = _open_dir(folder)
         except FileNotFoundError:
@@ -162,28 +207,42 @@ def reading(folder: Path, missing: Callable[[Path], bool] | None = None) -> Iter
         except OSError:          # not a folder, no read permission: nothing to lock
             yield
             return
+        fst = os.fstat(fd)
+        ident = (fst.st_dev, fst.st_ino)
+        if ident in held:        # this thread reads it already (a nested load)
+            os.close(fd)
+            yield
+            return
         fcntl.flock(fd, fcntl.LOCK_SH)
         try:
-            st, fst = os.stat(folder), os.fstat(fd)
+            st = os.stat(folder)
             same = (st.st_ino, st.st_dev) == (fst.st_ino, fst.st_dev)
         except FileNotFoundError:
             same = False
         if same:
             break
         os.close(fd)             # swapped out while we waited: read the new one
+    held.add(ident)
     try:
         yield
     finally:
+        held.discard(ident)
         os.close(fd)
 
 
 @contextlib.contextmanager
 def swapping(folder: Path) -> Iterator[None]:
-    """The writer's side of `reading`: an exclusive flock on the folder being replaced, for the
-    renames only. It waits for the reads in progress (each short)."""
-    fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC)
+    """The writer's side of `reading`: the turnstile of the folder's parent closed (new readers
+    wait), then an exclusive flock on the folder being replaced, for the renames only. It waits for
+    the reads in progress (each short), never for readers that arrive after it."""
+    gate = os.open(folder.parent, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
-        yield
+        fcntl.flock(gate, fcntl.LOCK_EX)
+        fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            yield
+        finally:
+            os.close(fd)
     finally:
-        os.close(fd)
+        os.close(gate)
