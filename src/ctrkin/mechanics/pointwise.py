@@ -158,11 +158,14 @@ def with_alpha(pb: Problem, q: np.ndarray) -> Problem:
 
 
 def whole_turns_removed(alpha_deg: np.ndarray) -> np.ndarray:
-    """α (N,) deg less its whole turns, exactly (fmod is exact in floating point; the sign is kept, so
-    |α| < 360° passes unchanged, bit for bit). The equilibrium depends on α only through its angle,
-    but sin and cos of a huge angle lose every digit (α + 1e12° did not converge, α + 1e15° was
-    0.01 mm off): the solver sees α mod 360°, the result keeps the α given."""
-    return np.fmod(alpha_deg, 360.0)
+    """α (N,) deg less its whole turns, in (−180°, 180°], exactly: fmod is exact in floating point,
+    and so is the one ±360° that follows (Sterbenz), so every α + k·360° gives the same bits and α in
+    (−180°, 180°] passes unchanged. The equilibrium depends on α only through its angle, but sin and
+    cos of a huge angle lose every digit (α + 1e12° did not converge, α + 1e15° was 0.01 mm off): the
+    solver sees the reduced angle, the result keeps the α given."""
+    r = np.fmod(alpha_deg, 360.0)
+    r = np.where(r > 180.0, r - 360.0, r)
+    return np.where(r <= -180.0, r + 360.0, r)
 
 
 @functools.lru_cache(maxsize=64)
