@@ -6,13 +6,18 @@
                                                # (for code whose hangs sit in compiled kernels)
 
 Areas: solve, follow, Tube/Robot construction, robot TOML files, learned FK predict and step, IK
-predict and step, CSV log import, corrupted dataset folders, corrupted model folders. Every input is
-drawn from a seeded generator (--seed) and its outcome classified:
+predict and step, CSV log import, corrupted dataset folders, corrupted model folders; and (issue 27,
+benchmarks/fuzz_folders.py) the output rule of the commands (`output`), folders under file-system
+adversity (`fs`: planted links, glob and odd names, leftovers of killed runs, read-only folders, full
+disks) and concurrent readers and writers of datasets and model folders (`concurrency`). Every input
+is drawn from a seeded generator (--seed) and its outcome classified:
 
     ok       a result that passes the oracle          clear    a CtrkinError (names what to change)
     flagged  a result marked as doubtful (converged=False, in_workspace=False, projected ...)
     crash    any other exception                      silent   a result that fails the oracle, unflagged
     hang     the input ran longer than HANG_S seconds
+    lost     content that was there before (or outside the output) changed or vanished
+    mixed    a read that gave neither the old nor the new version of a folder being replaced
 
 Oracles (the issue's sanity checks): a converged equilibrium has a finite tip no farther from the base
 than the robot reaches and a unit tip tangent; a single curved tube is on its exact arc (docs/mechanics.md
@@ -58,11 +63,15 @@ from ctrkin.pose import tangent_from_quat
 from ctrkin.training import TrainConfig, train
 from ctrkin.training.demo import sweep_dataset
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import fuzz_folders  # a sibling module of this script
+
 HANG_S = 10.0
-OUTCOMES = ("ok", "clear", "flagged", "crash", "silent", "hang")
-AREAS = {  # area: inputs at scale 1 (21,100 in all)
+OUTCOMES = ("ok", "clear", "flagged", "crash", "silent", "hang", "lost", "mixed")
+BAD = ("crash", "silent", "hang", "lost", "mixed")
+AREAS = {  # area: inputs at scale 1 (21,740 in all)
     "tube_robot": 7000, "solve": 3000, "toml": 4000, "follow": 200, "fk_predict": 2000, "fk_step": 2000,
-    "ik": 1500, "csv": 600, "dataset_folder": 500, "model_folder": 300,
+    "ik": 1500, "csv": 600, "dataset_folder": 500, "model_folder": 300, **fuzz_folders.COUNTS,
 }
 
 
@@ -464,7 +473,7 @@ def case_model_folder(rng: np.random.Generator, ctx: dict[str, Any]) -> str:
 CASES: dict[str, Callable[[np.random.Generator, dict[str, Any]], str]] = {
     "tube_robot": case_tube_robot, "solve": case_solve, "toml": case_toml, "follow": case_follow,
     "fk_predict": case_fk_predict, "fk_step": case_fk_step, "ik": case_ik, "csv": case_csv,
-    "dataset_folder": case_dataset_folder, "model_folder": case_model_folder,
+    "dataset_folder": case_dataset_folder, "model_folder": case_model_folder, **fuzz_folders.CASES,
 }
 
 
@@ -497,6 +506,7 @@ def setup(tmp: Path, seed: int) -> dict[str, Any]:
     reps = np.repeat(np.arange(40), 5)
     ctx["log"] = pd.DataFrame({"step": reps, **{c: q[reps, j] for j, c in enumerate(robot.joint_names())},
                                **{c: poses[reps, j] for j, c in enumerate(POSE_COLUMNS)}})
+    fuzz_folders.setup(ctx, seed)
     assert np.allclose(np.linalg.norm(tangent_from_quat(poses[:, 3:]), axis=1), 1.0)
     return ctx
 
@@ -515,7 +525,7 @@ def run(scale: float, seed: int, log: Callable[[str], None] = print, isolate: bo
                 rng = np.random.default_rng([seed, k, i])
                 outcome, note = (_isolated if isolate else _one)(CASES[area], rng, ctx)
                 counts[area][outcome] += 1
-                if outcome in ("crash", "silent", "hang"):
+                if outcome in BAD:
                     examples.setdefault((area, note[:60]), note)
             log(f"{area:15s} {sum(counts[area].values()):6d} inputs in {time.perf_counter() - t0:6.1f} s")
     signal.signal(signal.SIGALRM, old)
@@ -533,10 +543,16 @@ def _one(fn: Callable[[np.random.Generator, dict[str, Any]], str], rng: np.rando
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             outcome = fn(rng, ctx)
-    except Hang:
-        outcome = "hang"
-    except Silent as e:
+    except (Hang, fuzz_folders.Hang) as e:
+        outcome, note = "hang", str(e)
+    except (Silent, fuzz_folders.Silent) as e:
         outcome, note = "silent", str(e)
+    except fuzz_folders.Lost as e:
+        outcome, note = "lost", str(e)
+    except fuzz_folders.Mixed as e:
+        outcome, note = "mixed", str(e)
+    except fuzz_folders.Crash as e:
+        outcome, note = "crash", str(e)
     except CtrkinError:
         outcome = "clear"
     except Exception as e:  # every other exception is what we count as a crash
@@ -606,7 +622,7 @@ def main() -> int:
     print(f"{sum(total.values())} inputs in {time.perf_counter() - t0:.0f} s")
     print(json.dumps({"inputs": sum(total.values()), **{o: total[o] for o in OUTCOMES},
                       "by_area": {a: dict(c) for a, c in counts.items()}}))
-    return 0 if total["crash"] + total["silent"] + total["hang"] == 0 else 1
+    return 0 if sum(total[o] for o in BAD) == 0 else 1
 
 
 if __name__ == "__main__":

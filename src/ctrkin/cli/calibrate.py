@@ -32,7 +32,7 @@ Examples:
               help="Dataset folder (ctrkin dataset import).")
 @click.option("--robot", "robot_spec", default=None,
               help="Nominal robot (name or TOML file); default: the dataset's robot.")
-@click.option("--out", "out_file", required=True, type=click.Path(dir_okay=False),
+@click.option("--out", "out_file", required=True, type=click.Path(),
               help="Calibrated robot file to write (a normal robot file plus a [calibration] table).")
 @click.option("--fit", "fit", default=",".join(GROUPS), show_default=True,
               help="Parameter groups to fit, comma-separated.")

@@ -65,7 +65,7 @@ Examples:
 @click.option("--workers", default=None, type=int, help="Processes (default: all cores).")
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
               help="Override a virtual robot effect magnitude (repeatable).")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
+@click.option("--out", "out_dir", required=True, type=click.Path(),
               help="Output folder (written as a whole: a failure leaves the previous one; a second "
               "collect into it is refused while one runs).")
 @output_options

@@ -176,7 +176,7 @@ Examples:
               help="Import profile (TOML: columns by position or name, scales, travel zero, groups, "
                    "drops, reference body, orientation). With a profile, several files make one "
                    "dataset, one sequence per file, and --map/--units/--quaternion are not used.")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
+@click.option("--out", "out_dir", required=True, type=click.Path(),
               help="Dataset folder to write.")
 @click.option("--map", "maps", multiple=True, metavar="LOG_COLUMN=FIELD",
               help="Map a log column to a field (alpha_1.., beta_1.., x, y, z, q0, qw, qx, qy, qz, tx, "

@@ -31,7 +31,7 @@ Examples:
 @click.option("--predictor", "predictors", required=True, multiple=True,
               help="tcm (nominal robot of the dataset, registration fitted here), a robot file "
                    "(.toml, calibrated or not) or a trained FK model folder. Repeatable.")
-@click.option("--out", "out_dir", default=None, type=click.Path(file_okay=False),
+@click.option("--out", "out_dir", default=None, type=click.Path(),
               help="Folder for results.json and plots (one sub-folder per predictor when several); "
               "written as a whole (with --overwrite it replaces an earlier evaluation folder).")
 @output_options

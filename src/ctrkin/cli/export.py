@@ -17,7 +17,7 @@ from ctrkin.cli.common import InputPath, output_file, overwrite_option, say
 Examples:
   ctrkin export models/fk --out fk.onnx""")
 @click.argument("model_dir", type=InputPath(file_okay=False))
-@click.option("--out", "out_file", required=True, type=click.Path(dir_okay=False), help="ONNX file.")
+@click.option("--out", "out_file", required=True, type=click.Path(), help="ONNX file.")
 @overwrite_option()
 def export_cmd(model_dir: str, out_file: str, overwrite: bool) -> None:
     """Export MODEL_DIR (from `ctrkin train`) to an ONNX file (written atomically)."""

@@ -89,7 +89,7 @@ Examples:
 @click.option("--step", "step_deg", default=1.0, show_default=True,
               type=click.FloatRange(MIN_STEP_DEG, 360.0), help="Rotation step (deg).")
 @click.option("--out", "out_dir", default="out/sweep", show_default=True,
-              type=click.Path(file_okay=False), help="Output folder for sweep.csv and sweep.png.")
+              type=click.Path(), help="Output folder for sweep.csv and sweep.png.")
 @output_options
 def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha: float,
               step_deg: float, out_dir: str, overwrite: bool, as_json: bool) -> None:

@@ -70,7 +70,7 @@ Examples:
 @click.option("--start-joints", default=None, metavar="A1,..,AN,B1,..,BN",
               help="Follow IK (follow_mlp) with --poses: the robot's joints (deg, mm) at the start of every "
               "sequence (default: those of the nearest training target).")
-@click.option("--out", "out_file", default=None, type=click.Path(dir_okay=False), callback=_check_format,
+@click.option("--out", "out_file", default=None, type=click.Path(), callback=_check_format,
               help="File to write, format by extension: .csv, .parquet or .json (a list of rows). "
               "Default: CSV on stdout.")
 @overwrite_option()

@@ -43,7 +43,7 @@ Examples:
     "out_dir",
     default="out/reproduce",
     show_default=True,
-    type=click.Path(file_okay=False),
+    type=click.Path(),
     help="Output folder. A rerun with the same settings reuses its data and models; one with other "
     "settings is refused unless --overwrite.",
 )

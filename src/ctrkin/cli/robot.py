@@ -24,7 +24,7 @@ def robot_group() -> None:
 Examples:
   ctrkin robot template --out my_robot.toml
   ctrkin robot template > my_robot.toml""")
-@click.option("--out", "out_file", default=None, type=click.Path(dir_okay=False),
+@click.option("--out", "out_file", default=None, type=click.Path(),
               help="TOML file to write (default: stdout).")
 @overwrite_option()
 def template_cmd(out_file: str | None, overwrite: bool) -> None:

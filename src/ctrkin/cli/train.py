@@ -56,7 +56,7 @@ Examples:
               help="List the model registry and exit.")
 @click.option("--data", "data_dir", required=True, type=InputPath(file_okay=False),
               help="Dataset folder (data.parquet + meta.json).")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Model folder.")
+@click.option("--out", "out_dir", required=True, type=click.Path(), help="Model folder.")
 @config_options(TrainConfig, aliases=ALIASES, required=REQUIRED, exclude=("options",))
 @click.option("--structure", default=None, help="LSTM-MLP/LSTM/MLP structure: paper, S1..S5 or 'L128|D64'.")
 @click.option("--option", "model_options", multiple=True, metavar="KEY=VALUE",
