@@ -235,9 +235,13 @@ def swapping(folder: Path) -> Iterator[None]:
     """The writer's side of `reading`: the turnstile of the folder's parent closed (new readers
     wait), then an exclusive flock on the folder being replaced, for the renames only. It waits for
     the reads in progress (each short), never for readers that arrive after it."""
-    gate = os.open(folder.parent, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
     try:
-        fcntl.flock(gate, fcntl.LOCK_EX)
+        gate = _open_dir(folder.parent)
+    except OSError:             # a parent we may write but not read: no turnstile, still correct
+        gate = -1
+    try:
+        if gate >= 0:
+            fcntl.flock(gate, fcntl.LOCK_EX)
         fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX)
@@ -245,4 +249,5 @@ def swapping(folder: Path) -> Iterator[None]:
         finally:
             os.close(fd)
     finally:
-        os.close(gate)
+        if gate >= 0:
+            os.close(gate)
