@@ -463,7 +463,7 @@ def setup(ctx: dict[str, Any], seed: int) -> None:
                       seed=seed + 1)
     b.save(tmp / "dataset_b")
     ctx["dataset_b"] = Dataset.load(tmp / "dataset_b")
-    ctx["log_file"] = tmp / "log.csv"
+    ctx["log_file"] = tmp / "output_log.csv"      # not log.csv: case_csv rewrites that one
     ctx["log"].to_csv(ctx["log_file"], index=False)
     os.chmod(tmp, stat.S_IRWXU | stat.S_IRGRP | stat.S_IXGRP | stat.S_IROTH | stat.S_IXOTH)
 

@@ -15,7 +15,7 @@ import reprlib
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import tomli_w
@@ -45,7 +45,7 @@ def joint_names(n_tubes: int) -> list[str]:
     return alpha_names(n_tubes) + beta_names(n_tubes)
 
 
-def _lengths_mm(values: object, n_tubes: int) -> tuple[float, ...]:
+def _lengths_mm(values: Any, n_tubes: int) -> tuple[float, ...]:
     """Robot.transmission_length as floats: empty, or one finite number >= 0 (mm) per tube. Anything
     else (text, lists, tables, booleans) is a RobotDescriptionError naming what was given."""
     what = (f"Robot.transmission_length needs {n_tubes} finite numbers >= 0 mm (one per tube) or "
@@ -53,7 +53,7 @@ def _lengths_mm(values: object, n_tubes: int) -> tuple[float, ...]:
     if isinstance(values, (str, bytes, dict)):
         raise RobotDescriptionError(what)
     try:
-        items = tuple(values)  # type: ignore[call-overload]
+        items: tuple[Any, ...] = tuple(values)
     except TypeError:
         raise RobotDescriptionError(what) from None
     if not items:

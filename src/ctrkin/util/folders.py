@@ -33,6 +33,7 @@ import uuid
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 from ctrkin.util.locks import reading, swapping, writer_active, writer_lock
 from ctrkin.util.ownership import MARKER, check_replaceable, write_marker
@@ -200,6 +201,7 @@ def build_folder(target: str | Path, kind: str, error: type[Exception], what: st
 
 _RENAME_EXCHANGE = 2
 _AT_FDCWD = -100
+_renameat2: Any
 try:
     _renameat2 = ctypes.CDLL(None, use_errno=True).renameat2
 except (OSError, AttributeError):      # not glibc >= 2.28: two renames instead
