@@ -169,7 +169,7 @@ def arc_tip(tube: Tube, beta: float, alpha_deg: float) -> np.ndarray:
         p = np.array([0.0, 0.0, s0 + c])
     else:
         p = np.array([0.0, -(1 - math.cos(k * c)) / k, s0 + math.sin(k * c) / k])
-    a = math.radians(alpha_deg)
+    a = math.radians(math.fmod(alpha_deg, 360.0))   # α degrees, not radians(α)'s rounded product
     return np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]]) @ p
 
 
