@@ -140,9 +140,11 @@ def test_leftovers_of_killed_writes_are_cleaned_by_the_next_write_and_read(tmp_p
         (tmp_path / name).mkdir()
         (tmp_path / name / "data.parquet").write_bytes(b"half")
     (tmp_path / ".d.old-00aa11bb").mkdir()                      # a superseded copy
-    keep = [tmp_path / ".d.build", tmp_path / ".dx.tmp-0123456789abcdef", tmp_path / "e"]
-    for p in keep:                                              # train's resumable build; others'
+    keep = [tmp_path / ".d.build", tmp_path / ".dx.tmp-0123456789abcdef", tmp_path / "e",
+            tmp_path / ".d.backup01"]
+    for p in keep:                     # train's resumable build; others'; the user's, named alike
         p.mkdir()
+    (tmp_path / ".d.backup01" / "thesis.tex").write_text("mine")
     assert _same(_load(folder), ds.frame)
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["d", *(p.name for p in keep)])
     (tmp_path / ".d.tmp-fedcba9876543210").mkdir()

@@ -20,7 +20,7 @@ from ctrkin.data.splits import Split, split_by_sequence
 from ctrkin.errors import DatasetError, RobotDescriptionError
 from ctrkin.robots.robot import Robot
 from ctrkin.util.folders import build_folder, file_hash, reading_folder
-from ctrkin.util.locks import writer_lock
+from ctrkin.util.locks import swapping, writer_lock
 
 DATA_FILE = "data.parquet"
 META_FILE = "meta.json"
@@ -132,8 +132,9 @@ class Dataset:
 
     def save_split(self, folder: str | Path, split: Split, overwrite: bool = False) -> None:
         """Attach `split` and write only split.json into the saved dataset `folder` (atomically,
-        under the folder's writer lock). A saved split that differs is replaced only if `overwrite`
-        (DatasetError otherwise); saving the same split again changes nothing."""
+        under the folder's writer lock, while no reader reads the folder). A saved split that
+        differs is replaced only if `overwrite` (DatasetError otherwise); saving the same split
+        again changes nothing."""
         _check_split(split, len(self.frame), str(folder))
         target = Path(folder)
         with writer_lock(target, DatasetError, "split"):
@@ -147,7 +148,8 @@ class Dataset:
                     return
                 raise DatasetError(f"{folder} already has a saved {saved.kind} split (seed {saved.seed}, "
                                    f"sizes {saved.sizes()}); pass --overwrite to replace it")
-            split.save(path)
+            with swapping(target):          # a reader of the folder sees the old split or the new
+                split.save(path)
         self.split = split
 
     # --- files -----------------------------------------------------------------------------------

@@ -36,7 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from ctrkin.util.locks import reading, swapping, writer_active, writer_lock
-from ctrkin.util.ownership import MARKER, check_replaceable, write_marker
+from ctrkin.util.ownership import MARKER, check_replaceable, looks_like_output, write_marker
 
 MANIFEST = "manifest.json"
 MAX_MANIFEST_FILES = 256
@@ -82,8 +82,10 @@ def old_copies(target: Path) -> list[Path]:
 
 def stale_builds(target: Path) -> list[Path]:
     """Build folders of `target` left by killed writes: `.NAME.tmp-<hex>`, and `.NAME.<8 characters>`
-    from the tempfile names of ctrkin before 0.2 (train's resumable `.NAME.build` is not one)."""
-    return _siblings(target, r"(tmp-[0-9a-f]{16}|[a-z0-9_]{8})")
+    from the tempfile names of ctrkin before 0.2 (train's resumable `.NAME.build` is not one), that
+    hold nothing but files ctrkin writes into an output (a folder of the user's that happens to be
+    named so is left alone)."""
+    return [p for p in _siblings(target, r"(tmp-[0-9a-f]{16}|[a-z0-9_]{8})") if looks_like_output(p)]
 
 
 def recover(target: Path) -> str | None:
@@ -122,6 +124,7 @@ def tidy(target: Path) -> list[str]:
 def folder_lock(target: Path, error: type[Exception], what: str = "write") -> Iterator[None]:
     """The writer lock of `target` (ctrkin.util.locks.writer_lock), with the leftovers of killed
     writes cleaned up once it is held."""
+    target = Path(os.path.abspath(target))
     with writer_lock(target, error, what):
         tidy(target)
         yield
@@ -161,7 +164,7 @@ def reading_folder(folder: str | Path) -> Iterator[Path]:
     """Read `folder` as one version (ctrkin.util.locks.reading). Leftovers of killed writes are
     cleaned first where no writer holds the lock; restoring an old copy warns. Yields the path."""
     src = Path(folder)
-    for done in tidy_if_free(src):
+    for done in tidy_if_free(Path(os.path.abspath(src))):
         if done.startswith("restored"):
             warnings.warn(done, stacklevel=3)
     with reading(src, _missing_mid_swap):
@@ -186,7 +189,7 @@ def build_folder(target: str | Path, kind: str, error: type[Exception], what: st
     """Write folder `target` as one unit: hold its writer lock, yield an empty build folder to fill,
     then mark it as a ctrkin output of `kind` and swap it in. On an exception nothing is swapped and
     the build is removed; the previous `target` stays as it was."""
-    out = Path(target)
+    out = Path(os.path.abspath(target))
     with folder_lock(out, error, what):
         check_replaceable(out, kind, error)      # before the work: refuse early, touch nothing
         build = new_build(out)
@@ -225,6 +228,7 @@ def swap_in(tmp: Path, target: Path, error: type[Exception], kind: str | None = 
 
     kind: `target`, if it exists, must be a ctrkin output of this kind (ctrkin.util.ownership) or it
     is refused (`error`), untouched. Readers of `target` see the old or the new folder."""
+    target = Path(os.path.abspath(target))
     if not os.path.lexists(target):
         tmp.rename(target)
         _fsync_dir(target.parent)

@@ -84,6 +84,7 @@ def writer_lock(target: Path, error: type[Exception], what: str = "write",
                 wait: float = WRITER_WAIT_S) -> Iterator[None]:
     """Hold the writer lock of folder `target` (module docstring); `error` if another process or
     thread holds it. The lock file is removed on release."""
+    target = Path(os.path.abspath(target))        # "." and "x/.." have a name only this way
     key = _key(target)
     me = threading.get_ident()
     with _held_guard:
@@ -191,6 +192,7 @@ def reading(folder: Path, missing: Callable[[Path], bool] | None = None) -> Iter
     missing(folder): called when the folder does not exist; True if it may reappear (a swap in
     progress, ctrkin.util.folders) so the reader waits up to READ_WAIT_S for it. Otherwise, and for
     a folder that cannot be opened, the read goes on unlocked (the caller reports what is wrong)."""
+    folder = Path(os.path.abspath(folder))
     held: set[tuple[int, int]] = getattr(_reads, "held", None) or set()
     _reads.held = held
     deadline = time.monotonic() + READ_WAIT_S

@@ -118,10 +118,24 @@ def output_kind(folder: Path) -> str | None:
 
 def foreign_entries(folder: Path, kind: str) -> list[str]:
     """Entries of `folder` that ctrkin does not write for `kind` (sorted)."""
+    mine = _own_names(folder, kind)
+    return sorted(n for n in os.listdir(folder) if n not in mine)
+
+
+def looks_like_output(folder: Path) -> bool:
+    """Whether `folder` holds nothing but what ctrkin writes into some kind of output (or nothing):
+    the test a leftover build must pass before it is removed."""
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return False
+    return any(not [n for n in names if n not in _own_names(folder, k)] for k in KINDS)
+
+
+def _own_names(folder: Path, kind: str) -> set[str]:
     k = KINDS[kind]
     own = re.compile("|".join([re.escape(MARKER), *k.own]))
-    extra = k.more_own(folder)
-    return sorted(n for n in os.listdir(folder) if not (own.fullmatch(n) or n in extra))
+    return {n for n in os.listdir(folder) if own.fullmatch(n)} | k.more_own(folder)
 
 
 def _identity(path: str | Path) -> tuple[int, int] | None:
