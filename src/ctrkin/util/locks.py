@@ -58,7 +58,9 @@ def _open_lock(path: Path, error: type[Exception]) -> int:
                         "again") from None
         raise error(f"cannot open the lock file {path}: {e.strerror}") from None
     st = os.fstat(fd)
-    if not stat.S_ISREG(st.st_mode) or st.st_nlink != 1 or st.st_uid != os.geteuid():
+    # nlink 0: the holder before us has just removed it (the caller then locks anew); 2 or more: a
+    # hard link planted to another file
+    if not stat.S_ISREG(st.st_mode) or st.st_nlink > 1 or st.st_uid != os.geteuid():
         os.close(fd)
         raise error(f"{path} is not a lock file ctrkin made (not a regular file of yours with one "
                     "link); remove it and try again")

@@ -118,8 +118,9 @@ def output_kind(folder: Path) -> str | None:
 
 def foreign_entries(folder: Path, kind: str) -> list[str]:
     """Entries of `folder` that ctrkin does not write for `kind` (sorted)."""
-    mine = _own_names(folder, kind)
-    return sorted(n for n in os.listdir(folder) if n not in mine)
+    names = os.listdir(folder)
+    mine = _own_names(folder, kind, names)
+    return sorted(n for n in names if n not in mine)
 
 
 def looks_like_output(folder: Path) -> bool:
@@ -127,15 +128,16 @@ def looks_like_output(folder: Path) -> bool:
     the test a leftover build must pass before it is removed."""
     try:
         names = os.listdir(folder)
-    except OSError:
+        return any(not [n for n in names if n not in _own_names(folder, k, names)] for k in KINDS)
+    except OSError:         # gone meanwhile (a writer's own build, removed)
         return False
-    return any(not [n for n in names if n not in _own_names(folder, k)] for k in KINDS)
 
 
-def _own_names(folder: Path, kind: str) -> set[str]:
+def _own_names(folder: Path, kind: str, names: list[str]) -> set[str]:
+    """Those of `names` (the entries of `folder`) that ctrkin writes into an output of `kind`."""
     k = KINDS[kind]
     own = re.compile("|".join([re.escape(MARKER), *k.own]))
-    return {n for n in os.listdir(folder) if own.fullmatch(n)} | k.more_own(folder)
+    return {n for n in names if own.fullmatch(n)} | k.more_own(folder)
 
 
 def _identity(path: str | Path) -> tuple[int, int] | None:
