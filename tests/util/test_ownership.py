@@ -109,3 +109,15 @@ def test_file_outputs_replace_only_ctrkin_files_of_their_kind(tmp_path):
     other.write_text("a,b\n1,2\n")
     with pytest.raises(OutputError, match="not a predictions file"):
         check_file_replaceable(other, "predictions", OutputError)
+
+
+def test_a_leftover_that_vanishes_while_it_is_judged_is_no_error(tmp_path):
+    """Found by benchmarks/bench_folder_races.py: a reader judging a writer's build as a leftover met
+    a FileNotFoundError when the writer removed it meanwhile."""
+    from ctrkin.util.ownership import looks_like_output
+
+    assert looks_like_output(tmp_path / "gone") is False
+    (tmp_path / "b").mkdir()
+    assert looks_like_output(tmp_path / "b") is True                   # empty: a build just begun
+    (tmp_path / "b" / "thesis.tex").write_text("x")
+    assert looks_like_output(tmp_path / "b") is False

@@ -13,8 +13,9 @@ writer takes it exclusive only around the swap (ctrkin.util.folders.swap_in). A 
 reads one version, old or new, never a mix; a writer waits for the reads in progress (short), never
 fails because of them. So that readers which keep overlapping cannot hold a writer off, a writer
 about to swap first closes a turnstile (an exclusive flock on the parent folder, for its renames
-only) that new readers pass before they lock the folder. Opening a directory needs only read
-access, so this works in read-only places too; where even that is impossible the read goes on
+only) that new readers pass before they lock the folder (a thread that is reading already waits
+there at most TURNSTILE_S, so nested reads never wait in a circle). Opening a directory needs only
+read access, so this works in read-only places too; where even that is impossible the read goes on
 unlocked and the folder's own checks (hashes in meta.json / manifest.json) stand guard.
 """
 
@@ -30,7 +31,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 READ_WAIT_S = 10.0          # a reader waits this long for a folder missing mid-swap to reappear
-TURNSTILE_S = 1.0           # ... and at most this long at the turnstile of a writer's swap
+TURNSTILE_S = 1.0           # a thread that reads already waits at most this long at a turnstile
 WRITER_WAIT_S = 1.0         # a writer finding the lock held tries this long before it is refused
 
 _held: dict[str, tuple[int, int]] = {}        # writer locks held here: path -> (thread id, depth)
@@ -164,24 +165,33 @@ def _open_dir(folder: Path) -> int:
 _reads = threading.local()       # folders (device, inode) this thread is reading now
 
 
+def _gate(fd: int, operation: int) -> None:
+    """flock(fd, operation) on a turnstile: blocking, unless this thread holds a read lock already;
+    then tried for at most TURNSTILE_S and given up (the writer we would wait for may be waiting for
+    our read to end: a nested read or a write during a read never waits in a circle)."""
+    if not getattr(_reads, "held", None):
+        fcntl.flock(fd, operation)
+        return
+    deadline = time.monotonic() + TURNSTILE_S
+    while True:
+        try:
+            fcntl.flock(fd, operation | fcntl.LOCK_NB)
+            return
+        except BlockingIOError:
+            if time.monotonic() > deadline:
+                return
+            time.sleep(0.001)
+
+
 def _pass_turnstile(parent: Path) -> None:
     """Wait while a writer in `parent` is swapping (it holds the parent folder's flock exclusive for
-    its renames): without this, readers that keep overlapping would hold off a writer for good.
-    Bounded (TURNSTILE_S), so that nested reads can never wait on each other in a circle."""
+    its renames): without this, readers that keep overlapping would hold off a writer for good."""
     try:
         fd = _open_dir(parent)
     except OSError:
         return
     try:
-        deadline = time.monotonic() + TURNSTILE_S
-        while True:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-                return
-            except BlockingIOError:
-                if time.monotonic() > deadline:
-                    return
-                time.sleep(0.001)
+        _gate(fd, fcntl.LOCK_SH)
     finally:
         os.close(fd)
 
@@ -245,7 +255,7 @@ def swapping(folder: Path) -> Iterator[None]:
         gate = -1
     try:
         if gate >= 0:
-            fcntl.flock(gate, fcntl.LOCK_EX)
+            _gate(gate, fcntl.LOCK_EX)
         fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX)
