@@ -511,19 +511,26 @@ def setup(tmp: Path, seed: int) -> dict[str, Any]:
     return ctx
 
 
-def run(scale: float, seed: int, log: Callable[[str], None] = print, isolate: bool = False
-        ) -> dict[str, Counter[str]]:
-    """Counts of outcomes per area; input i of area k draws from its own generator (seed, k, i)."""
+def run(scale: float, seed: int, log: Callable[[str], None] = print, isolate: bool = False,
+        only: tuple[str, ...] = (), slow_s: float | None = None) -> dict[str, Counter[str]]:
+    """Counts of outcomes per area; input i of area k draws from its own generator (seed, k, i).
+    only: run these areas alone (the same inputs as in a whole run); slow_s: log every input that
+    takes longer than this (s), with its index and outcome."""
     counts: dict[str, Counter[str]] = defaultdict(Counter)
     examples: dict[tuple[str, str], str] = {}
     old = signal.signal(signal.SIGALRM, _alarm)
     with tempfile.TemporaryDirectory() as d:
         ctx = setup(Path(d), seed)
         for k, (area, n) in enumerate(AREAS.items()):
+            if only and area not in only:
+                continue
             t0 = time.perf_counter()
             for i in range(max(1, round(n * scale))):
                 rng = np.random.default_rng([seed, k, i])
+                t1 = time.perf_counter()
                 outcome, note = (_isolated if isolate else _one)(CASES[area], rng, ctx)
+                if slow_s is not None and time.perf_counter() - t1 > slow_s:
+                    log(f"  {area} input {i}: {outcome} in {time.perf_counter() - t1:.1f} s")
                 counts[area][outcome] += 1
                 if outcome in BAD:
                     examples.setdefault((area, note[:60]), note)
@@ -599,7 +606,9 @@ def table(counts: dict[str, Counter[str]]) -> str:
     lines = [f"{'area':15s} " + " ".join(f"{o:>8s}" for o in OUTCOMES) + f" {'total':>8s}"]
     total: Counter[str] = Counter()
     for area in AREAS:
-        c = counts.get(area, Counter())
+        if area not in counts:
+            continue
+        c = counts[area]
         total.update(c)
         lines.append(f"{area:15s} " + " ".join(f"{c[o]:8d}" for o in OUTCOMES) + f" {sum(c.values()):8d}")
     cells = " ".join(f"{total[o]:8d}" for o in OUTCOMES)
@@ -612,9 +621,16 @@ def main() -> int:
     ap.add_argument("--scale", type=float, default=1.0, help="fraction of the default input counts")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--isolate", action="store_true", help="one forked process per input")
+    ap.add_argument("--areas", default="", help="comma-separated areas to run alone (default: all)")
+    ap.add_argument("--slow", type=float, default=None, metavar="S",
+                    help="print every input that takes longer than S seconds")
     args = ap.parse_args()
     t0 = time.perf_counter()
-    counts = run(args.scale, args.seed, isolate=args.isolate)
+    only = tuple(a for a in args.areas.split(",") if a)
+    unknown = sorted(set(only) - set(AREAS))
+    if unknown:
+        ap.error(f"unknown area(s) {unknown}; areas: {list(AREAS)}")
+    counts = run(args.scale, args.seed, isolate=args.isolate, only=only, slow_s=args.slow)
     print(table(counts))
     total: Counter[str] = Counter()
     for c in counts.values():
