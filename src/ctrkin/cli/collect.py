@@ -32,12 +32,13 @@ from ctrkin.acquisition.plan import Plan
 from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.acquisition.task_paths import SHAPES, task_path
-from ctrkin.cli.common import check_output, emit_json, output_options, parse_floats, robot_option, say
+from ctrkin.cli.common import emit_json, output_folder, output_options, parse_floats, robot_option, say
 from ctrkin.cli.from_config import parse_key_values
 from ctrkin.robots import Robot, load_robot
 from ctrkin.virtual import VirtualConfig, VirtualConfigError, VirtualRobot
 
 CHOICES = [*protocols.PROTOCOLS, *SHAPES]
+MAX_POINTS = 100_000      # random points or path points: far beyond any protocol, within memory
 
 
 def _config(settings: tuple[str, ...]) -> VirtualConfig:
@@ -50,7 +51,8 @@ def _config(settings: tuple[str, ...]) -> VirtualConfig:
 def build_plan(protocol: str, robot: Robot, scale: str, seed: int, n_points: int | None,
                levels: tuple[float, ...] | None) -> Plan:
     """The plan of `protocol` at `scale` (tiny, quick, full) with the command's options."""
-    kw: dict[str, object] = {"n_points": n_points or 20} if protocol == "random-points" else {}
+    kw: dict[str, object] = ({"n_points": 20 if n_points is None else n_points}
+                             if protocol == "random-points" else {})
     if levels is not None:
         kw["levels"] = levels
     return protocols.build(protocol, robot, scale=scale, seed=seed, **kw)  # type: ignore[arg-type]
@@ -72,9 +74,9 @@ Examples:
 @robot_option
 @click.option("--seed", default=0, show_default=True, help="Noise, glitches, random configurations.")
 @click.option("--robot-seed", default=0, show_default=True, help="The virtual hardware draw.")
-@click.option("--n-points", default=None, type=int,
+@click.option("--n-points", default=None, type=click.IntRange(1, MAX_POINTS),
               help="random-points: number of targets (default 20); square/triangle: number of path "
-              "points (default 10, as in the paper).")
+              "points (default 10, as in the paper; at least 4 for a square, 3 for a triangle).")
 @click.option("--levels", default=None,
               help="paper/sweeps: relative translations d = beta_N - beta_1 (mm), comma-separated "
               "(default: the protocol's; needed for robots that cannot reach d = 20 mm).")
@@ -85,8 +87,9 @@ Examples:
               "interrupted collection; --overwrite starts over.")
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
               help="Override a virtual robot effect magnitude (repeatable).")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
-              help="Output folder (written as a whole: a failure leaves the previous one).")
+@click.option("--out", "out_dir", required=True, type=click.Path(),
+              help="Output folder (written as a whole: a failure leaves the previous one; a second "
+              "collect into it is refused while one runs).")
 @output_options
 def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_seed: int,
                 n_points: int | None, levels: str | None, workers: int | None, rig_file: str | None,
@@ -96,6 +99,12 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
     if levels is not None and protocol not in ("paper", "sweeps"):
         raise click.BadParameter("--levels applies to the paper and sweeps protocols")
     level_values = None if levels is None else tuple(parse_floats(levels, "--levels"))
+    if protocol in SHAPES and n_points is not None and n_points < SHAPES[protocol]:
+        raise click.BadParameter(f"a {protocol} needs at least {SHAPES[protocol]} points, got {n_points}",
+                                 param_hint="--n-points")
+    if n_points is not None and protocol not in (*SHAPES, "random-points"):
+        raise click.BadParameter("--n-points applies to random-points, square and triangle",
+                                 param_hint="--n-points")
     if rig_file is not None:
         from ctrkin.cli.collect_rig import collect_on_rig
 
@@ -113,11 +122,12 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
         collect_on_rig(rig_file, protocol, scale, seed, n_points, level_values, out_dir, overwrite,
                        as_json)
         return
-    out = check_output(out_dir, overwrite)
+    out = output_folder(out_dir, "task path" if protocol in SHAPES else "dataset", overwrite,
+                        inputs=[robot_spec])
     robot = load_robot(robot_spec)
     virtual = VirtualRobot(robot, config, seed=robot_seed)
     if protocol in SHAPES:
-        path = task_path(virtual, protocol, n_points=n_points or 10, seed=seed)
+        path = task_path(virtual, protocol, n_points=10 if n_points is None else n_points, seed=seed)
         path.save(out)
         say(f"wrote {len(path.poses)} {protocol} targets to {out}")
         if as_json:

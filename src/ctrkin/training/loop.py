@@ -39,7 +39,8 @@ from ctrkin.training.config import TrainConfig
 from ctrkin.training.curves import plot_curves
 from ctrkin.training.data import Prepared, data_signature, prepare
 from ctrkin.util.files import atomic_path, atomic_write_text
-from ctrkin.util.folders import folder_lock, recover, swap_in, write_manifest
+from ctrkin.util.folders import folder_lock, swap_in, write_manifest
+from ctrkin.util.ownership import check_replaceable, write_marker
 from ctrkin.util.progress import progress_bar
 
 CHECKPOINT = "checkpoint.pt"
@@ -250,8 +251,8 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
     never a mix, and a second training into the same `out` is refused while one runs.
     """
     out = Path(out)
-    with folder_lock(out, ModelError, "train"):
-        recover(out)
+    with folder_lock(out, ModelError, "train"):        # also cleans what killed runs left
+        check_replaceable(out, "model", ModelError)     # only a model folder is ever replaced
         if cfg.follow:                       # its own loop: features depend on perturbed joints
             from ctrkin.training.follow import train_follow
             return train_follow(ds, cfg, out, overwrite, progress, log)
@@ -370,8 +371,9 @@ def _train_locked(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, pro
     _write_history(build / "history.csv", state["history"])
     plot_curves(state["history"], build / "curves.png",
                 f"{cfg.task.upper()} {cfg.model} (IB = {cfg.ib}): training and validation loss")
+    write_marker(build, "model")
     write_manifest(build, skip=(CHECKPOINT,))
-    swap_in(build, out, ModelError)
+    swap_in(build, out, ModelError, "model")
     return TrainResult(out, metrics, state["history"])
 
 
