@@ -33,3 +33,7 @@ class DatasetError(CtrkinError, ValueError):
 
 class ModelError(CtrkinError, ValueError):
     """A model folder is corrupt, or does not fit the data or robot it is used with."""
+
+
+class OutputError(CtrkinError, ValueError):
+    """An output that ctrkin refuses to write or replace (not its own, an input, a protected place)."""

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 from click.testing import CliRunner
@@ -31,11 +32,12 @@ def test_collect_on_the_virtual_rig_and_the_output_rule(tmp_path):
     foreign = tmp_path / "foreign"
     foreign.mkdir()
     (foreign / "notes.txt").write_text("mine")
-    r = _collect("--rig", rig, "--out", str(foreign))
-    assert r.exit_code == 1 and "--overwrite" in r.output
-    r = _collect("--rig", rig, "--out", str(foreign), "--overwrite")
-    assert r.exit_code == 0, r.output
-    assert (foreign / "notes.txt").read_text() == "mine"        # only a collection's files are replaced
+    # the output rule of every command (issue 27): a folder of the user's is never written into,
+    # with or without --overwrite (until the fsafe merge a rig collection wrote beside notes.txt)
+    for extra in ((), ("--overwrite",)):
+        r = _collect("--rig", rig, "--out", str(foreign), *extra)
+        assert r.exit_code == 1 and "not a ctrkin output" in r.output
+        assert os.listdir(foreign) == ["notes.txt"] and (foreign / "notes.txt").read_text() == "mine"
     r = CliRunner().invoke(cli, ["collect", "--protocol", "sweeps", "--levels", "8", "--rig", rig,
                                  "--out", str(out)])
     assert r.exit_code == 1 and "another protocol" in r.output

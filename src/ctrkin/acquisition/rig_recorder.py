@@ -55,11 +55,11 @@ from ctrkin.hardware.interfaces import (
 )
 from ctrkin.hardware.readings_log import LoggedSample, ReadingsLog
 from ctrkin.hardware.rig import RigDescription
+from ctrkin.util.ownership import MARKER, RIG_JOURNAL, write_marker
 from ctrkin.util.progress import progress_bar
 from ctrkin.version import __version__
 
-LOG_FILE = "readings.csv"
-SESSION_FILE = "rig_session.json"
+SESSION_FILE, LOG_FILE = RIG_JOURNAL     # the journal (util.ownership counts it as the dataset's)
 OWNED_FILES = (LOG_FILE, SESSION_FILE, "data.parquet", "meta.json", "split.json")
 
 
@@ -157,6 +157,8 @@ class RigCollection:
 
     def _start_session(self) -> None:
         self.out.mkdir(parents=True, exist_ok=True)
+        if not (self.out / MARKER).is_file():    # a ctrkin dataset from its first reading (util.ownership)
+            write_marker(self.out, "dataset")
         session = self.out / SESSION_FILE
         if not session.is_file():
             session.write_text(json.dumps(self.info, indent=2, default=str))

@@ -29,7 +29,7 @@ from ctrkin.data import schema
 from ctrkin.errors import DatasetError
 from ctrkin.geometry import pose_rotation, quat_from_tangent
 from ctrkin.mechanics import solve
-from ctrkin.util.files import atomic_path, atomic_write_text
+from ctrkin.util.folders import build_folder, reading_folder
 from ctrkin.version import __version__
 from ctrkin.virtual.robot import VirtualRobot
 
@@ -65,14 +65,15 @@ class TaskPath:
     meta: dict[str, Any]
 
     def save(self, folder: str | Path) -> Path:
-        """Write ``targets.csv`` (step, x, y, z, q0, qx, qy) and ``meta.json`` into `folder`."""
+        """Write the folder as one unit (ctrkin.util.folders): targets.csv and meta.json are built
+        aside and swapped in together, so a failure leaves the previous folder whole. `folder`, if it
+        exists, must be a task path ctrkin wrote (ctrkin.util.ownership), or empty."""
         out = Path(folder)
-        out.mkdir(parents=True, exist_ok=True)
         frame = pd.DataFrame(self.poses, columns=schema.POSE_COLUMNS)
         frame.insert(0, "step", np.arange(len(frame), dtype=np.int64))
-        with atomic_path(out / TARGETS_FILE) as tmp:
-            frame.to_csv(tmp, index=False)
-        atomic_write_text(out / META_FILE, json.dumps(self.meta, indent=2))
+        with build_folder(out, "task path", DatasetError, "collect") as build:
+            frame.to_csv(build / TARGETS_FILE, index=False)
+            (build / META_FILE).write_text(json.dumps(self.meta, indent=2))
         return out
 
 
@@ -98,9 +99,9 @@ def task_path(virtual: VirtualRobot, shape: str, n_points: int = 10, seed: int =
     TaskPath
     """
     if shape not in SHAPES:
-        raise ValueError(f"shape must be one of {sorted(SHAPES)}, got {shape!r}")
+        raise DatasetError(f"shape must be one of {sorted(SHAPES)}, got {shape!r}")
     if n_points < SHAPES[shape]:
-        raise ValueError(f"a {shape} needs n_points >= {SHAPES[shape]}, got {n_points}")
+        raise DatasetError(f"a {shape} needs n_points >= {SHAPES[shape]}, got {n_points}")
     c = {**CORNER, **(corner or {})}
     n = virtual.nominal.n_tubes
     k = SHAPES[shape]
@@ -150,7 +151,11 @@ def load_targets(folder: str | Path) -> tuple[np.ndarray, dict[str, Any]]:
     DatasetError
         If the folder is not a task path.
     """
-    src = Path(folder)
+    with reading_folder(folder) as src:
+        return _load_targets(src)
+
+
+def _load_targets(src: Path) -> tuple[np.ndarray, dict[str, Any]]:
     if not (src / TARGETS_FILE).is_file() or not (src / META_FILE).is_file():
         raise DatasetError(f"{src} is not a task path: it needs {TARGETS_FILE} and {META_FILE} "
                            "(made by `ctrkin collect --protocol square|triangle`)")

@@ -34,13 +34,14 @@ from ctrkin.acquisition.plan import Plan
 from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.acquisition.task_paths import SHAPES, task_path
-from ctrkin.cli.common import check_output, emit_json, output_options, say
-from ctrkin.cli.from_config import config_options, parse_key_values
+from ctrkin.cli.common import emit_json, output_folder, output_options, say
+from ctrkin.cli.from_config import RANGE, config_options, parse_key_values
 from ctrkin.evaluation.scales import Scale
 from ctrkin.robots import Robot, load_robot
 from ctrkin.virtual import VirtualConfig, VirtualConfigError, VirtualRobot
 
 CHOICES = [*protocols.PROTOCOLS, *SHAPES]
+MAX_POINTS = 100_000      # random points or path points: far beyond any protocol, within memory
 
 
 def _config(settings: tuple[str, ...]) -> VirtualConfig:
@@ -69,9 +70,9 @@ class CollectConfig:
         "Built-in robot name (paper, timclab) or path to a robot TOML file."))
     seed: int = field(default=0, metadata=_help("Noise, glitches, random configurations."))
     robot_seed: int = field(default=0, metadata=_help("The virtual hardware draw."))
-    n_points: int | None = field(default=None, metadata=_help(
+    n_points: int | None = field(default=None, metadata={RANGE: (1, MAX_POINTS), **_help(
         "random-points: number of targets (default 20); square/triangle: number of path points (default "
-        "10, as in the paper)."))
+        "10, as in the paper; at least 4 for a square, 3 for a triangle).")})
     levels: tuple[float, ...] | None = field(default=None, metadata=_help(
         "paper/sweeps: relative translations d = beta_N - beta_1 (mm), comma-separated (default: the "
         "protocol's; needed for robots that cannot reach d = 20 mm)."))
@@ -83,10 +84,20 @@ class CollectConfig:
                                      param_hint="--protocol")
         if self.levels is not None and self.protocol not in ("paper", "sweeps"):
             raise click.BadParameter("--levels applies to the paper and sweeps protocols")
+        n = self.n_points
+        if n is not None and not 1 <= n <= MAX_POINTS:
+            raise click.BadParameter(f"{n} is not in the range 1<=x<={MAX_POINTS}", param_hint="--n-points")
+        if self.protocol in SHAPES and n is not None and n < SHAPES[self.protocol]:
+            raise click.BadParameter(f"a {self.protocol} needs at least {SHAPES[self.protocol]} points, "
+                                     f"got {n}", param_hint="--n-points")
+        if n is not None and self.protocol not in (*SHAPES, "random-points"):
+            raise click.BadParameter("--n-points applies to random-points, square and triangle",
+                                     param_hint="--n-points")
 
     def plan(self, robot: Robot) -> Plan:
         """The plan of the protocol at its scale (tiny, quick, full) for `robot`, with these options."""
-        kw: dict[str, object] = {"n_points": self.n_points or 20} if self.protocol == "random-points" else {}
+        kw: dict[str, object] = ({"n_points": 20 if self.n_points is None else self.n_points}
+                                 if self.protocol == "random-points" else {})
         if self.levels is not None:
             kw["levels"] = self.levels
         return protocols.build(self.protocol, robot, scale=self.scale, seed=self.seed, **kw)
@@ -108,8 +119,9 @@ Examples:
               "interrupted collection; --overwrite starts over.")
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
               help="Override a virtual robot effect magnitude (repeatable).")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
-              help="Output folder (written as a whole: a failure leaves the previous one).")
+@click.option("--out", "out_dir", required=True, type=click.Path(),
+              help="Output folder (written as a whole: a failure leaves the previous one; a second "
+              "collect into it is refused while one runs).")
 @output_options
 def collect_cmd(settings: tuple[str, ...], out_dir: str, overwrite: bool, as_json: bool,
                 rig_file: str | None, **options: Any) -> None:
@@ -133,11 +145,12 @@ def collect_cmd(settings: tuple[str, ...], out_dir: str, overwrite: bool, as_jso
                                      param_hint="--rig")
         collect_on_rig(rig_file, protocol, cfg.plan, out_dir, overwrite, as_json)
         return
-    out = check_output(out_dir, overwrite)
+    out = output_folder(out_dir, "task path" if protocol in SHAPES else "dataset", overwrite,
+                        inputs=[cfg.robot])
     robot = load_robot(cfg.robot)
     virtual = VirtualRobot(robot, config, seed=cfg.robot_seed)
     if protocol in SHAPES:
-        path = task_path(virtual, protocol, n_points=n_points or 10, seed=seed)
+        path = task_path(virtual, protocol, n_points=10 if n_points is None else n_points, seed=seed)
         path.save(out)
         say(f"wrote {len(path.poses)} {protocol} targets to {out}")
         if as_json:

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from ctrkin.cli.common import check_output, emit_json, say
+from ctrkin.cli.common import emit_json, output_folder, say
 from ctrkin.errors import CtrkinError
 from ctrkin.util.folders import folder_lock
 
@@ -42,8 +42,8 @@ def collect_on_rig(rig_file: str, protocol: str, plan_for: Callable[[Robot], Pla
     rig = RigDescription.from_toml(rig_file)
     out = Path(out_dir)
     resuming = (out / SESSION_FILE).is_file() and not overwrite
-    if not resuming and not (overwrite and (out / SESSION_FILE).is_file()):
-        check_output(out, overwrite)
+    # the ownership rule of every output (a rig's journal counts as the dataset's own files)
+    output_folder(out, "dataset", overwrite, inputs=[rig_file], reuse=resuming)
     plan = plan_for(rig.robot)
     with folder_lock(out, CtrkinError, "collect"):
         if overwrite:

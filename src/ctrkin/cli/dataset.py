@@ -16,7 +16,7 @@
 
     ctrkin dataset split data/mylog --kind random --seed 0 --fractions 0.7,0.15,0.15
     ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate   # test sequence by name
-    ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate --val-rows 0.15
+    ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate --val-rows 0.15 --overwrite
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import click
 from rich.console import Console
 from rich.table import Table
 
-from ctrkin.cli.common import check_output, overwrite_option, quiet, robot_option, say
+from ctrkin.cli.common import InputPath, output_folder, overwrite_option, quiet, robot_option, say
 from ctrkin.cli.from_config import config_options
 from ctrkin.data.cleaning import CleaningConfig
 from ctrkin.data.dataset import Dataset
@@ -106,7 +106,7 @@ def print_summary(s: dict[str, Any], title: str) -> None:
 @dataset_group.command("info", epilog="""\b
 Examples:
   ctrkin dataset info data/paper --json""")
-@click.argument("folder", type=click.Path(exists=True, file_okay=False))
+@click.argument("folder", type=InputPath(file_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def info_cmd(folder: str, as_json: bool) -> None:
     """Summary of the dataset in FOLDER: samples, sequences, ranges, snaps, cleaning, noise, split."""
@@ -179,13 +179,13 @@ Examples:
   ctrkin dataset import robot_log.csv --robot paper --units rad,m --out data/mylog
   ctrkin dataset import logs/*.csv --profile examples/profiles/comet_optitrack.toml \\
       --robot examples/robots/comet_nylon_optitrack.toml --out data/optitrack""")
-@click.argument("log_files", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
+@click.argument("log_files", nargs=-1, required=True, type=InputPath(dir_okay=False))
 @robot_option
-@click.option("--profile", "profile_file", default=None, type=click.Path(exists=True, dir_okay=False),
+@click.option("--profile", "profile_file", default=None, type=InputPath(dir_okay=False),
               help="Import profile (TOML: columns by position or name, scales, travel zero, groups, "
                    "drops, reference body, orientation). With a profile, several files make one "
                    "dataset, one sequence per file, and --map/--units/--quaternion are not used.")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
+@click.option("--out", "out_dir", required=True, type=click.Path(),
               help="Dataset folder to write.")
 @click.option("--map", "maps", multiple=True, metavar="LOG_COLUMN=FIELD",
               help="Map a log column to a field (alpha_1.., beta_1.., x, y, z, q0, qw, qx, qy, qz, tx, "
@@ -215,7 +215,8 @@ def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | 
                                "profile import one file")
     quaternion_columns = tuple(c.strip() for c in quat_cols.split(",")) if quat_cols else ()
     mapping, gap = parse_map(maps), parse_gap(gap_text)
-    out = check_output(out_dir, overwrite or force)
+    out = output_folder(out_dir, "dataset", overwrite or force,
+                        inputs=[*log_files, profile_file, robot_spec])
     robot = load_robot(robot_spec)
     cfg = ImportConfig(
         mapping=mapping, quaternion_columns=quaternion_columns, sequence_gap=cast(Any, gap),
@@ -291,16 +292,18 @@ class SplitConfig:
 Examples:
   ctrkin dataset split data/paper --fractions 0.8,0.1,0.1 --seed 2
   ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate
-  ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate --val-rows 0.15""")
-@click.argument("folder", type=click.Path(exists=True, file_okay=False))
+  ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate --val-rows 0.15 --overwrite""")
+@click.argument("folder", type=InputPath(file_okay=False))
 @config_options(SplitConfig)
-def split_cmd(folder: str, **settings: Any) -> None:
+@overwrite_option(help="Replace a split.json that FOLDER already has (otherwise a different saved split "
+                  "is refused: models trained on it would no longer match).")
+def split_cmd(folder: str, overwrite: bool, **settings: Any) -> None:
     """Make a train/validation/test split of the dataset in FOLDER and save it as split.json. Warns
     when the parts are far from the requested fractions (few, unequal sequences)."""
     cfg = SplitConfig(**settings)
     ds = Dataset.load(folder)
     split = cfg.make(ds)
-    ds.save_split(folder, split)
+    ds.save_split(folder, split, overwrite=overwrite)
     sizes = split.sizes()
     say(f"{folder}: {cfg.describe()} split, seed {cfg.seed}: train {sizes['train']}, val {sizes['val']}, "
         f"test {sizes['test']} samples -> {Path(folder) / 'split.json'}")

@@ -12,7 +12,7 @@ rows; --loso adds leave-one-sequence-out figures (each sequence predicted by a r
 
 from __future__ import annotations
 
-import shutil
+import contextlib
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -20,11 +20,11 @@ from typing import Any
 
 import click
 
-from ctrkin.cli.common import check_output, emit_json, output_options, say
+from ctrkin.cli.common import InputPath, emit_json, output_folder, output_options, say
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import CtrkinError
 from ctrkin.evaluation.real import evaluate, loso, predictor_name
-from ctrkin.util.folders import swap_in
+from ctrkin.util.folders import build_folder
 
 
 def folder_names(predictors: tuple[str, ...]) -> list[str]:
@@ -40,15 +40,15 @@ Examples:
   ctrkin evaluate --data data/optitrack --predictor models/fk_optitrack --out out/eval_fk
   ctrkin evaluate --data data/optitrack --predictor robots/optitrack_cal.toml --loso
   ctrkin evaluate --data data/optitrack --predictor tcm --json > eval_tcm.json""")
-@click.option("--data", "data_dir", required=True, type=click.Path(exists=True, file_okay=False),
+@click.option("--data", "data_dir", required=True, type=InputPath(file_okay=False),
               help="Dataset folder.")
 @click.option("--predictor", "predictors", required=True, multiple=True,
               help="tcm (nominal robot of the dataset, registration fitted here), a robot file "
                    "(.toml, calibrated or not) or a trained FK model folder. Repeatable.")
-@click.option("--out", "out_dir", default=None, type=click.Path(file_okay=False),
+@click.option("--out", "out_dir", default=None, type=click.Path(),
               help="Folder for results.json and plots (one sub-folder per predictor, named after it, "
-              "when several); written as a whole: with --overwrite it replaces the folder's earlier "
-              "content.")
+              "when several); written as a whole (with --overwrite it replaces an earlier evaluation "
+              "folder).")
 @click.option("--loso", "with_loso", is_flag=True,
               help="Also leave-one-sequence-out: each sequence predicted by the predictor refitted to "
               "the other sequences (a calibration's groups, or a model retrained with its own settings).")
@@ -61,19 +61,16 @@ def evaluate_cmd(data_dir: str, predictors: tuple[str, ...], out_dir: str | None
     per part (training, validation, held out, in-sample), per sequence and overall; plots of predicted
     vs measured tips, of error against joints and of the error per sequence."""
     if out_dir is not None:
-        check_output(out_dir, overwrite)
+        output_folder(out_dir, "evaluation", overwrite, inputs=[data_dir, *predictors])
     ds = Dataset.load(data_dir)
     ds.meta.setdefault("path", data_dir)
     # without --out (and without --json) the printed table is the result
     show = click.echo if out_dir is None and not as_json else say
-    build = None
-    if out_dir is not None:         # written beside --out, swapped in when every predictor is done
-        target = Path(out_dir)
-        target.parent.mkdir(parents=True, exist_ok=True)
-        build = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
     results = []
     subs = folder_names(predictors)
-    try:
+    # written beside --out, swapped in when every predictor is done
+    with (contextlib.nullcontext(None) if out_dir is None
+          else build_folder(out_dir, "evaluation", CtrkinError, "evaluate")) as build:
         for spec, sub in zip(predictors, subs, strict=True):
             out = None if build is None else (build if len(predictors) == 1 else build / sub)
             res = evaluate(ds, spec, out)
@@ -84,14 +81,9 @@ def evaluate_cmd(data_dir: str, predictors: tuple[str, ...], out_dir: str | None
                             "out": None if out_dir is None else
                             (out_dir if len(predictors) == 1 else f"{out_dir}/{sub}")})
             _print(spec, res, show)
-        if build is not None and out_dir is not None:
-            swap_in(build, Path(out_dir), CtrkinError)
-            build = None
-            for r in results:
-                say(f"wrote {r['out']}/results.json, {', '.join(r['figures'])}")
-    finally:
-        if build is not None:
-            shutil.rmtree(build, ignore_errors=True)
+    if out_dir is not None:
+        for r in results:
+            say(f"wrote {r['out']}/results.json, {', '.join(r['figures'])}")
     if as_json:
         emit_json({"data": data_dir, "predictors": results})
 

@@ -12,8 +12,9 @@ command line at once, with the same default.
 Field -> option: `max_epochs` -> `--max-epochs` (and its aliases), passed to the command as
 `max_epochs`; int, float and str fields take a value of that type; `X | None` the same, default None;
 `Literal["a", "b"]` a choice; bool `--name/--no-name`; `tuple[X, ...]` of int, float or str a
-comma-separated list ("8,14,20" -> (8.0, 14.0, 20.0)). The help is the field's
-`field(metadata={"help": ...})`. A field without help, or of another type (a dict, a list), is an
+comma-separated list ("8,14,20" -> (8.0, 14.0, 20.0)); an int or float field with
+`metadata={"range": (lo, hi)}` a value in that closed range (click.IntRange, FloatRange). The help is
+the field's `field(metadata={"help": ...})`. A field without help, or of another type (a dict, a list), is an
 error where the command is defined, unless excluded (the command then sets it from options of its
 own).
 
@@ -34,6 +35,7 @@ import click
 F = TypeVar("F", bound=Callable[..., Any])
 
 HELP = "help"      # the metadata key of a field's help text
+RANGE = "range"    # the metadata key of an int or float field's bounds (lo, hi), inclusive (None: open)
 
 
 def _option_name(field_name: str) -> str:
@@ -112,6 +114,11 @@ def config_options(cls: type, *, aliases: Mapping[str, Sequence[str]] | None = N
             kind, _optional = _click_type(hints[f.name])
         except TypeError as e:
             raise TypeError(f"{where}: {e}; exclude it and give the command its own option") from None
+        if RANGE in f.metadata:
+            if kind not in (int, float):
+                raise TypeError(f"{where}: a range applies to int and float fields")
+            lo, hi = f.metadata[RANGE]
+            kind = click.IntRange(lo, hi) if kind is int else click.FloatRange(lo, hi)
         name = _option_name(f.name)
         if kind is bool:
             name += "/" + _option_name("no_" + f.name)

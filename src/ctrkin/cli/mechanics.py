@@ -15,12 +15,13 @@ import numpy as np
 import pandas as pd
 
 from ctrkin.acquisition.trajectories import PAPER_LEVELS_MM, rotation_sweep
-from ctrkin.cli.common import check_output, emit_json, output_options, say
-from ctrkin.cli.from_config import config_options
+from ctrkin.cli.common import emit_json, output_folder, output_options, say
+from ctrkin.cli.from_config import RANGE, config_options
+from ctrkin.errors import CtrkinError
 from ctrkin.geometry import POSE_COLUMNS, tip_azimuth
 from ctrkin.mechanics import Equilibrium, follow, solve
 from ctrkin.robots import load_robot
-from ctrkin.util.files import atomic_path
+from ctrkin.util.folders import build_folder
 from ctrkin.util.progress import progress_bar
 
 
@@ -29,6 +30,7 @@ def _help(text: str) -> dict[str, str]:
 
 
 ROBOT_HELP = "Built-in robot name (paper, timclab) or path to a robot TOML file."
+MIN_STEP_DEG = 1e-3      # a sweep of 720 / step steps per level: at most 720,000
 
 
 @dataclass(frozen=True)
@@ -52,7 +54,16 @@ class SweepConfig:
         "Relative translations d = β_N − β_1 (mm)."))
     outer_beta: float = field(default=0.0, metadata=_help("β of the other tubes (mm)."))
     outer_alpha: float = field(default=0.0, metadata=_help("α of the other tubes (deg)."))
-    step_deg: float = field(default=1.0, metadata=_help("Rotation step (deg)."))
+    step_deg: float = field(default=1.0, metadata={RANGE: (MIN_STEP_DEG, 360.0),
+                                                   **_help("Rotation step (deg).")})
+
+    def __post_init__(self) -> None:
+        if not self.translations:
+            raise click.BadParameter("give at least one relative translation (mm)",
+                                     param_hint="--translations")
+        if not MIN_STEP_DEG <= self.step_deg <= 360.0:
+            raise click.BadParameter(f"{self.step_deg} is not in the range {MIN_STEP_DEG}<=x<=360.0",
+                                     param_hint="--step")
 
 
 @click.command("solve", epilog="""\b
@@ -110,7 +121,7 @@ Examples:
   ctrkin sweep --translations 8,16 --step 5 --out out/sweep-json --json > sweep.json""")
 @config_options(SweepConfig, aliases={"step_deg": ("--step",)})
 @click.option("--out", "out_dir", default="out/sweep", show_default=True,
-              type=click.Path(file_okay=False), help="Output folder for sweep.csv and sweep.png.")
+              type=click.Path(), help="Output folder for sweep.csv and sweep.png.")
 @output_options
 def sweep_cmd(out_dir: str, overwrite: bool, as_json: bool, **settings: Any) -> None:
     """Full inner-tube rotation forward and back at several relative translations (paper
@@ -120,7 +131,7 @@ def sweep_cmd(out_dir: str, overwrite: bool, as_json: bool, **settings: Any) -> 
     from ctrkin.viz.sweep import plot_sweeps
 
     levels = list(cfg.translations)
-    out = check_output(out_dir, overwrite)
+    out = output_folder(out_dir, "sweep", overwrite, inputs=[cfg.robot])
     robot = load_robot(cfg.robot)
     n = robot.n_tubes
     frames, curves = [], []
@@ -140,11 +151,10 @@ def sweep_cmd(out_dir: str, overwrite: bool, as_json: bool, **settings: Any) -> 
                 "T_L": tr.azimuth, "snap": tr.snaps, "stable": tr.stable}))
             curves.append({"label": f"d = {d:g} mm", "alpha0": alpha0, "azimuth": tr.azimuth,
                            "snaps": tr.snaps, "forward": forward})
-    out.mkdir(parents=True, exist_ok=True)
     table = pd.concat(frames, ignore_index=True)
-    with atomic_path(out / "sweep.csv") as tmp:
-        table.to_csv(tmp, index=False)
-    plot_sweeps(curves, out / "sweep.png", title=f"{robot.name}: T(L) over full inner rotations")
+    with build_folder(out, "sweep", CtrkinError, "sweep") as build:     # written as one unit
+        table.to_csv(build / "sweep.csv", index=False)
+        plot_sweeps(curves, build / "sweep.png", title=f"{robot.name}: T(L) over full inner rotations")
     summary = []
     for d, f in zip(levels, frames, strict=True):
         snaps = f.loc[f["snap"], "alpha_1"].tolist()

@@ -14,7 +14,7 @@ from typing import Any
 
 import click
 
-from ctrkin.cli.common import say
+from ctrkin.cli.common import output_folder, overwrite_option, say
 from ctrkin.cli.from_config import config_options
 from ctrkin.evaluation.scales import ReproduceConfig
 
@@ -24,9 +24,11 @@ Examples:
   ctrkin reproduce --scale tiny --out out/tiny
   ctrkin reproduce --scale quick --out out/reproduce""")
 @config_options(ReproduceConfig, exclude=("out",))
-@click.option("--out", "out", default="out/reproduce", show_default=True, type=click.Path(file_okay=False),
-              help="Output folder.")
-def reproduce_cmd(**settings: Any) -> None:
+@click.option("--out", "out", default="out/reproduce", show_default=True, type=click.Path(),
+              help=ReproduceConfig.__dataclass_fields__["out"].metadata["help"])
+@overwrite_option(help="Replace --out if it holds a reproduction of other settings (only a ctrkin "
+                  "reproduction folder holding nothing else is ever replaced).")
+def reproduce_cmd(overwrite: bool, **settings: Any) -> None:
     """Collect data, train the models, run every experiment of the paper, write the report."""
     from ctrkin.evaluation.reproduce import reproduce
     from ctrkin.evaluation.scales import get_scale
@@ -34,8 +36,9 @@ def reproduce_cmd(**settings: Any) -> None:
     from ctrkin.robots import load_robot
 
     cfg = ReproduceConfig(**settings)
+    output_folder(cfg.out, "reproduction", overwrite, inputs=[cfg.robot], reuse=True)
     results = reproduce(load_robot(cfg.robot), get_scale(cfg.scale), cfg.out, robot_seed=cfg.robot_seed,
-                        workers=cfg.workers, log=say, executor=cfg.executor)
+                        workers=cfg.workers, log=say, executor=cfg.executor, overwrite=overwrite)
     fk, ik = results.fk, results.ik[HEADLINE]
     say(
         f"FK LSTM-MLP: {fk[HEADLINE]['position_rmse_mm']:.3f} mm / "

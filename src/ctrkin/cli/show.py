@@ -15,7 +15,7 @@ import click
 import numpy as np
 
 from ctrkin.acquisition.trajectories import rotation_sweep
-from ctrkin.cli.common import check_output, emit_json, output_options, parse_floats, robot_option, say
+from ctrkin.cli.common import emit_json, output_file, output_options, parse_floats, robot_option, say
 from ctrkin.mechanics import follow
 from ctrkin.robots import load_robot
 
@@ -113,7 +113,7 @@ def show_cmd(robot_spec: str, q_texts: tuple[str, ...], sweep_text: str | None, 
             raise click.BadParameter(str(e), param_hint="--out") from None
         if frames is not None and frames < 2:
             raise click.BadParameter("an animation needs at least 2 frames", param_hint="--frames")
-    out = check_output(target, overwrite)
+    out = output_file(target, "figure", overwrite, inputs=[robot_spec])
     trajectory = follow(robot, Q)
     snaps = np.flatnonzero(trajectory.snaps)
     if suffix == ".png":

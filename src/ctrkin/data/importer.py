@@ -328,6 +328,7 @@ class _Cleaned:
     pose_out: np.ndarray         # (S,) pose outliers
     snap: np.ndarray             # (K,) bool
     snap_source: str             # "log" | "detected"
+    distinct: np.ndarray         # (R,) readings of other joints than the previous one in its step
 
 
 def _clean(rows: _Rows, sequence: np.ndarray, joints: np.ndarray, position: np.ndarray,
@@ -339,10 +340,11 @@ def _clean(rows: _Rows, sequence: np.ndarray, joints: np.ndarray, position: np.n
         groups = cleaning.repeat_groups(sequence, joints, values.get("step"), cc.repeat_tol)
     else:
         groups = np.arange(len(rows.line))
+    distinct = cleaning.distinct_in_step(sequence, joints, values.get("step"), cc.repeat_tol)
     samples = cleaning.average_readings(groups, joints, position, tangent, cc)
     first = samples.first
     s_seq, s_joints, s_pos, s_tan = sequence[first], samples.joints, samples.position, samples.tangent
-    if "step" in values:
+    if "step" in values and not distinct.any():     # else the log's steps would repeat: renumbered
         s_step = values["step"][first].astype(np.int64)
     else:
         s_step = np.concatenate([np.arange(b - a) for a, b in schema.sequence_bounds(s_seq)]).astype(np.int64)
@@ -366,7 +368,8 @@ def _clean(rows: _Rows, sequence: np.ndarray, joints: np.ndarray, position: np.n
         for a, b in schema.sequence_bounds(s_seq):
             snap[a:b] = cleaning.snap_mask(s_joints[a:b], s_pos[a:b], n, cc)
     return _Cleaned(samples, groups, idx, s_seq, rows.line[first][idx], s_step[idx], s_joints, s_pos,
-                    s_tan[idx], glitch, pose_out, snap, "log" if "snap" in values else "detected")
+                    s_tan[idx], glitch, pose_out, snap, "log" if "snap" in values else "detected",
+                    distinct)
 
 
 def _dataset(s: _Cleaned, rows: _Rows, seq_labels: list[str], robot: Robot, cfg: ImportConfig, mode: str,
@@ -380,6 +383,13 @@ def _dataset(s: _Cleaned, rows: _Rows, seq_labels: list[str], robot: Robot, cfg:
     if np.median(s.tangent[:, 2]) < 0:
         warnings.append("most tip tangents point backwards (-z): check the quaternion order "
                         "(--quat-order) and the tracker-to-robot registration")
+    if s.distinct.any():
+        first = rows.log.file_line(rows.line[int(np.argmax(s.distinct))])
+        warnings.append(f"{int(s.distinct.sum())} readings share their step (or group) with readings "
+                        f"of other joints (first: data line {first}): distinct configurations are never "
+                        "averaged, so each became its own sample and the steps were numbered anew; if "
+                        "they are repeated readings of one sample, set the repeat tolerance to the "
+                        "encoder's resolution")
     seq_ids = np.unique(s.sequence, return_inverse=True)[1].astype(np.int64)  # renumber 0..K-1 after drops
     pose = np.column_stack([s.position, quat_from_tangent(s.tangent)])
     outlier = s.glitch | s.pose_out
@@ -395,6 +405,7 @@ def _dataset(s: _Cleaned, rows: _Rows, seq_labels: list[str], robot: Robot, cfg:
     report = {
         **counts,
         "readings_rejected": samples.rejected,
+        "readings_distinct_in_step": int(s.distinct.sum()),
         "samples_averaged": len(samples.first),
         "readings_per_sample": {"min": int(samples.n_readings.min()),
                                 "median": float(np.median(samples.n_readings)),

@@ -47,6 +47,7 @@ profile file, its line and the key.
 
 from __future__ import annotations
 
+import math
 import re
 import tomllib
 from collections.abc import Mapping
@@ -54,6 +55,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from ctrkin.data.import_config import check_delimiter
 from ctrkin.errors import DatasetError
 from ctrkin.geometry import POSITION_COLUMNS
 from ctrkin.robots.robot import joint_names
@@ -64,6 +66,8 @@ POSE_FIELDS = POSITION_COLUMNS
 QUAT_FIELDS = ("qw", "qx", "qy", "qz")
 REFERENCE_FIELDS = (*POSE_FIELDS, *QUAT_FIELDS)
 SECTIONS = {"file", "columns", "pose", "reference", "groups", "drop", "expect"}
+MAX_GROUP = 100_000     # readings per configuration ([groups] count): far beyond any tracker log
+MAX_COLUMN = 100_000    # column positions
 
 
 @dataclass(frozen=True)
@@ -151,15 +155,21 @@ class _Where:
 def _number(value: object, where: str, what: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise DatasetError(f"{where}: {what} must be a number, got {value!r}")
-    return float(value)
+    try:
+        out = float(value)
+    except OverflowError:
+        out = math.inf
+    if not math.isfinite(out):
+        raise DatasetError(f"{where}: {what} must be a finite number, got {value!r}")
+    return out
 
 
 def _column_ref(value: object, where: str) -> int | str:
     if isinstance(value, bool):
         raise DatasetError(f"{where}: a column is a position (1, 2, ...) or a header name, got {value!r}")
     if isinstance(value, int):
-        if value < 1:
-            raise DatasetError(f"{where}: column positions count from 1, got {value}")
+        if not 1 <= value <= MAX_COLUMN:
+            raise DatasetError(f"{where}: column positions count from 1 (at most {MAX_COLUMN}), got {value}")
         return value
     if isinstance(value, str) and value.strip():
         return value.strip()
@@ -224,8 +234,7 @@ def parse_profile(text: str, n_tubes: int, source: str = "profile") -> Profile:
     if not isinstance(header, bool):
         raise DatasetError(f"{where('file', 'header')}: must be true or false")
     delimiter = file_.get("delimiter", ",")
-    if not isinstance(delimiter, str) or len(delimiter) != 1:
-        raise DatasetError(f"{where('file', 'delimiter')}: must be one character, got {delimiter!r}")
+    check_delimiter(delimiter, where("file", "delimiter"))
     pose = d.get("pose", {})
     unit = _choice(pose.get("unit", "mm"), ("mm", "m"), where("pose", "unit"))
     order = _choice(pose.get("quaternion_order", "wxyz"), ("wxyz", "xyzw"), where("pose", "quaternion_order"))
@@ -277,8 +286,9 @@ def parse_profile(text: str, n_tubes: int, source: str = "profile") -> Profile:
 
     groups = d.get("groups", {})
     count = groups.get("count", 0)
-    if isinstance(count, bool) or not isinstance(count, int) or count < 0:
-        raise DatasetError(f"{where('groups', 'count')}: must be a whole number >= 0, got {count!r}")
+    if isinstance(count, bool) or not isinstance(count, int) or not 0 <= count <= MAX_GROUP:
+        raise DatasetError(f"{where('groups', 'count')}: must be a whole number in 0..{MAX_GROUP} "
+                           f"(readings per configuration), got {count!r}")
     unchanged = groups.get("joints_unchanged", False)
     if not isinstance(unchanged, bool):
         raise DatasetError(f"{where('groups', 'joints_unchanged')}: must be true or false")

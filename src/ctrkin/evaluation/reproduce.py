@@ -13,11 +13,13 @@ from typing import Any
 
 import numpy as np
 
+from ctrkin.errors import OutputError
 from ctrkin.evaluation.context import Context
 from ctrkin.evaluation.datasets import ReproData, collect
 from ctrkin.evaluation.experiments import EXPERIMENTS
 from ctrkin.evaluation.experiments_fk import SNAP_TURNS, SWEEPS
 from ctrkin.evaluation.report import write_report
+from ctrkin.evaluation.repro_folder import claim
 from ctrkin.evaluation.results import (
     DatasetSummary,
     Memory,
@@ -33,6 +35,7 @@ from ctrkin.evaluation.tcm_baseline import TCMBaseline
 from ctrkin.evaluation.training_runs import train_all
 from ctrkin.inference import Kinematics
 from ctrkin.robots.robot import Robot
+from ctrkin.util.folders import folder_lock
 from ctrkin.version import __version__
 
 NOTES = [
@@ -78,12 +81,22 @@ def reproduce(
     workers: int = 2,
     log: Callable[[str], None] = print,
     executor: str = "local",
+    overwrite: bool = False,
 ) -> ReproResults:
     """Run the whole reproduction into `out`; workers: trainings run in parallel (one thread each);
     executor: where they run, "local" processes or "ray" tasks (ctrkin.evaluation.executors).
     Stages: collect data, train, fit the TCM baseline, FK experiments, IK experiments, grids,
-    timing; then results.json and report.md. Returns the results as written to results.json."""
+    timing; then results.json and report.md. Returns the results as written to results.json.
+    `out` may hold a reproduction of the same settings (reused); one of other settings is refused
+    unless `overwrite`, which replaces it (ctrkin.evaluation.repro_folder)."""
     out = Path(out)
+    with folder_lock(out, OutputError, "reproduce"):
+        claim(out, robot, scale, robot_seed, overwrite)
+        return _reproduce(robot, scale, out, robot_seed, workers, log, executor)
+
+
+def _reproduce(robot: Robot, scale: ReproScale, out: Path, robot_seed: int, workers: int,
+               log: Callable[[str], None], executor: str) -> ReproResults:
     figures = out / "figures"
     figures.mkdir(parents=True, exist_ok=True)
     st = _Stages(log)

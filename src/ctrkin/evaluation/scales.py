@@ -143,7 +143,9 @@ class ReproduceConfig:
     executor: Executor = field(default="local", metadata=_help(
         "local: spawned processes; ray: one Ray task per training, on the cluster at RAY_ADDRESS or a "
         "local instance (pip install 'ctrkin[ray]')."))
-    out: str = field(default="out/reproduce", metadata=_help("Output folder."))
+    out: str = field(default="out/reproduce", metadata=_help(
+        "Output folder. A rerun with the same settings reuses its data and models; one with other "
+        "settings is refused unless --overwrite."))
 
     def __post_init__(self) -> None:
         get_scale(self.scale)

@@ -34,6 +34,7 @@ from ctrkin.models.predictor_base import check_robot, robot_differences
 from ctrkin.models.store import ModelBundle, ModelConfig, read_json
 from ctrkin.models.workspace import Workspace
 from ctrkin.robots.robot import Robot
+from ctrkin.util.folders import reading_folder
 
 __all__ = ["IKResult", "IKStep", "Kinematics", "robot_differences"]
 
@@ -58,10 +59,11 @@ class Kinematics:
     def load(cls, path: str | Path, fused: bool = True) -> Kinematics:
         """Load a model folder written by `ctrkin train` (or assembled from two, a refined IK).
         fused=False: FK steps take the reference path (engine kernels called one by one from Python)
-        even where the fused step applies (ctrkin.models.fused)."""
-        src = Path(path)
-        pred = open_folder(src, fused)
-        metrics = read_json(src / "metrics.json") if (src / "metrics.json").is_file() else {}
+        even where the fused step applies (ctrkin.models.fused). The folder is read as one version
+        while another process may replace it (ctrkin.util.folders)."""
+        with reading_folder(path) as src:
+            pred = open_folder(src, fused)
+            metrics = read_json(src / "metrics.json") if (src / "metrics.json").is_file() else {}
         return cls(pred, metrics=metrics, path=src)
 
     def __getattr__(self, name: str) -> Any:

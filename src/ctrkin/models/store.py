@@ -38,7 +38,7 @@ from ctrkin.models.frame import OuterFrame
 from ctrkin.models.normalize import MinMax
 from ctrkin.robots.robot import Robot
 from ctrkin.util.files import atomic_write_bytes, atomic_write_text
-from ctrkin.util.folders import check_manifest, write_manifest
+from ctrkin.util.folders import check_manifest, reading_folder, write_manifest
 from ctrkin.version import __version__
 
 CONFIG, FEATURES, NORMALIZATION, ROBOT, WEIGHTS = ("config.json", "features.json", "normalization.json",
@@ -51,10 +51,15 @@ def write_json(path: Path, obj: Any) -> None:
     atomic_write_text(path, json.dumps(obj, indent=2))
 
 
+MAX_JSON_BYTES = 64 << 20      # a model folder's JSON files hold settings and small tables
+
+
 def read_json(path: Path) -> Any:
     try:
+        if path.stat().st_size > MAX_JSON_BYTES:
+            raise ModelError(f"{path} is larger than {MAX_JSON_BYTES >> 20} MB: not a file ctrkin wrote")
         return json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as e:
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError, RecursionError) as e:
         raise ModelError(f"cannot read {path}: {e}") from None
 
 
@@ -153,8 +158,13 @@ class ModelBundle:
     @classmethod
     def load(cls, folder: str | Path, build: NetBuilder) -> ModelBundle:
         """The model folder `folder`, its network made by `build` (the registry's,
-        ctrkin.families.registry.build_net: open_bundle) and given the stored weights."""
-        src = Path(folder)
+        ctrkin.families.registry.build_net: open_bundle) and given the stored weights, read as one
+        version while another process may replace it (ctrkin.util.folders)."""
+        with reading_folder(folder) as src:     # one version, never a mix
+            return cls._load(src, build)
+
+    @classmethod
+    def _load(cls, src: Path, build: NetBuilder) -> ModelBundle:
         missing = [f for f in REQUIRED if not (src / f).is_file()]
         if missing:
             raise ModelError(f"{src} is not a trained ctrkin model folder: missing {missing} "

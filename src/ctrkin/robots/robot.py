@@ -11,10 +11,11 @@ import functools
 import hashlib
 import json
 import math
+import reprlib
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import tomli_w
@@ -42,6 +43,31 @@ def joint_names(n_tubes: int) -> list[str]:
     """Joint vector order (fixed, docs/design.md: Conventions): α1..αN, β1..βN. These are the dataset's
     joint columns (ctrkin.data.schema) and the learned models' joint features."""
     return alpha_names(n_tubes) + beta_names(n_tubes)
+
+
+def _lengths_mm(values: Any, n_tubes: int) -> tuple[float, ...]:
+    """Robot.transmission_length as floats: empty, or one finite number >= 0 (mm) per tube. Anything
+    else (text, lists, tables, booleans) is a RobotDescriptionError naming what was given."""
+    what = (f"Robot.transmission_length needs {n_tubes} finite numbers >= 0 mm (one per tube) or "
+            f"none, got {reprlib.repr(values)}")
+    if isinstance(values, (str, bytes, dict)):
+        raise RobotDescriptionError(what)
+    try:
+        items: tuple[Any, ...] = tuple(values)
+    except TypeError:
+        raise RobotDescriptionError(what) from None
+    if not items:
+        return ()
+    ok = len(items) == n_tubes and all(
+        isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+        for v in items)
+    try:
+        out = tuple(float(v) for v in items) if ok else ()
+    except OverflowError:       # an int beyond float range
+        ok = False
+    if not ok or not all(math.isfinite(v) and v >= 0 for v in out):
+        raise RobotDescriptionError(what)
+    return out
 
 
 @dataclass(frozen=True)
@@ -85,11 +111,8 @@ class Robot:
             raise RobotDescriptionError(
                 f"Robot.tubes must be a sequence of Tube, innermost first, got {self.tubes!r}") from None
         object.__setattr__(self, "tubes", tubes)
-        tl = tuple(float(v) for v in self.transmission_length)
+        tl = _lengths_mm(self.transmission_length, len(tubes))
         object.__setattr__(self, "transmission_length", tl)
-        if tl and (len(tl) != len(tubes) or not all(math.isfinite(v) and v >= 0 for v in tl)):
-            raise RobotDescriptionError(f"Robot.transmission_length needs {len(tubes)} finite values >= 0 mm "
-                                        f"(one per tube), got {list(tl)}")
         if len(tubes) < 1:
             raise RobotDescriptionError("Robot needs at least one tube")
         for k, t in enumerate(tubes):

@@ -17,6 +17,9 @@ OD_RANGE_MM = (1e-3, 100.0)
 MAX_LENGTH_MM = 10_000.0        # 10 m, per tube and per section
 MAX_CURVATURE_PER_MM = 10.0     # a 0.1 mm bending radius
 YOUNGS_RANGE_GPA = (1e-3, 1e3)
+# precurvature sections per tube: a measured profile at 0.1 mm over a 1 m tube; every section is a
+# stretch of the solver's grid, so this also bounds the work of one integration pass
+MAX_SECTIONS = 10_000
 
 
 @dataclass(frozen=True)
@@ -56,6 +59,17 @@ def _section(k: int, s: object) -> Section:
     for name, v in zip(("length", "curvature"), s, strict=True):
         _require_finite("Tube", f"sections[{k}].{name}", v)
     return Section(float(s[0]), float(s[1]))
+
+
+def _check_count(sections: object) -> None:
+    try:
+        count = len(sections)  # type: ignore[arg-type]
+    except TypeError:
+        raise RobotDescriptionError(
+            f"Tube.sections must be a list of [length mm, curvature 1/mm] pairs, got {sections!r}") from None
+    if count > MAX_SECTIONS:
+        raise RobotDescriptionError(f"Tube.sections has {count} sections, more than {MAX_SECTIONS} "
+                                    "(merge neighbouring sections of equal curvature)")
 
 
 @dataclass(frozen=True)
@@ -136,6 +150,7 @@ class Tube:
                          if s.length > 0)
             object.__setattr__(self, "sections", secs)
         else:
+            _check_count(self.sections)
             secs = tuple(_section(k, s) for k, s in enumerate(self.sections))
             for k, s in enumerate(secs):
                 _require_finite(owner, f"sections[{k}].length", s.length)
@@ -183,6 +198,7 @@ class Tube:
         if not isinstance(sections, (list, tuple)):
             raise RobotDescriptionError(
                 f"Tube.sections must be a list of [length mm, curvature 1/mm] pairs, got {sections!r}")
+        _check_count(sections)
         secs = tuple(_section(k, s) for k, s in enumerate(sections))
         straight = 0.0
         for s in secs:

@@ -34,7 +34,8 @@ from ctrkin.training.config import TrainConfig
 from ctrkin.training.curves import plot_curves
 from ctrkin.training.data import data_signature, split_rows, split_signature
 from ctrkin.util.files import atomic_path, atomic_write_text
-from ctrkin.util.folders import folder_lock, recover, swap_in, write_manifest
+from ctrkin.util.folders import folder_lock, swap_in, write_manifest
+from ctrkin.util.ownership import check_replaceable, write_marker
 from ctrkin.util.progress import progress_bar
 
 CHECKPOINT = "checkpoint.pt"
@@ -155,8 +156,8 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
     or the new one, never a mix, and a second training into the same `out` is refused while one runs.
     """
     out = Path(out)
-    with folder_lock(out, ModelError, "train"):
-        recover(out)
+    with folder_lock(out, ModelError, "train"):        # also cleans what killed runs left
+        check_replaceable(out, "model", ModelError)     # only a model folder is ever replaced
         return _train_locked(ds, cfg, out, overwrite, progress, log or (lambda _m: None))
 
 
@@ -293,8 +294,9 @@ class _Run:
         _write_history(build / "history.csv", state["history"])
         plot_curves(state["history"], build / "curves.png",
                     f"{cfg.task.upper()} {cfg.model} (IB = {cfg.ib}): training and validation loss")
+        write_marker(build, "model")
         write_manifest(build, skip=(CHECKPOINT,))
-        swap_in(build, self.out, ModelError)
+        swap_in(build, self.out, ModelError, "model")
         return TrainResult(self.out, metrics, state["history"])
 
 

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import tempfile
 from pathlib import Path
 
 from ctrkin.errors import ModelError
@@ -19,9 +18,10 @@ from ctrkin.models.features import FeatureLayout
 from ctrkin.models.store import FEATURES, ROBOT, read_json
 from ctrkin.models.workspace import WORKSPACE_FILE, Workspace
 from ctrkin.robots.robot import Robot
-from ctrkin.util.folders import swap_in
+from ctrkin.util.folders import build_folder, reading_folder
 
 REFINE_FILE, REFINE_FK = "refine.json", "fk"
+_NOT_COPIED = shutil.ignore_patterns("checkpoint*", ".lock", "*.tmp")
 
 
 def _task_and_robot(folder: Path) -> tuple[str, str]:
@@ -58,16 +58,9 @@ def assemble_refined(ik_dir: str | Path, fk_dir: str | Path, out: str | Path,
     ik_src, fk_src, target = Path(ik_dir), Path(fk_dir), Path(out)
     settings = settings or RefineSettings()
     check_parts(ik_src, fk_src, settings)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    build = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
-    try:
-        shutil.copytree(ik_src, build, dirs_exist_ok=True,
-                        ignore=shutil.ignore_patterns("checkpoint*", ".lock", "*.tmp"))
-        shutil.copytree(fk_src, build / REFINE_FK,
-                        ignore=shutil.ignore_patterns("checkpoint*", ".lock", "*.tmp"))
+    with (build_folder(target, "model", ModelError) as build, reading_folder(ik_src),
+          reading_folder(fk_src)):
+        shutil.copytree(ik_src, build, dirs_exist_ok=True, ignore=_NOT_COPIED)
+        shutil.copytree(fk_src, build / REFINE_FK, ignore=_NOT_COPIED)
         (build / REFINE_FILE).write_text(json.dumps(settings.to_dict(), indent=2))
-        swap_in(build, target, ModelError)
-    finally:
-        if build.exists():
-            shutil.rmtree(build)
     return target
