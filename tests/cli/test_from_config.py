@@ -178,3 +178,33 @@ def test_the_reproduce_config_names_every_scale_and_refuses_bad_values() -> None
         ReproduceConfig(workers=0)
     with pytest.raises(CtrkinError, match="executor"):
         ReproduceConfig(executor="cluster")  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class Bounded:
+    points: int | None = field(default=None, metadata={"range": (1, 100), **_help("How many points.")})
+    step: float = field(default=1.0, metadata={"range": (1e-3, 360.0), **_help("Step (deg).")})
+
+
+def test_a_field_range_bounds_its_option() -> None:
+    @click.command()
+    @config_options(Bounded)
+    def cmd(**settings: Any) -> None:
+        click.echo(repr(Bounded(**settings)))
+
+    assert _params(cmd, ["--points", "100", "--step", "360"]) == {"points": 100, "step": 360.0}
+    assert _params(cmd, []) == {"points": None, "step": 1.0}
+    runner = CliRunner()
+    for args, option in ((["--points", "0"], "--points"), (["--points", "101"], "--points"),
+                         (["--step", "0"], "--step"), (["--step", "361"], "--step")):
+        res = runner.invoke(cmd, args)
+        assert res.exit_code == 2 and option in res.output and "range" in res.output, (args, res.output)
+
+
+def test_a_range_on_a_field_that_is_not_a_number_is_refused() -> None:
+    @dataclass(frozen=True)
+    class Wrong:
+        name: str = field(default="a", metadata={"range": (1, 2), **_help("A name.")})
+
+    with pytest.raises(TypeError, match="range applies to int and float"):
+        config_options(Wrong)
