@@ -5,8 +5,9 @@ are today's paths: on main they were ctrkin.training.demo and ctrkin.inference.r
     python tests/inference/old_folders/make_old_folders.py tests/inference/old_folders/main_94a32c9
 
 Small networks on a small TCM dataset: the paper's LSTM-MLP FK and IK, a CNN FK, the snap-aware FK
-(fold gate, outer frame), the follow IK and the IK refined on the snap-aware FK; and expected.npz,
-what each predicted (batch, and streaming over the first sequence) on main.
+(fold gate, outer frame), the follow IK and the IK refined on the snap-aware FK; inputs.npz, the
+dataset's joints, poses and sequence ids; and expected.npz, what each predicted from them (batch,
+and streaming over the first sequence) on main.
 """
 
 from __future__ import annotations
@@ -50,6 +51,8 @@ def main(out: Path) -> None:
         (out / name / "checkpoint.pt").unlink(missing_ok=True)      # not in the manifest; 3x the weights
     assemble_refined(out / "ik_lstm_mlp", out / "fk_lstm_mlp_branch", out / "ik_lstm_mlp_refined")
     first = ds.sequence_bounds()[0]
+    sid = ds.frame["sequence_id"].to_numpy()
+    np.savez_compressed(out / "inputs.npz", joints=ds.joints(), poses=ds.poses(), sequence_id=sid)
     expected = {}
     for name in [*CONFIGS, "ik_lstm_mlp_refined"]:
         kin = Kinematics.load(out / name)
