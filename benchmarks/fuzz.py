@@ -6,8 +6,12 @@
                                                # (for code whose hangs sit in compiled kernels)
 
 Areas: solve, follow, Tube/Robot construction, robot TOML files, learned FK predict and step, IK
-predict and step, CSV log import, corrupted dataset folders, corrupted model folders. Every input is
-drawn from a seeded generator (--seed) and its outcome classified:
+predict and step, CSV log import, corrupted dataset folders, corrupted model folders; and (issue 27,
+benchmarks/fuzz_inference.py) the inference classes in fk_predict, fk_step and ik (labelled columns,
+ragged and empty inputs, interleaved sequence ids, non-unit IK quaternions, absurd start joints, the
+ONNX graph's non-finite rows and empty batch) and calls interleaved with a stream's steps
+(`interleaved`: batch predicts, a second thread, copies). Every input is drawn from a seeded
+generator (--seed) and its outcome classified:
 
     ok       a result that passes the oracle          clear    a CtrkinError (names what to change)
     flagged  a result marked as doubtful (converged=False, in_workspace=False, projected ...)
@@ -58,11 +62,14 @@ from ctrkin.mechanics.settings import DEFAULT_SETTINGS
 from ctrkin.pose import tangent_from_quat
 from ctrkin.training import TrainConfig, train
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import fuzz_inference  # a sibling module of this script
+
 HANG_S = 10.0
 OUTCOMES = ("ok", "clear", "flagged", "crash", "silent", "hang")
-AREAS = {  # area: inputs at scale 1 (21,100 in all)
+AREAS = {  # area: inputs at scale 1 (21,700 in all)
     "tube_robot": 7000, "solve": 3000, "toml": 4000, "follow": 200, "fk_predict": 2000, "fk_step": 2000,
-    "ik": 1500, "csv": 600, "dataset_folder": 500, "model_folder": 300,
+    "ik": 1500, "csv": 600, "dataset_folder": 500, "model_folder": 300, **fuzz_inference.COUNTS,
 }
 
 
@@ -280,6 +287,8 @@ def _fk_seq(rng: np.random.Generator, robot: Robot) -> tuple[Any, bool]:
 
 
 def case_fk_predict(rng: np.random.Generator, ctx: dict[str, Any]) -> str:
+    if rng.random() < 0.3:
+        return fuzz_inference.fk_predict_input(rng, ctx)
     fk: Kinematics = ctx["fk"]
     Q, valid = _fk_seq(rng, fk.robot)
     poses = fk.predict(Q)
@@ -296,6 +305,8 @@ def case_fk_predict(rng: np.random.Generator, ctx: dict[str, Any]) -> str:
 
 def case_fk_step(rng: np.random.Generator, ctx: dict[str, Any]) -> str:
     """Stream a valid sequence with a bad step injected; the steps after it must equal the clean run."""
+    if rng.random() < 0.2:
+        return fuzz_inference.fk_step_input(rng, ctx)
     fk: Kinematics = ctx["fk"]
     Q, _ = _fk_seq(rng, fk.robot)
     Q = np.asarray(Q)
@@ -324,6 +335,8 @@ def case_fk_step(rng: np.random.Generator, ctx: dict[str, Any]) -> str:
 
 
 def case_ik(rng: np.random.Generator, ctx: dict[str, Any]) -> str:
+    if rng.random() < 0.3:
+        return fuzz_inference.ik_input(rng, ctx)
     ik: Kinematics = ctx["ik"]
     targets = ctx["ik_targets"]
     m = int(rng.integers(1, 12))
@@ -464,7 +477,7 @@ def case_model_folder(rng: np.random.Generator, ctx: dict[str, Any]) -> str:
 CASES: dict[str, Callable[[np.random.Generator, dict[str, Any]], str]] = {
     "tube_robot": case_tube_robot, "solve": case_solve, "toml": case_toml, "follow": case_follow,
     "fk_predict": case_fk_predict, "fk_step": case_fk_step, "ik": case_ik, "csv": case_csv,
-    "dataset_folder": case_dataset_folder, "model_folder": case_model_folder,
+    "dataset_folder": case_dataset_folder, "model_folder": case_model_folder, **fuzz_inference.CASES,
 }
 
 
@@ -497,23 +510,31 @@ def setup(tmp: Path, seed: int) -> dict[str, Any]:
     reps = np.repeat(np.arange(40), 5)
     ctx["log"] = pd.DataFrame({"step": reps, **{c: q[reps, j] for j, c in enumerate(robot.joint_names())},
                                **{c: poses[reps, j] for j, c in enumerate(POSE_COLUMNS)}})
+    fuzz_inference.setup(ctx, seed)
     assert np.allclose(np.linalg.norm(tangent_from_quat(poses[:, 3:]), axis=1), 1.0)
     return ctx
 
 
-def run(scale: float, seed: int, log: Callable[[str], None] = print, isolate: bool = False
-        ) -> dict[str, Counter[str]]:
-    """Counts of outcomes per area; input i of area k draws from its own generator (seed, k, i)."""
+def run(scale: float, seed: int, log: Callable[[str], None] = print, isolate: bool = False,
+        only: tuple[str, ...] = (), slow_s: float | None = None) -> dict[str, Counter[str]]:
+    """Counts of outcomes per area; input i of area k draws from its own generator (seed, k, i).
+    only: run these areas alone (the same inputs as in a whole run); slow_s: log every input that
+    takes longer than this (s), with its index and outcome."""
     counts: dict[str, Counter[str]] = defaultdict(Counter)
     examples: dict[tuple[str, str], str] = {}
     old = signal.signal(signal.SIGALRM, _alarm)
     with tempfile.TemporaryDirectory() as d:
         ctx = setup(Path(d), seed)
         for k, (area, n) in enumerate(AREAS.items()):
+            if only and area not in only:
+                continue
             t0 = time.perf_counter()
             for i in range(max(1, round(n * scale))):
                 rng = np.random.default_rng([seed, k, i])
+                t1 = time.perf_counter()
                 outcome, note = (_isolated if isolate else _one)(CASES[area], rng, ctx)
+                if slow_s is not None and time.perf_counter() - t1 > slow_s:
+                    log(f"  {area} input {i}: {outcome} in {time.perf_counter() - t1:.1f} s")
                 counts[area][outcome] += 1
                 if outcome in ("crash", "silent", "hang"):
                     examples.setdefault((area, note[:60]), note)
@@ -535,7 +556,7 @@ def _one(fn: Callable[[np.random.Generator, dict[str, Any]], str], rng: np.rando
             outcome = fn(rng, ctx)
     except Hang:
         outcome = "hang"
-    except Silent as e:
+    except (Silent, fuzz_inference.Silent) as e:
         outcome, note = "silent", str(e)
     except CtrkinError:
         outcome = "clear"
@@ -583,7 +604,9 @@ def table(counts: dict[str, Counter[str]]) -> str:
     lines = [f"{'area':15s} " + " ".join(f"{o:>8s}" for o in OUTCOMES) + f" {'total':>8s}"]
     total: Counter[str] = Counter()
     for area in AREAS:
-        c = counts.get(area, Counter())
+        if area not in counts:
+            continue
+        c = counts[area]
         total.update(c)
         lines.append(f"{area:15s} " + " ".join(f"{c[o]:8d}" for o in OUTCOMES) + f" {sum(c.values()):8d}")
     cells = " ".join(f"{total[o]:8d}" for o in OUTCOMES)
@@ -596,9 +619,16 @@ def main() -> int:
     ap.add_argument("--scale", type=float, default=1.0, help="fraction of the default input counts")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--isolate", action="store_true", help="one forked process per input")
+    ap.add_argument("--areas", default="", help="comma-separated areas to run alone (default: all)")
+    ap.add_argument("--slow", type=float, default=None, metavar="S",
+                    help="print every input that takes longer than S seconds")
     args = ap.parse_args()
     t0 = time.perf_counter()
-    counts = run(args.scale, args.seed, isolate=args.isolate)
+    only = tuple(a for a in args.areas.split(",") if a)
+    unknown = sorted(set(only) - set(AREAS))
+    if unknown:
+        ap.error(f"unknown area(s) {unknown}; areas: {list(AREAS)}")
+    counts = run(args.scale, args.seed, isolate=args.isolate, only=only, slow_s=args.slow)
     print(table(counts))
     total: Counter[str] = Counter()
     for c in counts.values():
