@@ -102,6 +102,12 @@ def _run_in_child(fn: Any) -> int:
     return -os.WTERMSIG(status) if os.WIFSIGNALED(status) else os.WEXITSTATUS(status)
 
 
+def _some_joints(rng: np.random.Generator, ctx: dict[str, Any]) -> np.ndarray:
+    """(2N,) the joints of a random row of the dataset."""
+    joints = ctx["dataset"].joints()
+    return np.asarray(joints[int(rng.integers(len(joints)))])
+
+
 # --- fk_predict ------------------------------------------------------------------------------------
 def fk_predict_input(rng: np.random.Generator, ctx: dict[str, Any]) -> str:
     fk: Kinematics = ctx["fk"]
@@ -216,11 +222,13 @@ def ik_input(rng: np.random.Generator, ctx: dict[str, Any]) -> str:
             raise Silent("IK read a labelled DataFrame by position")
         return "ok"
     if kind == 2 and follow:                       # start joints as every joint input is checked
-        start = ctx["dataset"].joints()[int(rng.integers(len(ctx["dataset"].frame)))].copy()
-        start[int(rng.integers(ik.layout.n_tubes))] = [1e300, -1e12, 1e10, math.nan, math.inf][int(rng.integers(5))]
+        start = _some_joints(rng, ctx).copy()
+        absurd = [1e300, -1e12, 1e10, math.nan, math.inf]
+        start[int(rng.integers(ik.layout.n_tubes))] = absurd[int(rng.integers(len(absurd)))]
+        what = "follow IK start joints with an absurd α"
         if rng.random() < 0.5:
-            return _refused("follow IK start joints with an absurd α", lambda: ik.predict(T, start_joints=start))
-        return _refused("follow IK start joints with an absurd α (reset)", lambda: ik.reset(start))
+            return _refused(what, lambda: ik.predict(T, start_joints=start))
+        return _refused(f"{what} (reset)", lambda: ik.reset(start))
     if kind == 3 and len(T) >= 3:
         sid = _interleaved_ids(rng, len(T))
         return _refused("interleaved sequence ids", lambda: ik.predict(T, sequence_id=sid))
@@ -269,7 +277,7 @@ def case_interleaved(rng: np.random.Generator, ctx: dict[str, Any]) -> str:
         if op == 0:
             kin.predict(other)
         elif op == 1 and "start_joints" in kin.predictor.accepts["predict"]:
-            kin.predict(other, start_joints=ctx["dataset"].joints()[int(rng.integers(len(ctx["dataset"].frame)))])
+            kin.predict(other, start_joints=_some_joints(rng, ctx))
         elif op == 2 and len(other) >= 3:
             with contextlib.suppress(CtrkinError):
                 kin.predict(other, sequence_id=_interleaved_ids(rng, len(other)))

@@ -134,3 +134,22 @@ def test_a_sequence_moves_between_threads_only_when_handed_over(models, sweeps):
     np.testing.assert_array_equal(np.concatenate([first, middle, rest]), clean)
     kin.reset()
     assert isinstance(_in_thread(lambda: kin.step(xs[0])), np.ndarray)   # a new sequence: any thread
+
+
+def test_a_deep_copy_or_pickle_holds_no_threads_stream(models, sweeps):
+    """copy.deepcopy and pickle of a Kinematics in use work (they recursed in __getattr__ before) and
+    give a stream no thread holds."""
+    import copy
+    import pickle
+
+    kin = Kinematics.load(models["fk"])
+    xs = _inputs(kin, sweeps)
+    kin.reset()
+    first = _stream(kin, xs[:4])
+    for twin in (copy.deepcopy(kin), pickle.loads(pickle.dumps(kin))):
+        rest = _in_thread(lambda t=twin: _stream(t, xs[4:]))
+        assert isinstance(rest, np.ndarray)
+        kin.reset()
+        np.testing.assert_array_equal(np.concatenate([first, rest]), _stream(kin, xs))
+        kin.reset()
+        first = _stream(kin, xs[:4])

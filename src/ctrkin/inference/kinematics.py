@@ -82,6 +82,10 @@ class Kinematics:
         start: one per thread that streams."""
         return Kinematics(self.predictor.stream_twin(), metrics=self.metrics, path=self.path)
 
+    def __getstate__(self) -> dict[str, Any]:
+        """A copy or an unpickled Kinematics holds no thread's stream."""
+        return {**self.__dict__, "_owner": None, "_owner_thread": None}
+
     def hand_over(self) -> None:
         """The calling thread continues the current sequence (its steps run on another thread from
         now on, as an executor's workers take turns); the thread that had it may no longer step."""
@@ -106,7 +110,7 @@ class Kinematics:
 
     def __getattr__(self, name: str) -> Any:
         """What the model's family adds to the common interface (module docstring)."""
-        if name in ("predictor", "_owner"):  # not set yet (copying, unpickling): no recursion
+        if name.startswith("__") or "predictor" not in self.__dict__:   # copying, unpickling: no recursion
             raise AttributeError(name)
         try:
             return getattr(self.predictor, name)
