@@ -44,6 +44,13 @@ def test_non_finite_rows_give_nan_and_the_others_are_unchanged(model_dirs, sweep
         np.testing.assert_array_equal(got[keep], ref[keep])
     with pytest.raises(ModelError, match="NaN or inf"):
         kin.predict(np.full((2, kin.layout.raw_width), np.nan))
+    if kin.task == "ik":                              # a target without a unit quaternion (predict: refused)
+        quat = windows.copy()
+        quat[2, -1, 3:6] = 0.0
+        quat[9, 0, 3:6] = (2.0, 0.0, 0.0)
+        got = sess.run(None, _feed(sess, quat))[0]
+        assert np.isnan(got[[2, 9]]).all()
+        np.testing.assert_array_equal(np.delete(got, [2, 9], 0), np.delete(clean[0], [2, 9], 0))
     if len(out) == 2:                                 # a NaN state is no answer either
         feed = _feed(sess, windows)
         feed["state"][4] = np.nan

@@ -19,9 +19,10 @@ window's αN column is already the outer tube's angle αN − λ(β)·m_N (Kinem
 
 Inputs the torch path refuses give no answer here either: a row whose inputs are not all finite
 (NaN, ±inf; window, state or lag) gives NaN outputs (ONNX Runtime's ReLU and LSTM would turn a NaN
-window into a finite pose). An empty batch gives empty outputs, as `Kinematics.predict` does: the
-graph runs one padding row after the batch and drops it (ONNX Runtime's LSTM aborts the process on
-a batch of 0 rows).
+window into a finite pose), and so does an IK row with a target whose quaternion is not unit within
+QUAT_NORM_TOL (ctrkin.models.guards.check_poses). An empty batch gives empty outputs, as
+`Kinematics.predict` does: the graph runs one padding row after the batch and drops it (ONNX
+Runtime's LSTM aborts the process on a batch of 0 rows).
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from typing import Any
 import torch
 from torch import nn
 
+from ctrkin.data.schema import QUAT_NORM_TOL
 from ctrkin.errors import ModelError
 from ctrkin.models.frame import OuterFrame
 from ctrkin.models.store import ModelBundle
@@ -71,6 +73,9 @@ class ExportWrapper(nn.Module):
         frame with a lag (ctrkin.models.frame), in this order. Rows with a non-finite input give NaN;
         an empty batch an empty output (module docstring)."""
         bad = ~torch.isfinite(window).flatten(1).all(dim=1)
+        if not self.fk:             # IK: every target of the window has a unit quaternion (q0, qx, qy)
+            norm = torch.linalg.vector_norm(window[:, :, 3:6], dim=2)
+            bad = bad | ((norm - 1.0).abs() > QUAT_NORM_TOL).any(dim=1)
         for e in extra:
             bad = bad | ~torch.isfinite(e)
         # one padding row (a sequence start: state 0.5, no lag), dropped below
