@@ -15,10 +15,18 @@ folder through the registry (ctrkin.families.registry) as its family's predictor
 snap-aware FK's `fold_gate` and `probe`, a follow IK's `follower_lag`, a refined IK's `refined`) is
 reached on the face as on the predictor; a keyword option a family does not take is refused with the
 families that do.
+
+One Kinematics streams one sequence at a time. Batch `predict` never touches the stream (a family
+whose batch steps runs it on a twin of its own, Predictor.stream_twin), so it may come between two
+`step` calls. A sequence belongs to the thread that takes its first step: a `step` or `reset` from
+another thread while that one lives is refused (ModelError), not mixed into its state; each thread
+streams its own `kin.copy()`, and `hand_over()` moves a sequence to another thread on purpose (an
+executor whose steps run in turn on its workers). The check is one comparison of thread ids per step.
 """
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +46,9 @@ from ctrkin.util.folders import reading_folder
 
 __all__ = ["IKResult", "IKStep", "Kinematics", "robot_differences"]
 
+_thread_id = threading.get_ident
+_CLAIM = threading.Lock()       # taking a stream (once per sequence, not per step)
+
 
 class Kinematics:
     """A trained FK or IK model: its family's predictor (module docstring), the metrics it was trained
@@ -54,6 +65,8 @@ class Kinematics:
         self.predictor: Predictor = model
         self.metrics = metrics or {}
         self.path = path
+        self._owner: int | None = None                 # id of the thread streaming the sequence
+        self._owner_thread: threading.Thread | None = None
 
     @classmethod
     def load(cls, path: str | Path, fused: bool = True) -> Kinematics:
@@ -66,9 +79,40 @@ class Kinematics:
             metrics = read_json(src / "metrics.json") if (src / "metrics.json").is_file() else {}
         return cls(pred, metrics=metrics, path=src)
 
+    def copy(self) -> Kinematics:
+        """The same model (network, settings, gates shared) with a stream of its own, at a sequence
+        start: one per thread that streams."""
+        return Kinematics(self.predictor.stream_twin(), metrics=self.metrics, path=self.path)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """A copy or an unpickled Kinematics holds no thread's stream."""
+        return {**self.__dict__, "_owner": None, "_owner_thread": None}
+
+    def hand_over(self) -> None:
+        """The calling thread continues the current sequence (its steps run on another thread from
+        now on, as an executor's workers take turns); the thread that had it may no longer step."""
+        with _CLAIM:
+            self._owner_thread = threading.current_thread()
+            self._owner = self._owner_thread.ident
+
+    def _claim(self, what: str) -> None:
+        """The calling thread takes the stream unless another live thread streams a sequence on it
+        (module docstring)."""
+        me = threading.current_thread()
+        with _CLAIM:
+            owner = self._owner_thread
+            if owner is not None and owner is not me and owner.is_alive():
+                raise ModelError(
+                    f"Kinematics.{what}() from thread {me.name!r} while thread {owner.name!r} streams a "
+                    "sequence on this model: the two would mix in one stream state (input buffer, "
+                    "branch, joints). Give each thread its own copy (kin.copy(), the same model with "
+                    "a stream of its own); to move the sequence to this thread on purpose, call "
+                    "kin.hand_over() here first, or kin.reset() in the thread that streams it")
+            self._owner_thread, self._owner = me, me.ident
+
     def __getattr__(self, name: str) -> Any:
         """What the model's family adds to the common interface (module docstring)."""
-        if name == "predictor":          # not set yet (copying, unpickling): no recursion
+        if name.startswith("__") or "predictor" not in self.__dict__:   # copying, unpickling: no recursion
             raise AttributeError(name)
         try:
             return getattr(self.predictor, name)
@@ -151,13 +195,24 @@ class Kinematics:
         the outer tube's last rotation carry over."""
         options = {"joints": joints, **options}
         self._accepts("reset", options)
-        self.predictor.reset(**{k: v for k, v in options.items() if v is not None})
+        held = self._owner, self._owner_thread
+        if self._owner != _thread_id():
+            self._claim("reset")                         # held while the state is reset
+        try:
+            self.predictor.reset(**{k: v for k, v in options.items() if v is not None})
+        except BaseException:
+            self._owner, self._owner_thread = held
+            raise
+        self._owner = self._owner_thread = None          # the next step's thread takes the new sequence
 
     def step(self, x: np.ndarray, check: bool = True, strict: bool = False) -> Any:
         """One step of the current sequence. x: (2N,) joints (FK) or (6,) target pose (IK).
 
         FK returns the (6,) tip pose; IK an IKStep(joints, in_workspace, reason) (check=False skips the
-        workspace test, strict=True raises ModelError outside it)."""
+        workspace test, strict=True raises ModelError outside it). A sequence belongs to the thread
+        that took its first step (module docstring)."""
+        if self._owner != _thread_id():
+            self._claim("step")
         return self.predictor.step(x, check, strict)
 
     def _accepts(self, method: str, options: dict[str, Any]) -> None:

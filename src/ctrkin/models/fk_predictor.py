@@ -25,10 +25,18 @@ import numpy as np
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import ModelError
 from ctrkin.models.batch import padded_rows, seqnet_predict
-from ctrkin.models.features import pair_features, postprocess, sequence_features, step_features, window_index
+from ctrkin.models.features import (
+    by_name,
+    pair_features,
+    postprocess,
+    real_array,
+    sequence_features,
+    step_features,
+    window_index,
+)
 from ctrkin.models.frame import OuterFrame, local_tips_to_world
 from ctrkin.models.fused import DECLINED, Clip, FusedFK, Relay
-from ctrkin.models.guards import FKGuard, real_array
+from ctrkin.models.guards import FKGuard
 from ctrkin.models.motion import outer_motion, recorded_motion
 from ctrkin.models.onnx_graph import write_onnx
 from ctrkin.models.outer_lag import lag_one
@@ -105,6 +113,11 @@ class FKPredictor(BasePredictor):
         """Whether steps run as one numba call where the model allows (ctrkin.models.fused); False:
         the reference path."""
         return self._fused is not None
+
+    def new_stream(self) -> None:
+        super().new_stream()
+        self._rebuild_fused()                       # it holds the engine
+        self.reset()
 
     # --- batch -----------------------------------------------------------------------------------
     def guarded(self, raw: np.ndarray, bounds: list[tuple[int, int]]
@@ -231,7 +244,7 @@ class FKPredictor(BasePredictor):
             y = self._fused_step(x)
             if y is not None:
                 return y
-        raw = real_array(x)
+        raw = real_array(by_name(x, self.layout.raw_names, "joints"))
         if raw.shape != (self.layout.raw_width,):
             raise ModelError(f"step() expects shape ({self.layout.raw_width},), got {raw.shape}")
         outer = float(raw[self.layout.n_tubes - 1])     # as given: whole-turn shifts differ by sequence

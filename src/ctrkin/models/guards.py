@@ -12,10 +12,10 @@ extrapolate (α = 1e5 and α mod 360 gave poses 28 mm apart).
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
+from ctrkin.data.schema import QUAT_NORM_TOL
 from ctrkin.errors import JointError, ModelError
 from ctrkin.models.features import FeatureLayout
 from ctrkin.models.normalize import MinMax
@@ -43,12 +43,7 @@ class FKGuard:
 
     def check(self, raw: np.ndarray) -> None:
         """Raise JointError for joints the robot cannot take or absurd angles. raw: (T, 2N) or (2N,)."""
-        self.robot.check_joints(raw)
-        alpha = np.atleast_2d(raw)[:, : self.n]
-        if np.abs(alpha).max(initial=0.0) > MAX_ABS_ALPHA_DEG:
-            r = int(np.argmax(np.abs(alpha).max(axis=1)))
-            raise JointError(f"rotation {np.atleast_2d(raw)[r, :self.n].tolist()} deg at row {r} exceeds "
-                             f"±{MAX_ABS_ALPHA_DEG:g} deg; wrap the angles (α mod 360 is the same joint)")
+        check_joints(self.robot, raw)
 
     def shift(self, first: np.ndarray) -> np.ndarray:
         """(2N,) whole turns to subtract from every step of a sequence whose first step is `first`:
@@ -122,17 +117,44 @@ class FKGuard:
         return True
 
 
-def real_array(x: Any) -> np.ndarray:
-    """x as a float64 array; complex values are refused (ModelError), not truncated to their real part."""
-    if np.iscomplexobj(x):
-        raise ModelError("model inputs must be real numbers, got complex values")
-    try:
-        return np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as e:
-        raise ModelError(f"model inputs must be numbers: {e}") from None
+def check_joints(robot: Robot, raw: np.ndarray) -> np.ndarray:
+    """Joints raw (T, 2N) or (2N,) (deg, mm) that a model may take: those the robot can take
+    (Robot.check_joints, JointError) with no α beyond ±MAX_ABS_ALPHA_DEG (JointError: an angle that
+    large has lost its fraction of a turn). Every model input of joints passes here: an FK's inputs
+    in batch and streaming, a follow IK's start joints. Returns them as a float array."""
+    q = robot.check_joints(raw)
+    alpha = np.atleast_2d(q)[:, : robot.n_tubes]
+    if np.abs(alpha).max(initial=0.0) > MAX_ABS_ALPHA_DEG:
+        r = int(np.argmax(np.abs(alpha).max(axis=1)))
+        raise JointError(f"rotation {alpha[r].tolist()} deg at row {r} exceeds ±{MAX_ABS_ALPHA_DEG:g} deg; "
+                         "wrap the angles (α mod 360 is the same joint)")
+    return q
+
+
+def check_poses(raw: np.ndarray) -> None:
+    """IK targets raw (T, 6) or (6,) (x, y, z mm, q0, qx, qy) must be finite and their quaternions
+    unit to QUAT_NORM_TOL, the import's rule (ctrkin.data.schema): a zero or far-from-unit quaternion
+    names no tip direction (ModelError), whatever the family, in batch and streaming."""
+    rows = np.atleast_2d(raw)
+    finite = np.isfinite(rows).all(axis=1)
+    if not finite.all():
+        r = int(np.argmax(~finite))
+        raise ModelError(f"IK target pose contains NaN or inf at row {r}: {rows[r].tolist()}")
+    norm = np.linalg.norm(rows[:, 3:6], axis=1)
+    bad = np.abs(norm - 1.0) > QUAT_NORM_TOL
+    if bad.any():
+        r = int(np.argmax(bad))
+        raise ModelError(f"IK target at row {r} has the quaternion (q0, qx, qy) = {rows[r, 3:6].tolist()} of "
+                         f"norm {norm[r]:.4g}: a target's orientation is a unit quaternion (within "
+                         f"{QUAT_NORM_TOL:g}); normalise it, or give the tip tangent as one "
+                         "(ctrkin.geometry.quat_from_tangent)")
 
 
 def check_pose_step(raw: np.ndarray) -> None:
-    """A streaming IK target (6,) must be finite (ModelError), before any state is touched."""
-    if not np.isfinite(raw).all():
-        raise ModelError(f"IK target pose contains NaN or inf: {raw.tolist()}")
+    """A streaming IK target (6,) must be finite with a unit quaternion (check_poses: ModelError),
+    before any state is touched (in scalar arithmetic where it passes: the control-loop case)."""
+    v = raw.tolist()
+    if all(map(math.isfinite, v)) and abs(math.sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5]) - 1.0) \
+            <= QUAT_NORM_TOL:
+        return
+    check_poses(raw)

@@ -13,7 +13,8 @@ import numpy as np
 
 from ctrkin.errors import ModelError
 from ctrkin.metrics import wrap_deg
-from ctrkin.models.guards import check_pose_step, real_array
+from ctrkin.models.features import POSE_NAMES, by_name, real_array
+from ctrkin.models.guards import check_pose_step
 from ctrkin.models.workspace import Workspace
 
 JUMP_DEG, JUMP_TARGET_MM = 20.0, 1.0    # an α change this large between targets this close is flagged
@@ -54,7 +55,7 @@ class IKStep(NamedTuple):
 def target_pose(x: object) -> np.ndarray:
     """A streaming IK target as (6,) float64, refused (ModelError) if it is not 6 finite real numbers,
     before any state is touched."""
-    raw = real_array(x)
+    raw = real_array(by_name(x, tuple(POSE_NAMES), "target pose"))
     if raw.shape != (6,):
         raise ModelError(f"step() expects shape (6,), got {raw.shape}")
     check_pose_step(raw)

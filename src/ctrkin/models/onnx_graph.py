@@ -16,6 +16,13 @@ holds (a, b) of λ = a + b·curved_overlap(β) (ctrkin.robots.overlap). A model 
 lagged inputs (OuterFrame.lagged_inputs, every such model trained since) has no such input: its
 window's αN column is already the outer tube's angle αN − λ(β)·m_N (Kinematics.feature_windows), and
 "ctrkin.outer_lag_deg" holds (a, b) so that a caller can compute it; "ctrkin.lagged_inputs" says so.
+
+Inputs the torch path refuses give no answer here either: a row whose inputs are not all finite
+(NaN, ±inf; window, state or lag) gives NaN outputs (ONNX Runtime's ReLU and LSTM would turn a NaN
+window into a finite pose), and so does an IK row with a target whose quaternion is not unit within
+QUAT_NORM_TOL (ctrkin.models.guards.check_poses). An empty batch gives empty outputs, as
+`Kinematics.predict` does: the graph runs one padding row after the batch and drops it (ONNX
+Runtime's LSTM aborts the process on a batch of 0 rows).
 """
 
 from __future__ import annotations
@@ -29,6 +36,7 @@ from typing import Any
 import torch
 from torch import nn
 
+from ctrkin.data.schema import QUAT_NORM_TOL
 from ctrkin.errors import ModelError
 from ctrkin.models.frame import OuterFrame
 from ctrkin.models.store import ModelBundle
@@ -55,19 +63,33 @@ class ExportWrapper(nn.Module):
         self.register_buffer("rot", f32(reg.rotation if reg is not None else torch.eye(3).numpy()))
         self.register_buffer("trans", f32(reg.translation if reg is not None else torch.zeros(3).numpy()))
         n = layout.n_tubes
+        self.window_shape = (layout.ib, layout.n_inputs)
         self.alpha_col = 2 * (n - 1) if layout.angle_encoding == "sincos" else n - 1
         self.sincos = layout.angle_encoding == "sincos"
 
     def forward(self, window: torch.Tensor, *extra: torch.Tensor
                 ) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
         """extra: the state (B,) of a net that carries one, then the outer lag λ(β)·m_N (B,) deg of a
-        frame with a lag (ctrkin.models.frame), in this order."""
+        frame with a lag (ctrkin.models.frame), in this order. Rows with a non-finite input give NaN;
+        an empty batch an empty output (module docstring)."""
+        bad = ~torch.isfinite(window).flatten(1).all(dim=1)
+        if not self.fk:             # IK: every target of the window has a unit quaternion (q0, qx, qy)
+            norm = torch.linalg.vector_norm(window[:, :, 3:6], dim=2)
+            bad = bad | ((norm - 1.0).abs() > QUAT_NORM_TOL).any(dim=1)
+        for e in extra:
+            bad = bad | ~torch.isfinite(e)
+        # one padding row (a sequence start: state 0.5, no lag), dropped below
+        window = torch.cat([window, window.new_zeros((1, *self.window_shape))])
+        extra = tuple(torch.cat([e, e.new_full((1,), 0.5 if k == 0 and self.stateful else 0.0)])
+                      for k, e in enumerate(extra))
         x = self.x_norm.transform(window)
         lag = extra[-1] if self.lag else None
+        nan = torch.full((1,), math.nan)
         if self.stateful:
             yn, new_state = self.net.forward_state(x, extra[0])
-            return self._finish(yn, window, lag), new_state
-        return self._finish(self.net(x), window, lag)
+            y = self._finish(yn, window, lag)[:-1]
+            return torch.where(bad[:, None], nan, y), torch.where(bad, nan, new_state[:-1])
+        return torch.where(bad[:, None], nan, self._finish(self.net(x), window, lag)[:-1])
 
     def _finish(self, yn: torch.Tensor, window: torch.Tensor, lag: torch.Tensor | None = None
                 ) -> torch.Tensor:

@@ -78,6 +78,11 @@ class Predictor(Protocol):
         """What this predictor adds to the face's repr (", fold_gate"), or ""."""
         ...
 
+    def stream_twin(self) -> Predictor:
+        """The same model with a stream state of its own, at a sequence start (a batch that steps runs
+        on one, so that predict never disturbs the stream; a second thread streams one)."""
+        ...
+
 
 @runtime_checkable
 class Probing(Protocol):
@@ -96,6 +101,9 @@ class Probing(Protocol):
         ...
 
     def reset(self, *args: Any, **options: Any) -> None:
+        ...
+
+    def stream_twin(self) -> Any:
         ...
 
 

@@ -3,18 +3,20 @@ inputs of a batch (a Dataset or an array of one or more sequences) and the netwo
 
 from __future__ import annotations
 
+import copy
 from collections import deque
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Self
 
 import numpy as np
 import torch
 
 from ctrkin.data.dataset import Dataset
-from ctrkin.data.schema import sequence_bounds
+from ctrkin.data.schema import restarted_sequence, sequence_bounds
 from ctrkin.errors import ModelError
 from ctrkin.models.engine import StreamingEngine
 from ctrkin.models.features import check_raw, delta_columns, sequence_features, window_index
+from ctrkin.models.guards import check_poses
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle
 from ctrkin.models.workspace import Workspace
@@ -96,23 +98,36 @@ class BasePredictor:
     def raw_inputs(self, data: Dataset | np.ndarray, sequence_id: np.ndarray | None
                    ) -> tuple[np.ndarray, list[tuple[int, int]]]:
         """The raw inputs (T, 2N | 6) of `data` and its sequences [(start, stop)); a Dataset must come
-        from the model's robot."""
+        from the model's robot. A pandas DataFrame is read by its column names (features.by_name),
+        its `sequence_id` column splitting it where the caller gives none; the rows of each sequence
+        must be contiguous, as in a Dataset (schema.restarted_sequence)."""
         if isinstance(data, Dataset):
             check_robot(self.robot, data.robot)
             true = self.config.pose_source == "true" and data.has_truth
             raw = data.joints() if self.task == "fk" else data.poses(true=true)
             return self.guarded(check_raw(self.layout, raw), data.sequence_bounds())
+        if sequence_id is None and type(data).__module__.partition(".")[0] == "pandas" \
+                and "sequence_id" in getattr(data, "columns", ()):
+            sequence_id = np.asarray(data["sequence_id"])
         raw = check_raw(self.layout, data)
         if sequence_id is None:
             return self.guarded(raw, [(0, len(raw))] if len(raw) else [])
         sid = np.asarray(sequence_id)
         if sid.shape != (len(raw),):
             raise ModelError(f"sequence_id must have shape ({len(raw)},), got {sid.shape}")
+        row = restarted_sequence(sid)
+        if row is not None:
+            raise ModelError(f"sequence_id {sid[row]} starts again at row {row} after other sequences: the "
+                             "rows of each sequence must be contiguous and in time order, as in a Dataset "
+                             "(sort them by sequence, then time)")
         return self.guarded(raw, sequence_bounds(sid))
 
     def guarded(self, raw: np.ndarray, bounds: list[tuple[int, int]]
                 ) -> tuple[np.ndarray, list[tuple[int, int]]]:
-        """Inputs checked (and an FK's joints shifted by whole turns, ctrkin.models.guards)."""
+        """Inputs checked (an IK's targets: finite with unit quaternions, guards.check_poses; an FK's
+        joints are checked and shifted by whole turns in its own, ctrkin.models.guards)."""
+        if self.task == "ik":
+            check_poses(raw)
         return raw, bounds
 
     def feature_windows(self, data: Dataset | np.ndarray, sequence_id: np.ndarray | None = None
@@ -143,6 +158,20 @@ class BasePredictor:
         with torch.inference_mode():
             out: np.ndarray = self.net(window)[0].numpy()
         return out
+
+    def stream_twin(self) -> Self:
+        """A predictor of the same model (bundle, network, settings shared) with a stream state of
+        its own, at a sequence start: what a batch that runs step by step runs on, so that it never
+        disturbs this predictor's stream, and what a second thread streams (Kinematics.copy)."""
+        twin = copy.copy(self)
+        twin.new_stream()
+        return twin
+
+    def new_stream(self) -> None:
+        """New containers for every part of the stream state (after a shallow copy, which shares
+        them), at a sequence start; a family with more state renews it too."""
+        self._engine = StreamingEngine(self._seqnet) if self._seqnet is not None else None
+        self._window = deque(maxlen=self.layout.ib)
 
     def reset_stream(self) -> None:
         """The network's streaming state back to a sequence start."""

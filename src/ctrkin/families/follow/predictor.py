@@ -55,6 +55,11 @@ class FollowPredictor(BasePredictor):
         return IKResult(joints, ok, dist, reasons, projected, np.full(len(raw), np.nan),
                         jumps(raw, joints, bounds, self.layout.n_tubes))
 
+    def new_stream(self) -> None:
+        super().new_stream()
+        self.follower = self.follower.twin()
+        self._flags = StepFlags(self.workspace, self.layout.n_tubes)
+
     def reset(self, joints: np.ndarray | None = None) -> None:
         """Start a sequence at the robot's joints (2N,) (deg, mm; default: those of the nearest
         training target of its first target)."""

@@ -19,6 +19,7 @@ it (ctrkin.families.follow.predictor).
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 
 import numpy as np
@@ -26,6 +27,8 @@ import numpy as np
 from ctrkin.errors import ModelError
 from ctrkin.families.follow.features import follow_features, substeps
 from ctrkin.models.engine import StreamingEngine
+from ctrkin.models.features import real_array
+from ctrkin.models.guards import check_joints
 from ctrkin.models.outer_lag import lag_one
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle
@@ -43,6 +46,7 @@ class Follower:
         self.n = bundle.layout.n_tubes
         self.robot = bundle.robot
         self.frame = bundle.frame
+        self.net = bundle.net
         self.engine = StreamingEngine(bundle.net)
         self.x_norm, self.y_norm = bundle.x_norm, bundle.y_norm
         settings = bundle.extra.get("follow", {})
@@ -61,31 +65,36 @@ class Follower:
     def reset(self, joints: np.ndarray | None = None) -> None:
         """Start a sequence, at `joints` (2N,) (deg, mm) if the robot's joints are known."""
         if joints is not None:
-            q = np.asarray(joints, dtype=np.float64).reshape(-1)
+            q = real_array(joints).reshape(-1)
             if q.shape != (2 * self.n,) or not np.all(np.isfinite(q)):
                 raise ModelError(f"start joints must be {2 * self.n} finite numbers (α deg, β mm), got "
                                  f"{np.asarray(joints).tolist()}")
-            joints = self.robot.check_joints(q)
+            joints = check_joints(self.robot, q)       # as every model input of joints
         self.joints, self.target, self.tube, self.motor = None, None, np.nan, np.nan
         if joints is not None:
             self._at_rest(joints)
+
+    def twin(self) -> Follower:
+        """A follower of the same network and settings (as they are now: lag, hold, substeps) with a
+        state of its own, at a sequence start."""
+        twin = copy.copy(self)
+        twin.engine = StreamingEngine(self.net)
+        twin.reset()
+        return twin
 
     def run(self, targets: np.ndarray, bounds: list[tuple[int, int]],
             starts: Sequence[np.ndarray | None] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Follow each sequence [a, b) of `bounds` through targets (T, 6) (tracker frame), from its
         start joints (2N,) (deg, mm; None: those of the nearest training target) -> joints (T, 2N)
         and whether each had to be projected onto the robot's limits (T,); rows outside `bounds` are
-        NaN / False. The state is reset afterwards."""
+        NaN / False. The run steps a twin: this follower's own stream (reset / step) is untouched."""
         joints = np.full((len(targets), 2 * self.n), np.nan)
         projected = np.zeros(len(targets), bool)
-        try:
-            for (a, b), start in zip(bounds, [None] * len(bounds) if starts is None else starts,
-                                     strict=True):
-                self.reset(start)
-                for t in range(a, b):
-                    joints[t], projected[t] = self.step(targets[t])
-        finally:
-            self.reset()
+        runner = self.twin()
+        for (a, b), start in zip(bounds, [None] * len(bounds) if starts is None else starts, strict=True):
+            runner.reset(start)
+            for t in range(a, b):
+                joints[t], projected[t] = runner.step(targets[t])
         return joints, projected
 
     def _lag(self, q: np.ndarray) -> float:

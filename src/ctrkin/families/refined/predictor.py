@@ -6,6 +6,7 @@ representative nearest the previous command. A batch runs step by step, sequence
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +15,7 @@ import numpy as np
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import ModelError
 from ctrkin.families.refined.refine import FKResidual, RefineSettings, refine
-from ctrkin.models.ik import IKResult, IKStep, StepFlags, workspace_check
+from ctrkin.models.ik import IKResult, IKStep, StepFlags, target_pose, workspace_check
 from ctrkin.models.predictor import Predictor, Probing
 from ctrkin.models.predictor_base import BasePredictor
 
@@ -53,18 +54,27 @@ class RefinedPredictor(BasePredictor):
     def predict(self, data: Dataset | np.ndarray, sequence_id: np.ndarray | None = None,
                 strict: bool = False, **options: Any) -> IKResult:
         """Step by step (each step starts from the previous solution and advances the FK model's
-        history), one sequence after another."""
+        history), one sequence after another, on a twin (stream_twin): this predictor's own stream
+        is untouched."""
         raw, bounds = self.raw_inputs(data, sequence_id)
         ok, dist, reasons = workspace_check(self.workspace, raw, strict)
         joints, resid = np.empty((len(raw), 2 * self.n)), np.empty(len(raw))
         projected, jump = np.zeros(len(raw), bool), np.zeros(len(raw), bool)
+        runner = self.stream_twin()
         for a, b in bounds:
-            self.reset()
+            runner.reset()
             for t in range(a, b):
-                st = self.step(raw[t], check=False)
+                st = runner.step(raw[t], check=False)
                 joints[t], resid[t], projected[t], jump[t] = st.joints, st.residual_mm, st.projected, st.jump
-        self.reset()
         return IKResult(joints, ok, dist, reasons, projected, resid, jump)
+
+    def new_stream(self) -> None:
+        """Twins of the direct IK and of the FK model, whose streams the refinement advances."""
+        super().new_stream()
+        self.direct = self.direct.stream_twin()
+        self.residual = copy.copy(self.residual)
+        self.residual.fk = self.fk = self.residual.fk.stream_twin()
+        self._flags = StepFlags(self.workspace, self.n)
 
     def reset(self) -> None:
         self.direct.reset()
@@ -72,8 +82,8 @@ class RefinedPredictor(BasePredictor):
         self._flags.reset()
 
     def step(self, x: np.ndarray, check: bool = True, strict: bool = False) -> IKStep:
-        st = self.direct.step(x, check=check, strict=strict)
-        raw = np.asarray(x, dtype=np.float64)
+        raw = target_pose(x)                 # read as the direct IK reads it (by name where labelled)
+        st = self.direct.step(raw, check=check, strict=strict)
         q, residual = self._refine(raw, st.joints)
         return self._flags.answer(raw, q, st.in_workspace, st.reason, st.projected, residual)
 

@@ -47,6 +47,11 @@ class DirectIK(BasePredictor):
         return IKResult(joints, ok, dist, reasons, projected, np.full(len(y), np.nan),
                         jumps(raw, joints, bounds, self.layout.n_tubes))
 
+    def new_stream(self) -> None:
+        super().new_stream()
+        self._flags = StepFlags(self.workspace, self.layout.n_tubes)
+        self.reset()
+
     def reset(self) -> None:
         self._prev = None
         self._flags.reset()
