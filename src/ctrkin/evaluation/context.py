@@ -1,35 +1,22 @@
-"""What every experiment of a reproduction shares: the data, the trained models, the TCM baseline
-and cached predictions."""
+"""What every experiment of a reproduction shares: the data, the trained models, the TCM baseline,
+the scale and cached predictions."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.datasets import ReproData, registered_truth
+from ctrkin.evaluation.scales import ReproScale
 from ctrkin.evaluation.tcm_baseline import TCMBaseline
-from ctrkin.evaluation.training_runs import FK_BRANCH, FK_PAPER, IK_FOLLOW, IK_PAPER, IK_REFINED
-from ctrkin.inference import Kinematics
 from ctrkin.metrics import pose_errors
-from ctrkin.models.branch_labels import branch_labels
 
-# learned rows of every FK / IK experiment: results name -> model folder. The recommended model's
-# figures are also written under the headline name "lstm_mlp" (results.json keeps its keys).
-FK_ROWS = {"lstm_mlp_paper": FK_PAPER, "lstm_mlp_branch": FK_BRANCH}
-IK_ROWS = {"lstm_mlp_paper": IK_PAPER, "lstm_mlp_refined": IK_REFINED, "follow_mlp": IK_FOLLOW}
-# the follow IK (from the current joints, ctrkin.models.follow) reaches the targets the direct
-# networks miss by millimetres (docs/reproduction.md)
-RECOMMENDED = {"fk": "lstm_mlp_branch", "ik": "follow_mlp"}
-# ablation rows: the snap-aware model's heads, branch state from the nominal TCM continued along the
-# same joint path (physics gate; batch evaluation only, not a streaming model), and from the model's
-# learned gate instead of its fold gate (ctrkin.models.fold_gate)
-TCM_GATED = "lstm_mlp_branch_tcm_gate"
-LEARNED_GATE = "lstm_mlp_branch_learned_gate"
-HEADLINE = "lstm_mlp"
+if TYPE_CHECKING:
+    from ctrkin.inference import Kinematics
 
 
 @dataclass(eq=False)
@@ -38,6 +25,7 @@ class Context:
     models: dict[str, Kinematics]
     tcm: TCMBaseline
     figures: Path
+    scale: ReproScale
     _cache: dict[tuple[str, int], np.ndarray] = field(default_factory=dict)
 
     def truth(self, ds: Dataset) -> np.ndarray:
@@ -55,13 +43,6 @@ class Context:
             self._cache[key] = np.asarray(self.models[name].predict(ds, gate=gate), float)
         return self._cache[key]
 
-    def fk_rows(self, ds: Dataset) -> dict[str, np.ndarray]:
-        """(T, 6) predictions of every learned FK row (FK_ROWS) over ds."""
-        out = {name: self.fk(folder, ds) for name, folder in FK_ROWS.items()}
-        out[TCM_GATED] = self.fk_tcm_gated(ds)
-        out[LEARNED_GATE] = self.fk(FK_BRANCH, ds, gate="learned")
-        return out
-
     def tcm_continued(self, ds: Dataset) -> np.ndarray:
         """(T, 6) the nominal TCM followed along every sequence of ds (tracker frame)."""
         key = ("tcm_continued", id(ds))
@@ -70,17 +51,15 @@ class Context:
             self._cache[key], self._cache[("tcm_snaps", id(ds))] = poses, snaps
         return self._cache[key]
 
-    def fk_tcm_gated(self, ds: Dataset) -> np.ndarray:
-        """(T, 6) the snap-aware FK model with its branch state taken from the continued TCM (its
-        snaps labelled by the training rule, ctrkin.models.branch_labels) instead of its gate."""
-        key = ("fk_tcm_gated", id(ds))
+    def fk_tcm_gated(self, name: str, ds: Dataset) -> np.ndarray:
+        """(T, 6) the snap-aware FK model `name` with its branch state taken from the continued TCM
+        (its snaps labelled by the training rule, ctrkin.families.snap_aware.labels) instead of its
+        gate."""
+        key = (f"{name}|tcm_gated", id(ds))
         if key not in self._cache:
             self.tcm_continued(ds)
             snaps = self._cache[("tcm_snaps", id(ds))]
-            n = ds.n_tubes
-            q = ds.joints()
-            states, _ = branch_labels(q[:, 0] - q[:, n - 1], snaps, ds.sequence_bounds())
-            self._cache[key] = np.asarray(self.models[FK_BRANCH].predict(ds, branch_states=states), float)
+            self._cache[key] = np.asarray(self.models[name].predict(ds, snaps=snaps), float)
         return self._cache[key]
 
     def tcm_rows(self, ds: Dataset, rows: np.ndarray, desc: str) -> tuple[np.ndarray, np.ndarray]:
@@ -113,9 +92,3 @@ def summary(
         out["position_rmse_true_mm"] = t["position_mm"]["rmse"]
         out["orientation_rmse_true_deg"] = t["orientation_deg"]["rmse"]
     return out
-
-
-def with_headline(rows: dict[str, Any], task: str) -> dict[str, Any]:
-    """rows plus the recommended model's entry again under HEADLINE, naming the model it is."""
-    name = RECOMMENDED[task]
-    return {HEADLINE: {**rows[name], "model": name}, **rows}

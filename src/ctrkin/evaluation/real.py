@@ -225,7 +225,8 @@ def evaluate(ds: Dataset, spec: str, out: str | Path | None = None) -> dict[str,
 
         folder = Path(out)
         folder.mkdir(parents=True, exist_ok=True)
-        res["figures"] = plots(ds, pred, pos_e, part, predictor_name(spec), res, folder)
+        res["figures"] = plots(ds, pred, pos_e, np.isin(part, HELD_OUT_PARTS), sequence_names(ds),
+                               predictor_name(spec), res, folder)
         atomic_write_text(folder / "results.json", json.dumps(res, indent=2))
     return res
 
