@@ -16,8 +16,6 @@ from typing import TYPE_CHECKING
 import click
 
 from ctrkin.cli.common import emit_json, output_folder, say
-from ctrkin.errors import CtrkinError
-from ctrkin.util.folders import folder_lock
 
 if TYPE_CHECKING:
     from ctrkin.acquisition.plan import Plan
@@ -45,23 +43,23 @@ def collect_on_rig(rig_file: str, protocol: str, plan_for: Callable[[Robot], Pla
     # the ownership rule of every output (a rig's journal counts as the dataset's own files)
     output_folder(out, "dataset", overwrite, inputs=[rig_file], reuse=resuming)
     plan = plan_for(rig.robot)
-    with folder_lock(out, CtrkinError, "collect"):
-        if overwrite:
-            for name in OWNED_FILES:            # only what a collection writes, never anything else
-                (out / name).unlink(missing_ok=True)
-        actuator, tracker = open_rig(rig)
-        collection = RigCollection(plan, rig, actuator, tracker, out, progress=True,
-                                   log=lambda m: click.echo(m, err=True))
-        try:
-            ds = collection.run()
-        except (RigInterrupted, RigStop, HardwareError) as e:
-            kept = _write_partial(collection, out)
-            click.echo(f"{'stopped' if isinstance(e, RigInterrupted) else 'error'}: {e}", err=True)
-            if kept:
-                click.echo(f"the {kept} samples recorded so far are in {out} (data.parquet, meta.json: "
-                           "collection.complete = false)", err=True)
-            sys.exit(130 if isinstance(e, RigInterrupted) else 1)
-        write_dataset(ds, out)
+    # output_folder holds the folder's writer lock until the command ends
+    if overwrite:
+        for name in OWNED_FILES:            # only what a collection writes, never anything else
+            (out / name).unlink(missing_ok=True)
+    actuator, tracker = open_rig(rig)
+    collection = RigCollection(plan, rig, actuator, tracker, out, progress=True,
+                               log=lambda m: click.echo(m, err=True))
+    try:
+        ds = collection.run()
+    except (RigInterrupted, RigStop, HardwareError) as e:
+        kept = _write_partial(collection, out)
+        click.echo(f"{'stopped' if isinstance(e, RigInterrupted) else 'error'}: {e}", err=True)
+        if kept:
+            click.echo(f"the {kept} samples recorded so far are in {out} (data.parquet, meta.json: "
+                       "collection.complete = false)", err=True)
+        sys.exit(130 if isinstance(e, RigInterrupted) else 1)
+    write_dataset(ds, out)
     f = ds.frame
     say(f"{protocol} on rig {rig.name}: {len(f)} samples in {f['sequence_id'].nunique()} sequences, "
         f"{int(f['readings_rejected'].sum())} readings refused by the safety rules; wrote {out}")
