@@ -58,9 +58,19 @@ def test_piecewise_sections() -> None:
                 sections=t.sections) == t
 
 
+def test_out_of_plane_section_round_trips() -> None:
+    """A section [length, κx, κy] is precurvature leaving the tube's plane (issue 20); it survives
+    the robot file and a planar section keeps its two-number form."""
+    t = Tube.from_sections(0.4, 0.2, [[20.0, 0.0], [10.0, 0.03, 0.002], [5.0, 0.03]])
+    assert t.sections[1].curvature_y == 0.002 and t.sections[1].curved
+    assert t.to_dict()["sections"] == [[20.0, 0.0], [10.0, 0.03, 0.002], [5.0, 0.03]]
+    assert Tube.from_sections(0.4, 0.2, t.to_dict()["sections"]) == t
+
+
 @pytest.mark.parametrize(("sections", "message"), [
     ([[10.0]], r"sections\[0\] must be a pair"),
-    ([[10.0, 0.1, 3.0]], r"sections\[0\] must be a pair"),
+    ([[10.0, 0.1, 3.0, 1.0]], r"sections\[0\] must be a pair"),
+    ([[10.0, 0.1, 20.0]], r"curvature_y must be within ±10 1/mm"),
     ([["a", 0.1]], r"sections\[0\]\.length must be a finite number"),
     ([[1e9 * 1e9, 0.0]], r"must be <= 10000 mm"),
     ([[10.0, -1e3]], r"curvature must be .*10 1/mm"),

@@ -92,7 +92,10 @@ class _Jacobian:
     def __init__(self, ps: ParameterSet, joints: np.ndarray, measured: np.ndarray,
                  registration: Registration, analytic: bool = True, step: float = 1e-4) -> None:
         self.ps, self.joints, self.measured, self.reg = ps, joints, measured, registration
-        self.analytic, self.step = analytic, step
+        # the exact tangent (sensitivity.py) is that of the planar TCM without the clearance tilt;
+        # a point-wise solve has no friction history, so friction does not enter it
+        planar = all(not s.curvature_y for t in ps.robot.tubes for s in t.sections)
+        self.analytic, self.step = analytic and planar and not ps.robot.clearance, step
         self.lo, self.hi = ps.bounds()
         self._key: bytes | None = None
         self.x_nominal = ps.nominal()

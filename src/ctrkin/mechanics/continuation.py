@@ -7,6 +7,12 @@ measure that changed continuously; otherwise the joint increment is halved. When
 sub-step has no stable continuation, the branch has ended at a fold: the robot snaps to another
 stable equilibrium, found by a multi-start search around the last state and taken as the nearest
 stable one (the basin the released twist falls into).
+
+With friction (Robot.friction > 0) each (sub)step is one step of the rate-independent friction law
+from the state of the last accepted one (mechanics.friction): the stuck offsets move only where an
+element slips, so the path's history is carried in the state as well as in the branch. An element
+switching between stick and slip changes the stiffness of the problem, so det J may jump there
+without the branch having ended: its continuity is checked only while the stick/slip pattern holds.
 """
 
 from __future__ import annotations
@@ -21,9 +27,11 @@ import numpy as np
 from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 from ctrkin.geometry import tip_azimuth, tip_pose
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
+from ctrkin.mechanics.friction import ContactReport, FrictionState
 from ctrkin.mechanics.pointwise import (
     Equilibrium,
     NewtonResult,
+    Problem,
     cold_solution,
     equilibrium,
     newton,
@@ -32,6 +40,7 @@ from ctrkin.mechanics.pointwise import (
     solve,
     twisted_guesses,
     with_alpha,
+    with_state,
 )
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS, SolverSettings
 from ctrkin.robots.robot import Robot
@@ -125,6 +134,8 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     arr = prev.problem.arrays
     x = prev.x
     det = prev.stability
+    state = prev.friction_state      # friction state of the last accepted (sub)step
+    modes = () if prev.contact is None else prev.contact.modes
     t = 0.0
     dt = 1.0
     snapped = False
@@ -137,19 +148,22 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
             pb = with_alpha(prev.problem, q_try)
         else:
             pb = prepare(robot, q_try, settings, checked=True, arr=arr)
+        if state is not None:
+            pb = with_state(pb, state)
         if path is None:
             guess = x
         else:  # x moved along the predicted branch (at the start of the step x = path.at(0))
             guess = path.at(t_try) if t == 0.0 else x + path.at(t_try) - path.at(t)
         sol = newton(pb, guess, settings, work)
         if (sol.stable and _distance(sol.x, x, pb.arrays.lengths) <= JUMP_RAD
-                and abs(sol.det_j - det) <= DET_SLACK + DET_RATE * det):
+                and (abs(sol.det_j - det) <= DET_SLACK + DET_RATE * det or sol.modes != modes)):
             x, det, t, last = sol.x, sol.det_j, t_try, (pb, sol)
+            state, modes = _after(pb, sol, state)
             dt = min(2.0 * dt, 1.0)
             continue
         if work[0] > settings.max_search_steps:
             # continuation too costly (an extreme robot): give up this step, reported not converged
-            pb = prepare(robot, q_to, settings, checked=True, arr=arr)
+            pb = with_state(prepare(robot, q_to, settings, checked=True, arr=arr), state)
             last = (pb, NewtonResult.failed(x, det))
             break
         if path is not None:  # retry from the plain warm start before sub-stepping
@@ -168,9 +182,20 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
         # a fold was crossed: that is a snap unless the search only re-found the same branch
         snapped = snapped or _distance(sol.x, x, pb.arrays.lengths) > SAME_BRANCH_RAD
         x, det, t, last = sol.x, sol.det_j, t_try, (pb, sol)
+        state, modes = _after(pb, sol, state)
         dt = 1.0 - t
     assert last is not None
     return equilibrium(*last), snapped
+
+
+def _after(pb: Problem, sol: NewtonResult, state: FrictionState | None
+           ) -> tuple[FrictionState | None, tuple[int, ...]]:
+    """The friction state and stick/slip pattern after an accepted (sub)step (unchanged without
+    friction, or where the step did not converge)."""
+    if pb.stations is None or sol.stations is None or not sol.converged:
+        return state, sol.modes
+    rep = ContactReport.from_outputs(pb.stations, sol.stations, state, pb.q, pb.arrays)
+    return rep.state, rep.modes
 
 
 def _check_start(robot: Robot, start: Equilibrium) -> None:
@@ -193,9 +218,10 @@ def _check_start(robot: Robot, start: Equilibrium) -> None:
 
 
 def _same_arrays(a: RobotArrays, b: RobotArrays) -> bool:
-    return bool(a.rigid == b.rigid and all(
-        np.array_equal(u, v) for u, v in ((a.k, b.k), (a.gj, b.gj), (a.lengths, b.lengths),
-                                          (a.sec_len, b.sec_len), (a.sec_kap, b.sec_kap))))
+    return bool(a.rigid == b.rigid and a.friction == b.friction and a.clearance == b.clearance
+                and all(np.array_equal(u, v) for u, v in (
+                    (a.k, b.k), (a.gj, b.gj), (a.lengths, b.lengths), (a.sec_len, b.sec_len),
+                    (a.sec_kap, b.sec_kap), (a.sec_kapy, b.sec_kapy))))
 
 
 def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,

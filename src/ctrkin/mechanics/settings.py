@@ -33,6 +33,12 @@ class SolverSettings:
     one continuation step of follow is given up (reported not converged)
     (5e5 RK4 steps: about 0.5 s on one core for three tubes; a paper-robot solve needs < 1e4,
     a continuation step of a paper-robot sweep, folds included, < 3e4).
+    Friction (Robot.friction > 0; docs/mechanics.md: Friction and clearance): stick_rad (rad) and
+    stick_mm (mm): the elastic range of a friction element in torsion and axially, within which it
+    sticks (a play element's half width; the rigid-plastic limit as they go to 0: the stick error
+    of the relative twist is at most stick_rad); distributed_friction: add the distributed contact
+    force |M''| of the curved stretches to the breakpoints' elements (False: only the concentrated
+    contacts of Lock & Dupont 2011).
 
     RK4's error falls as step⁴ (tests/mechanics/test_numerics.py); benchmarks/bench_mechanics.py
     measures the tip error against the reference. The estimate e(h) is 2-8× above the measured
@@ -46,6 +52,9 @@ class SolverSettings:
     angle_step: float = 0.3
     max_rk4_steps: int = 200_000
     max_search_steps: int = 500_000
+    stick_rad: float = 1e-3
+    stick_mm: float = 1e-3
+    distributed_friction: bool = True
 
     def __post_init__(self) -> None:
         if self.tip_tol is not None and not self.tip_tol > 0:
@@ -62,6 +71,9 @@ class SolverSettings:
             raise CtrkinError(f"SolverSettings.angle_step must be > 0 rad, got {self.angle_step}")
         if self.max_search_steps < 0:
             raise CtrkinError(f"SolverSettings.max_search_steps must be >= 0, got {self.max_search_steps}")
+        for name in ("stick_rad", "stick_mm"):
+            if not getattr(self, name) > 0:
+                raise CtrkinError(f"SolverSettings.{name} must be > 0, got {getattr(self, name)}")
         if self.max_rk4_steps < 1:
             raise CtrkinError(f"SolverSettings.max_rk4_steps must be >= 1, got {self.max_rk4_steps}")
 

@@ -2,6 +2,8 @@
 
 Units at this boundary (fixed convention): mm, 1/mm, GPa. A tube's precurvature lies in its own
 material frame as û = (κ, 0, 0); the tube is described from its base (at the carriage) to its tip.
+A section may also give the precurvature a component out of that plane, û = (κx, κy, 0) (a tube
+whose shape-set curve is not quite planar, e.g. the virtual robot's true tubes).
 """
 
 from __future__ import annotations
@@ -21,10 +23,20 @@ YOUNGS_RANGE_GPA = (1e-3, 1e3)
 
 @dataclass(frozen=True)
 class Section:
-    """A stretch of tube with constant precurvature. length: mm, curvature: 1/mm."""
+    """A stretch of tube with constant precurvature. length: mm; curvature: κx (1/mm), in the tube's
+    precurvature plane; curvature_y: κy (1/mm), out of it (default 0: a planar tube)."""
 
     length: float
     curvature: float
+    curvature_y: float = 0.0
+
+    @property
+    def curved(self) -> bool:
+        return self.curvature != 0.0 or self.curvature_y != 0.0
+
+    def as_list(self) -> list[float]:
+        """[length, κx] or, out of plane, [length, κx, κy] (the robot file's form)."""
+        return [self.length, self.curvature] + ([self.curvature_y] if self.curvature_y else [])
 
 
 def _require_finite(owner: str, name: str, value: float) -> None:
@@ -38,15 +50,17 @@ def _require_finite(owner: str, name: str, value: float) -> None:
 
 
 def _section(k: int, s: object) -> Section:
-    """A Section from a Section or a (length mm, curvature 1/mm) pair, else a clear error."""
+    """A Section from a Section, a (length mm, curvature 1/mm) pair or a (length, κx, κy) triple,
+    else a clear error."""
     if isinstance(s, Section):
         return s
-    if not isinstance(s, (tuple, list)) or len(s) != 2:
+    if not isinstance(s, (tuple, list)) or len(s) not in (2, 3):
         raise RobotDescriptionError(
-            f"Tube.sections[{k}] must be a pair [length mm, curvature 1/mm], got {s!r}")
-    for name, v in zip(("length", "curvature"), s, strict=True):
+            f"Tube.sections[{k}] must be a pair [length mm, curvature 1/mm] or a triple [length mm, "
+            f"curvature 1/mm, out-of-plane curvature 1/mm], got {s!r}")
+    for name, v in zip(("length", "curvature", "curvature_y"), s, strict=False):
         _require_finite("Tube", f"sections[{k}].{name}", v)
-    return Section(float(s[0]), float(s[1]))
+    return Section(float(s[0]), float(s[1]), float(s[2]) if len(s) == 3 else 0.0)
 
 
 @dataclass(frozen=True)
@@ -110,14 +124,16 @@ class Tube:
             for k, s in enumerate(secs):
                 _require_finite(owner, f"sections[{k}].length", s.length)
                 _require_finite(owner, f"sections[{k}].curvature", s.curvature)
+                _require_finite(owner, f"sections[{k}].curvature_y", s.curvature_y)
                 if not 0 <= s.length <= MAX_LENGTH_MM:
                     raise RobotDescriptionError(
                         f"Tube.sections[{k}].length must be between 0 and {MAX_LENGTH_MM:g} mm, "
                         f"got {s.length}")
-                if abs(s.curvature) > MAX_CURVATURE_PER_MM:
-                    raise RobotDescriptionError(
-                        f"Tube.sections[{k}].curvature must be within ±{MAX_CURVATURE_PER_MM:g} "
-                        f"1/mm, got {s.curvature}")
+                for name in ("curvature", "curvature_y"):
+                    if abs(getattr(s, name)) > MAX_CURVATURE_PER_MM:
+                        raise RobotDescriptionError(
+                            f"Tube.sections[{k}].{name} must be within ±{MAX_CURVATURE_PER_MM:g} "
+                            f"1/mm, got {getattr(s, name)}")
             object.__setattr__(self, "sections", secs)
             total = sum(s.length for s in secs)
             if abs(total - (self.straight_length + self.curved_length)) > 1e-9 * max(1.0, total):
@@ -133,8 +149,9 @@ class Tube:
                       youngs_modulus: float = 58.0, poisson_ratio: float = 0.33) -> Tube:
         """A tube with general piecewise-constant precurvature.
 
-        sections: [(length mm, curvature 1/mm), ...] from base to tip. straight_length is set to
-        the leading straight stretch, curved_length to the rest, curvature to the first non-zero one.
+        sections: [(length mm, curvature 1/mm), ...] from base to tip, or (length, κx, κy)
+        triples for precurvature out of the tube's plane. straight_length is set to the leading
+        straight stretch, curved_length to the rest, curvature to the first non-zero |κx|.
         """
         if not isinstance(sections, (list, tuple)):
             raise RobotDescriptionError(
@@ -142,7 +159,7 @@ class Tube:
         secs = tuple(_section(k, s) for k, s in enumerate(sections))
         straight = 0.0
         for s in secs:
-            if s.curvature != 0.0:
+            if s.curved:
                 break
             straight += s.length
         total = sum(s.length for s in secs)
@@ -180,5 +197,5 @@ class Tube:
         default = Tube(self.od, self.id, self.straight_length, self.curved_length,
                        self.curvature, self.youngs_modulus, self.poisson_ratio)
         if default.sections != self.sections:
-            d["sections"] = [[s.length, s.curvature] for s in self.sections]
+            d["sections"] = [s.as_list() for s in self.sections]
         return d
