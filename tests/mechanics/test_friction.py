@@ -18,7 +18,7 @@ from ctrkin import Robot, SolverSettings, Tube, follow, paper_robot, solve
 from ctrkin.acquisition.trajectories import rotation_sweep
 from ctrkin.mechanics import kernels
 from ctrkin.mechanics.friction import SLIP, STICK, FrictionState
-from ctrkin.mechanics.pointwise import _contact, prepare, with_state
+from ctrkin.mechanics.pointwise import contact_arrays, prepare, with_state
 from ctrkin.robots import timclab_robot
 from tests.mechanics.reference_friction import reference_pair
 
@@ -85,7 +85,7 @@ def test_analytic_stick_slip_of_a_straight_outer_pair() -> None:
     relative twist at the tip a play operator of the base rotation with half width
     w = c T (2b + L): stuck until the transmission carries both bounds, then lagging by w, and
     after every reversal (minor loops included) stuck for 2w. The solver follows it within the
-    elements' elastic range (two elements, ε = 1e-3 rad each)."""
+    elements' elastic range (two elements, ε / r_c = 0.9e-3 rad each)."""
     length, kap, b, mu = 30.0, 1 / 25, 40.0, 0.2
     robot = _straight_outer_pair(mu, length, kap, b)
     inner, outer = robot.tubes
@@ -133,9 +133,10 @@ def test_curved_pair_matches_an_independent_integration(shift: float) -> None:
     theta[st.slot] += shift
     eq = solve(robot, q, guess=relaxed, settings=settings, state=FrictionState(theta, state.q))
     assert eq.converged and eq.contact is not None
-    mode = STICK if abs(shift) < settings.stick_rad else SLIP
+    eps = settings.stick_mm / (0.25 * (robot.tubes[0].od + robot.tubes[1].id))   # rad, ε / r_c
+    mode = STICK if abs(shift) < eps else SLIP
     assert (eq.contact.mode == mode).all()
-    tip, x = reference_pair(robot, q[:2], theta[st.slot], eq.x, settings.stick_rad)
+    tip, x = reference_pair(robot, q[:2], theta[st.slot], eq.x, eps)
     np.testing.assert_allclose(eq.x, x, rtol=0, atol=1e-9)
     np.testing.assert_allclose(eq.tip_position, tip, rtol=0, atol=1e-6)
     if mode == SLIP:                                # the bound moved the tip, by tens of µm
@@ -155,9 +156,9 @@ def test_jacobian_with_friction_matches_finite_differences() -> None:
         a = pb.arrays
 
         def res(x: np.ndarray, var: bool = False, pb=pb, a=a) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            r, jac, ct = np.empty(2), np.empty((2, 2)), _contact(pb)
-            kernels.shoot(x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid, r, jac, var, ct)
-            return r, jac, ct[12]
+            r, jac, ct = np.empty(2), np.empty((2, 2)), contact_arrays(pb)
+            kernels.shoot(x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid, r, jac, var, *ct)
+            return r, jac, ct[3]
 
         x = prev.x
         _, jac, out = res(x, True)
@@ -237,7 +238,9 @@ def test_solve_with_a_state_continues_a_path() -> None:
 
 def test_translation_releases_the_torsional_stick() -> None:
     """Coulomb's law for combined sliding: a translation takes the friction axially, so the
-    transmission wound up by a rotation unwinds when the tubes then slide (Ha et al. 2019)."""
+    transmission wound up by a rotation unwinds when the tubes then slide (Ha et al. 2019). The
+    law is isotropic at the contact surface: rotating and translating at once, the torsional share
+    of the bound is r Δφ / √((r Δφ)² + Δd²)."""
     robot = with_friction(0.3)
     Q = rotation_sweep(2, 12.0, step_deg=2.0)[:60]
     wound = follow(robot, Q).equilibria[-1]
@@ -246,3 +249,23 @@ def test_translation_releases_the_torsional_stick() -> None:
     slid = follow(robot, path, start=wound).equilibria[-1]
     free = solve(PAPER, path[-1])
     assert abs(wound.base_twist[0]) > 5 * abs(slid.base_twist[0] - free.base_twist[0])
+    # one step turning the inner tube by Δα while it slides by Δd: the slipping elements' torque
+    # is the bound times the torsional share of the slip at the surface
+    st = wound.problem.stations
+    assert st is not None
+    rc = 0.25 * (robot.tubes[0].od + robot.tubes[1].id)
+    def rel(eq: object, at: np.ndarray) -> np.ndarray:   # ψ1 − ψ2 (rad) at arc lengths `at`
+        return np.radians([np.interp(a, eq.s, eq.twist[:, 0] - eq.twist[:, 1]) for a in at])
+
+    for da, dd in ((2.0, 0.05), (2.0, 0.01)):
+        step = follow(robot, (q + np.array([da, 0, -dd, 0]))[None, :], start=wound).equilibria[-1]
+        rep = step.contact
+        assert rep is not None
+        slip = (rep.mode == SLIP) & (rep.bound > 0)
+        assert slip.sum() >= 2
+        # the elastic part a = ±1 the element carried in is small against the step's slip
+        eps_t = SolverSettings().stick_mm / rc
+        dphi = rel(step, rep.s[slip]) - rel(wound, rep.s[slip])
+        share = np.abs(rc * dphi + np.sign(dphi) * rc * eps_t) / np.hypot(rc * dphi, dd)
+        assert (share < 0.9).all()
+        np.testing.assert_allclose(np.abs(rep.torque[slip]), share * rep.bound[slip], rtol=0.15)

@@ -22,12 +22,14 @@ shear force), lumped half into each end of the stretch:
     (C3) N_d = ½ h_left |M_p''(s⁻)| + ½ h_right |M_p''(s⁺)|
 
 The friction element at the breakpoint is elasto-plastic (a play element): stuck offset θ, trial
-vector (torsion, axial) a = (φ − θ) / ε_t, b = Δd / ε_a (φ = ψ_i − ψ_{i+1}, Δd the relative translation
-of the pair in this step), returned to the unit disc of Coulomb's law (isotropic friction cone):
+vector of the slip at the contact surface (torsion, axial) a = r_c (φ − θ) / ε, b = Δd / ε (φ = ψ_i −
+ψ_{i+1}, Δd the relative translation of the pair in this step, ε the element's elastic slip, mm),
+returned to the unit disc of Coulomb's law (isotropic friction: the force opposes the slip
+velocity at the surface, whatever its direction):
 
     (C4) T_max = μ r_c (N_c + N_d),   g = a / max(1, √(a² + b²)),   f = T_max g
     (C5) uz_i⁺ = uz_i⁻ + f / GJ_i,    uz_{i+1}⁺ = uz_{i+1}⁻ − f / GJ_{i+1}       (torque −f on tube i)
-    (C6) θ ← φ − ε_t g   after an accepted step (stick: unchanged; slip: the element moves)
+    (C6) θ ← φ − ε_t g   after an accepted step (stick: unchanged; slip: the element moves), ε_t = ε / r_c
 
 A translation (b ≫ 1) takes the friction axially and releases the torsional element, as Coulomb's
 law does for combined sliding. With clearance, the bundle leaving an outer tube's tip tilts in the
@@ -164,14 +166,15 @@ def _side(y, kx, ky, pres, k, gj, inner, sign, dist, h, dm, ddm, gm, vx, vy, aa)
 
 @njit(cache=True)
 def station(y, b, p, lmax, hl, hr, theta, dd, bounds_n, kap, kapy, present, k, gj,
-            gap, rc, lmin, mu, eps_t, eps_a, dist, clearance, dfdy, scr, gm, out):
+            gap, rc, lmin, mu, eps, dist, clearance, dfdy, scr, gm, out):
     """Friction element at breakpoint b of pair p (C1–C4) at state y = (ψ, uz) (2N,).
 
     kap, kapy, present: the grid's (M, N) rows (stretch b − 1 on the left, b on the right; bounds_n =
     M + 1); theta: stuck offset (rad; NaN: a fresh contact, no force); dd: relative translation of
     the pair in this step (mm); gap, rc, lmin (P,): radial clearance, contact radius and shortest
-    couple (mm) per pair; mu: friction coefficient; eps_t (rad), eps_a (mm): the elastic range of
-    an element; dist: include (C3); clearance: scale of the gap for the tilt (C7).
+    couple (mm) per pair; mu: friction coefficient; eps (mm): the elastic slip of an element at the
+    contact surface (torsional range ε / r_c rad); dist: include (C3); clearance: scale of the gap
+    for the tilt (C7).
     Writes dfdy (2N,) = ∂f/∂y and out (8,) = (φ rad, g, N (N), mode, tilt angle (rad), tilt axis
     x, y, T_max (N·mm)); scr (4, N), gm (N, 2): scratch. Returns f (N·mm): the torque −f acts on
     tube p, +f on tube p + 1 (C5)."""
@@ -231,8 +234,9 @@ def station(y, b, p, lmax, hl, hr, theta, dd, bounds_n, kap, kapy, present, k, g
         for j in range(2 * n):
             dfdy[j] = 0.0
         return 0.0
+    eps_t = eps / rc[p]
     a = (phi - theta) / eps_t
-    bb = dd / eps_a
+    bb = dd / eps
     nrm = math.sqrt(a * a + bb * bb)
     if nrm <= 1.0:
         g = a
@@ -288,26 +292,39 @@ def tilt(zb, ax, ay, ang):
         zb[5 + 3 * row] = r0 * e02 + r1 * e12 + r2 * e22
 
 
-@njit(cache=True)
-def apply_stations(ct, b, js, y, phi, zb, with_var, with_body, k, gj, kap, kapy, present, nb):
-    """Apply the friction elements of breakpoint b (stations js, js + 1, … with st_b == b) to the
-    state: the torque jumps (C5) on y (2N,) and, if with_var, on the variation Φ (2N, N) through
-    ∂f/∂y; if with_body, the elements' potential (the play element's, with T_max frozen) into the
-    energy zb[12] and the clearance tilt (C7) of the backbone frame at an outer tube's tip.
+# columns of the per-station array cst (K, ST_COLS) and the per-pair array cpr (P, PR_COLS)
+ST_B, ST_PAIR, ST_LMAX, ST_HL, ST_HR, ST_TIP, ST_THETA = range(7)
+ST_COLS = 7
+PR_DD, PR_GAP, PR_RC, PR_LMIN = range(4)
+PR_COLS = 4
 
-    ct: the contact tuple of pointwise.Problem (st_b, st_p, lmax, hl, hr, tip, theta, dd, gap, rc,
-    lmin, prm = (μ, ε_t, ε_a, clearance, distributed), out (K, 8), dfdy, scr, gm, row).
-    Returns the index of the first station past b."""
-    st_b, st_p, lmax, hl, hr, tipf, theta, dd, gap, rc, lmin, prm, out, dfdy, scr, gm, row = ct
-    mu, eps_t, eps_a, clr = prm[0], prm[1], prm[2], prm[3]
-    dist = prm[4] > 0.0
+
+@njit(cache=True)
+def apply_stations(cst, cpr, cprm, cout, b, js, y, phi, zb, with_var, with_body, k, gj, kap, kapy,
+                   present, nb, work):
+    """Apply the friction elements of breakpoint b (stations js, js + 1, … of cst) to the state: the
+    torque jumps (C5) on y (2N,) and, if with_var, on the variation Φ (2N, N) through ∂f/∂y; if
+    with_body, the elements' potential (the play element's, with T_max frozen) into the energy
+    zb[12] and the clearance tilt (C7) of the backbone frame at an outer tube's tip.
+
+    cst (K, 7): per station (breakpoint, pair, ℓ_max mm, h_left mm, h_right mm, tip 0/1, θ rad);
+    cpr (P, 4): per pair (Δd mm, gap mm, contact radius mm, shortest couple mm);
+    cprm (4,) = (μ, ε mm, clearance, distributed 0/1); cout (K, 8): the stations' outputs
+    (contact.station), written; work: scratch of contact_work. Returns the index of the first
+    station past b."""
+    mu, eps, clr = cprm[0], cprm[1], cprm[2]
+    dist = cprm[3] > 0.0
+    dfdy, scr, gm, row = work
     n = k.shape[0]
-    while js < st_b.shape[0] and st_b[js] == b:
-        p = st_p[js]
+    gap, rc, lmin = cpr[:, PR_GAP], cpr[:, PR_RC], cpr[:, PR_LMIN]
+    while js < cst.shape[0] and int(cst[js, ST_B]) == b:
+        p = int(cst[js, ST_PAIR])
         o = p + 1
-        ot = out[js]
-        f = station(y, b, p, lmax[js], hl[js], hr[js], theta[js], dd[p], nb, kap, kapy, present,
-                    k, gj, gap, rc, lmin, mu, eps_t, eps_a, dist, clr, dfdy, scr, gm, ot)
+        theta = cst[js, ST_THETA]
+        ot = cout[js]
+        f = station(y, b, p, cst[js, ST_LMAX], cst[js, ST_HL], cst[js, ST_HR], theta,
+                    cpr[p, PR_DD], nb, kap, kapy, present, k, gj, gap, rc, lmin, mu, eps, dist, clr,
+                    dfdy, scr, gm, ot)
         if with_var:
             nc = phi.shape[1]
             for c in range(nc):
@@ -321,9 +338,16 @@ def apply_stations(ct, b, js, y, phi, zb, with_var, with_body, k, gj, kap, kapy,
         y[n + p] += f / gj[p]
         y[n + o] -= f / gj[o]
         if with_body:
-            if math.isfinite(theta[js]) and ot[7] > 0.0:
-                zb[12] += ot[7] * eps_t * huber((ot[0] - theta[js]) / eps_t)
-            if tipf[js] and ot[4] > 0.0:
+            if math.isfinite(theta) and ot[7] > 0.0:
+                eps_t = eps / rc[p]
+                zb[12] += ot[7] * eps_t * huber((ot[0] - theta) / eps_t)
+            if cst[js, ST_TIP] > 0.0 and ot[4] > 0.0:
                 tilt(zb, ot[5], ot[6], ot[4])
         js += 1
     return js
+
+
+@njit(cache=True)
+def contact_work(n):
+    """Scratch of apply_stations for N tubes: ∂f/∂y (2N,), (4, N), (N, 2) and a row (N,)."""
+    return np.empty(2 * n), np.empty((4, n)), np.empty((n, 2)), np.empty(n)

@@ -27,13 +27,14 @@ import numpy as np
 from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 from ctrkin.geometry import tip_azimuth, tip_pose
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
-from ctrkin.mechanics.friction import ContactReport, FrictionState
+from ctrkin.mechanics.friction import FrictionState
 from ctrkin.mechanics.pointwise import (
     Equilibrium,
     NewtonResult,
     Problem,
     cold_solution,
     equilibrium,
+    friction_after,
     newton,
     prepare,
     search,
@@ -135,7 +136,7 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     x = prev.x
     det = prev.stability
     state = prev.friction_state      # friction state of the last accepted (sub)step
-    modes = () if prev.contact is None else prev.contact.modes
+    modes = b"" if prev.contact is None else prev.contact.modes
     t = 0.0
     dt = 1.0
     snapped = False
@@ -145,11 +146,11 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
         t_try = min(1.0, t + dt)
         q_try = q_to if t_try == 1.0 else q_from + (q_to - q_from) * t_try
         if same_grid:
-            pb = with_alpha(prev.problem, q_try)
+            pb = with_alpha(prev.problem, q_try, state)
         else:
             pb = prepare(robot, q_try, settings, checked=True, arr=arr)
-        if state is not None:
-            pb = with_state(pb, state)
+            if state is not None:
+                pb = with_state(pb, state)
         if path is None:
             guess = x
         else:  # x moved along the predicted branch (at the start of the step x = path.at(0))
@@ -185,17 +186,16 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
         state, modes = _after(pb, sol, state)
         dt = 1.0 - t
     assert last is not None
-    return equilibrium(*last), snapped
+    return equilibrium(*last, state), snapped
 
 
 def _after(pb: Problem, sol: NewtonResult, state: FrictionState | None
-           ) -> tuple[FrictionState | None, tuple[int, ...]]:
+           ) -> tuple[FrictionState | None, bytes]:
     """The friction state and stick/slip pattern after an accepted (sub)step (unchanged without
     friction, or where the step did not converge)."""
     if pb.stations is None or sol.stations is None or not sol.converged:
         return state, sol.modes
-    rep = ContactReport.from_outputs(pb.stations, sol.stations, state, pb.q, pb.arrays)
-    return rep.state, rep.modes
+    return friction_after(pb, sol), sol.modes
 
 
 def _check_start(robot: Robot, start: Equilibrium) -> None:

@@ -25,7 +25,7 @@ from ctrkin.errors import ConvergenceError
 from ctrkin.geometry import quat_from_tangent
 from ctrkin.mechanics import kernels
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
-from ctrkin.mechanics.friction import ContactReport, FrictionState, Stations, contact_tuple
+from ctrkin.mechanics.friction import N_OUT, ContactReport, FrictionState, Stations
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS, SolverSettings
 from ctrkin.robots.robot import Robot
 
@@ -123,8 +123,8 @@ class Problem:
     """A joint configuration prepared for the kernels (`prepare`): arrays of the robot, q (2N,),
     α (N,) rad, β − transmission length (N,) mm, tips (N,) mm, the grid of grid.build_grid
     (bounds, κx, κy, present, nsteps, nsample) and, with contact effects, its friction stations and
-    the friction state they are solved for: theta (K,) rad (NaN: fresh), dd (P,) mm
-    (`with_state`)."""
+    the friction state they are solved for (`with_state`), as the kernels' arrays cst (K, 7) and
+    cpr (P, 4) (mechanics.contact.apply_stations)."""
 
     arrays: RobotArrays
     q: np.ndarray
@@ -134,9 +134,9 @@ class Problem:
     grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
     n_rk4: int         # RK4 steps of one integration pass (grid[4] summed once, not per solve)
     stations: Stations | None = None
-    theta: np.ndarray | None = None
-    dd: np.ndarray | None = None
-    state: FrictionState | None = None   # the state theta and dd were taken from
+    cst: np.ndarray | None = None
+    cpr: np.ndarray | None = None
+    state: FrictionState | None = None   # the state cst and cpr were built from
 
     @property
     def length(self) -> float:
@@ -169,25 +169,28 @@ def prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: bool
     return with_state(pb, None)
 
 
-def with_alpha(pb: Problem, q: np.ndarray) -> Problem:
+_KEEP = object()
+
+
+def with_alpha(pb: Problem, q: np.ndarray, state: FrictionState | object | None = _KEEP) -> Problem:
     """The problem at valid joints q (2N,) whose translations β are those of pb.q: the grid, tips,
     transmission lengths and friction stations depend on β alone (kernels.prepare), so only α is
-    new (a rotation step of a continuation needs no new grid). The friction state is pb's."""
-    return with_state(Problem(pb.arrays, q, np.radians(q[:pb.alpha.shape[0]]), pb.beta, pb.tips,
-                              pb.grid, pb.n_rk4, pb.stations), pb.state)
+    new (a rotation step of a continuation needs no new grid). state: the friction state to solve
+    for (default: pb's)."""
+    out = Problem(pb.arrays, q, np.radians(q[:pb.alpha.shape[0]]), pb.beta, pb.tips, pb.grid,
+                  pb.n_rk4, pb.stations, pb.cst, pb.cpr, pb.state)
+    return out if state is _KEEP else with_state(out, state)  # type: ignore[arg-type]
 
 
 def with_state(pb: Problem, state: FrictionState | None) -> Problem:
     """The problem solved for friction state `state` (None: every contact fresh, no friction
     torque): the stations' stuck offsets and each pair's relative translation since the state."""
-    if pb.stations is None:
+    st = pb.stations
+    if st is None:
         return pb
-    if state is None:
-        theta, dd = np.full(pb.stations.count, np.nan), np.zeros(max(pb.alpha.shape[0] - 1, 0))
-    else:
-        theta, dd = state.gather(pb.stations, pb.q)
-    return Problem(pb.arrays, pb.q, pb.alpha, pb.beta, pb.tips, pb.grid, pb.n_rk4, pb.stations,
-                   theta, dd, state)
+    cst, cpr = st.arrays(None, None) if state is None else st.arrays(*state.gather(st, pb.q))
+    return Problem(pb.arrays, pb.q, pb.alpha, pb.beta, pb.tips, pb.grid, pb.n_rk4, st, cst, cpr,
+                   state)
 
 
 @functools.lru_cache(maxsize=64)
@@ -227,9 +230,9 @@ class NewtonResult(NamedTuple):
     stations: np.ndarray | None = None
 
     @property
-    def modes(self) -> tuple[int, ...]:
+    def modes(self) -> bytes:
         """The stick/slip pattern of the friction elements (empty without friction)."""
-        return () if self.stations is None else tuple(int(m) for m in self.stations[:, 3])
+        return b"" if self.stations is None else self.stations[:, 3].tobytes()
 
     @property
     def stable(self) -> bool:
@@ -253,24 +256,27 @@ def newton(pb: Problem, x0: np.ndarray, settings: SolverSettings, work: list[int
     x0 = np.asarray(x0, dtype=float)
     x = np.empty(x0.shape[0])
     body = np.empty(7)
-    ct = _contact(pb)
+    ct = contact_arrays(pb)
     try:  # converged: |r| < tol and kernels.sane (a finite root and body), checked in the kernel
         conv, it, rn, det_j, det_h, shoots = kernels.newton(
             x0, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,
-            settings.tol, settings.max_iter, settings.max_step, x, body, ct)
+            settings.tol, settings.max_iter, settings.max_step, x, body, *ct)
     except (np.linalg.LinAlgError, ZeroDivisionError, OverflowError, FloatingPointError):
         return NewtonResult.failed(x0.copy())  # numerics broke down
     if work is not None:
         work[0] += shoots * pb.n_rk4
-    return NewtonResult(x, conv, it, rn, det_j, det_h, body if conv else _NO_BODY,
-                        None if ct is None else ct[12])
+    return NewtonResult(x, conv, it, rn, det_j, det_h, body if conv else _NO_BODY, ct[3])
 
 
-def _contact(pb: Problem) -> tuple[np.ndarray, ...] | None:
-    """The kernels' contact argument of pb, None without contact effects."""
-    if pb.stations is None or pb.theta is None or pb.dd is None:
-        return None
-    return contact_tuple(pb.stations, pb.theta, pb.dd, pb.arrays)
+_NO_CONTACT = (None, None, None, None)
+
+
+def contact_arrays(pb: Problem) -> tuple[np.ndarray | None, ...]:
+    """The kernels' contact arrays of pb (cst, cpr, cprm, cout: mechanics.contact.apply_stations),
+    with a fresh output array; four None without contact effects."""
+    if pb.stations is None or pb.cst is None or pb.cpr is None:
+        return _NO_CONTACT
+    return pb.cst, pb.cpr, pb.stations.prm, np.zeros((pb.stations.count, N_OUT))
 
 
 def _integrate(pb: Problem, x: np.ndarray, record: bool
@@ -286,12 +292,13 @@ def _integrate(pb: Problem, x: np.ndarray, record: bool
         recs = (np.empty(1), np.empty((1, 3)), np.empty((1, n)), np.empty((1, n)))
     body = np.empty(7)
     kernels.integrate_full(x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid, record,
-                           *recs, body, _contact(pb))
+                           *recs, body, *contact_arrays(pb))
     return body[:3], body[3:6], float(body[6]), recs
 
 
-def equilibrium(pb: Problem, sol: NewtonResult) -> Equilibrium:
-    """The Equilibrium of a Newton result on problem pb."""
+def equilibrium(pb: Problem, sol: NewtonResult, state: FrictionState | None = None) -> Equilibrium:
+    """The Equilibrium of a Newton result on problem pb; state: the friction state after it, if
+    the caller has it already (friction_after)."""
     x = sol.x
     if sol.converged:  # the final Newton pass integrated the backbone and energy (kernels.sane passed)
         tip, tan, energy = sol.body[:3], sol.body[3:6], sol.energy
@@ -303,10 +310,17 @@ def equilibrium(pb: Problem, sol: NewtonResult) -> Equilibrium:
         tip, tan = np.full(3, np.nan), np.full(3, np.nan)
     contact = None
     if sol.converged and pb.stations is not None and sol.stations is not None:
-        contact = ContactReport.from_outputs(pb.stations, sol.stations, pb.state, pb.q, pb.arrays)
+        contact = ContactReport(pb.stations, sol.stations, state or friction_after(pb, sol))
     return Equilibrium(q=pb.q, x=x, tip_position=tip, tip_tangent=tan, converged=sol.converged,
                        stability=sol.det_j, conjugate=sol.det_h, energy=energy,
                        residual=sol.residual, iterations=sol.iterations, problem=pb, contact=contact)
+
+
+def friction_after(pb: Problem, sol: NewtonResult) -> FrictionState:
+    """The friction state after a converged solve of pb (FrictionState.after)."""
+    assert pb.stations is not None and sol.stations is not None
+    return FrictionState.after(pb.stations, sol.stations, pb.q,
+                               max(pb.alpha.shape[0] - 1, 0) * pb.arrays.slots)
 
 
 def twisted_guesses(pb: Problem, around: np.ndarray) -> list[np.ndarray]:

@@ -145,7 +145,8 @@ class Tube:
                                         "(straight_length + curved_length > 0)")
 
     @classmethod
-    def from_sections(cls, od: float, id: float, sections: list[tuple[float, float]],
+    def from_sections(cls, od: float, id: float,
+                      sections: list[tuple[float, float]] | list[tuple[float, float, float]],
                       youngs_modulus: float = 58.0, poisson_ratio: float = 0.33) -> Tube:
         """A tube with general piecewise-constant precurvature.
 

@@ -28,14 +28,26 @@ class VirtualConfig:
       residual_curvature: std (1/mm) of the curvature of the nominally straight parts.
       alpha_zero_error_deg: std (deg) of the offset between a rotation encoder's zero and the tube's
         precurvature plane (tube clamped into its gear by hand).
+      precurvature_variation: relative std of the precurvature's variation along each curved
+        section (a smooth profile of zero mean, on top of precurvature_error).
+      precurvature_plane_deg: std (deg) of the turn of the precurvature plane along each curved
+        section (the shape-set curve leaves its plane: û = (κx, κy)).
+    Between the tubes (the true robot's mechanics, docs/mechanics.md: Friction and clearance):
+      tube_friction: Coulomb coefficient μ between neighbouring tubes (contact forces from the
+        bending moments they exchange, concentrated at curvature changes and tube ends).
+      clearance: the share of the tubes' radial gap (from their diameters) the inner tube may tilt
+        in where it leaves an outer tube's tip (1: all of it).
     Transmission (direction-dependent dead band between motor and tube base, i.e. hysteresis):
       gear_backlash_deg: full width (deg) of the gear backlash of each rotation stage.
-      friction_deg: full width (deg) of the torsional-friction wind-up with no curved overlap.
-      friction_deg_per_mm: extra wind-up width (deg) per mm of curved overlap of two or more tubes
-        (contact force between curved tubes, so friction, grows with the overlap).
+      friction_deg: full width (deg) of the torsional-friction wind-up of a tube in its bearings.
+      friction_deg_per_mm: extra wind-up width (deg) per mm of curved overlap of two or more tubes, a
+        lumped stand-in for the friction between the tubes (default 0: tube_friction models it).
       leadscrew_backlash_mm: full width (mm) of the lead-screw backlash of each translation stage.
     Tracker (EM sensor, registered to the robot base):
       registration_mm, registration_deg: std of the residual rigid registration error (per axis; angle).
+      em_distortion_mm: RMS (mm) over the robot's workspace of a smooth warp of the tracker's space
+        (field distortion by metal and motors near the field generator, which no rigid
+        registration removes); em_distortion_length_mm: its length scale (mm).
       sensor_offset_mm: distance (mm) of the sensor coil's centre beyond the tube tip, along the tip
         tangent (the sensor sits in a fixture on the tip; the nominal model predicts the tube tip).
       noise_mm, noise_deg: std of one reading's position noise (per axis) and tangent noise (angle).
@@ -49,12 +61,18 @@ class VirtualConfig:
     stiffness_error: float = 0.08
     residual_curvature: float = 1e-3
     alpha_zero_error_deg: float = 4.0
+    precurvature_variation: float = 0.05
+    precurvature_plane_deg: float = 3.0
+    tube_friction: float = 0.2
+    clearance: float = 1.0
     gear_backlash_deg: float = 1.0
     friction_deg: float = 0.5
-    friction_deg_per_mm: float = 0.8
+    friction_deg_per_mm: float = 0.0
     leadscrew_backlash_mm: float = 0.05
     registration_mm: float = 1.0
     registration_deg: float = 1.0
+    em_distortion_mm: float = 1.0
+    em_distortion_length_mm: float = 40.0
     sensor_offset_mm: float = 4.0
     noise_mm: float = 0.25
     noise_deg: float = 0.2
@@ -69,12 +87,18 @@ class VirtualConfig:
             "stiffness_error": (0.5, "a relative std; 0.08 is 8 %"),
             "residual_curvature": (0.01, "1/mm; 0.01 is a 100 mm radius, no longer 'straight'"),
             "alpha_zero_error_deg": (45.0, "deg"),
+            "precurvature_variation": (0.5, "a relative std; 0.05 is 5 %"),
+            "precurvature_plane_deg": (45.0, "deg"),
+            "tube_friction": (1.0, "a friction coefficient; nitinol pairs are 0.1-0.7"),
+            "clearance": (10.0, "a multiple of the tubes' radial gap; 1 is the whole gap"),
             "gear_backlash_deg": (30.0, "deg"),
             "friction_deg": (30.0, "deg"),
             "friction_deg_per_mm": (5.0, "deg per mm of curved overlap"),
             "leadscrew_backlash_mm": (2.0, "mm"),
             "registration_mm": (20.0, "mm"),
             "registration_deg": (20.0, "deg"),
+            "em_distortion_mm": (20.0, "mm RMS over the workspace"),
+            "em_distortion_length_mm": (10000.0, "mm"),
             "sensor_offset_mm": (50.0, "mm"),
             "noise_mm": (10.0, "mm"),
             "noise_deg": (10.0, "deg"),
@@ -92,6 +116,10 @@ class VirtualConfig:
             if v > upper:
                 raise VirtualConfigError(
                     f"VirtualConfig.{name} = {v} is implausibly large ({unit}); use a value <= {upper}")
+        if self.em_distortion_mm > 0 and not self.em_distortion_length_mm >= 1.0:
+            raise VirtualConfigError(
+                "VirtualConfig.em_distortion_length_mm must be >= 1 mm when em_distortion_mm > 0 "
+                f"(the warp's length scale), got {self.em_distortion_length_mm}")
         n = self.readings_per_sample
         if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 1000:
             raise VirtualConfigError(
