@@ -3,6 +3,7 @@ each effect alone (issue 20, goals 2 and 3; docs/virtual_robot.md: What the defa
 
     python benchmarks/bench_virtual_effects.py                  # defaults and each effect alone
     python benchmarks/bench_virtual_effects.py --seeds 0 1 2 3 4 --only defaults
+    python benchmarks/bench_virtual_effects.py --only defaults --set tube_friction=0.5
 
 For each configuration, one virtual robot per seed records the quick paper protocol (the training
 data), the 20 random points and the arbitrary path of `ctrkin reproduce`; the paper's TCM baseline
@@ -83,9 +84,15 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, nargs="+", default=[0])
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--only", choices=["defaults", "all"], default="all")
+    ap.add_argument("--set", dest="settings", action="append", default=[], metavar="KEY=VALUE",
+                    help="change a default (VirtualConfig field) of the 'defaults' row")
     args = ap.parse_args()
-    configs = {"defaults (every effect)": VirtualConfig(), "ideal (no effect)": VirtualConfig().ideal()}
+    changed = {k: type(getattr(VirtualConfig(), k))(v)
+               for k, v in (item.split("=", 1) for item in args.settings)}
+    label = "defaults" + "".join(f" {k}={v}" for k, v in changed.items())
+    configs = {label: VirtualConfig(**changed)}
     if args.only == "all":
+        configs["ideal (no effect)"] = VirtualConfig().ideal()
         configs |= {name: alone(fields) for name, fields in EFFECTS.items()}
     keys = ("random_points_rmse_mm", "random_points_max_mm", "arbitrary_rmse_mm", "arbitrary_max_mm")
     print(f"nominal TCM vs measured, registration fitted on the quick paper protocol; seeds {args.seeds}")

@@ -4,7 +4,9 @@ CalibratedTCM.
 Groups (`--fit`): registration (rotation vector rad, translation mm: 6), precurvature (per tube, a
 scale of the nominal curvature), stiffness_ratio (per tube EI/GJ = 1 + ν, bounded by ν ∈ [0, 0.49]),
 alpha_offset and beta_offset (all tubes but the outermost: a common rotation or translation of all
-tubes is the registration's), transmission_length (per tube, mm), marker (tip-marker distance, mm).
+tubes is the registration's), transmission_length (per tube, mm), marker (tip-marker distance, mm),
+friction (μ between the tubes: fitted on the continued TCM, calibration/friction.py, after the
+other groups; in the default groups when the nominal robot has friction, `default_groups`).
 
 Prior (`prior=True`, the default): each physical parameter has a Gaussian prior about its nominal
 value with the standard deviation in PRIOR_SIGMA, chosen from what a lab knows before calibrating
@@ -33,6 +35,14 @@ PRIOR_SIGMA = {"curvature_scale": 0.15, "stiffness_ratio": 0.2, "alpha_offset": 
 GROUPS = ("registration", "precurvature", "stiffness_ratio", "alpha_offset", "beta_offset",
           "transmission_length", "marker")
 PHYSICAL = GROUPS[1:]
+FRICTION = "friction"        # μ: not a point-wise parameter (calibration/friction.py)
+ALL_GROUPS = (*GROUPS, FRICTION)
+MAX_FRICTION = 1.0
+
+
+def default_groups(robot: Robot) -> tuple[str, ...]:
+    """GROUPS, and μ when the nominal robot has friction between its tubes."""
+    return ALL_GROUPS if robot.friction > 0 else GROUPS
 
 
 @dataclass(frozen=True)
@@ -52,9 +62,9 @@ class ParameterSet:
     def __post_init__(self) -> None:
         if not self.prior_scale > 0:
             raise CtrkinError(f"prior_scale must be > 0, got {self.prior_scale}")
-        bad = [g for g in self.groups if g not in GROUPS]
+        bad = [g for g in self.groups if g not in ALL_GROUPS]
         if bad:
-            raise CtrkinError(f"unknown calibration group(s) {bad}; choose from {list(GROUPS)}")
+            raise CtrkinError(f"unknown calibration group(s) {bad}; choose from {list(ALL_GROUPS)}")
 
     def layout(self) -> list[tuple[str, str, float, float, float]]:
         """(name, unit, nominal, lower, upper) per fitted parameter."""
@@ -82,7 +92,13 @@ class ParameterSet:
                     for i in range(n)]
         if "marker" in self.groups:
             out.append(("marker_mm", "mm", 0.0, -self.max_marker_mm, self.max_marker_mm))
+        if FRICTION in self.groups:
+            out.append(("friction_mu", "-", self.robot.friction, 0.0, MAX_FRICTION))
         return out
+
+    def point_wise(self) -> ParameterSet:
+        """The same set without μ: the parameters a point-wise solve depends on."""
+        return dataclasses.replace(self, groups=tuple(g for g in self.groups if g != FRICTION))
 
     @property
     def names(self) -> list[str]:
@@ -121,7 +137,8 @@ class ParameterSet:
         tl = tuple(v.get(f"transmission_length_{i + 1}", (self.robot.transmission_length or (0.0,) * n)[i])
                    for i in range(n))
         robot = dataclasses.replace(self.robot, tubes=tuple(tubes),
-                                    transmission_length=tl if any(tl) else ())
+                                    transmission_length=tl if any(tl) else (),
+                                    friction=float(v.get("friction_mu", self.robot.friction)))
         offsets = np.zeros(2 * n)
         for i in range(n - 1):
             offsets[i] = v.get(f"alpha_offset_{i + 1}", 0.0)

@@ -2,10 +2,12 @@
 
     ctrkin solve --robot paper --q 0,0,-15,-5 --json
     ctrkin sweep --robot paper --translations 4,8,12,16,20 --out out/sweep
+    ctrkin sweep --robot paper --friction 0.2 --clearance 1 --out out/sweep-friction
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import click
@@ -76,18 +78,27 @@ def backbone_dict(eq: Equilibrium) -> dict[str, object]:
 Examples:
   ctrkin sweep --out out/sweep
   ctrkin sweep --translations 4,20 --step 2 --out out/sweep-coarse
-  ctrkin sweep --translations 8,16 --step 5 --out out/sweep-json --json > sweep.json""")
+  ctrkin sweep --translations 8,16 --step 5 --out out/sweep-json --json > sweep.json
+  ctrkin sweep --friction 0.2 --clearance 1 --out out/sweep-friction""")
 @robot_option
 @click.option("--translations", default=",".join(str(v) for v in PAPER_LEVELS_MM),
               show_default=True, help="Relative translations d = β_N − β_1 (mm).")
 @click.option("--outer-beta", default=0.0, show_default=True, help="β of the other tubes (mm).")
 @click.option("--outer-alpha", default=0.0, show_default=True, help="α of the other tubes (deg).")
 @click.option("--step", "step_deg", default=1.0, show_default=True, help="Rotation step (deg).")
+@click.option("--friction", type=click.FloatRange(0.0, 2.0), default=None,
+              help="Coulomb coefficient μ between the tubes (docs/mechanics.md: Friction and "
+              "clearance); default: the robot file's (0 for the built-in robots). With μ > 0 the plot "
+              "also marks the frictionless folds (circles).")
+@click.option("--clearance", type=click.FloatRange(0.0, 10.0), default=None,
+              help="Share of the tubes' radial gap the inner tube may tilt in at an outer tube's tip "
+              "(1: all of it); default: the robot file's (0).")
 @click.option("--out", "out_dir", default="out/sweep", show_default=True,
               type=click.Path(file_okay=False), help="Output folder for sweep.csv and sweep.png.")
 @output_options
 def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha: float,
-              step_deg: float, out_dir: str, overwrite: bool, as_json: bool) -> None:
+              step_deg: float, friction: float | None, clearance: float | None, out_dir: str,
+              overwrite: bool, as_json: bool) -> None:
     """Full inner-tube rotation forward and back at several relative translations (paper
     Fig. 2b), solved by continuation: writes sweep.csv and a plot of T(L) against α0."""
     from ctrkin.viz.sweep import plot_sweeps
@@ -95,6 +106,9 @@ def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha
     levels = parse_floats(translations, "--translations")
     out = check_output(out_dir, overwrite)
     robot = load_robot(robot_spec)
+    robot = dataclasses.replace(robot, friction=robot.friction if friction is None else friction,
+                                clearance=robot.clearance if clearance is None else clearance)
+    free = dataclasses.replace(robot, friction=0.0) if robot.friction > 0 else None
     n = robot.n_tubes
     frames, curves = [], []
     paths = [rotation_sweep(n, d, outer_beta, outer_alpha, step_deg) for d in levels]
@@ -102,6 +116,7 @@ def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha
         for d, Q in zip(levels, paths, strict=True):
             robot.check_joints(Q)
             tr = follow(robot, Q, progress=lambda _t: bar.update(1))
+            ref = follow(free, Q).snaps if free is not None else np.zeros(len(Q), bool)
             half = (len(Q) - 1) // 2
             forward = np.arange(len(Q)) <= half
             alpha0 = Q[:, 0] - Q[:, n - 1]
@@ -110,21 +125,33 @@ def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha
                 **{c: Q[:, k] for k, c in enumerate(robot.joint_names())},
                 "alpha0": alpha0, "forward": forward,
                 **{c: tr.tip_poses[:, k] for k, c in enumerate(POSE_COLUMNS)},
-                "T_L": tr.azimuth, "snap": tr.snaps, "stable": tr.stable}))
+                "T_L": tr.azimuth, "snap": tr.snaps, "stable": tr.stable,
+                **({"snap_frictionless": ref} if free is not None else {})}))
             curves.append({"label": f"d = {d:g} mm", "alpha0": alpha0, "azimuth": tr.azimuth,
-                           "snaps": tr.snaps, "forward": forward})
+                           "snaps": tr.snaps, "forward": forward,
+                           **({"folds_frictionless": ref} if free is not None else {})})
     out.mkdir(parents=True, exist_ok=True)
     table = pd.concat(frames, ignore_index=True)
     with atomic_path(out / "sweep.csv") as tmp:
         table.to_csv(tmp, index=False)
-    plot_sweeps(curves, out / "sweep.png", title=f"{robot.name}: T(L) over full inner rotations")
+    extra = f", μ = {robot.friction:g}" if robot.friction else ""
+    extra += f", clearance {robot.clearance:g}" if robot.clearance else ""
+    plot_sweeps(curves, out / "sweep.png", title=f"{robot.name}{extra}: T(L) over full inner rotations")
     summary = []
     for d, f in zip(levels, frames, strict=True):
         snaps = f.loc[f["snap"], "alpha_1"].tolist()
-        say(f"d = {d:5.1f} mm: snaps at α1 = {snaps if snaps else 'none'}")
-        summary.append({"relative_translation_mm": d, "steps": len(f), "snaps": len(snaps),
-                        "snap_alpha_1_deg": snaps, "T_L_range_deg": [f["T_L"].min(), f["T_L"].max()]})
+        row: dict[str, object] = {"relative_translation_mm": d, "steps": len(f), "snaps": len(snaps),
+                                  "snap_alpha_1_deg": snaps,
+                                  "T_L_range_deg": [f["T_L"].min(), f["T_L"].max()]}
+        note = ""
+        if free is not None:
+            ref_snaps = f.loc[f["snap_frictionless"], "alpha_1"].tolist()
+            row["snap_alpha_1_deg_frictionless"] = ref_snaps
+            note = f" (frictionless: {ref_snaps if ref_snaps else 'none'})"
+        say(f"d = {d:5.1f} mm: snaps at α1 = {snaps if snaps else 'none'}{note}")
+        summary.append(row)
     say(f"wrote {out / 'sweep.csv'} and {out / 'sweep.png'}")
     if as_json:
-        emit_json({"robot": robot.name, "step_deg": step_deg, "levels": summary,
+        emit_json({"robot": robot.name, "friction": robot.friction, "clearance": robot.clearance,
+                   "step_deg": step_deg, "levels": summary,
                    "files": {"table": out / "sweep.csv", "plot": out / "sweep.png"}})

@@ -3,12 +3,14 @@ and cached predictions."""
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ctrkin.calibration.model import CalibratedTCM
 from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.datasets import ReproData, registered_truth
 from ctrkin.evaluation.tcm_baseline import TCMBaseline
@@ -34,11 +36,17 @@ HEADLINE = "lstm_mlp"
 
 @dataclass(eq=False)
 class Context:
+    """tcm: the paper's TCM baseline (nominal robot, fitted registration); tcm_cal: the TCM
+    calibrated on the training rows (ctrkin.calibration, μ between the tubes included), None where
+    a reproduction skips it."""
+
     data: ReproData
     models: dict[str, Kinematics]
     tcm: TCMBaseline
     figures: Path
+    tcm_cal: CalibratedTCM | None = None
     _cache: dict[tuple[str, int], np.ndarray] = field(default_factory=dict)
+    seconds_per_step: dict[str, list[float]] = field(default_factory=dict)
 
     def truth(self, ds: Dataset) -> np.ndarray:
         """(T, 6) noise-free tracker view of the true poses of ds."""
@@ -87,6 +95,29 @@ class Context:
         """TCM predictions (len(rows), 6) in the tracker frame and per-point times (s)."""
         pred = self.tcm.predict(ds.joints()[rows], desc=desc)
         return pred, self.tcm.last_times.copy()
+
+    def calibrated_rows(self, ds: Dataset, rows: np.ndarray) -> dict[str, np.ndarray]:
+        """The calibrated TCM's rows at `rows` of ds (none without it): `tcm_calibrated`, point-wise
+        (no history), and `tcm_calibrated_continued`, followed along every sequence (the branch
+        and the friction state carried). Times per point and per step go to seconds_per_step."""
+        if self.tcm_cal is None:
+            return {}
+        t0 = time.perf_counter()
+        point = self.tcm_cal.predict(ds.joints()[rows])
+        self.seconds_per_step.setdefault("tcm_calibrated", []).append(
+            (time.perf_counter() - t0) / max(len(rows), 1))
+        return {"tcm_calibrated": point, "tcm_calibrated_continued": self.calibrated_continued(ds)[rows]}
+
+    def calibrated_continued(self, ds: Dataset) -> np.ndarray:
+        """(T, 6) the calibrated TCM followed along every sequence of ds (tracker frame)."""
+        key = ("tcm_calibrated_continued", id(ds))
+        if key not in self._cache:
+            assert self.tcm_cal is not None
+            t0 = time.perf_counter()
+            self._cache[key] = self.tcm_cal.predict_continued(ds.joints(), ds.sequence_bounds())
+            self.seconds_per_step.setdefault("tcm_calibrated_continued", []).append(
+                (time.perf_counter() - t0) / max(len(ds.frame), 1))
+        return self._cache[key]
 
 
 def valid_rows(ds: Dataset, rows: np.ndarray | None = None) -> np.ndarray:

@@ -2,7 +2,9 @@
 rotation sweeps with hysteresis and snaps (Fig. 10a), full turns at full overlap off the training
 grid (snap turns), 20 random points (Fig. 10b) and the arbitrary trajectory (Fig. 10c). Each
 compares the TCM, the learned models (the paper's LSTM-MLP and the snap-aware model) and the
-measurement (and truth)."""
+measurement (and truth); the TCM calibrated on the training rows (μ between the tubes included) is
+a row beside them, point-wise (`tcm_calibrated`) and continued along each sequence
+(`tcm_calibrated_continued`)."""
 
 from __future__ import annotations
 
@@ -48,6 +50,7 @@ def fk_comparison(ctx: Context) -> dict[str, Any]:
     preds |= {m: ctx.fk(f"fk_{m}", ds)[rows] for m in (*BASELINES, ABLATION)}
     tcm_pred, tcm_times = ctx.tcm_rows(ds, rows, "TCM on test rows")
     preds["tcm"] = tcm_pred
+    preds |= ctx.calibrated_rows(ds, rows)
     out: dict[str, Any] = {}
     for name, pred in preds.items():
         r = summary(pred, measured[rows], truth[rows])
@@ -97,6 +100,7 @@ def _turn_predictions(ctx: Context, ds: Dataset) -> dict[str, np.ndarray]:
     preds = dict(ctx.fk_rows(ds))
     preds["tcm"], _ = ctx.tcm_rows(ds, np.arange(len(ds.frame)), "TCM")
     preds["tcm_continued"] = ctx.tcm_continued(ds)
+    preds |= ctx.calibrated_rows(ds, np.arange(len(ds.frame)))
     return preds
 
 
@@ -211,6 +215,7 @@ def _point_rows(ctx: Context, ds: Dataset, rows: np.ndarray, desc: str) -> dict[
     preds = {name: p[rows] for name, p in ctx.fk_rows(ds).items()}
     tcm, times = ctx.tcm_rows(ds, rows, desc)
     preds["tcm"] = tcm
+    preds |= ctx.calibrated_rows(ds, rows)
     out: dict[str, Any] = {k: summary(p, measured[rows], truth[rows]) for k, p in preds.items()}
     out["tcm"]["timing"] = timing_stats(times)
     out = with_headline(out, "fk")

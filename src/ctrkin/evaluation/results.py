@@ -20,7 +20,8 @@ from ctrkin.evaluation.scales import ReproScale
 from ctrkin.util.files import atomic_write_text
 
 # the rows and figures copied under flat names, in results.json's order
-FLAT_FK_ROWS = ("lstm_mlp", "lstm_mlp_paper", "lstm_mlp_branch", "tcm", "mlp", "lstm", "cnn", "tcn", "resnet")
+FLAT_FK_ROWS = ("lstm_mlp", "lstm_mlp_paper", "lstm_mlp_branch", "tcm", "tcm_calibrated",
+                "tcm_calibrated_continued", "mlp", "lstm", "cnn", "tcn", "resnet")
 FLAT_FK = ("position_rmse_mm", "orientation_rmse_deg", "position_rmse_true_mm")
 FLAT_IK_ROWS = ("lstm_mlp", "lstm_mlp_paper", "lstm_mlp_refined", "follow_mlp")
 FLAT_IK = ("joint_rmse_mm", "joint_rmse_deg", "tip_error_mm", "joint_alpha_median_deg")
@@ -106,6 +107,8 @@ class Timing:
     tcm_ms_mean: float
     tcm_ms_std: float
     tcm_us_median: float
+    tcm_calibrated_us_mean: float | None = None            # point-wise, per point
+    tcm_calibrated_continued_us_mean: float | None = None  # followed, per step
 
 
 @dataclass(frozen=True)
@@ -166,7 +169,7 @@ class ReproResults:
     def flat(self) -> dict[str, Any]:
         """The headline figures under flat dotted names, in results.json's order."""
         out: dict[str, Any] = {}
-        out |= {f"fk.{m}.{k}": self.fk[m][k] for m in FLAT_FK_ROWS for k in FLAT_FK}
+        out |= {f"fk.{m}.{k}": self.fk[m][k] for m in FLAT_FK_ROWS if m in self.fk for k in FLAT_FK}
         out |= {f"ik.{m}.{k}": self.ik[m][k] for m in FLAT_IK_ROWS for k in FLAT_IK}
         out |= {f"snapping.{m}.{k}": self.snapping.per_model[m][k] for m in FLAT_SNAP_ROWS for k in FLAT_SNAP}
         out |= {f"experiments.{e}.within_1mm_fraction": self.experiments[e]["within_1mm_fraction"]
@@ -178,6 +181,7 @@ class ReproResults:
         out |= {"snapping.precision": self.snapping.precision, "snapping.recall": self.snapping.recall,
                 "timing.fk_ms_mean": t.fk_ms_mean, "timing.fk_ms_std": t.fk_ms_std,
                 "timing.ik_ms_mean": t.ik_ms_mean, "timing.tcm_ms_mean": t.tcm_ms_mean,
+                "timing.tcm_calibrated_continued_us_mean": t.tcm_calibrated_continued_us_mean,
                 "dataset.samples": d.samples, "dataset.sequences": d.sequences, "dataset.snaps": d.snaps}
         return out
 

@@ -7,11 +7,14 @@ config plus a robot seed is one reproducible "piece of hardware".
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
 from ctrkin.errors import CtrkinError
+
+SHAPES = ("em_distortion_length_mm",)   # fields that shape an effect but switch nothing
 
 
 class VirtualConfigError(CtrkinError, ValueError):
@@ -45,9 +48,9 @@ class VirtualConfig:
       leadscrew_backlash_mm: full width (mm) of the lead-screw backlash of each translation stage.
     Tracker (EM sensor, registered to the robot base):
       registration_mm, registration_deg: std of the residual rigid registration error (per axis; angle).
-      em_distortion_mm: RMS (mm) over the robot's workspace of a smooth warp of the tracker's space
-        (field distortion by metal and motors near the field generator, which no rigid
-        registration removes); em_distortion_length_mm: its length scale (mm).
+      em_distortion_mm: RMS (mm) over the robot's workspace of the part of a smooth warp of the
+        tracker's space (field distortion by metal and motors) that no rigid registration removes;
+        em_distortion_length_mm: the warp's length scale (mm).
       sensor_offset_mm: distance (mm) of the sensor coil's centre beyond the tube tip, along the tip
         tangent (the sensor sits in a fixture on the tip; the nominal model predicts the tube tip).
       noise_mm, noise_deg: std of one reading's position noise (per axis) and tangent noise (angle).
@@ -72,7 +75,7 @@ class VirtualConfig:
     registration_mm: float = 1.0
     registration_deg: float = 1.0
     em_distortion_mm: float = 1.0
-    em_distortion_length_mm: float = 40.0
+    em_distortion_length_mm: float = 10.0
     sensor_offset_mm: float = 4.0
     noise_mm: float = 0.25
     noise_deg: float = 0.2
@@ -97,7 +100,7 @@ class VirtualConfig:
             "leadscrew_backlash_mm": (2.0, "mm"),
             "registration_mm": (20.0, "mm"),
             "registration_deg": (20.0, "deg"),
-            "em_distortion_mm": (20.0, "mm RMS over the workspace"),
+            "em_distortion_mm": (20.0, "mm RMS over the workspace, after a rigid fit"),
             "em_distortion_length_mm": (10000.0, "mm"),
             "sensor_offset_mm": (50.0, "mm"),
             "noise_mm": (10.0, "mm"),
@@ -138,7 +141,9 @@ class VirtualConfig:
         return cls(**d)
 
     def ideal(self) -> VirtualConfig:
-        """All effects off: the virtual robot is then the nominal TCM with perfect sensing."""
-        off: dict[str, Any] = {f.name: 0.0 for f in fields(self)}
+        """All effects off: the virtual robot is then the nominal TCM with perfect sensing. The
+        warp's length scale, a shape and no effect, keeps its value (so one field, em_distortion_mm,
+        switches the warp back on)."""
+        off: dict[str, Any] = {f.name: 0.0 for f in fields(self) if f.name not in SHAPES}
         off["readings_per_sample"] = 1
-        return VirtualConfig(**off)
+        return dataclasses.replace(self, **off)

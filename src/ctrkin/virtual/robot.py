@@ -45,9 +45,10 @@ def workspace(robot: Robot, rng: np.random.Generator, n: int = WORKSPACE_POINTS)
     nt = robot.n_tubes
     q = np.zeros((n, 2 * nt))
     q[:, :nt] = rng.uniform(0.0, 360.0, (n, nt))
-    # translations: each tube anywhere between fully retracted into the next and flush with it
+    # translations: the outer tube out by at least three quarters of its length, each inner one
+    # anywhere between fully retracted into the next and flush with it
     lengths = robot.lengths
-    q[:, 2 * nt - 1] = -rng.uniform(0.0, 1.0, n) * lengths[-1] * 0.5
+    q[:, 2 * nt - 1] = -rng.uniform(0.0, 0.25, n) * lengths[-1]
     for i in range(nt - 2, -1, -1):
         q[:, nt + i] = q[:, nt + i + 1] - rng.uniform(0.0, 1.0, n) * (lengths[i] - lengths[i + 1])
     return np.array([e.tip_position for e in solve_many(robot, robot.project_joints(q))])

@@ -36,6 +36,8 @@ LABELS = {
     "mlp": "MLP", "lstm": "LSTM", "cnn": "CNN", "tcn": "TCN", "resnet": "ResNet",
     "tcm": "TCM (point-wise)",
     "tcm_continued": "TCM (continued)",
+    "tcm_calibrated": "calibrated TCM (point-wise)",
+    "tcm_calibrated_continued": "calibrated TCM with friction (continued)",
 }
 
 # T(L) curves of sweeps_figure, drawn in this order (the recommended model last, on top): panel key
