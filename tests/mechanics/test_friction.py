@@ -158,7 +158,7 @@ def test_jacobian_with_friction_matches_finite_differences() -> None:
         def res(x: np.ndarray, var: bool = False, pb=pb, a=a) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             r, jac, ct = np.empty(2), np.empty((2, 2)), contact_arrays(pb)
             kernels.shoot(x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid, r, jac, var, *ct)
-            return r, jac, ct[3]
+            return r, jac, ct[4]
 
         x = prev.x
         _, jac, out = res(x, True)

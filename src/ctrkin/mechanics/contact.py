@@ -38,6 +38,8 @@ gap towards its own precurvature (the deficit of the ramped moment):
     (C7) ω = min(|ΔM| ℓ / (2 k_eff), 6 δ / ℓ) · ΔM / |ΔM|     (body-frame rotation of the backbone)
 
 with ℓ from (C2) at the scaled gap (Robot.clearance · δ). All angles in radians, lengths mm, forces N.
+(numba's cache tracks only a kernel's own file: after editing this file, clear the __pycache__
+folders of mechanics, whose kernels.py inlines these functions.)
 """
 
 from __future__ import annotations
@@ -293,37 +295,38 @@ def tilt(zb, ax, ay, ang):
 
 
 # columns of the per-station array cst (K, ST_COLS) and the per-pair array cpr (P, PR_COLS)
-ST_B, ST_PAIR, ST_LMAX, ST_HL, ST_HR, ST_TIP, ST_THETA = range(7)
-ST_COLS = 7
-PR_DD, PR_GAP, PR_RC, PR_LMIN = range(4)
-PR_COLS = 4
+ST_B, ST_PAIR, ST_LMAX, ST_HL, ST_HR, ST_TIP = range(6)
+ST_COLS = 6
+PR_GAP, PR_RC, PR_LMIN = range(3)
+PR_COLS = 3
 
 
 @njit(cache=True)
-def apply_stations(cst, cpr, cprm, cout, b, js, y, phi, zb, with_var, with_body, k, gj, kap, kapy,
-                   present, nb, work):
+def apply_stations(cst, cpr, cvar, cprm, cout, b, js, y, phi, zb, with_var, with_body, k, gj, kap,
+                   kapy, present, nb, work):
     """Apply the friction elements of breakpoint b (stations js, js + 1, … of cst) to the state: the
     torque jumps (C5) on y (2N,) and, if with_var, on the variation Φ (2N, N) through ∂f/∂y; if
     with_body, the elements' potential (the play element's, with T_max frozen) into the energy
     zb[12] and the clearance tilt (C7) of the backbone frame at an outer tube's tip.
 
-    cst (K, 7): per station (breakpoint, pair, ℓ_max mm, h_left mm, h_right mm, tip 0/1, θ rad);
-    cpr (P, 4): per pair (Δd mm, gap mm, contact radius mm, shortest couple mm);
-    cprm (4,) = (μ, ε mm, clearance, distributed 0/1); cout (K, 8): the stations' outputs
-    (contact.station), written; work: scratch of contact_work. Returns the index of the first
-    station past b."""
+    cst (K, 6): per station (breakpoint, pair, ℓ_max mm, h_left mm, h_right mm, tip 0/1);
+    cpr (P, 3): per pair (gap mm, contact radius mm, shortest couple mm); cvar (K + P,): the
+    step's state, θ (rad, NaN: fresh) per station then Δd (mm) per pair; cprm (4,) = (μ, ε mm,
+    clearance, distributed 0/1); cout (K, 8): the stations' outputs (contact.station), written;
+    work: scratch of contact_work. Returns the index of the first station past b."""
     mu, eps, clr = cprm[0], cprm[1], cprm[2]
     dist = cprm[3] > 0.0
     dfdy, scr, gm, row = work
     n = k.shape[0]
+    nst = cst.shape[0]
     gap, rc, lmin = cpr[:, PR_GAP], cpr[:, PR_RC], cpr[:, PR_LMIN]
-    while js < cst.shape[0] and int(cst[js, ST_B]) == b:
+    while js < nst and int(cst[js, ST_B]) == b:
         p = int(cst[js, ST_PAIR])
         o = p + 1
-        theta = cst[js, ST_THETA]
+        theta = cvar[js]
         ot = cout[js]
         f = station(y, b, p, cst[js, ST_LMAX], cst[js, ST_HL], cst[js, ST_HR], theta,
-                    cpr[p, PR_DD], nb, kap, kapy, present, k, gj, gap, rc, lmin, mu, eps, dist, clr,
+                    cvar[nst + p], nb, kap, kapy, present, k, gj, gap, rc, lmin, mu, eps, dist, clr,
                     dfdy, scr, gm, ot)
         if with_var:
             nc = phi.shape[1]
@@ -345,6 +348,36 @@ def apply_stations(cst, cpr, cprm, cout, b, js, y, phi, zb, with_var, with_body,
                 tilt(zb, ot[5], ot[6], ot[4])
         js += 1
     return js
+
+
+@njit(cache=True)
+def gather_state(theta_all, slot, q_now, q_then):
+    """The kernels' cvar (K + P,) of a friction state: θ (K,) of the stations' slots, then each
+    pair's relative translation Δ(β_p − β_{p+1}) (mm) from the state's joints q_then (2N,) to
+    q_now (2N,)."""
+    nst = slot.shape[0]
+    n = q_now.shape[0] // 2
+    out = np.empty(nst + n - 1)
+    for j in range(nst):
+        out[j] = theta_all[slot[j]]
+    for p in range(n - 1):
+        out[nst + p] = (q_now[n + p] - q_then[n + p]) - (q_now[n + p + 1] - q_then[n + p + 1])
+    return out
+
+
+@njit(cache=True)
+def state_after(slot, cout, cst, cpr, eps, size):
+    """Stuck offsets (size,) after a converged solve whose stations gave cout (K, 8): each element's
+    offset moved by its slip (C6), a fresh one set where it is, every other slot NaN (a contact
+    that is not a station any more loses its state)."""
+    theta = np.full(size, np.nan)
+    for j in range(slot.shape[0]):
+        phi, g = cout[j, 0], cout[j, 1]
+        if cout[j, 3] == FRESH:
+            theta[slot[j]] = phi
+        else:
+            theta[slot[j]] = phi - eps / cpr[int(cst[j, ST_PAIR]), PR_RC] * g
+    return theta
 
 
 @njit(cache=True)

@@ -17,13 +17,12 @@ import numpy as np
 from ctrkin.mechanics.arrays import RobotArrays
 from ctrkin.mechanics.contact import (
     FRESH,
-    PR_DD,
-    PR_RC,
     SLIP,
     ST_PAIR,
-    ST_THETA,
     STICK,
     build_stations,
+    gather_state,
+    state_after,
 )
 from ctrkin.mechanics.settings import SolverSettings
 
@@ -34,27 +33,30 @@ N_OUT = 8  # per-station outputs of contact.station (the kernels' cout (K, N_OUT
 
 @dataclass(frozen=True, eq=False)
 class Stations:
-    """The friction stations of one grid (contact.build_stations), K of them. table (K, 7): the
-    kernels' per-station array (breakpoint, pair, ℓ_max mm, h_left mm, h_right mm, tip 0/1, θ =
-    NaN); pairs (P, 4): the per-pair array (Δd = 0, gap mm, contact radius mm, shortest couple mm);
-    slot (K,): state slot; s (K,) mm: arc length; prm (4,) = (μ, ε mm, clearance, distributed
-    0/1) (contact.apply_stations)."""
+    """The friction stations of one grid (contact.build_stations), K of them. table (K, 6): the
+    kernels' per-station array (breakpoint, pair, ℓ_max mm, h_left mm, h_right mm, tip 0/1);
+    pairs (P, 3): the per-pair array (gap mm, contact radius mm, shortest couple mm); slot (K,):
+    state slot; s (K,) mm: arc length; prm (4,) = (μ, ε mm, clearance, distributed 0/1)
+    (contact.apply_stations); relaxed (K + P,): the kernels' cvar without a state (every θ NaN,
+    no translation)."""
 
     table: np.ndarray
     pairs: np.ndarray
     slot: np.ndarray
     s: np.ndarray
     prm: np.ndarray
+    relaxed: np.ndarray
 
     @classmethod
     def build(cls, arr: RobotArrays, bounds: np.ndarray, present: np.ndarray, code: np.ndarray,
               tips: np.ndarray, settings: SolverSettings) -> Stations:
         b, pair, slot, lmax, hl, hr, tip = build_stations(bounds, present, code, tips, arr.slots)
-        table = np.column_stack([b, pair, lmax, hl, hr, tip, np.full(b.shape[0], np.nan)])
-        pairs = np.column_stack([np.zeros(arr.gap.shape[0]), arr.gap, arr.rc, arr.lmin])
+        table = np.column_stack([b, pair, lmax, hl, hr, tip]).astype(float)
+        pairs = np.column_stack([arr.gap, arr.rc, arr.lmin])
         prm = np.array([arr.friction, settings.stick_mm, arr.clearance,
                         1.0 if settings.distributed_friction else 0.0])
-        return cls(table, pairs, slot, bounds[b], prm)
+        relaxed = np.r_[np.full(b.shape[0], np.nan), np.zeros(arr.gap.shape[0])]
+        return cls(table, pairs, slot, bounds[b], prm, relaxed)
 
     @property
     def count(self) -> int:
@@ -63,19 +65,6 @@ class Stations:
     @property
     def pair(self) -> np.ndarray:
         return self.table[:, ST_PAIR].astype(np.int64)
-
-    def arrays(self, theta: np.ndarray | None, dd: np.ndarray | None
-               ) -> tuple[np.ndarray, np.ndarray]:
-        """The kernels' cst (K, 7) and cpr (P, 4) for stuck offsets theta (K,) and relative
-        translations dd (P,) (None: fresh contacts, no translation)."""
-        cst, cpr = self.table, self.pairs
-        if theta is not None:
-            cst = cst.copy()
-            cst[:, ST_THETA] = theta
-        if dd is not None and dd.any():
-            cpr = cpr.copy()
-            cpr[:, PR_DD] = dd
-        return cst, cpr
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,21 +82,14 @@ class FrictionState:
 
     @classmethod
     def after(cls, st: Stations, out: np.ndarray, q: np.ndarray, size: int) -> FrictionState:
-        """The state after a converged solve whose stations gave out (K, 8) (contact.station): each
-        element's offset moved by its slip (C6), a fresh one set where it is; a contact that is
-        not a station any more loses its state. size: P · slots."""
-        theta = np.full(size, np.nan)
-        phi, g = out[:, 0], out[:, 1]
-        eps_t = st.prm[1] / st.pairs[st.table[:, ST_PAIR].astype(np.int64), PR_RC]
-        theta[st.slot] = np.where(out[:, 3] == FRESH, phi, phi - eps_t * g)
-        return cls(theta, q)
+        """The state after a converged solve whose stations gave out (K, 8) (contact.state_after:
+        each element's offset moved by its slip, C6). size: P · slots."""
+        return cls(state_after(st.slot, out, st.table, st.pairs, st.prm[1], size), q)
 
-    def gather(self, st: Stations, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """θ (K,) of the stations of a grid and dd (P,): each pair's relative translation
-        Δ(β_p − β_{p+1}) (mm) from this state's joints to q (2N,)."""
-        n = q.shape[0] // 2
-        dd = (q[n:2 * n - 1] - self.q[n:2 * n - 1]) - (q[n + 1:] - self.q[n + 1:])
-        return self.theta[st.slot], dd
+    def gather(self, st: Stations, q: np.ndarray) -> np.ndarray:
+        """The kernels' cvar (K + P,) of this state at joints q (2N,): θ of the stations, then each
+        pair's relative translation since the state (contact.gather_state)."""
+        return gather_state(self.theta, st.slot, q, self.q)
 
 
 @dataclass(frozen=True, eq=False)

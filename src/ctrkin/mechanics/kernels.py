@@ -279,12 +279,13 @@ def _straight_min_det(phi_a, phi_b, gj, m, p_int):
 @njit(cache=True)
 def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
                with_var, with_body, y, phi, zb, w, r, jac,
-               record, s_rec, p_rec, psi_rec, uz_rec, cst, cpr, cprm, cout):
+               record, s_rec, p_rec, psi_rec, uz_rec, cst, cpr, cvar, cprm, cout):
     """One integration pass from s = 0 with uz(0) = x: (M2) always, writing the residuals
     r_i = uiz(tip_i) (M4); the variation and jac = ∂r/∂x (N, N) if with_var; (M3) and the energy
     into zb if with_body; the grid records (see integrate_full) if record; the contact stations
     (mechanics.contact.apply_stations: friction jumps of uz, clearance tilt) at the breakpoints if
-    cst is not None (cst, cpr, cprm, cout: the contact arrays, None without contact effects).
+    cst is not None (cst, cpr, cvar, cprm, cout: the contact arrays, None without contact
+    effects).
 
     Returns min over s ∈ (0, min tip] of det H (_relative_det; +inf for one tube or without the
     variation). On a straight stretch taken in one exact step, Φ is affine in s, so det H is
@@ -302,8 +303,8 @@ def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, n
     js = 0
     if cst is not None:
         cw = contact_work(n)
-        js = apply_stations(cst, cpr, cprm, cout, 0, js, y, phi, zb, with_var, with_body, k, gj,
-                            kap, kapy, present, nb, cw)
+        js = apply_stations(cst, cpr, cvar, cprm, cout, 0, js, y, phi, zb, with_var, with_body, k,
+                            gj, kap, kapy, present, nb, cw)
     if record:
         s_rec[0] = 0.0
         p_rec[0, :] = 0.0
@@ -347,8 +348,8 @@ def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, n
             if d < min_det:
                 min_det = d
         if cst is not None:   # friction torques at the breakpoint, before the tips' residuals
-            js = apply_stations(cst, cpr, cprm, cout, seg + 1, js, y, phi, zb, with_var, with_body,
-                                k, gj, kap, kapy, present, nb, cw)
+            js = apply_stations(cst, cpr, cvar, cprm, cout, seg + 1, js, y, phi, zb, with_var,
+                                with_body, k, gj, kap, kapy, present, nb, cw)
         for i in range(n):
             if not done[i] and tips[i] <= b + S_TOL:
                 done[i] = True
@@ -361,10 +362,10 @@ def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, n
 
 @njit(cache=True)
 def shoot(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample, r, jac,
-          with_var, cst=None, cpr=None, cprm=None, cout=None):
+          with_var, cst=None, cpr=None, cvar=None, cprm=None, cout=None):
     """Integrate (M2) from s = 0 with uz(0) = x; write residuals r_i = uiz(tip_i) (M4) and, if
-    with_var, their exact Jacobian jac = ∂r/∂x (N, N); cst, cpr, cprm, cout: the contact arrays
-    (mechanics.contact.apply_stations), None without contact effects.
+    with_var, their exact Jacobian jac = ∂r/∂x (N, N); cst, cpr, cvar, cprm, cout: the contact
+    arrays (mechanics.contact.apply_stations), None without contact effects.
 
     x, alpha (rad), beta (mm), tips (mm): (N,). Returns min over s ∈ (0, min tip] of det H
     (see _relative_det; +inf for one tube or without the variation).
@@ -373,7 +374,7 @@ def shoot(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps
     return _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
                       nsample, with_var, False, np.empty(2 * n), np.empty((2 * n, n)),
                       np.empty(NB), _work(n), r, jac, False, np.empty(1), np.empty((1, 3)),
-                      np.empty((1, 1)), np.empty((1, 1)), cst, cpr, cprm, cout)
+                      np.empty((1, 1)), np.empty((1, 1)), cst, cpr, cvar, cprm, cout)
 
 
 @njit(cache=True)
@@ -397,7 +398,8 @@ C0 = 1e3
 
 @njit(cache=True)
 def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
-           tol, max_iter, max_step, x_out, body_out, cst=None, cpr=None, cprm=None, cout=None):
+           tol, max_iter, max_step, x_out, body_out, cst=None, cpr=None, cvar=None, cprm=None,
+           cout=None):
     """Damped Newton on the shooting residual from x0 (rad/mm).
 
     Writes the root to x_out and, if converged, body_out (7,) = tip position (3,) mm, unit tip
@@ -411,8 +413,8 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nste
     energy instead of the variation; J and det H are then those of the previous iterate, |Δx| ≤
     |r| / |J| away (≤ 1e-7 relative for tol 1e-10), which no stability decision can resolve. A
     wrong prediction costs that pass and Newton carries on. max_step bounds |Δx|∞ per iteration
-    (rad/mm). cst, cpr, cprm, cout: the contact arrays (mechanics.contact.apply_stations) or None;
-    the outputs cout are those of the last pass, at the root when converged. The friction
+    (rad/mm). cst, cpr, cvar, cprm, cout: the contact arrays (mechanics.contact.apply_stations)
+    or None; the outputs cout are those of the last pass, at the root when converged. The friction
     elements make the residual piecewise smooth (stick and slip): Newton on it is semismooth, its
     Jacobian that of the active branch of each element.
     """
@@ -435,7 +437,7 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nste
     rs, ps, qs, us = np.empty(1), np.empty((1, 3)), np.empty((1, 1)), np.empty((1, 1))
     mdet = _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
                       nsample, True, False, y, phi, zb, w, r, jac, False, rs, ps, qs, us,
-                      cst, cpr, cprm, cout)
+                      cst, cpr, cvar, cprm, cout)
     rn = np.abs(r).max()
     it = 0
     shoots = 1
@@ -459,7 +461,7 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nste
             if final:
                 _integrate(xt, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
                            nsample, False, True, y, phi, zb, w, rt, jt, False, rs, ps, qs, us,
-                           cst, cpr, cprm, cout)
+                           cst, cpr, cvar, cprm, cout)
                 shoots += 1
                 final = False
                 rnt = np.abs(rt).max()
@@ -469,7 +471,7 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nste
                     break
             md = _integrate(xt, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
                             nsample, True, False, y, phi, zb, w, rt, jt, False, rs, ps, qs, us,
-                            cst, cpr, cprm, cout)
+                            cst, cpr, cvar, cprm, cout)
             shoots += 1
             rnt = np.abs(rt).max()
             if rnt < (1.0 - 1e-4 * t) * rn or rnt < tol:
@@ -493,7 +495,8 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nste
         converged = rn < tol
     if converged and not have_body:
         _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
-                   False, True, y, phi, zb, w, rt, jt, False, rs, ps, qs, us, cst, cpr, cprm, cout)
+                   False, True, y, phi, zb, w, rt, jt, False, rs, ps, qs, us, cst, cpr, cvar, cprm,
+                   cout)
         shoots += 1
     if converged:
         _tip(zb, body_out)
@@ -522,8 +525,8 @@ def sane(x, body, tips):
 
 @njit(cache=True)
 def integrate_full(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
-                   record, s_rec, p_rec, psi_rec, uz_rec, body_out, cst=None, cpr=None, cprm=None,
-                   cout=None):
+                   record, s_rec, p_rec, psi_rec, uz_rec, body_out, cst=None, cpr=None, cvar=None,
+                   cprm=None, cout=None):
     """Integrate (M2), (M3) and the elastic energy at the solution x into body_out (7,) (_tip).
 
     If record, every grid point is written to s_rec (K,), p_rec (K, 3) mm, psi_rec (K, N) rad and
@@ -535,5 +538,6 @@ def integrate_full(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, presen
     zb = np.empty(NB)
     _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
                False, True, np.empty(2 * n), np.empty((2 * n, n)), zb, _work(n), np.empty(n),
-               np.empty((n, n)), record, s_rec, p_rec, psi_rec, uz_rec, cst, cpr, cprm, cout)
+               np.empty((n, n)), record, s_rec, p_rec, psi_rec, uz_rec, cst, cpr, cvar, cprm,
+               cout)
     _tip(zb, body_out)

@@ -123,8 +123,9 @@ class Problem:
     """A joint configuration prepared for the kernels (`prepare`): arrays of the robot, q (2N,),
     α (N,) rad, β − transmission length (N,) mm, tips (N,) mm, the grid of grid.build_grid
     (bounds, κx, κy, present, nsteps, nsample) and, with contact effects, its friction stations and
-    the friction state they are solved for (`with_state`), as the kernels' arrays cst (K, 7) and
-    cpr (P, 4) (mechanics.contact.apply_stations)."""
+    the friction state they are solved for (`with_state`), as the kernels' cvar (K + P,): the
+    stations' stuck offsets and the pairs' translations since the state
+    (mechanics.contact.apply_stations)."""
 
     arrays: RobotArrays
     q: np.ndarray
@@ -134,9 +135,8 @@ class Problem:
     grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
     n_rk4: int         # RK4 steps of one integration pass (grid[4] summed once, not per solve)
     stations: Stations | None = None
-    cst: np.ndarray | None = None
-    cpr: np.ndarray | None = None
-    state: FrictionState | None = None   # the state cst and cpr were built from
+    cvar: np.ndarray | None = None
+    state: FrictionState | None = None   # the state cvar was gathered from
 
     @property
     def length(self) -> float:
@@ -178,7 +178,7 @@ def with_alpha(pb: Problem, q: np.ndarray, state: FrictionState | object | None 
     new (a rotation step of a continuation needs no new grid). state: the friction state to solve
     for (default: pb's)."""
     out = Problem(pb.arrays, q, np.radians(q[:pb.alpha.shape[0]]), pb.beta, pb.tips, pb.grid,
-                  pb.n_rk4, pb.stations, pb.cst, pb.cpr, pb.state)
+                  pb.n_rk4, pb.stations, pb.cvar, pb.state)
     return out if state is _KEEP else with_state(out, state)  # type: ignore[arg-type]
 
 
@@ -188,9 +188,8 @@ def with_state(pb: Problem, state: FrictionState | None) -> Problem:
     st = pb.stations
     if st is None:
         return pb
-    cst, cpr = st.arrays(None, None) if state is None else st.arrays(*state.gather(st, pb.q))
-    return Problem(pb.arrays, pb.q, pb.alpha, pb.beta, pb.tips, pb.grid, pb.n_rk4, st, cst, cpr,
-                   state)
+    cvar = st.relaxed if state is None else state.gather(st, pb.q)
+    return Problem(pb.arrays, pb.q, pb.alpha, pb.beta, pb.tips, pb.grid, pb.n_rk4, st, cvar, state)
 
 
 @functools.lru_cache(maxsize=64)
@@ -265,18 +264,20 @@ def newton(pb: Problem, x0: np.ndarray, settings: SolverSettings, work: list[int
         return NewtonResult.failed(x0.copy())  # numerics broke down
     if work is not None:
         work[0] += shoots * pb.n_rk4
-    return NewtonResult(x, conv, it, rn, det_j, det_h, body if conv else _NO_BODY, ct[3])
+    return NewtonResult(x, conv, it, rn, det_j, det_h, body if conv else _NO_BODY, ct[4])
 
 
-_NO_CONTACT = (None, None, None, None)
+_NO_CONTACT = (None, None, None, None, None)
 
 
 def contact_arrays(pb: Problem) -> tuple[np.ndarray | None, ...]:
-    """The kernels' contact arrays of pb (cst, cpr, cprm, cout: mechanics.contact.apply_stations),
-    with a fresh output array; four None without contact effects."""
-    if pb.stations is None or pb.cst is None or pb.cpr is None:
+    """The kernels' contact arrays of pb (cst, cpr, cvar, cprm, cout:
+    mechanics.contact.apply_stations), with a fresh output array; five None without contact
+    effects."""
+    st = pb.stations
+    if st is None or pb.cvar is None:
         return _NO_CONTACT
-    return pb.cst, pb.cpr, pb.stations.prm, np.zeros((pb.stations.count, N_OUT))
+    return st.table, st.pairs, pb.cvar, st.prm, np.empty((st.count, N_OUT))
 
 
 def _integrate(pb: Problem, x: np.ndarray, record: bool
