@@ -4,14 +4,20 @@ each effect alone (issue 20, goals 2 and 3; docs/virtual_robot.md: What the defa
     python benchmarks/bench_virtual_effects.py                  # defaults and each effect alone
     python benchmarks/bench_virtual_effects.py --seeds 0 1 2 3 4 --only defaults
     python benchmarks/bench_virtual_effects.py --only defaults --set tube_friction=0.5
+    python benchmarks/bench_virtual_effects.py --only defaults --calibrated   # + calibrated TCM rows
 
-For each configuration, one virtual robot per seed records the quick paper protocol (the training
-data), the 20 random points and the arbitrary path of `ctrkin reproduce`; the paper's TCM baseline
-(the nominal robot, point-wise, no history) is registered to the tracker on the training rows, as
-`ctrkin reproduce` does (evaluation/tcm_baseline.py, Kabsch on up to 2,000 rows), and scored
-against the measurement on the random points' targets and along the arbitrary path (encoder
-glitches left out). Prints a table (RMSE and max in mm, per experiment; medians over seeds when
-there are several) and ends with one JSON line of the figures.
+For each configuration, one virtual robot per seed records the paper protocol at d = 4, 12, 20 mm
+and four outer angles (8,652 samples, the training data), the 20 random points and the arbitrary
+path of `ctrkin reproduce`; the paper's TCM baseline (the nominal robot, point-wise, no history) is
+registered to the tracker on the training rows, as `ctrkin reproduce` does
+(evaluation/tcm_baseline.py, Kabsch on up to 2,000 rows), and scored against the measurement on the
+random points' targets and along the arbitrary path (encoder glitches left out). With --calibrated,
+the defaults row also gets the calibrated physics baseline of `ctrkin reproduce` (issue 20, goal 4):
+`ctrkin calibrate` on the training rows at the quick scale's budget (evaluation/reproduce.py: every
+group and μ), scored point-wise (`tcm_calibrated`) and followed along each sequence with the
+friction state carried (`tcm_calibrated_continued`), with its time per point / step. Prints a table
+(RMSE and max in mm, per experiment; medians over seeds when there are several) and ends with one
+JSON line of the figures.
 """
 
 from __future__ import annotations
@@ -51,21 +57,43 @@ EFFECTS = {
 }
 
 
+# the training recording: 3 levels × 4 outer angles × 721 = 8,652 samples, pinned (the quick scale's
+# size changes between versions)
+TRAIN = {"levels": (4.0, 12.0, 20.0), "outer_step_deg": 90.0}
+
+
 def alone(fields: tuple[str, ...]) -> VirtualConfig:
     """The ideal robot with `fields` at their defaults."""
     d = VirtualConfig()
     return dataclasses.replace(VirtualConfig().ideal(), **{f: getattr(d, f) for f in fields})
 
 
-def score(config: VirtualConfig, seed: int, workers: int) -> dict[str, float]:
+def _errors(pred: np.ndarray, measured: np.ndarray) -> tuple[float, float]:
+    e = position_error(pred, measured)
+    return float(np.sqrt(np.nanmean(e ** 2))), float(np.nanmax(e))
+
+
+def score(config: VirtualConfig, seed: int, workers: int, calibrated: bool = False) -> dict[str, float]:
     robot = paper_robot()
     virtual = VirtualRobot(robot, config, seed=seed)
-    train = record(protocols.build("paper", robot, scale="quick", seed=0), virtual, seed=0,
+    train = record(protocols.build("paper", robot, scale="quick", seed=0, **TRAIN), virtual, seed=0,
                    workers=workers, progress=False)
     rows = train.get_split().train
     tcm = TCMBaseline(robot)
     tcm.fit_registration(train.joints()[rows], train.poses()[rows], max_points=2000)
+    cal = None
     out: dict[str, float] = {}
+    if calibrated:   # as evaluation/reproduce.py's _tcm_calibrated at the quick scale
+        from ctrkin.calibration import calibrate  # (here: the benchmark also runs on older trees)
+        from ctrkin.calibration.params import FRICTION, GROUPS
+        from ctrkin.evaluation.reproduce import CALIBRATION_BUDGET
+        n_rows, nfev, samples = CALIBRATION_BUDGET["quick"]
+        fit_rows = np.sort(np.random.default_rng(0).choice(rows, min(n_rows, len(rows)), replace=False))
+        t0 = time.perf_counter()
+        res = calibrate(train, robot, (*GROUPS, FRICTION), rows=fit_rows, max_nfev=nfev,
+                        friction_samples=samples)
+        cal = res.model
+        out |= {"calibration_s": time.perf_counter() - t0, "calibrated_mu": cal.robot.friction}
     for name, kw, seed_noise in (("random_points", {"n_points": 20}, 2), ("arbitrary", {}, 3)):
         ds = record(protocols.build(name.replace("_", "-"), robot, scale="quick", seed=seed_noise, **kw),
                     virtual, seed=seed_noise, workers=workers, progress=False)
@@ -73,9 +101,20 @@ def score(config: VirtualConfig, seed: int, workers: int) -> dict[str, float]:
         if "is_target" in ds.frame and name == "random_points":
             keep &= ds.frame["is_target"].to_numpy()
         idx = np.nonzero(keep)[0]
-        e = position_error(tcm.predict(ds.joints()[idx], desc="TCM"), ds.poses()[idx])
-        out[f"{name}_rmse_mm"] = float(np.sqrt(np.mean(e ** 2)))
-        out[f"{name}_max_mm"] = float(e.max())
+        measured = ds.poses()[idx]
+        out[f"{name}_rmse_mm"], out[f"{name}_max_mm"] = _errors(
+            tcm.predict(ds.joints()[idx], desc="TCM"), measured)
+        if cal is None:
+            continue
+        t0 = time.perf_counter()
+        point = cal.predict(ds.joints()[idx])
+        t1 = time.perf_counter()
+        cont = cal.predict_continued(ds.joints(), ds.sequence_bounds())
+        t2 = time.perf_counter()
+        out[f"{name}_cal_rmse_mm"], out[f"{name}_cal_max_mm"] = _errors(point, measured)
+        out[f"{name}_cal_cont_rmse_mm"], out[f"{name}_cal_cont_max_mm"] = _errors(cont[idx], measured)
+        out[f"{name}_cal_us_per_point"] = (t1 - t0) / len(idx) * 1e6
+        out[f"{name}_cal_cont_us_per_step"] = (t2 - t1) / len(ds.frame) * 1e6
     return out
 
 
@@ -86,6 +125,8 @@ def main() -> None:
     ap.add_argument("--only", choices=["defaults", "all"], default="all")
     ap.add_argument("--set", dest="settings", action="append", default=[], metavar="KEY=VALUE",
                     help="change a default (VirtualConfig field) of the 'defaults' row")
+    ap.add_argument("--calibrated", action="store_true",
+                    help="also calibrate the TCM on the defaults row's training data (goal 4)")
     args = ap.parse_args()
     changed = {k: type(getattr(VirtualConfig(), k))(v)
                for k, v in (item.split("=", 1) for item in args.settings)}
@@ -95,16 +136,27 @@ def main() -> None:
         configs["ideal (no effect)"] = VirtualConfig().ideal()
         configs |= {name: alone(fields) for name, fields in EFFECTS.items()}
     keys = ("random_points_rmse_mm", "random_points_max_mm", "arbitrary_rmse_mm", "arbitrary_max_mm")
-    print(f"nominal TCM vs measured, registration fitted on the quick paper protocol; seeds {args.seeds}")
+    print("nominal TCM vs measured, registration fitted on the paper protocol (8,652 samples); "
+          f"seeds {args.seeds}")
     print(f"{'configuration':32s} {'random RMSE':>11s} {'max':>6s} {'arbitrary RMSE':>14s} {'max':>6s}  s")
     summary: dict[str, dict[str, float]] = {}
     for name, cfg in configs.items():
         t0 = time.perf_counter()
-        runs = [score(cfg, s, args.workers) for s in args.seeds]
-        med = {k: float(np.median([r[k] for r in runs])) for k in keys}
+        runs = [score(cfg, s, args.workers, args.calibrated and name == label) for s in args.seeds]
+        med = {k: float(np.median([r[k] for r in runs])) for k in runs[0]}
         summary[name] = med | {f"{k}_seeds": [r[k] for r in runs] for k in keys}  # type: ignore[misc]
         print(f"{name:32s} {med[keys[0]]:11.2f} {med[keys[1]]:6.2f} {med[keys[2]]:14.2f} "
               f"{med[keys[3]]:6.2f}  {time.perf_counter() - t0:.0f}")
+        for row, pre in (("  calibrated TCM, point-wise", "cal"),
+                         ("  calibrated TCM, continued", "cal_cont")):
+            if f"random_points_{pre}_rmse_mm" in med:
+                print(f"{row:32s} {med[f'random_points_{pre}_rmse_mm']:11.2f} "
+                      f"{med[f'random_points_{pre}_max_mm']:6.2f} {med[f'arbitrary_{pre}_rmse_mm']:14.2f} "
+                      f"{med[f'arbitrary_{pre}_max_mm']:6.2f}")
+        if "calibrated_mu" in med:
+            print(f"  calibration {med['calibration_s']:.0f} s, fitted μ {med['calibrated_mu']:.3f}; "
+                  f"{med['arbitrary_cal_us_per_point']:.0f} µs per point (point-wise), "
+                  f"{med['arbitrary_cal_cont_us_per_step']:.0f} µs per step (continued, arbitrary path)")
     print(json.dumps(summary))
 
 
