@@ -8,7 +8,8 @@ The logs are read where they lie (never copied into the repository); without the
 says so and exits 0. Reports, for each set: samples after cleaning; the nominal TCM with a fitted
 registration only, and the calibrated TCM (registration, precurvature, stiffness ratio, α/β offsets,
 transmission length, marker offset), both leave-one-sequence-out (each file predicted by a fit to
-the others); for OptiTrack also the learned FK (LSTM-MLP) trained on the −90..90° sweep and the
+the others), and the calibration with per-tube bending stiffness added (`bending_stiffness`, not a
+default group); for OptiTrack also the learned FK (LSTM-MLP) trained on the −90..90° sweep and the
 random points (validation: 15 % of their rows) and tested on the held-out −45..45° sweep: the mean
 prediction of FK_SEEDS networks that differ only in their seed (averaging removes the seed-to-seed
 variance), for each angle encoding in FK_ENCODINGS; the encoding whose average has the lower
@@ -18,8 +19,14 @@ chosen per fold among PRIOR_SCALES by a nested leave-one-sequence-out on the tra
 only. Also printed: the speed-up of the calibration Jacobian (exact TCM sensitivities against
 forward differences), and for NDI the repeat-run disagreement and an estimate of the floor for any
 calibration that cannot know a session's offset. Goals:
-OptiTrack calibrated ≤ 0.8 mm, FK ≤ 0.5 mm, NDI calibrated ≤ 4 mm (mean tip distance). Ends with one
-JSON line.
+OptiTrack calibrated ≤ 0.8 mm, FK ≤ 0.5 mm, NDI calibrated ≤ 4 mm (mean tip distance).
+
+Three tubes (no real three-tube log is in shared/): logs recorded on a virtual three-tube comet
+robot and written in the lab's NDI format (benchmarks/three_tube_logs.py: two random sessions, a
+wide and a narrow inner-tube sweep), imported with examples/profiles/comet_ndi_3tube.toml, then the
+same path: nominal and calibrated TCM leave-one-sequence-out (prior at its listed strength), and
+the learned FK (LSTM-MLP, sin/cos angles, mean of THREE_TUBE_SEEDS seeds) trained on the other
+sessions and tested on the held-out narrow sweep. Ends with one JSON line.
 """
 
 from __future__ import annotations
@@ -33,9 +40,10 @@ from pathlib import Path
 import numpy as np
 
 from ctrkin.calibration import leave_one_sequence_out
+from ctrkin.calibration.params import GROUPS
 from ctrkin.data.profile import load_profile
 from ctrkin.data.profile_import import import_with_profile
-from ctrkin.data.splits import Split, split_with_test
+from ctrkin.data.splits import split_with_test_val_rows
 from ctrkin.robots.robot import Robot
 
 REPO = Path(__file__).resolve().parents[1]
@@ -44,6 +52,8 @@ HELD_OUT_SWEEP = "19_05_23-13_08_2-tubes_rotate"
 FK_SEEDS = 5
 FK_ENCODINGS = ("minmax", "sincos")    # the paper's min-max angles, or sin/cos of each angle
 PRIOR_SCALES = (0.5, 1.0, 2.0)
+THREE_TUBE_HELD_OUT = "2023-12-04_sweep-narrow"
+THREE_TUBE_SEEDS = 3
 
 
 def load(data: Path, name: str, folder: str):
@@ -108,27 +118,24 @@ def session_floor(ds) -> tuple[float, float]:
     return repeat, float(err.mean())
 
 
-def learned_fk(ds, out: Path, max_epochs: int, encoding: str
+def learned_fk(ds, out: Path, max_epochs: int, encoding: str, held_out: str = HELD_OUT_SWEEP,
+               seeds: int = FK_SEEDS, name: str = "optitrack"
                ) -> tuple[float, list[float], float, list[float]]:
-    """LSTM-MLP FK on the held-out sweep, mean tip distance (mm): (average of FK_SEEDS seeds, each
+    """LSTM-MLP FK on the held-out sweep, mean tip distance (mm): (average of `seeds` seeds, each
     seed's; the same on the validation rows)."""
     from ctrkin.inference import Kinematics
     from ctrkin.training import TrainConfig, train
 
     labels = list(ds.meta["sequence_labels"])
-    by_seq = split_with_test(ds.frame["sequence_id"].to_numpy(), labels, [HELD_OUT_SWEEP])
     # validation (early stopping only): 15 % of the other sequences' rows, seeded. A whole validation
     # sequence would be the 21 random points, unlike the sweep tested on, and stop training early.
-    rest = np.sort(np.r_[by_seq.train, by_seq.val])
-    perm = np.random.default_rng(0).permutation(rest)
-    n_val = round(0.15 * len(rest))
-    ds.split = Split(np.sort(perm[n_val:]), np.sort(perm[:n_val]), by_seq.test, kind="random", seed=0,
-                     fractions=(0.7, 0.15, 0.15), n_rows=len(ds.frame))
+    # The CLI makes the same split: ctrkin dataset split DATA --test NAME --val-rows 0.15
+    ds.split = split_with_test_val_rows(ds.frame["sequence_id"].to_numpy(), labels, [held_out], 0.15)
     preds = []
-    for seed in range(FK_SEEDS):
+    for seed in range(seeds):
         cfg = TrainConfig(task="fk", model="lstm_mlp", split="dataset", max_epochs=max_epochs, patience=60,
                           lr_schedule="cosine", seed=seed, threads=1, angle_encoding=encoding)
-        folder = out / f"fk_optitrack_{encoding}_seed{seed}"
+        folder = out / f"fk_{name}_{encoding}_seed{seed}"
         train(ds, cfg, folder, overwrite=True, progress=False)
         preds.append(Kinematics.load(folder).predict(ds)[:, :3])
     meas = ds.poses()[:, :3]
@@ -141,19 +148,55 @@ def learned_fk(ds, out: Path, max_epochs: int, encoding: str
             err(mean, ds.split.val), [err(p, ds.split.val) for p in preds])
 
 
+def three_tubes(out: Path, max_epochs: int, res: dict) -> list[tuple[str, str, str, str]]:
+    """The three-tube row (module docstring): logs of a virtual robot in the NDI format, imported
+    with the documented profile, calibrated and learned."""
+    from three_tube_logs import record
+
+    robot = Robot.from_toml(REPO / "examples" / "robots" / "comet_nylon_ndi_3tube.toml")
+    profile = load_profile(REPO / "examples" / "profiles" / "comet_ndi_3tube.toml", robot.n_tubes)
+    ds = import_with_profile(record(out / "three_tube_logs"), profile, robot)
+    nominal = leave_one_sequence_out(ds, groups=("registration",))
+    calibrated = leave_one_sequence_out(ds)
+    fk, fk_seeds, _, _ = learned_fk(ds, out, max_epochs, "sincos", THREE_TUBE_HELD_OUT, THREE_TUBE_SEEDS,
+                                    "three_tube")
+    res.update(three_tube_samples=len(ds.frame), three_tube_tcm_nominal_mm=round(nominal["mean_mm"], 3),
+               three_tube_tcm_calibrated_loso_mm=round(calibrated["mean_mm"], 3),
+               three_tube_fk_heldout_mm=round(fk, 3))
+    name = "3-tube"
+    rows = [(name, "samples after cleaning (virtual robot, NDI format)", f"{len(ds.frame)}",
+             f"{ds.meta['cleaning']['profile_drops']['rows_status']} rows dropped by status"),
+            (name, "TCM nominal, fitted registration (LOSO)", f"{nominal['mean_mm']:.3f} mm", ""),
+            (name, "TCM calibrated (LOSO)", f"{calibrated['mean_mm']:.3f} mm", "")]
+    for seq, e in calibrated["per_sequence"].items():
+        rows.append((name, f"  held out {seq}", f"{e:.3f} mm", f"nominal {nominal['per_sequence'][seq]:.3f}"))
+    rows.append((name, f"learned FK ({THREE_TUBE_SEEDS}-seed mean, sincos), held-out narrow sweep",
+                 f"{fk:.3f} mm", "single seeds " + " ".join(f"{e:.3f}" for e in fk_seeds)))
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
     ap.add_argument("--out", type=Path, default=REPO / "out" / "bench_realdata")
     ap.add_argument("--epochs", type=int, default=600, help="FK training epochs (early stopping on)")
+    ap.add_argument("--only", choices=("all", "three-tube"), default="all",
+                    help="three-tube: only the three-tube row (needs no shared data)")
     args = ap.parse_args()
+    if args.only == "three-tube":
+        args.out.mkdir(parents=True, exist_ok=True)
+        res: dict[str, float | int] = {}
+        for r in three_tubes(args.out, args.epochs, res):
+            print(f"{r[0]:10s} {r[1]:60s} {r[2]:>12s}  {r[3]}")
+        print(json.dumps(res))
+        return
     if not (args.data / "optitrack-2tube").is_dir() or not (args.data / "ndi-2tube").is_dir():
         print(f"skipped: the comet-lab logs are not at {args.data} (expected optitrack-2tube/ and "
               "ndi-2tube/ there; pass --data)")
         sys.exit(0)
     args.out.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
-    res: dict[str, float | int] = {}
+    res = {}
     rows = []
     for name, folder in (("optitrack", "optitrack-2tube"), ("ndi", "ndi-2tube")):
         ds = load(args.data, name, folder)
@@ -168,6 +211,11 @@ def main() -> None:
         for seq, e in calibrated["per_sequence"].items():
             note = f"nominal {nominal['per_sequence'][seq]:.3f}, prior scale {calibrated['prior_scale'][seq]}"
             rows.append((name, f"  held out {seq}", f"{e:.3f} mm", note))
+        bending = leave_one_sequence_out(ds, groups=(*GROUPS, "bending_stiffness"), prior_scales=PRIOR_SCALES)
+        res[f"{name}_tcm_calibrated_bending_loso_mm"] = round(bending["mean_mm"], 3)
+        per_file = " ".join(f"{e:.3f}" for e in bending["per_sequence"].values())
+        rows.append((name, "TCM calibrated + per-tube bending stiffness (LOSO)",
+                     f"{bending['mean_mm']:.3f} mm", f"--fit ...,bending_stiffness; per file {per_file}"))
         t_exact, t_fd = jacobian_speedup(ds)
         rows.append((name, "calibration Jacobian: exact / forward differences",
                      f"{t_exact * 1e3:.0f} ms", f"{t_fd * 1e3:.0f} ms ({t_fd / t_exact:.1f}x)"))
@@ -187,13 +235,17 @@ def main() -> None:
             rows.append((name, "October runs, same joints: tip distance", f"{repeat:.3f} mm", ""))
             rows.append((name, "LOSO floor estimate, session offset unknown", f"{floor:.3f} mm",
                          "mechanics fitted on all sessions"))
+    rows += three_tubes(args.out, args.epochs, res)
     width = max(len(r[1]) for r in rows)
     print(f"{'set':10s} {'quantity':{width}s} {'value':>12s}  goal / note")
     for r in rows:
         print(f"{r[0]:10s} {r[1]:{width}s} {r[2]:>12s}  {r[3]}")
     print(f"({time.time() - t0:.0f} s)")
     order = ["optitrack_samples", "optitrack_tcm_nominal_mm", "optitrack_tcm_calibrated_loso_mm",
-             "optitrack_fk_heldout_mm", "ndi_samples", "ndi_tcm_nominal_mm", "ndi_tcm_calibrated_loso_mm"]
+             "optitrack_tcm_calibrated_bending_loso_mm", "optitrack_fk_heldout_mm", "ndi_samples",
+             "ndi_tcm_nominal_mm", "ndi_tcm_calibrated_loso_mm", "ndi_tcm_calibrated_bending_loso_mm",
+             "three_tube_samples", "three_tube_tcm_nominal_mm", "three_tube_tcm_calibrated_loso_mm",
+             "three_tube_fk_heldout_mm"]
     (args.out / "report.json").write_text(json.dumps({k: res[k] for k in order}, indent=2))
     print(json.dumps({k: res[k] for k in order}))
 

@@ -6,13 +6,18 @@
                                                # (for code whose hangs sit in compiled kernels)
 
 Areas: solve, follow, Tube/Robot construction, robot TOML files, learned FK predict and step, IK
-predict and step, CSV log import, corrupted dataset folders, corrupted model folders. Every input is
-drawn from a seeded generator (--seed) and its outcome classified:
+predict and step, CSV log import, corrupted dataset folders, corrupted model folders; and (issue 27,
+benchmarks/fuzz_folders.py) the output rule of the commands (`output`), folders under file-system
+adversity (`fs`: planted links, glob and odd names, leftovers of killed runs, read-only folders, full
+disks) and concurrent readers and writers of datasets and model folders (`concurrency`). Every input
+is drawn from a seeded generator (--seed) and its outcome classified:
 
     ok       a result that passes the oracle          clear    a CtrkinError (names what to change)
     flagged  a result marked as doubtful (converged=False, in_workspace=False, projected ...)
     crash    any other exception                      silent   a result that fails the oracle, unflagged
     hang     the input ran longer than HANG_S seconds
+    lost     content that was there before (or outside the output) changed or vanished
+    mixed    a read that gave neither the old nor the new version of a folder being replaced
 
 Oracles (the issue's sanity checks): a converged equilibrium has a finite tip no farther from the base
 than the robot reaches and a unit tip tangent; a single curved tube is on its exact arc (docs/mechanics.md
@@ -58,11 +63,15 @@ from ctrkin.pose import tangent_from_quat
 from ctrkin.training import TrainConfig, train
 from ctrkin.training.demo import sweep_dataset
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import fuzz_folders  # a sibling module of this script
+
 HANG_S = 10.0
-OUTCOMES = ("ok", "clear", "flagged", "crash", "silent", "hang")
-AREAS = {  # area: inputs at scale 1 (21,100 in all)
+OUTCOMES = ("ok", "clear", "flagged", "crash", "silent", "hang", "lost", "mixed")
+BAD = ("crash", "silent", "hang", "lost", "mixed")
+AREAS = {  # area: inputs at scale 1 (21,740 in all)
     "tube_robot": 7000, "solve": 3000, "toml": 4000, "follow": 200, "fk_predict": 2000, "fk_step": 2000,
-    "ik": 1500, "csv": 600, "dataset_folder": 500, "model_folder": 300,
+    "ik": 1500, "csv": 600, "dataset_folder": 500, "model_folder": 300, **fuzz_folders.COUNTS,
 }
 
 
@@ -160,7 +169,7 @@ def arc_tip(tube: Tube, beta: float, alpha_deg: float) -> np.ndarray:
         p = np.array([0.0, 0.0, s0 + c])
     else:
         p = np.array([0.0, -(1 - math.cos(k * c)) / k, s0 + math.sin(k * c) / k])
-    a = math.radians(alpha_deg)
+    a = math.radians(math.fmod(alpha_deg, 360.0))   # α degrees, not radians(α)'s rounded product
     return np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]]) @ p
 
 
@@ -464,7 +473,7 @@ def case_model_folder(rng: np.random.Generator, ctx: dict[str, Any]) -> str:
 CASES: dict[str, Callable[[np.random.Generator, dict[str, Any]], str]] = {
     "tube_robot": case_tube_robot, "solve": case_solve, "toml": case_toml, "follow": case_follow,
     "fk_predict": case_fk_predict, "fk_step": case_fk_step, "ik": case_ik, "csv": case_csv,
-    "dataset_folder": case_dataset_folder, "model_folder": case_model_folder,
+    "dataset_folder": case_dataset_folder, "model_folder": case_model_folder, **fuzz_folders.CASES,
 }
 
 
@@ -497,25 +506,33 @@ def setup(tmp: Path, seed: int) -> dict[str, Any]:
     reps = np.repeat(np.arange(40), 5)
     ctx["log"] = pd.DataFrame({"step": reps, **{c: q[reps, j] for j, c in enumerate(robot.joint_names())},
                                **{c: poses[reps, j] for j, c in enumerate(POSE_COLUMNS)}})
+    fuzz_folders.setup(ctx, seed)
     assert np.allclose(np.linalg.norm(tangent_from_quat(poses[:, 3:]), axis=1), 1.0)
     return ctx
 
 
-def run(scale: float, seed: int, log: Callable[[str], None] = print, isolate: bool = False
-        ) -> dict[str, Counter[str]]:
-    """Counts of outcomes per area; input i of area k draws from its own generator (seed, k, i)."""
+def run(scale: float, seed: int, log: Callable[[str], None] = print, isolate: bool = False,
+        only: tuple[str, ...] = (), slow_s: float | None = None) -> dict[str, Counter[str]]:
+    """Counts of outcomes per area; input i of area k draws from its own generator (seed, k, i).
+    only: run these areas alone (the same inputs as in a whole run); slow_s: log every input that
+    takes longer than this (s), with its index and outcome."""
     counts: dict[str, Counter[str]] = defaultdict(Counter)
     examples: dict[tuple[str, str], str] = {}
     old = signal.signal(signal.SIGALRM, _alarm)
     with tempfile.TemporaryDirectory() as d:
         ctx = setup(Path(d), seed)
         for k, (area, n) in enumerate(AREAS.items()):
+            if only and area not in only:
+                continue
             t0 = time.perf_counter()
             for i in range(max(1, round(n * scale))):
                 rng = np.random.default_rng([seed, k, i])
+                t1 = time.perf_counter()
                 outcome, note = (_isolated if isolate else _one)(CASES[area], rng, ctx)
+                if slow_s is not None and time.perf_counter() - t1 > slow_s:
+                    log(f"  {area} input {i}: {outcome} in {time.perf_counter() - t1:.1f} s")
                 counts[area][outcome] += 1
-                if outcome in ("crash", "silent", "hang"):
+                if outcome in BAD:
                     examples.setdefault((area, note[:60]), note)
             log(f"{area:15s} {sum(counts[area].values()):6d} inputs in {time.perf_counter() - t0:6.1f} s")
     signal.signal(signal.SIGALRM, old)
@@ -533,10 +550,16 @@ def _one(fn: Callable[[np.random.Generator, dict[str, Any]], str], rng: np.rando
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             outcome = fn(rng, ctx)
-    except Hang:
-        outcome = "hang"
-    except Silent as e:
+    except (Hang, fuzz_folders.Hang) as e:
+        outcome, note = "hang", str(e)
+    except (Silent, fuzz_folders.Silent) as e:
         outcome, note = "silent", str(e)
+    except fuzz_folders.Lost as e:
+        outcome, note = "lost", str(e)
+    except fuzz_folders.Mixed as e:
+        outcome, note = "mixed", str(e)
+    except fuzz_folders.Crash as e:
+        outcome, note = "crash", str(e)
     except CtrkinError:
         outcome = "clear"
     except Exception as e:  # every other exception is what we count as a crash
@@ -583,7 +606,9 @@ def table(counts: dict[str, Counter[str]]) -> str:
     lines = [f"{'area':15s} " + " ".join(f"{o:>8s}" for o in OUTCOMES) + f" {'total':>8s}"]
     total: Counter[str] = Counter()
     for area in AREAS:
-        c = counts.get(area, Counter())
+        if area not in counts:
+            continue
+        c = counts[area]
         total.update(c)
         lines.append(f"{area:15s} " + " ".join(f"{c[o]:8d}" for o in OUTCOMES) + f" {sum(c.values()):8d}")
     cells = " ".join(f"{total[o]:8d}" for o in OUTCOMES)
@@ -596,9 +621,16 @@ def main() -> int:
     ap.add_argument("--scale", type=float, default=1.0, help="fraction of the default input counts")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--isolate", action="store_true", help="one forked process per input")
+    ap.add_argument("--areas", default="", help="comma-separated areas to run alone (default: all)")
+    ap.add_argument("--slow", type=float, default=None, metavar="S",
+                    help="print every input that takes longer than S seconds")
     args = ap.parse_args()
     t0 = time.perf_counter()
-    counts = run(args.scale, args.seed, isolate=args.isolate)
+    only = tuple(a for a in args.areas.split(",") if a)
+    unknown = sorted(set(only) - set(AREAS))
+    if unknown:
+        ap.error(f"unknown area(s) {unknown}; areas: {list(AREAS)}")
+    counts = run(args.scale, args.seed, isolate=args.isolate, only=only, slow_s=args.slow)
     print(table(counts))
     total: Counter[str] = Counter()
     for c in counts.values():
@@ -606,7 +638,7 @@ def main() -> int:
     print(f"{sum(total.values())} inputs in {time.perf_counter() - t0:.0f} s")
     print(json.dumps({"inputs": sum(total.values()), **{o: total[o] for o in OUTCOMES},
                       "by_area": {a: dict(c) for a, c in counts.items()}}))
-    return 0 if total["crash"] + total["silent"] + total["hang"] == 0 else 1
+    return 0 if sum(total[o] for o in BAD) == 0 else 1
 
 
 if __name__ == "__main__":

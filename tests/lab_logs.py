@@ -45,26 +45,40 @@ def optitrack_log(path: Path, lab_q: np.ndarray, tips_mm: np.ndarray, repeats: i
 
 def ndi_log(path: Path, lab_q: np.ndarray, tips_ref_mm: np.ndarray, ref_rot: Rotation,
             ref_pos: np.ndarray, repeats: int = 20, bad_rows: tuple[int, ...] = ()) -> Path:
-    """Header-less NDI layout: G-code, X Y Z travel, A B C, tool 1 (status, xyz, q, rms), tool 2
-    (status, xyz, q, rms), trailing comma. Tips given in the reference body's frame; the log holds
-    them in the tracker frame, p = R_ref p_rel + p_ref. Rows in bad_rows are PartiallyOutOfVolume
-    with a wild position."""
+    """Header-less two-tube NDI layout (ndi_lab_log): the inner travel drives Y and Z, C stays 0.
+    Tips given in the reference body's frame; rows in bad_rows are PartiallyOutOfVolume with a wild
+    position. lab_q from configurations()."""
+    travel = np.column_stack([lab_q[:, 3], lab_q[:, 2], lab_q[:, 2]])
+    rot = np.column_stack([lab_q[:, 1], lab_q[:, 0], np.zeros(len(lab_q))])
+    tips = np.repeat(tips_ref_mm[:, None, :], repeats, axis=1)
+    status = np.full(tips.shape[:2], "Enabled", dtype=object)
+    for k in bad_rows:
+        status[k // repeats, k % repeats] = "PartiallyOutOfVolume"
+        tips[k // repeats, k % repeats] += 500.0
+    return ndi_lab_log(path, travel, rot, tips, ref_rot, ref_pos, status)
+
+
+def ndi_lab_log(path: Path, travel: np.ndarray, rot: np.ndarray, tips_ref_mm: np.ndarray,
+                ref_rot: Rotation, ref_pos: np.ndarray, status: np.ndarray | None = None) -> Path:
+    """The comet-lab NDI layout (two or three tubes, ../shared/realdata/comet-lab/README.md): G-code,
+    X Y Z travel, A B C rotation, tool 1 (status, x, y, z, q, rms), tool 2 (the reference body),
+    trailing comma. travel (K, 3) X, Y, Z mm; rot (K, 3) A, B, C deg; tips_ref_mm (K, R, 3): each
+    reading's tip in the reference body's frame (the log holds p = R_ref p_rel + p_ref); status
+    (K, R) tool 1's status per reading ("Missing": its fields left empty)."""
     qw = ref_rot.as_quat()  # x, y, z, w
     qref = [qw[3], qw[0], qw[1], qw[2]]
+    status = status if status is not None else np.full(tips_ref_mm.shape[:2], "Enabled", dtype=object)
     lines = []
-    k = 0
-    for q, tip in zip(lab_q, tips_ref_mm, strict=True):
-        world = ref_rot.apply(tip) + ref_pos
-        for _ in range(repeats):
-            status = "PartiallyOutOfVolume" if k in bad_rows else "Enabled"
-            w = world + (500.0 if k in bad_rows else 0.0)
-            x, y = q[3], q[2]
-            lines.append(f"G0 X{x * 16:.0f} Y{y * 16:.0f} Z{y * 16:.0f} A{q[1]:.0f} B{q[0]:.0f} C0\\n,"
-                         f"{x:.6f},{y:.6f},{y:.6f},{q[1]:.6f},{q[0]:.6f},0,{status},"
-                         f"{w[0]:.6f},{w[1]:.6f},{w[2]:.6f},0.06,0.77,0.61,-0.14,0.21,Enabled,"
-                         f"{ref_pos[0]:.6f},{ref_pos[1]:.6f},{ref_pos[2]:.6f},"
+    for t, a, tips, st in zip(travel, rot, tips_ref_mm, status, strict=True):
+        gcode = (f"G0 X{t[0] * 16:.0f} Y{t[1] * 16:.0f} Z{t[2] * 16:.0f} A{a[0]:.0f} B{a[1]:.0f} "
+                 f"C{a[2]:.0f}\\n")
+        for tip, s in zip(tips, st, strict=True):
+            w = ref_rot.apply(tip) + ref_pos
+            tool1 = (",,,,,,,," if s == "Missing" else
+                     f"{w[0]:.6f},{w[1]:.6f},{w[2]:.6f},0.06,0.77,0.61,-0.14,0.21,")
+            lines.append(f"{gcode},{t[0]:.6f},{t[1]:.6f},{t[2]:.6f},{a[0]:.6f},{a[1]:.6f},{a[2]:.6f},"
+                         f"{s},{tool1}Enabled,{ref_pos[0]:.6f},{ref_pos[1]:.6f},{ref_pos[2]:.6f},"
                          f"{qref[0]:.9f},{qref[1]:.9f},{qref[2]:.9f},{qref[3]:.9f},0.22,")
-            k += 1
     path.write_text("\n".join(lines) + "\n")
     return path
 

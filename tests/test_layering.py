@@ -1,6 +1,7 @@
-"""The stages import in one direction (docs/design.md: Data flow): the model folder is the centre of
-the learned side, `training` only produces one and `inference` only consumes one, neither knows the
-virtual robot, and only `cli` and `evaluation` sit above them. Every import counts, including those
+"""The stages import in one direction (docs/design.md: Data flow): hardware sits between the virtual
+robot and acquisition; the model folder is the centre of the learned side, `training` only
+produces one and `inference` only consumes one, neither knows the virtual robot or the hardware,
+and only `cli` and `evaluation` sit above them. Every import counts, including those
 inside functions and under TYPE_CHECKING, and module paths named in strings (lazy attribute tables,
 importlib)."""
 
@@ -15,9 +16,16 @@ MODULE_PATH = re.compile(r"ctrkin(\.\w+)+")
 
 # subpackage -> subpackages it must not import
 FORBIDDEN = {
-    "models": {"training", "inference", "evaluation", "cli", "virtual"},
-    "training": {"inference", "evaluation", "cli", "virtual"},
-    "inference": {"training", "evaluation", "cli", "virtual"},
+    # hardware sits between the virtual robot and acquisition: it may drive the virtual robot, and
+    # only acquisition (and what sits above it) runs protocols on it
+    "robots": {"hardware", "virtual", "acquisition"},
+    "mechanics": {"hardware", "virtual", "acquisition"},
+    "virtual": {"hardware", "acquisition"},
+    "hardware": {"acquisition", "data", "calibration", "models", "training", "inference", "evaluation",
+                 "cli"},
+    "models": {"training", "inference", "evaluation", "cli", "virtual", "hardware"},
+    "training": {"inference", "evaluation", "cli", "virtual", "hardware"},
+    "inference": {"training", "evaluation", "cli", "virtual", "hardware"},
 }
 ABOVE_ALL = {"cli": {"cli"}, "evaluation": {"cli", "evaluation"}}   # imported only by these
 

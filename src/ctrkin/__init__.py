@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 from ctrkin.util.lazy import lazy_attributes
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"   # semantic versioning: CONTRIBUTING.md; pyproject.toml reads it
 
 __all__ = ["Equilibrium", "Kinematics", "Robot", "SolverSettings", "Trajectory", "Tube", "__version__",
            "follow", "load_robot", "paper_robot", "solve", "solve_many"]

@@ -29,10 +29,18 @@ POSE_UNITS = ("mm", "mm", "mm", "", "", "")
 
 # --- the 5-DOF pose convention ----------------------------------------------------------------------
 def quat_from_tangent(t: np.ndarray) -> np.ndarray:
-    """t: (..., 3) tip tangents (any length) -> (..., 3) quaternions (q0, qx, qy), qz = 0.
+    """The 5-DOF quaternion of tip tangents: the minimal rotation turning the base z axis onto them.
 
-    The minimal rotation e3 -> t is q ∝ (1 + e3·t, e3 × t) = (1 + tz, -ty, tx, 0).
-    At t = -e3 (tip pointing straight back) the axis is undefined; we pick the x axis.
+    Parameters
+    ----------
+    t : ndarray, shape (..., 3)
+        Tip tangents (any length).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Unit quaternions (q0, qx, qy), qz = 0: q ∝ (1 + e3·t, e3 × t) = (1 + tz, −ty, tx, 0). At
+        t = −e3 (the tip pointing straight back) the axis is undefined; the x axis is taken.
     """
     t = np.asarray(t, dtype=float)
     t = t / np.linalg.norm(t, axis=-1, keepdims=True)
@@ -44,7 +52,18 @@ def quat_from_tangent(t: np.ndarray) -> np.ndarray:
 
 
 def tangent_from_quat(q: np.ndarray) -> np.ndarray:
-    """q: (..., 3) (q0, qx, qy) with qz = 0 (need not be exactly unit) -> (..., 3) unit tangents R e3."""
+    """Tip tangents of 5-DOF quaternions (the inverse of `quat_from_tangent`).
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 3)
+        Quaternions (q0, qx, qy) with qz = 0; normalised here.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Unit tangents R e3.
+    """
     q = np.asarray(q, dtype=float)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     w, x, y = q[..., 0], q[..., 1], q[..., 2]
@@ -53,13 +72,35 @@ def tangent_from_quat(q: np.ndarray) -> np.ndarray:
 
 
 def tip_pose(position: np.ndarray, tangent: np.ndarray) -> np.ndarray:
-    """position (..., 3) mm, tangent (..., 3) -> pose (..., 6) = (x, y, z, q0, qx, qy)."""
+    """A tip pose from a position and a tangent.
+
+    Parameters
+    ----------
+    position : ndarray, shape (..., 3)
+        Tip positions (mm).
+    tangent : ndarray, shape (..., 3)
+        Tip tangents (any length).
+
+    Returns
+    -------
+    ndarray, shape (..., 6)
+        Poses (x, y, z, q0, qx, qy).
+    """
     return np.concatenate([np.asarray(position, float), quat_from_tangent(tangent)], axis=-1)
 
 
 def pose_rotation(q: np.ndarray) -> Rotation:
-    """q: (3,) or (K, 3) 5-DOF quaternions (q0, qx, qy) -> scipy Rotation(s) (qz = 0; normalised by
-    scipy), for the general rotation maths (composition, angle-axis interpolation)."""
+    """5-DOF quaternions as scipy rotations, for general rotation maths (composition, interpolation).
+
+    Parameters
+    ----------
+    q : ndarray, shape (3,) or (K, 3)
+        Quaternions (q0, qx, qy), qz = 0; scipy normalises them.
+
+    Returns
+    -------
+    scipy.spatial.transform.Rotation
+    """
     q = np.asarray(q, dtype=float)
     zero = np.zeros(q.shape[:-1])
     return Rotation.from_quat(np.stack([q[..., 1], q[..., 2], zero, q[..., 0]], axis=-1))  # (x, y, z, w)
@@ -67,7 +108,17 @@ def pose_rotation(q: np.ndarray) -> Rotation:
 
 # --- full quaternions (w, x, y, z) ------------------------------------------------------------------
 def quaternion_to_matrix(q: np.ndarray) -> np.ndarray:
-    """q: (..., 4) quaternions (w, x, y, z), normalised here -> (..., 3, 3) rotation matrices."""
+    """Rotation matrices of full quaternions.
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+        Quaternions (w, x, y, z), scalar first; normalised here.
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+    """
     q = np.asarray(q, dtype=float)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
@@ -79,8 +130,18 @@ def quaternion_to_matrix(q: np.ndarray) -> np.ndarray:
 
 
 def tangent_from_quaternion(q: np.ndarray) -> np.ndarray:
-    """q: (..., 4) quaternions (w, x, y, z), normalised here -> (..., 3) tip tangents R e3 (the third
-    column of quaternion_to_matrix; the roll about the tangent is dropped)."""
+    """Tip tangents of full quaternions: the third column of `quaternion_to_matrix`.
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+        Quaternions (w, x, y, z); normalised here.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Unit tangents R e3 (the roll about the tangent, which a 5-DOF sensor cannot see, is dropped).
+    """
     q = np.asarray(q, dtype=float)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
@@ -88,15 +149,37 @@ def tangent_from_quaternion(q: np.ndarray) -> np.ndarray:
 
 
 def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
-    """R: (K, 3, 3) rotations -> (K, 4) unit quaternions (w, x, y, z) with w >= 0 (scipy's rotation
-    maths; its (x, y, z, w) order and sign turned into ours)."""
+    """Unit quaternions of rotation matrices.
+
+    Parameters
+    ----------
+    R : ndarray, shape (K, 3, 3)
+        Rotation matrices.
+
+    Returns
+    -------
+    ndarray, shape (K, 4)
+        Quaternions (w, x, y, z) with w ≥ 0 (scipy's maths, in ctrkin's order and sign).
+    """
     xyzw = Rotation.from_matrix(R).as_quat()
     q = np.column_stack([xyzw[:, 3], xyzw[:, :3]])
     return q * np.where(q[:, :1] < 0, -1.0, 1.0)
 
 
 def rotate_z(v: np.ndarray, deg: np.ndarray) -> np.ndarray:
-    """Rotate vectors v (T, 3) about z by deg (T,) degrees."""
+    """Rotate vectors about the z axis.
+
+    Parameters
+    ----------
+    v : ndarray, shape (T, 3)
+        Vectors.
+    deg : ndarray, shape (T,)
+        Angles (deg), one per vector.
+
+    Returns
+    -------
+    ndarray, shape (T, 3)
+    """
     a = np.radians(deg)
     c, s = np.cos(a), np.sin(a)
     return np.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], axis=1)
@@ -104,13 +187,35 @@ def rotate_z(v: np.ndarray, deg: np.ndarray) -> np.ndarray:
 
 # --- errors between poses ---------------------------------------------------------------------------
 def position_error(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Euclidean distance (mm) between the positions of poses (..., >=3)."""
+    """Position error between poses.
+
+    Parameters
+    ----------
+    a, b : ndarray, shape (..., ≥3)
+        Poses or positions (mm); the first three entries are the position.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Euclidean distance (mm).
+    """
     a, b = np.asarray(a, float), np.asarray(b, float)
     return np.linalg.norm(a[..., :3] - b[..., :3], axis=-1)
 
 
 def tangent_angle_error(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Angle (deg) between the tip tangents of poses (..., 6) (the 5-DOF orientation error)."""
+    """Orientation error between 5-DOF poses: the angle between their tip tangents.
+
+    Parameters
+    ----------
+    a, b : ndarray, shape (..., 6)
+        Poses (x, y, z, q0, qx, qy).
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Angle (deg); q and −q, and any roll about the tangent, give zero.
+    """
     ta = tangent_from_quat(np.asarray(a, float)[..., 3:6])
     tb = tangent_from_quat(np.asarray(b, float)[..., 3:6])
     cross = np.linalg.norm(np.cross(ta, tb), axis=-1)
@@ -119,7 +224,18 @@ def tangent_angle_error(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def quaternion_angle(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
-    """Rotation angle (deg) between unit quaternions (..., 4) (w, x, y, z); q and -q are the same."""
+    """Rotation angle between full quaternions.
+
+    Parameters
+    ----------
+    qa, qb : ndarray, shape (..., 4)
+        Quaternions (w, x, y, z); normalised here.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Angle (deg); q and −q are the same rotation.
+    """
     qa = np.asarray(qa, float)
     qb = np.asarray(qb, float)
     qa = qa / np.linalg.norm(qa, axis=-1, keepdims=True)
@@ -129,10 +245,20 @@ def quaternion_angle(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
 
 
 def tip_azimuth(position: np.ndarray, outer_alpha_deg: np.ndarray | float) -> np.ndarray:
-    """T(L) (deg): azimuth of the tip about z measured from the outer tube's base rotation,
-    unwrapped along the leading axis so that a trajectory stays continuous.
+    """T(L): the azimuth of the tip about z, measured from the outer tube's base rotation.
 
-    position: (T, 3) or (3,) mm; outer_alpha_deg: (T,) or scalar (αN, deg, unwrapped).
+    Parameters
+    ----------
+    position : ndarray, shape (T, 3) or (3,)
+        Tip positions (mm).
+    outer_alpha_deg : ndarray of shape (T,), or float
+        The outer tube's rotation αN (deg, unwrapped).
+
+    Returns
+    -------
+    ndarray, shape (T,), or float
+        T(L) (deg), unwrapped along the trajectory so that it stays continuous (a snap is a step of
+        more than 10°: the paper's rule).
     """
     p = np.atleast_2d(np.asarray(position, float))
     az = np.unwrap(np.arctan2(p[:, 1], p[:, 0]))
@@ -145,11 +271,21 @@ def tip_azimuth(position: np.ndarray, outer_alpha_deg: np.ndarray | float) -> np
 # --- rigid transforms -------------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
 class RigidTransform:
-    """p' = R p + t: rotation (3, 3), translation (3,) mm; rms_mm: the fit residual where fitted.
+    """A rigid transform p' = R p + t.
 
-    The one rigid-transform type: the registration robot base -> tracker (Registration, fitted by
+    The one rigid-transform type: the registration robot base → tracker (`Registration`, fitted by
     Kabsch), the virtual tracker's residual registration error (ctrkin.virtual.tracker) and the
-    outer-tube frame of learned models (ctrkin.models.frame)."""
+    outer-tube frame of learned models (ctrkin.models.frame).
+
+    Attributes
+    ----------
+    rotation : ndarray, shape (3, 3)
+        R.
+    translation : ndarray, shape (3,)
+        t (mm).
+    rms_mm : float
+        The residual of the fit (mm), where fitted; NaN otherwise.
+    """
 
     rotation: np.ndarray
     translation: np.ndarray
@@ -157,11 +293,20 @@ class RigidTransform:
 
     @classmethod
     def identity(cls) -> RigidTransform:
+        """The transform that moves nothing."""
         return cls(np.eye(3), np.zeros(3), 0.0)
 
     @classmethod
     def from_rotvec(cls, rotvec: np.ndarray, translation: np.ndarray) -> RigidTransform:
-        """rotvec: (3,) rotation vector (rad, axis × angle); translation (3,) mm."""
+        """A transform from a rotation vector and a translation.
+
+        Parameters
+        ----------
+        rotvec : ndarray, shape (3,)
+            Rotation vector (rad): axis × angle.
+        translation : ndarray, shape (3,)
+            Translation (mm).
+        """
         rotation = Rotation.from_rotvec(np.asarray(rotvec, float)).as_matrix()
         return cls(rotation, np.asarray(translation, float))
 
@@ -172,10 +317,29 @@ class RigidTransform:
 
     @classmethod
     def fit(cls, robot_points: np.ndarray, tracker_points: np.ndarray) -> RigidTransform:
-        """Least-squares rigid transform (Kabsch/Umeyama without scale) from (K, 3) point pairs
-        (rows with a NaN dropped). The closed form by SVD of the cross-covariance, with the
-        reflection fixed by det; scipy's Rotation.align_vectors gives the same rotation (tested to
-        1e-12) but not the same last bits, and a fitted frame feeds training."""
+        """The least-squares rigid transform between point pairs (Kabsch/Umeyama without scale).
+
+        The closed form by SVD of the cross-covariance, the reflection fixed by det; scipy's
+        Rotation.align_vectors gives the same rotation (tested to 1e-12) but not the same last
+        bits, and a fitted frame feeds training.
+
+        Parameters
+        ----------
+        robot_points : ndarray, shape (K, 3)
+            Points in the source frame (mm); rows with a NaN (here or in `tracker_points`) are dropped.
+        tracker_points : ndarray, shape (K, 3)
+            The same points in the target frame (mm).
+
+        Returns
+        -------
+        RigidTransform
+            With `rms_mm` the residual of the fit.
+
+        Raises
+        ------
+        CtrkinError
+            With fewer than 3 finite pairs.
+        """
         a = np.asarray(robot_points, float)
         b = np.asarray(tracker_points, float)
         ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
@@ -191,21 +355,22 @@ class RigidTransform:
         return cls(rot, t, rms)
 
     def apply_points(self, p: np.ndarray) -> np.ndarray:
-        """(T, 3) points -> (T, 3) R p + t."""
+        """Transform points: (T, 3) mm → (T, 3) mm, R p + t."""
         return np.asarray(p, float) @ self.rotation.T + self.translation
 
     def apply_vectors(self, v: np.ndarray) -> np.ndarray:
-        """(T, 3) directions -> (T, 3) R v (no translation)."""
+        """Rotate directions: (T, 3) → (T, 3), R v (no translation)."""
         return np.asarray(v, float) @ self.rotation.T
 
     def apply(self, poses: np.ndarray) -> np.ndarray:
-        """(T, 6) poses -> transformed (T, 6) poses (tangents rotated, 5-DOF quaternion)."""
+        """Transform tip poses: (T, 6) → (T, 6), positions moved and tangents rotated (5-DOF)."""
         p = np.asarray(poses, float)
         pos = self.apply_points(p[:, :3])
         tan = self.apply_vectors(tangent_from_quat(p[:, 3:6]))
         return np.concatenate([pos, quat_from_tangent(tan)], axis=1)
 
     def to_dict(self) -> dict[str, object]:
+        """For JSON: rotation (3 × 3 list), translation_mm, rms_mm."""
         return {
             "rotation": self.rotation.tolist(),
             "translation_mm": self.translation.tolist(),
@@ -214,7 +379,7 @@ class RigidTransform:
 
     @classmethod
     def from_dict(cls, d: dict) -> RigidTransform:
-        """Inverse of to_dict (KeyError, ValueError on a bad entry: callers name the file)."""
+        """The inverse of `to_dict` (KeyError or ValueError on a bad entry: callers name the file)."""
         return cls(np.array(d["rotation"], float), np.array(d["translation_mm"], float),
                    float(d.get("rms_mm", float("nan"))))
 
@@ -225,15 +390,30 @@ Registration = RigidTransform
 
 def sensor_poses(poses: np.ndarray, transform: RigidTransform, offset_mm: float
                  ) -> tuple[np.ndarray, np.ndarray]:
-    """A tracker's view of tip poses: poses (T, 6) in the robot base frame -> sensor centres (T, 3)
-    mm, `offset_mm` beyond the tip along its tangent, and unit sensor axes (T, 3), both through
-    `transform` (the tracker's registration)."""
+    """A tracker's view of tip poses: where its sensor is and how it points.
+
+    Parameters
+    ----------
+    poses : ndarray, shape (T, 6)
+        Tip poses in the robot base frame.
+    transform : RigidTransform
+        The tracker's registration (robot base → tracker).
+    offset_mm : float
+        The sensor's centre beyond the tip along the tangent (mm).
+
+    Returns
+    -------
+    centres : ndarray, shape (T, 3)
+        Sensor centres in the tracker frame (mm).
+    axes : ndarray, shape (T, 3)
+        Unit sensor axes in the tracker frame.
+    """
     tan = tangent_from_quat(poses[:, 3:6])
     p = transform.apply_points(poses[:, :3] + offset_mm * tan)
     return p, transform.apply_vectors(tan)
 
 
 def sensor_view(poses: np.ndarray, transform: RigidTransform, offset_mm: float) -> np.ndarray:
-    """The noise-free tracker view of tip poses (T, 6): sensor_poses as (T, 6) 5-DOF poses."""
+    """The noise-free tracker view of tip poses: `sensor_poses` as 5-DOF poses, (T, 6) → (T, 6)."""
     p, axis = sensor_poses(poses, transform, offset_mm)
     return np.concatenate([p, quat_from_tangent(axis)], axis=1)

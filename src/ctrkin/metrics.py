@@ -43,13 +43,36 @@ orientation_error = tangent_angle_error
 
 
 def wrap_deg(a: np.ndarray) -> np.ndarray:
-    """Angles (deg, any shape) wrapped to [−180, 180): +180 maps to −180."""
+    """Wrap angles to [−180°, 180°) (+180° maps to −180°).
+
+    Parameters
+    ----------
+    a : ndarray
+        Angles (deg), any shape.
+
+    Returns
+    -------
+    ndarray
+        The same shape, wrapped.
+    """
     return (np.asarray(a, float) + 180.0) % 360.0 - 180.0
 
 
 def error_stats(e: np.ndarray) -> dict[str, float]:
-    """e: errors of any shape (signs ignored) -> {"rmse", "mae", "max", "median", "n"} over every
-    entry; NaN entries count as failures (NaN result); an empty e gives NaN statistics and n = 0."""
+    """Summary statistics of errors.
+
+    Parameters
+    ----------
+    e : ndarray
+        Errors, any shape; signs are ignored.
+
+    Returns
+    -------
+    dict
+        ``rmse``, ``mae``, ``max``, ``median`` over every entry (in the errors' unit) and the count
+        ``n``. A NaN entry counts as a failure and makes the statistics NaN; an empty `e` gives NaN
+        statistics and ``n = 0``.
+    """
     e = np.abs(np.asarray(e, dtype=float).ravel())
     if e.size == 0:
         return {"rmse": float("nan"), "mae": float("nan"), "max": float("nan"), "median": float("nan"),
@@ -66,8 +89,21 @@ def error_stats(e: np.ndarray) -> dict[str, float]:
 def pose_errors(
     pred: np.ndarray, ref: np.ndarray, mask: np.ndarray | None = None
 ) -> dict[str, dict[str, float]]:
-    """pred, ref: (T, 6) tip poses (mm, 5-DOF quaternion); mask: (T,) bool rows to count (None: all)
-    -> {"position_mm": error_stats, "orientation_deg": error_stats}."""
+    """Position and orientation errors of predicted tip poses.
+
+    Parameters
+    ----------
+    pred, ref : ndarray, shape (T, 6)
+        Predicted and reference tip poses (mm, 5-DOF quaternion).
+    mask : ndarray of bool, shape (T,), optional
+        The rows to count (default: all).
+
+    Returns
+    -------
+    dict
+        ``{"position_mm": error_stats(...), "orientation_deg": error_stats(...)}``: the Euclidean
+        distance (mm) and the angle between the tip tangents (deg).
+    """
     pred, ref = np.asarray(pred, float), np.asarray(ref, float)
     if mask is not None:
         pred, ref = pred[mask], ref[mask]
@@ -80,16 +116,45 @@ def pose_errors(
 def joint_error_norms(
     pred: np.ndarray, ref: np.ndarray, n_tubes: int, wrap: bool = True
 ) -> tuple[np.ndarray, np.ndarray]:
-    """pred, ref: (T, 2N) joints (α1..αN deg, β1..βN mm) -> per sample (T,) the norm of the α errors
-    (deg; each tube's difference wrapped to [−180°, 180°) first if `wrap`) and (T,) of the β errors (mm)."""
+    """Per-sample joint errors: the norm over the tubes of the α errors and of the β errors.
+
+    Parameters
+    ----------
+    pred, ref : ndarray, shape (T, 2N)
+        Joints (α1..αN deg, β1..βN mm).
+    n_tubes : int
+        N.
+    wrap : bool
+        Wrap each tube's α difference to [−180°, 180°) first (a whole turn is the same
+        configuration).
+
+    Returns
+    -------
+    alpha : ndarray, shape (T,)
+        Norm of the α errors (deg).
+    beta : ndarray, shape (T,)
+        Norm of the β errors (mm).
+    """
     d = np.asarray(pred, float) - np.asarray(ref, float)
     da = wrap_deg(d[:, :n_tubes]) if wrap else d[:, :n_tubes]
     return np.linalg.norm(da, axis=1), np.linalg.norm(d[:, n_tubes:], axis=1)
 
 
 def joint_errors(pred: np.ndarray, ref: np.ndarray, n_tubes: int) -> dict[str, dict[str, float]]:
-    """pred, ref: (T, 2N) joints (deg, mm) -> {"alpha_deg": error_stats of the wrapped α norms,
-    "beta_mm": error_stats of the β norms} (results.json)."""
+    """Joint error statistics as results.json reports them.
+
+    Parameters
+    ----------
+    pred, ref : ndarray, shape (T, 2N)
+        Joints (deg, mm).
+    n_tubes : int
+        N.
+
+    Returns
+    -------
+    dict
+        ``{"alpha_deg": error_stats of the wrapped α norms, "beta_mm": error_stats of the β norms}``.
+    """
     alpha, beta = joint_error_norms(pred, ref, n_tubes, wrap=True)
     return {"alpha_deg": error_stats(alpha), "beta_mm": error_stats(beta)}
 
@@ -103,18 +168,42 @@ def _flat(e: np.ndarray, prefix: str) -> dict[str, float]:
 
 
 def metrics_json_pose_errors(pred: np.ndarray, ref: np.ndarray, orientation: bool = True) -> dict[str, float]:
-    """pred, ref: (T, 6) tip poses -> the flat keys of a model's metrics.json: position_mm_* (mm),
-    orientation_deg_* (deg, tip tangent) for rmse/mae/max, and n. orientation=False: the reference
-    has no measured orientation (a position-only dataset, whose quaternion columns are
-    placeholders), so no orientation errors are given."""
+    """Pose errors as the flat keys of a model's metrics.json.
+
+    Parameters
+    ----------
+    pred, ref : ndarray, shape (T, 6)
+        Predicted and reference tip poses.
+    orientation : bool
+        False where the reference has no measured orientation (a position-only dataset, whose
+        quaternion columns are placeholders): no orientation keys then.
+
+    Returns
+    -------
+    dict
+        ``position_mm_rmse``, ``_mae``, ``_max`` (mm), ``orientation_deg_*`` (deg, tip tangent) and
+        ``n``.
+    """
     angles = _flat(orientation_error(pred, ref), "orientation_deg") if orientation else {}
     return {**_flat(position_error(pred, ref), "position_mm"), **angles, "n": len(pred)}
 
 
 def metrics_json_joint_errors(pred: np.ndarray, ref: np.ndarray, n_tubes: int) -> dict[str, float]:
-    """pred, ref: (T, 2N) joints (deg, mm) -> the flat keys of a model's metrics.json: alpha_deg_*
-    (unwrapped α norms, what the loss sees), alpha_wrapped_deg_* (wrapped, the configuration error),
-    beta_mm_*, for rmse/mae/max, and n."""
+    """Joint errors as the flat keys of a model's metrics.json.
+
+    Parameters
+    ----------
+    pred, ref : ndarray, shape (T, 2N)
+        Joints (deg, mm).
+    n_tubes : int
+        N.
+
+    Returns
+    -------
+    dict
+        ``alpha_deg_*`` (unwrapped α norms: what the loss sees), ``alpha_wrapped_deg_*`` (wrapped:
+        the configuration error), ``beta_mm_*``, each for rmse/mae/max, and ``n``.
+    """
     raw, beta = joint_error_norms(pred, ref, n_tubes, wrap=False)
     wrapped, _ = joint_error_norms(pred, ref, n_tubes, wrap=True)
     return {**_flat(raw, "alpha_deg"), **_flat(wrapped, "alpha_wrapped_deg"), **_flat(beta, "beta_mm"),
@@ -122,7 +211,18 @@ def metrics_json_joint_errors(pred: np.ndarray, ref: np.ndarray, n_tubes: int) -
 
 
 def timing_stats(seconds: np.ndarray) -> dict[str, Any]:
-    """seconds: (K,) per-prediction times (s) -> mean and std in ms, median in µs, count."""
+    """Statistics of per-prediction times.
+
+    Parameters
+    ----------
+    seconds : ndarray, shape (K,)
+        Times (s).
+
+    Returns
+    -------
+    dict
+        ``ms_mean``, ``ms_std`` (ms), ``us_median`` (µs) and the count ``n``.
+    """
     t = np.asarray(seconds, float)
     return {
         "ms_mean": float(t.mean() * 1e3),

@@ -28,14 +28,17 @@ def test_paper_levels_cover_the_arbitrary_path(robot):
     assert paper[:, 3].min() <= arb[:, 3].min() and arb[:, 3].max() <= paper[:, 3].max()
 
 
-def test_quick_paper_protocol_is_small_with_low_and_high_overlap(robot):
-    plan = protocols.build("paper", robot, scale="quick")
-    assert plan.n_samples <= 10_000
-    assert [lv["relative_translation_mm"] for lv in plan.levels] == [4.0, 12.0, 20.0]
+@pytest.mark.parametrize(("scale", "levels", "angles", "samples"), [
+    ("tiny", [4.0, 20.0], 4, 5_768), ("quick", [4.0, 10.0, 15.0, 20.0], 18, 51_912)])
+def test_smaller_paper_protocols_keep_low_and_high_overlap(robot, scale, levels, angles, samples):
+    plan = protocols.build("paper", robot, scale=scale)
+    assert [lv["relative_translation_mm"] for lv in plan.levels] == levels
+    assert len(plan.params["outer_angles_deg"]) == angles
+    assert plan.n_samples == samples == protocols.PAPER_SIZES[scale].n_samples()
 
 
 def test_transitions_are_small_steps_and_sequences_join_up(robot):
-    plan = protocols.build("paper", robot, scale="quick")
+    plan = protocols.build("paper", robot, scale="tiny", levels=(4.0, 12.0, 20.0))
     for run in plan.runs:
         q = np.concatenate([s.q for s in run.segments])
         step = np.abs(np.diff(q, axis=0))

@@ -1,4 +1,5 @@
-"""Recording the quick paper protocol: determinism, snaps, hysteresis, nominal-TCM error."""
+"""Recording a small paper protocol (3 levels × 4 outer angles): determinism, snaps, hysteresis,
+nominal-TCM error."""
 
 from __future__ import annotations
 
@@ -11,10 +12,13 @@ from ctrkin.acquisition.summary import measurement_error, nominal_error, sweep_h
 from ctrkin.data import Dataset, schema
 from ctrkin.virtual import VirtualRobot
 
+# the quick scale of ctrkin 0.1 (8,652 samples): low, middle and full overlap, recorded in seconds
+SMALL = {"scale": "tiny", "levels": (4.0, 12.0, 20.0)}
+
 
 @pytest.fixture(scope="module")
 def quick(robot):
-    plan = protocols.build("paper", robot, scale="quick")
+    plan = protocols.build("paper", robot, **SMALL)
     return record(plan, VirtualRobot(robot, seed=0), seed=0, workers=1, progress=False)
 
 
@@ -29,7 +33,7 @@ def test_schema_and_meta(quick, robot):
 
 
 def test_same_seed_identical_dataset_whatever_the_workers(quick, robot):
-    plan = protocols.build("paper", robot, scale="quick")
+    plan = protocols.build("paper", robot, **SMALL)
     again = record(plan, VirtualRobot(robot, seed=0), seed=0, workers=2, progress=False)
     assert again.frame.equals(quick.frame)
     other = record(protocols.build("arbitrary", robot), VirtualRobot(robot, seed=0), seed=1,

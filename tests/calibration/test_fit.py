@@ -81,7 +81,7 @@ def test_calibrate_cli_writes_a_normal_robot_file(tmp_path, virtual):
                                  "--predictor", "tcm", "--out", str(tmp_path / "ev")])
     assert r.exit_code == 0, r.output
     assert "orientation: not measured" in r.output
-    assert (tmp_path / "ev" / "0" / "tips.png").is_file()
+    assert (tmp_path / "ev" / "cal" / "tips.png").is_file()        # named after the predictor (issue 22)
 
 
 def test_analytic_registration_and_marker_columns_match_finite_differences(virtual):

@@ -1,4 +1,5 @@
-"""Every `ctrkin` command in the fenced bash blocks of README.md and docs/*.md runs.
+"""Every `ctrkin` command in the fenced bash blocks of README.md and docs/**/*.md runs, and the
+figures the documents print are what the commands print.
 
 Each document's commands run in order, in one temporary folder per document (later commands use
 what earlier ones wrote), through click's CliRunner. A command runs as written, with only the size
@@ -7,6 +8,14 @@ options of TINY appended (click takes the last value of a repeated option, so `-
 assumes (a user's log, the comet-lab logs under ../shared/realdata) are written by FIXTURES as
 small synthetic files in the same formats and with the same names, so the test needs no data
 outside the repository.
+
+Printed figures: a ```text block right after the comment `<!-- output: tolerance TOL -->` shows
+what the last command before it prints. Each of its lines must match a line of the command's
+output, in order, with every number within TOL of the printed one (absolute, in the printed unit;
+0: equal) and the words around the numbers equal; `...` in a line stands for any text (a timing).
+Only outputs that do not depend on the run's size or the machine are shown this way (the
+mechanics, the tiny recordings); figures of quick and full runs are quoted with the command (a
+benchmark or `ctrkin reproduce`) that measured them.
 """
 
 from __future__ import annotations
@@ -27,10 +36,10 @@ from scipy.spatial.transform import Rotation
 from ctrkin.cli.main import cli
 from ctrkin.mechanics import follow, solve
 from ctrkin.robots import load_robot, paper_robot
-from tests.lab_logs import configurations, ndi_log, optitrack_log, to_ctrkin
+from tests.lab_logs import configurations, ndi_lab_log, ndi_log, optitrack_log, to_ctrkin
 
 REPO = Path(__file__).resolve().parents[2]
-DOCS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+DOCS = [REPO / "README.md", *sorted((REPO / "docs").rglob("*.md"))]
 
 # options appended to a command (by its sub-command words) so that it runs at a tiny size
 TINY: dict[tuple[str, ...], list[str]] = {
@@ -38,6 +47,7 @@ TINY: dict[tuple[str, ...], list[str]] = {
     ("train",): ["--epochs", "1", "--threads", "1"],
     ("sweep",): ["--step", "15"],
     ("calibrate",): ["--max-evaluations", "8"],
+    ("show",): ["--frames", "4"],
 }
 
 # commands not run (matched by their first words), and why
@@ -47,6 +57,8 @@ SKIP: dict[str, str] = {
     "ctrkin reproduce --scale tiny": "90 s (warm numba cache) to 147 s (cold) on the two-core dev "
     "machine, this test's whole budget; the same tiny pipeline runs in tests/evaluation/"
     "test_reproduce.py, the command's arguments in tests/cli/test_reproduce_cli.py",
+    "ctrkin collect --rig examples/rigs/paper.toml": "drives the paper's EPOS4 motors and reads its "
+    "Aurora; its dry run (paper_dry_run.toml, the same drives simulated) runs instead",
 }
 
 ENV = {"CTRKIN_NO_PROGRESS": "1"}
@@ -77,6 +89,16 @@ def comet_logs(root: Path) -> None:
         lab_q = configurations(6, seed=10 + k)
         ndi_log(_mkdir(base / "ndi-2tube") / f"{name}.csv", lab_q, _tips("comet_nylon_ndi.toml", lab_q), rot,
                 np.array([73.2, 91.3, -1295.6]))
+    robot3 = load_robot(str(REPO / "examples" / "robots" / "comet_nylon_ndi_3tube.toml"))
+    for k in range(3):          # three-tube logs (docs/real_robot.md: Three tubes), lab joints, 20 readings
+        rng = np.random.default_rng(20 + k)
+        travel = np.cumsum(np.column_stack([rng.integers(0, 41, 6), rng.integers(0, 46, 6),
+                                            rng.integers(0, 46, 6)]), axis=1).astype(float)
+        rot3 = rng.integers(-45, 46, (6, 3)).astype(float)
+        q = np.column_stack([rot3[:, ::-1], travel[:, ::-1] - [250.0, 170.0, 90.0]])
+        tips = np.array([solve(robot3, qk).tip_pose[:3] for qk in q])
+        ndi_lab_log(_mkdir(base / "ndi-3tube") / f"2023-11-2{k}_01-00-00.csv", travel, rot3,
+                    np.repeat(tips[:, None, :], 20, axis=1), rot, np.array([73.2, 91.3, -1295.6]))
 
 
 def lab_logs(root: Path) -> None:
@@ -115,16 +137,55 @@ def _mkdir(p: Path) -> Path:
 FIXTURES: dict[str, list[Callable[[Path], None]]] = {
     "data.md": [user_log, lab_logs],
     "real_robot.md": [comet_logs],
+    "tutorial.md": [comet_logs],
 }
 
 
 # --- commands ------------------------------------------------------------------------------------
-FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.S | re.M)
+FENCE = re.compile(r"^(?:<!-- output: tolerance (?P<tol>\S+) -->\n)?```(?P<lang>\w*)\n(?P<text>.*?)^```",
+                   re.S | re.M)
+NUMBER = r"[-+]?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?"
 
 
 def blocks(doc: Path) -> list[tuple[str, str]]:
-    """(language, text) of every fenced block."""
-    return [(m.group(1), m.group(2)) for m in FENCE.finditer(doc.read_text())]
+    """(language, text) of every fenced block; a printed output's language is `output TOL`."""
+    return [(m["lang"] if m["tol"] is None else f"output {m['tol']}", m["text"])
+            for m in FENCE.finditer(doc.read_text())]
+
+
+def _line_pattern(line: str) -> tuple[re.Pattern[str], list[float]]:
+    """A printed line as a regex (numbers captured, runs of blanks flexible, `...` any text) and
+    the numbers it prints."""
+    numbers: list[float] = []
+    parts = []
+    for piece in line.strip().split("..."):
+        out = []
+        for token in re.split(f"({NUMBER})", piece):
+            if re.fullmatch(NUMBER, token):
+                numbers.append(float(token))
+                out.append(f"({NUMBER})")
+            else:
+                out.append(r"\s+".join(re.escape(w) for w in re.split(r"\s+", token)))
+        parts.append("".join(out))
+    return re.compile(".*?".join(parts)), numbers
+
+
+def check_printed(shown: str, printed: str, tol: float) -> int:
+    """Every line of `shown` matches a line of `printed` in order, numbers within tol; returns the
+    number of figures compared."""
+    lines = [ln.strip() for ln in printed.splitlines() if ln.strip()]
+    k, compared = 0, 0
+    for want in (ln for ln in shown.splitlines() if ln.strip()):
+        pattern, numbers = _line_pattern(want)
+        while k < len(lines) and not pattern.fullmatch(lines[k]):
+            k += 1
+        assert k < len(lines), f"no printed line matches {want!r} in:\n{printed}"
+        got = [float(g) for g in pattern.fullmatch(lines[k]).groups()]  # type: ignore[union-attr]
+        for w, g in zip(numbers, got, strict=True):
+            assert abs(w - g) <= tol, f"{want!r}: the document prints {w}, the command {g} (tolerance {tol})"
+        compared += len(numbers)
+        k += 1
+    return compared
 
 
 def commands(text: str) -> list[tuple[dict[str, str], list[str]]]:
@@ -210,8 +271,14 @@ def test_documented_commands_run(doc: Path, tmp_path: Path, monkeypatch: pytest.
         make(root)
     monkeypatch.chdir(root)
     runner = CliRunner()
-    ran, skipped = [], []
+    ran, skipped, figures = [], [], 0
+    last: tuple[list[str], str] | None = None        # the last command run and what it printed
     for lang, text in blocks(doc):
+        if lang.startswith("output "):
+            assert last is not None, f"{doc.name}: a printed output with no command run before it"
+            figures += check_printed(text, last[1], float(lang.split()[1]))
+            last = None                                # one output block per command
+            continue
         if lang != "bash":
             continue
         for variables, words in commands(text):
@@ -226,5 +293,27 @@ def test_documented_commands_run(doc: Path, tmp_path: Path, monkeypatch: pytest.
                 assert Path(args[args.index("--out") + 1]).exists(), f"`{' '.join(words)}` wrote no --out"
             print(f"$ {' '.join(args)}\n{res.output}")
             ran.append(words)
+            last = (words, res.output)
+    if figures:
+        print(f"{doc.name}: {figures} printed figures checked")
     if not ran:
         pytest.skip("; ".join(skipped) or "no ctrkin commands")
+
+
+def test_printed_figures_are_compared() -> None:
+    """The check itself: words equal, numbers within the tolerance, `...` any text, lines in order."""
+    printed = ("robot paper: q = [0.0, 0.0]\ntip position (mm): 0.0000 -10.4599 53.7286\n"
+               "wrote x; 2.0 s (2861/s)\n")
+    assert check_printed("tip position (mm): 0.0000 -10.4597 53.7286", printed, 5e-4) == 3
+    assert check_printed("robot paper: q = [0.0, 0.0]\nwrote x; ...", printed, 0) == 2
+    with pytest.raises(AssertionError, match=r"prints -10\.459"):
+        check_printed("tip position (mm): 0.0000 -10.459 53.7286", printed, 5e-4)
+    with pytest.raises(AssertionError, match="no printed line"):
+        check_printed("tip position (cm): 0.0000 -10.4599 53.7286", printed, 1.0)
+    with pytest.raises(AssertionError, match="no printed line"):           # out of order
+        check_printed("wrote x; ...\nrobot paper: q = [0.0, 0.0]", printed, 0)
+
+
+def test_the_docs_print_figures_that_are_checked() -> None:
+    shown = [(doc.name, lang) for doc in DOCS for lang, _ in blocks(doc) if lang.startswith("output ")]
+    assert len(shown) >= 4 and {"tutorial.md", "shapes.md"} <= {name for name, _ in shown}

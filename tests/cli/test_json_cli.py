@@ -62,13 +62,13 @@ def test_evaluate_json_and_overwrite_replaces_the_folder(data, tmp_path) -> None
     out = run_json(["evaluate", "--data", str(data / "data"), "--predictor", "tcm", "--predictor", "tcm",
                     "--out", str(folder), "--json"])
     assert [p["predictor"] for p in out["predictors"]] == ["tcm", "tcm"]
-    assert out["predictors"][1]["out"] == f"{folder}/1"
+    assert out["predictors"][1]["out"] == f"{folder}/tcm-2"        # named after the predictor (issue 22)
     assert out["predictors"][0]["overall"]["samples"] == 361
-    assert (folder / "1" / "results.json").is_file()
+    assert (folder / "tcm-2" / "results.json").is_file()
     # one predictor now: the sub-folders of the earlier run go, the folder holds this run only
     out = run_json(["evaluate", "--data", str(data / "data"), "--predictor", "tcm", "--out", str(folder),
                     "--overwrite", "--json"])
-    assert not (folder / "0").exists() and not (folder / "1").exists()
+    assert not (folder / "tcm-1").exists() and not (folder / "tcm-2").exists()
     assert (folder / "results.json").is_file()
     assert sorted(p.name for p in folder.parent.iterdir()) == ["eval"]      # no temporary folder left
 
@@ -79,7 +79,7 @@ def test_evaluate_json_without_out_prints_no_table(data) -> None:
     assert r.exit_code == 0, r.output
     out = json.loads(r.stdout)
     assert out["predictors"][0]["out"] is None
-    assert "position mean" in r.stderr        # the table, which is the result without --json
+    assert "mean mm" in r.stderr              # the table, which is the result without --json
 
 
 def test_calibrate_json(data, tmp_path) -> None:

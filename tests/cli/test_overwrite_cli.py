@@ -36,17 +36,24 @@ def test_usage_errors_come_before_the_output_check(tmp_path) -> None:
 
 
 def test_sweep_and_train_refuse_a_folder_that_is_not_theirs(tmp_path) -> None:
+    """A folder ctrkin did not write is refused with or without --overwrite (issue 27: --overwrite
+    replaces only a ctrkin output of the same kind), and the message does not suggest --overwrite."""
     runner = CliRunner()
     folder = tmp_path / "mine"
     folder.mkdir()
     (folder / "notes.txt").write_text("keep me")
-    res = runner.invoke(cli, ["sweep", "--translations", "4", "--step", "90", "--out", str(folder)])
-    assert res.exit_code == 1 and "pass --overwrite" in res.output
     data = tmp_path / "data"
     assert runner.invoke(cli, ["collect", "--protocol", "arbitrary", "--out", str(data)],
                          env={"CTRKIN_NO_PROGRESS": "1"}).exit_code == 0
-    res = runner.invoke(cli, ["train", "--task", "fk", "--data", str(data), "--out", str(folder)])
-    assert res.exit_code == 1 and "pass --overwrite" in res.output
+    for flags in ([], ["--overwrite"]):
+        res = runner.invoke(cli, ["sweep", "--translations", "4", "--step", "90", "--out", str(folder),
+                                  *flags])
+        assert res.exit_code == 1 and "is not a ctrkin output" in res.output, res.output
+        res = runner.invoke(cli, ["train", "--task", "fk", "--data", str(data), "--out", str(folder),
+                                  *flags])
+        assert res.exit_code == 1 and "is not a ctrkin output" in res.output, res.output
+        assert "pass --overwrite" not in res.output
+    assert sorted(p.name for p in folder.iterdir()) == ["notes.txt"]
     assert (folder / "notes.txt").read_text() == "keep me"
 
 

@@ -101,7 +101,8 @@ def ran(monkeypatch, tmp_path) -> dict[str, Any]:
 
     monkeypatch.setattr("ctrkin.training.train", fake_train)
     monkeypatch.setattr(train_module.Dataset, "load", staticmethod(lambda _d: _Data()))
-    seen["data"], seen["out"] = str(tmp_path), str(tmp_path / "model")
+    (tmp_path / "data").mkdir()     # beside, not around, the model folder: --out inside --data is refused
+    seen["data"], seen["out"] = str(tmp_path / "data"), str(tmp_path / "model")
     return seen
 
 

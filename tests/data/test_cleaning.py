@@ -27,9 +27,13 @@ def test_repeat_groups_by_identical_joints_or_by_step():
     q[3:6] = q[0]
     np.testing.assert_array_equal(cleaning.repeat_groups(seq, q, None, 1e-6), [0, 0, 0, 0, 0, 0, 1, 1, 1,
                                                                                2, 2, 2])
+    # a step groups readings only where their joints agree too (issue 27 item 9: readings of two
+    # configurations that the log numbered as one step were averaged into a pose neither had)
     step = np.array([0, 0, 1, 1, 1, 2, 2, 3, 3, 3, 4, 4])
     np.testing.assert_array_equal(cleaning.repeat_groups(np.zeros(12, int), q, step, 1e-6),
-                                  [0, 0, 1, 1, 1, 2, 2, 3, 3, 3, 4, 4])
+                                  [0, 0, 1, 1, 1, 2, 3, 4, 4, 5, 6, 6])
+    np.testing.assert_array_equal(np.nonzero(cleaning.distinct_in_step(np.zeros(12, int), q, step, 1e-6))[0],
+                                  [6, 9])
 
 
 def test_average_rejects_a_bad_reading_and_estimates_noise():

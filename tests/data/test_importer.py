@@ -340,3 +340,30 @@ def test_complex_joints_are_errors(tmp_path, log):
     frame["alpha_1"] = frame["alpha_1"] + 1j
     with pytest.raises(DatasetError, match="alpha_1"):
         Dataset(frame=frame, robot=_robot())
+
+
+def test_distinct_configurations_sharing_a_step_are_not_averaged(tmp_path):
+    """Issue 27 item 9: 484 readings of 484 distinct configurations became 244 samples, each the mean
+    of two different joint vectors, with no warning (the log numbered them in pairs)."""
+    n = 60
+    q = np.zeros((n, 4))
+    q[:, 0] = np.arange(n) * 2.0
+    q[:, 2], q[:, 3] = -15.0, -5.0
+    poses = np.tile([1.0, 2.0, 50.0, 1.0, 0.0, 0.0], (n, 1))
+    poses[:, 0] += np.arange(n)
+    log = readings(q, poses, n_readings=1)
+    log["step"] = np.arange(n) // 2
+    path = tmp_path / "log.csv"
+    log.to_csv(path, index=False)
+    from ctrkin.robots import paper_robot
+
+    ds = import_csv(path, paper_robot(), ImportConfig())
+    assert len(ds.frame) == n
+    np.testing.assert_array_equal(ds.joints(), q)
+    assert any("never averaged" in w for w in ds.meta["cleaning"]["warnings"])
+    # real repeated readings (equal joints within a step) are still averaged
+    rep = readings(q, poses, n_readings=3)
+    rep["step"] = np.repeat(np.arange(n), 3)
+    rep.to_csv(path, index=False)
+    ds = import_csv(path, paper_robot(), ImportConfig())
+    assert len(ds.frame) == n and not ds.meta["cleaning"]["warnings"]

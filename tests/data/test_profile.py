@@ -159,3 +159,34 @@ def test_missing_column_names_the_file(tmp_path):
     text = OPTITRACK.replace("z = 16", "z = 40")
     with pytest.raises(DatasetError, match=r"a\.csv.*column 40 does not exist"):
         import_with_profile([log], parse_profile(text, 2), nylon_robot())
+
+
+def test_absurd_counts_columns_and_delimiters_are_clear_errors():
+    """Issue 27 item 20: profile `count = 2**64` and `delimiter = "\\n"` crashed (OverflowError,
+    pandas ValueError); a column position or a scale beyond range likewise."""
+    cases = [(OPTITRACK.replace("count = 10", "count = 18446744073709551616"), "count"),
+             (OPTITRACK.replace("header = false", 'header = false\ndelimiter = "\\n"'), "delimiter"),
+             (OPTITRACK.replace("header = false", 'header = false\ndelimiter = "."'), "delimiter"),
+             (OPTITRACK.replace("x = 14", "x = 18446744073709551616"), "column positions"),
+             (OPTITRACK.replace("x = 14", "x = { column = 14, scale = inf }"), "finite")]
+    for text, words in cases:
+        with pytest.raises(DatasetError, match=words):
+            parse_profile(text, 2, source="p.toml")
+
+
+def test_a_group_of_readings_with_different_joints_is_not_averaged(tmp_path):
+    """Issue 27 item 9: a fixed count grouped readings of distinct configurations (a log written with
+    one reading per configuration) and averaged them into poses no configuration had."""
+    robot = nylon_robot()
+    lab = configurations(40, seed=3)
+    tips = np.column_stack([np.zeros(40), np.zeros(40), 200.0 + np.arange(40)])
+    log = optitrack_log(tmp_path / "a.csv", lab, tips, repeats=1)
+    # a profile's count that does not fit the log is refused with the count that does (issue 22's
+    # readings-count check, which runs before any grouping): nothing is averaged
+    with pytest.raises(DatasetError, match=r"joints change inside a group of 10 .* set \[groups\] count = 1"):
+        import_with_profile([log], parse_profile(OPTITRACK, 2), robot)     # count = 10
+    fitted = OPTITRACK.replace("count = 10", "count = 1")
+    assert fitted != OPTITRACK
+    ds = import_with_profile([log], parse_profile(fitted, 2), robot)
+    assert len(ds.frame) == 40                                               # not 4 averages
+    np.testing.assert_allclose(ds.joints(), to_ctrkin(robot, lab), atol=1e-9)

@@ -249,3 +249,19 @@ def test_increments_equal_to_round_off_repeat() -> None:
     assert not continuation._repeats(np.diff(turn, axis=0))[8]
     faster = np.r_[q[:10], q[10:30:2]]
     assert not continuation._repeats(np.diff(faster, axis=0))[9]
+
+
+def test_a_step_of_a_whole_turn_or_more_flags_the_snaps_it_crosses() -> None:
+    """Issue 27 item 14: `follow` with large steps (340° or 720° of α1 in one step) crossed snaps
+    without flagging them. A step now turns no α by more than continuation.MAX_TURN_DEG at a time."""
+    robot = paper_robot()
+    q0 = rotation_sweep(2, 20.0, 0.0, 0.0, 1.0)[0]
+    fine = follow(robot, rotation_sweep(2, 20.0, 0.0, 0.0, 1.0))
+    assert fine.n_snaps == 2                        # the 1° sweep snaps forward and back
+    for turn in (340.0, 720.0):
+        path = np.array([q0, q0 + np.array([turn, 0.0, 0.0, 0.0])])
+        tr = follow(robot, path)
+        assert tr.snaps.tolist() == [False, True], turn
+        fine_path = np.linspace(path[0], path[1], int(turn) + 1)
+        end = follow(robot, fine_path).tip_poses[-1]
+        np.testing.assert_allclose(tr.tip_poses[-1], end, atol=1e-6)   # the same branch at the end

@@ -248,3 +248,43 @@ def test_three_tubes_extreme_curvature_no_linalg_error() -> None:
     if eq.converged:
         assert np.linalg.norm(eq.tip_position) <= 100.0 + 1e-6
         assert abs(np.linalg.norm(eq.tip_pose[3:]) - 1.0) < 1e-9
+
+
+def test_whole_turns_of_alpha_do_not_change_the_answer() -> None:
+    """Issue 27 item 22: `solve` at α plus about 1e12° of whole turns did not converge, and at about
+    1e15° it was 0.0116 mm off (the stated tolerance is 1e-3 mm). Whole turns are removed exactly
+    (fmod) before solving: the tip is the same bits for every multiple of 360°."""
+    robot = paper_robot()
+    q = np.array([37.0, 10.0, -15.0, -5.0])
+    ref = solve(robot, q)
+    for turns in (1, 7, 2.0**33, 2.0**40, 2.0**43):      # up to 3e15° (a float still exact to 0.5°)
+        qt = q + np.array([360.0 * turns, -360.0 * turns, 0.0, 0.0])
+        eq = solve(robot, qt)
+        assert eq.converged and np.array_equal(eq.tip_pose, ref.tip_pose), turns
+        assert np.array_equal(eq.q, qt)                                  # the α given is kept
+
+
+def test_the_step_rule_meets_the_tolerance_on_gently_curved_short_tubes() -> None:
+    """Issue 27 (fuzz): a single tube 0.00165 mm off its exact arc at κ = 0.00237/mm, over the stated
+    1e-3 mm: the tip-error estimate took the lever arm as min(L, 1/κ); a tube shorter than its radius
+    then got a step ~κL times too long. The arc's tip is off by ℓc κ⁴ h⁴ / 120 whatever L is."""
+    for kappa, straight, curved in ((0.0023652996715650145, 20.450330405097034, 91.30369206581601),
+                                    (0.002, 0.0, 200.0), (0.01, 5.0, 50.0), (0.001, 0.0, 400.0)):
+        tube = Tube(0.47, 0.28, straight, curved, kappa, poisson_ratio=0.15665918212556662)
+        robot = Robot((tube,))
+        for alpha, beta in ((-611.05776476, -2.32340116), (0.0, 0.0), (90.0, -straight)):
+            eq = solve(robot, np.array([alpha, beta]))
+            a = np.radians(alpha)
+            s0, c = max(straight + beta, 0.0), min(curved, tube.length + beta)
+            arc = np.array([0.0, -(1 - np.cos(kappa * c)) / kappa, s0 + np.sin(kappa * c) / kappa])
+            rot = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+            assert np.linalg.norm(eq.tip_position - rot @ arc) <= 1e-3, (kappa, alpha, beta)
+
+
+def test_a_vanishing_curvature_is_no_division_by_zero() -> None:
+    """Issue 27 (fuzz): Tube/Robot construction and a solve raised ZeroDivisionError for a curvature
+    of 1e-300/mm (κ⁵ underflowed to 0 in the step rule)."""
+    robot = Robot((Tube(1.0, 0.6, 40.0, 20.0, 1e-300),))
+    eq = solve(robot, np.array([30.0, -10.0]))
+    assert eq.converged
+    np.testing.assert_allclose(eq.tip_position, [0.0, 0.0, 50.0], atol=1e-9)

@@ -126,3 +126,14 @@ def test_missing_robot_file(tmp_path) -> None:
 
 def test_fingerprint_differs_between_robots() -> None:
     assert paper_robot().fingerprint() != paper_robot("rigid").fingerprint()
+
+
+def test_transmission_length_takes_numbers_only() -> None:
+    """Issue 27 item 15: `transmission_length = ["abc", "d"]`, `[[1], [2]]`, `[{a = 1}]` crashed with
+    ValueError / TypeError and `[true, false]` was accepted as [1.0, 0.0]."""
+    d = paper_robot().to_dict()
+    for bad in (["abc", "d"], [[1], [2]], [{"a": 1}], [True, False], "12", 5, [1.0], [1.0, -2.0],
+                [1.0, float("nan")], [1, 2**2000]):
+        with pytest.raises(RobotDescriptionError, match="transmission_length"):
+            Robot.from_dict({**d, "transmission_length": bad})
+    assert Robot.from_dict({**d, "transmission_length": [1, 2.5]}).transmission_length == (1.0, 2.5)

@@ -81,3 +81,17 @@ def test_malformed_sections_are_clear_errors(sections: object, message: str) -> 
     """Issue 9 item 6: `sections = [[10.0]]` gave an unpacking ValueError."""
     with pytest.raises(RobotDescriptionError, match=message):
         Tube.from_sections(1.0, 0.8, sections)  # type: ignore[arg-type]
+
+
+def test_a_tube_of_absurdly_many_sections_is_refused_at_once() -> None:
+    """Issue 27 item 18: a tube of 400,000 sections took 51 s for the tube and one solve (growing
+    about quadratically), with no bound."""
+    import time
+
+    sections = [[0.001, 0.01 * (k % 2)] for k in range(400_000)]
+    t0 = time.perf_counter()
+    with pytest.raises(RobotDescriptionError, match="more than"):
+        Tube.from_sections(1.0, 0.6, sections)
+    with pytest.raises(RobotDescriptionError, match="more than"):
+        Tube(1.0, 0.6, 0.0, 400.0, 0.01, sections=tuple(tuple(s) for s in sections))
+    assert time.perf_counter() - t0 < 5.0

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 import shutil
+import threading
+import time
 
 import pytest
 
@@ -43,20 +45,43 @@ def test_mixed_files_from_two_trainings_are_refused(quick_ds, tmp_path):
 
 
 def test_overwrite_swaps_the_whole_folder(quick_ds, tmp_path):
+    """The folder is replaced as a whole (a file the old model had and the new one does not write is
+    gone); a file ctrkin did not write is never deleted: overwrite is refused until it is moved out
+    (issue 27: one meaning of --overwrite, nothing of the user's lost)."""
     out = tmp_path / "m"
     train(quick_ds, _cfg(), out, progress=False)
-    (out / "stale.txt").write_text("from the old model")
+    (out / "frame.json").write_text("{}")           # a model file the next model does not write
+    (out / "notes.txt").write_text("mine")
+    with pytest.raises(ModelError, match=r"notes\.txt, which ctrkin did not write"):
+        train(quick_ds, _cfg(ib=3), out, overwrite=True, progress=False)
+    assert (out / "notes.txt").read_text() == "mine" and Kinematics.load(out).ib == 2
+    (out / "notes.txt").unlink()
     train(quick_ds, _cfg(ib=3), out, overwrite=True, progress=False)
-    assert not (out / "stale.txt").exists()          # the folder was replaced, not written over
+    assert not (out / "frame.json").exists()         # the folder was replaced, not written over
     assert Kinematics.load(out).ib == 3
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m"]   # no build, old copy or lock left
 
 
 def test_second_training_into_the_same_folder_is_refused(quick_ds, tmp_path):
-    """Two trainings into one --out both exited 0 and one silently won."""
+    """Two trainings into one --out both exited 0 and one silently won. (The lock is held here by
+    another thread: within one thread it is re-entrant.)"""
     out = tmp_path / "m"
-    with folder_lock(out, ModelError, "train"), pytest.raises(ModelError, match="another process"):
-        train(quick_ds, _cfg(), out, progress=False)
+    held, done = threading.Event(), threading.Event()
+
+    def hold() -> None:
+        with folder_lock(out, ModelError, "train"):
+            held.set()
+            done.wait(60)
+
+    t = threading.Thread(target=hold)
+    t.start()
+    held.wait(60)
+    try:
+        with pytest.raises(ModelError, match="another process"):
+            train(quick_ds, _cfg(), out, progress=False)
+    finally:
+        done.set()
+        t.join()
     train(quick_ds, _cfg(), out, progress=False)     # the lock is released
 
 
@@ -103,3 +128,113 @@ def test_seeded_training_saves_byte_identical_weights(quick_ds, tmp_path):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
     hashes = [json.loads((tmp_path / m / "manifest.json").read_text())["files"]["weights.pt"] for m in "ab"]
     assert hashes[0] == hashes[1]
+
+
+# --- issue 27 items 4 and 6 ----------------------------------------------------------------------------
+
+def _relist(folder, name: str, digest_of=None) -> None:
+    """Add `name` to folder's manifest (with the hash of file `digest_of`, default folder / name)."""
+    from ctrkin.util.folders import file_hash
+
+    man = json.loads((folder / "manifest.json").read_text())
+    man["files"][name] = file_hash(digest_of or folder / name)
+    (folder / "manifest.json").write_text(json.dumps(man))
+
+
+def test_a_manifest_names_only_files_of_its_own_folder(quick_ds, tmp_path):
+    """Item 4: a manifest naming `../../etc/hostname` or `/etc/os-release` made ctrkin read and hash
+    those files (here: files outside the model folder, under tmp_path), and a symbolic link listed
+    in it was followed."""
+    out = train(quick_ds, _cfg(), tmp_path / "m", progress=False).out
+    secret = tmp_path / "secret.txt"
+    secret.write_text("not the model's")
+    for name in ("../secret.txt", str(secret)):
+        bad = tmp_path / f"bad{len(name)}"
+        shutil.copytree(out, bad)
+        _relist(bad, name, secret)
+        with pytest.raises(ModelError, match="not a file directly in"):
+            Kinematics.load(bad)
+    linked = tmp_path / "linked"
+    shutil.copytree(out, linked)
+    (linked / "extra.txt").symlink_to(secret)
+    _relist(linked, "extra.txt", secret)
+    with pytest.raises(ModelError, match="symbolic link"):
+        Kinematics.load(linked)
+
+
+def test_a_model_too_large_to_be_ctrkins_is_refused_before_it_is_built(quick_ds, tmp_path):
+    """Item 4: a config.json asking for an LSTM of 200,000 units allocated until the process died.
+    (6,000 units here: ~580 MB if built, refused on its parameter count first.)"""
+    out = train(quick_ds, _cfg(), tmp_path / "m", progress=False).out
+    cfg = json.loads((out / "config.json").read_text())
+    cfg["train"]["options"]["structure"] = "L6000|D16"
+    (out / "config.json").write_text(json.dumps(cfg))
+    _relist(out, "config.json")
+    with pytest.raises(ModelError, match="parameters, more than ctrkin's bound"):
+        Kinematics.load(out)
+
+
+def _swapper(a: str, b: str, out: str, seconds: float, q) -> None:
+    """Replace model folder `out` by a copy of a or b, alternately, as training does."""
+    import uuid
+    from pathlib import Path
+
+    from ctrkin.util.folders import folder_lock, swap_in
+
+    target, swaps, failed = Path(out), 0, 0
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        build = target.with_name(f".{target.name}.tmp-{uuid.uuid4().hex[:16]}")
+        try:
+            with folder_lock(target, ModelError):            # built and swapped under the lock
+                shutil.copytree(a if swaps % 2 else b, build)
+                swap_in(build, target, ModelError)
+        except Exception:  # every failure counts
+            failed += 1
+            shutil.rmtree(build, ignore_errors=True)
+        swaps += 1
+    q.put(("swaps", swaps, failed))
+
+
+def _model_reader(out: str, probe, answers, seconds: float, q) -> None:
+    import numpy as np
+
+    loads = bad = 0
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        try:
+            got = Kinematics.load(out).predict(probe)
+            bad += not any(np.array_equal(got, a) for a in answers)
+        except Exception:  # every failure counts
+            bad += 1
+        loads += 1
+    q.put(("loads", loads, bad))
+
+
+@pytest.mark.slow
+def test_loading_a_model_while_it_is_replaced_gives_one_model_or_the_other(quick_ds, tmp_path):
+    """Item 6: loading a model while it was retrained with --overwrite returned a mix of the two
+    models (predictions matching neither, tips up to 2.1 mm off), or a non-ctrkin exception."""
+    import multiprocessing
+
+    a = train(quick_ds, _cfg(), tmp_path / "a", progress=False).out
+    b = train(quick_ds, _cfg(seed=7, split="random"), tmp_path / "b", progress=False).out
+    out = tmp_path / "m"
+    shutil.copytree(a, out)
+    probe = quick_ds.joints()[:30]
+    answers = [Kinematics.load(p).predict(probe) for p in (a, b)]
+    assert not (answers[0] == answers[1]).all()
+    spawn = multiprocessing.get_context("spawn")
+    q = spawn.Queue()
+    procs = [spawn.Process(target=_swapper, args=(str(a), str(b), str(out), 6.0, q)),
+             *(spawn.Process(target=_model_reader, args=(str(out), probe, answers, 6.0, q))
+               for _ in range(2))]
+    for p in procs:
+        p.start()
+    results = [q.get(timeout=180) for _ in procs]
+    for p in procs:
+        p.join(timeout=60)
+    swaps = next(r for r in results if r[0] == "swaps")
+    loads = [r for r in results if r[0] == "loads"]
+    assert swaps[1] >= 10 and sum(r[1] for r in loads) >= 10, results
+    assert swaps[2] == 0 and all(r[2] == 0 for r in loads), results

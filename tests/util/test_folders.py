@@ -2,7 +2,9 @@
 
 The kill tests start `ctrkin collect`, a dataset save and `ctrkin train --overwrite` in a (forked) process,
 SIGKILL it at a seeded random moment of its work (10 trials each) and check that the folder then
-holds the previous content or the new one, byte for byte, never a mix and never nothing.
+holds the previous content or the new one, byte for byte, never a mix and never nothing; meanwhile
+two reader processes load the folder over and over, and every read must give the previous content or
+the new one, never an error (issue 27).
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ import os
 import shutil
 import signal
 import sys
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -28,6 +31,7 @@ from ctrkin.errors import CtrkinError, ModelError
 from ctrkin.util.folders import check_manifest, folder_lock, recover, swap_in, write_manifest
 
 TRIALS = 10
+READERS = 2
 FORK = multiprocessing.get_context("fork")   # children start without paying the imports again
 
 
@@ -56,14 +60,36 @@ def _timed(target, args: list[str]) -> float:
     return time.perf_counter() - t0
 
 
-def _kill_trials(target, args: list[str], work_s: float, seed: int, reset, check) -> list[bool]:
+def _reader(read, stop, q) -> None:
+    """Call `read()` until `stop` is set; report (reads, failures and wrong answers, first problem)."""
+    reads, bad, first = 0, 0, ""
+    while not stop.is_set():
+        try:
+            ok = read()
+        except Exception as e:  # every failure counts
+            ok, first = False, first or f"{type(e).__name__}: {e}"
+        bad += not ok
+        first = first or ("" if ok else "content of neither version")
+        reads += 1
+    q.put((reads, bad, first))
+
+
+def _kill_trials(target, args: list[str], work_s: float, seed: int, reset, check,
+                 read=None) -> list[bool]:
     """Run `target(args)` TRIALS times in a forked child, each SIGKILLed after a seeded uniform delay in
     [0, 0.9 work_s] (or left to finish); `reset()` restores the previous content before each, `check()`
-    judges the folder after."""
+    judges the folder after. read: a reader (True if it read the old or the new version) run in
+    READERS concurrent processes during each trial (issue 27: kill tests with concurrent readers);
+    none of their reads may fail or see a mix."""
     rng = np.random.default_rng(seed)
     killed = []
+    reads = 0
     for _ in range(TRIALS):
         reset()
+        stop, q = FORK.Event(), FORK.Queue()
+        readers = [FORK.Process(target=_reader, args=(read, stop, q)) for _ in range(READERS if read else 0)]
+        for r in readers:
+            r.start()
         p = _start(target, args)
         p.join(timeout=float(rng.uniform(0.0, 0.9 * work_s)))
         if p.is_alive():
@@ -74,7 +100,14 @@ def _kill_trials(target, args: list[str], work_s: float, seed: int, reset, check
         else:
             assert p.exitcode == 0, f"{args}: exit code {p.exitcode}"
             killed.append(False)
+        stop.set()
+        seen = [q.get(timeout=120) for _ in readers]
+        for r in readers:
+            r.join(timeout=60)
+        assert all(bad == 0 for _, bad, _ in seen), seen
+        reads += sum(n for n, _, _ in seen)
         check()
+    assert reads >= TRIALS or not read, f"the readers read {reads} times"
     return killed
 
 
@@ -91,10 +124,25 @@ def _same(a: pd.DataFrame, b: pd.DataFrame) -> bool:
 # --- units ------------------------------------------------------------------------------------------
 
 def test_lock_refuses_a_second_writer_and_is_released(tmp_path):
+    """A second writer (here another thread; the lock is re-entrant within one thread, so that a
+    command can hold it from its first check to the library's save) is refused at once."""
     target = tmp_path / "m"
+    errors: list[Exception] = []
+
+    def second() -> None:
+        try:
+            with folder_lock(target, ModelError):
+                pass
+        except ModelError as e:
+            errors.append(e)
+
     with folder_lock(target, ModelError):
-        with pytest.raises(ModelError, match=f"pid {os.getpid()}"), folder_lock(target, ModelError):
+        with folder_lock(target, ModelError):       # the same thread again: fine
             pass
+        t = threading.Thread(target=second)
+        t.start()
+        t.join()
+    assert len(errors) == 1 and f"pid {os.getpid()}" in str(errors[0])
     with folder_lock(target, ModelError):
         pass
     assert list(tmp_path.iterdir()) == []
@@ -149,7 +197,11 @@ def test_kill_during_collect_leaves_old_or_new_dataset(tmp_path):
         got = _frame_of(out)                     # never nothing: it loads
         assert any(_same(got, f) for f in frames), "the dataset is neither the previous nor the new one"
 
-    killed = _kill_trials(_cli, _collect_args(2, out, overwrite=True), work, 11, reset, check)
+    def read() -> bool:
+        got = _frame_of(out)
+        return any(_same(got, f) for f in frames)
+
+    killed = _kill_trials(_cli, _collect_args(2, out, overwrite=True), work, 11, reset, check, read)
     assert sum(killed) >= TRIALS // 2
 
 
@@ -180,7 +232,11 @@ def test_kill_during_dataset_save_leaves_old_or_new_dataset(tmp_path):
         got = _frame_of(out)
         assert any(_same(got, f) for f in frames), "the dataset is neither the previous nor the new one"
 
-    killed = _kill_trials(_save, [str(new), str(out)], work, 12, reset, check)
+    def read() -> bool:
+        got = _frame_of(out)
+        return any(_same(got, f) for f in frames)
+
+    killed = _kill_trials(_save, [str(new), str(out)], work, 12, reset, check, read)
     assert sum(killed) >= TRIALS // 2
 
 
@@ -209,5 +265,12 @@ def test_kill_during_train_overwrite_leaves_old_or_new_model(tmp_path):
         kin = Kinematics.load(out)               # never nothing, never files that do not belong together
         assert (out / "weights.pt").read_bytes() == weights[kin.ib], "weights of another training"
 
-    killed = _kill_trials(_cli, train_args(3, out, True), work, 13, reset, check)
+    probe = Dataset.load(data).joints()[:20]
+    answers = {ib: Kinematics.load(p).predict(probe) for ib, p in ((2, old), (3, new))}
+
+    def read() -> bool:
+        kin = Kinematics.load(out)
+        return bool(np.array_equal(kin.predict(probe), answers[kin.ib]))
+
+    killed = _kill_trials(_cli, train_args(3, out, True), work, 13, reset, check, read)
     assert sum(killed) >= TRIALS // 2

@@ -22,9 +22,19 @@ MAX_STEP_MM = 0.1
 
 @dataclass(frozen=True, eq=False)
 class Segment:
-    """q: (T, 2N) commanded motor joints (deg, mm). record: becomes one dataset sequence (False: a
-    transition, performed but not recorded). level: index into Plan.levels (−1: none).
-    is_target: (T,) bool marking target configurations (random points), or None."""
+    """A stretch of commanded joints.
+
+    Attributes
+    ----------
+    q : ndarray, shape (T, 2N)
+        Commanded motor joints (deg, mm).
+    record : bool
+        True: it becomes one dataset sequence; False: a transition, performed but not recorded.
+    level : int
+        Index into `Plan.levels` (−1: none).
+    is_target : ndarray of bool, shape (T,), optional
+        Marks target configurations (random points).
+    """
 
     q: np.ndarray
     record: bool = True
@@ -43,7 +53,13 @@ class Segment:
 
 @dataclass(frozen=True, eq=False)
 class Run:
-    """Segments performed one after the other by one robot; it starts at rest at segments[0].q[0]."""
+    """Segments performed one after the other by one robot, starting at rest at the first joints.
+
+    Attributes
+    ----------
+    segments : tuple of Segment
+        Empty segments are dropped; at least one must remain.
+    """
 
     segments: tuple[Segment, ...]
 
@@ -55,21 +71,35 @@ class Run:
 
     @property
     def start(self) -> np.ndarray:
+        """(2N,) the joints the run starts from, at rest."""
         return self.segments[0].q[0]
 
     @property
     def n_steps(self) -> int:
+        """Steps performed, transitions included."""
         return sum(s.q.shape[0] for s in self.segments)
 
     @property
     def n_samples(self) -> int:
+        """Steps recorded."""
         return sum(s.q.shape[0] for s in self.segments if s.record)
 
 
 @dataclass(frozen=True, eq=False)
 class Plan:
-    """protocol: name; runs: independent runs; levels: per level index a dict describing it
-    (e.g. {"relative_translation_mm": 12.0}); params: the protocol's resolved parameters."""
+    """What a protocol asks the robot to do.
+
+    Attributes
+    ----------
+    protocol : str
+        The protocol's name.
+    runs : tuple of Run
+        Independent runs (recorded in parallel).
+    levels : tuple of dict
+        Per level index a description, e.g. ``{"relative_translation_mm": 12.0}``.
+    params : dict
+        The protocol's resolved parameters (stored in the dataset's meta).
+    """
 
     protocol: str
     runs: tuple[Run, ...]
@@ -78,10 +108,12 @@ class Plan:
 
     @property
     def n_samples(self) -> int:
+        """Samples the plan records."""
         return sum(r.n_samples for r in self.runs)
 
     @property
     def n_steps(self) -> int:
+        """Steps the robot performs, transitions included."""
         return sum(r.n_steps for r in self.runs)
 
     def all_joints(self) -> np.ndarray:
@@ -91,9 +123,29 @@ class Plan:
 
 def move(a: np.ndarray, b: np.ndarray, n_tubes: int, max_deg: float = MAX_STEP_DEG,
          max_mm: float = MAX_STEP_MM) -> np.ndarray:
-    """Joint-space straight line from a (excluded) to b (included), (K, 2N), in steps of at most
-    max_deg per rotation and max_mm per translation (K = 0 when a == b). The valid joint set is
-    convex (linear inequalities), so a move between valid joints stays valid."""
+    """A straight line in joint space, in small steps.
+
+    The valid joint set is convex (linear inequalities), so a move between valid joints stays valid.
+
+    Parameters
+    ----------
+    a, b : ndarray, shape (2N,)
+        From (excluded) and to (included), deg and mm.
+    n_tubes : int
+        N.
+    max_deg, max_mm : float
+        Largest step of a rotation (deg) and of a translation (mm).
+
+    Returns
+    -------
+    ndarray, shape (K, 2N)
+        K = 0 when a == b.
+
+    Raises
+    ------
+    JointError
+        If a and b differ in shape.
+    """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
     if a.shape != b.shape:
@@ -108,7 +160,7 @@ def move(a: np.ndarray, b: np.ndarray, n_tubes: int, max_deg: float = MAX_STEP_D
 
 
 def transition(a: np.ndarray, b: np.ndarray, n_tubes: int) -> Segment:
-    """An unrecorded move from a towards b that stops one step short of b (the next recorded
-    segment starts at b)."""
+    """An unrecorded move from a towards b that stops one step short of b (where the next recorded
+    segment starts)."""
     path = move(a, b, n_tubes)
     return Segment(path[:-1], record=False)

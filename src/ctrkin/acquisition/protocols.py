@@ -11,10 +11,13 @@ Protocols (each returns a `Plan`; every random draw comes from `seed`):
                  through 360° in 10° increments; at each outer angle the inner tube turns 0 → 360 → 0°
                  in 1° increments (721 samples, one sequence). The outer translation cycles over
                  βN ∈ {0, −2.5, −5} mm across the outer angles, so the training data also covers the
-                 outer-tube translation range of the `arbitrary` path. Full scale: 8 levels
-                 (d = 4, 8, 10, 12, 14, 16, 18, 20 mm, denser where the curved overlap makes the robot
-                 nonlinear) × 36 angles × 721 = 207,648 samples (the paper: 212,527). Quick scale:
-                 d = 4, 12, 20 mm × 4 angles × 721 = 8,652 samples. Each level is one run (parallel).
+                 outer-tube translation range of the `arbitrary` path. Its size per scale
+                 (PAPER_SIZES; `ctrkin collect --scale` and `ctrkin reproduce --scale` train on the
+                 same): full, the paper's, 8 levels (d = 4, 8, 10, 12, 14, 16, 18, 20 mm, denser
+                 where the curved overlap makes the robot nonlinear) × 36 angles × 721 = 207,648
+                 samples (the paper: 212,527); quick, d = 4, 10, 15, 20 mm × 18 angles (20° steps)
+                 × 721 = 51,912; tiny, d = 4, 20 mm × 4 angles (90° steps) × 721 = 5,768. Each
+                 level is one run (parallel).
   sweeps         Fig. 2b, 6, 10a: the outer tube fixed at α = 0, βN = 0; the inner tube turns
                  0 → 360 → 0° at d = 4, 8, 12, 16, 20 mm (the paper's β12 = 15..55), one run.
   snap-turns     ctrkin's test of snap prediction off the protocol grid: full inner turns
@@ -31,6 +34,7 @@ Protocols (each returns a `Plan`; every random draw comes from `seed`):
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -40,11 +44,38 @@ from ctrkin.acquisition.trajectories import PAPER_LEVELS_MM
 from ctrkin.errors import JointError
 from ctrkin.robots.robot import Robot
 
-Scale = Literal["quick", "full"]
-SCALES = ("quick", "full")
+Scale = Literal["tiny", "quick", "full"]
+SCALES = ("tiny", "quick", "full")
+
+
+@dataclass(frozen=True)
+class PaperSize:
+    """The size of the paper protocol at one scale.
+
+    Parameters
+    ----------
+    levels_mm : tuple of float
+        Relative translations d = βN − β1 (mm), one run each.
+    outer_step_deg : float
+        The outer tube's increment (deg) between the recorded inner turns.
+    """
+
+    levels_mm: tuple[float, ...]
+    outer_step_deg: float
+
+    def n_samples(self, inner_step_deg: float = 1.0) -> int:
+        """Recorded samples: levels × outer angles × one inner turn 0 → 360 → 0°."""
+        per_turn = 2 * round(360.0 / inner_step_deg) + 1
+        return len(self.levels_mm) * len(np.arange(0.0, 360.0 - 1e-9, self.outer_step_deg)) * per_turn
+
 
 PAPER_FULL_LEVELS_MM = (4.0, 8.0, 10.0, 12.0, 14.0, 16.0, 18.0, 20.0)
-PAPER_QUICK_LEVELS_MM = (4.0, 12.0, 20.0)
+# One table for `ctrkin collect --scale` and `ctrkin reproduce --scale` (evaluation/scales.py reads it)
+PAPER_SIZES = {
+    "full": PaperSize(PAPER_FULL_LEVELS_MM, 10.0),          # the paper's: 207,648 samples
+    "quick": PaperSize((4.0, 10.0, 15.0, 20.0), 20.0),      # 51,912: the README's main job
+    "tiny": PaperSize((4.0, 20.0), 90.0),                   # 5,768: the CI test of the pipeline
+}
 PAPER_OUTER_BETAS_MM = (0.0, -2.5, -5.0)
 ARBITRARY_START = {"alpha_inner": 360.0, "alpha_outer": 0.0, "beta_inner": -20.0, "beta_outer": 0.0}
 ARBITRARY_END = {"alpha_inner": 0.0, "alpha_outer": 360.0, "beta_inner": -10.0, "beta_outer": -5.0}
@@ -54,8 +85,24 @@ RANDOM_OUTER_BETA_RANGE_MM = (-5.0, 0.0)
 
 def config(n_tubes: int, alpha_inner: float | np.ndarray, alpha_outer: float | np.ndarray,
            beta_outer: float | np.ndarray, d: float | np.ndarray) -> np.ndarray:
-    """Joints (T, 2N) (or (2N,) for scalars) from the inner/outer tube's rotation (deg), the outer
-    translation βN (mm) and the relative translation d = βN − β1 (mm); middle tubes follow the outer."""
+    """Joints from the protocols' coordinates; middle tubes follow the outer tube.
+
+    Parameters
+    ----------
+    n_tubes : int
+        N.
+    alpha_inner, alpha_outer : float or ndarray, shape (T,)
+        Rotations of the inner and the outer tube (deg).
+    beta_outer : float or ndarray, shape (T,)
+        The outer tube's translation βN (mm).
+    d : float or ndarray, shape (T,)
+        Relative translation d = βN − β1 (mm).
+
+    Returns
+    -------
+    ndarray, shape (T, 2N) or (2N,)
+        Joints (deg, mm); (2N,) for scalar inputs.
+    """
     ai, ao, bo, dd = np.broadcast_arrays(*(np.asarray(v, dtype=float)
                                            for v in (alpha_inner, alpha_outer, beta_outer, d)))
     q = np.empty((*ai.shape, 2 * n_tubes))
@@ -86,7 +133,13 @@ def _check_levels(robot: Robot, levels: tuple[float, ...], outer_betas: tuple[fl
 
 def inner_turn(n_tubes: int, alpha_outer: float, beta_outer: float, d: float,
                step_deg: float = 1.0) -> np.ndarray:
-    """The inner tube turning 0 → 360 → 0° in step_deg increments, others fixed: (2·360/step + 1, 2N)."""
+    """The inner tube turning 0 → 360 → 0° in `step_deg` increments, the others fixed.
+
+    Returns
+    -------
+    ndarray, shape (2·360/step + 1, 2N)
+        Joints (deg, mm).
+    """
     k = round(360.0 / step_deg)
     fwd = step_deg * np.arange(k + 1)
     a1 = np.r_[fwd, fwd[-2::-1]]
@@ -96,17 +149,33 @@ def inner_turn(n_tubes: int, alpha_outer: float, beta_outer: float, d: float,
 def paper(robot: Robot, scale: Scale = "full", seed: int = 0,
           levels: tuple[float, ...] | None = None, step_deg: float = 1.0,
           outer_step_deg: float | None = None) -> Plan:
-    """The paper's training protocol (Sec. III.A). One run per level, 36 (quick: 4) sequences each.
+    """The paper's training protocol (Sec. III.A): one run per level, one sequence per outer angle.
 
-    outer_step_deg: the outer tube's increment (default 10° full, 90° quick).
-    seed is unused (the protocol is deterministic; noise is seeded by the recorder) but kept so every
-    protocol has the same signature.
+    Parameters
+    ----------
+    robot : Robot
+        The robot whose joints the plan commands.
+    scale : {"full", "quick", "tiny"}
+        The size (PAPER_SIZES): the levels and outer step used where not given.
+    seed : int
+        Unused (the protocol is deterministic; the recorder seeds the noise), kept so that every
+        protocol has the same signature.
+    levels : tuple of float, optional
+        Relative translations d (mm) instead of the scale's.
+    step_deg : float
+        The inner tube's increment (deg).
+    outer_step_deg : float, optional
+        The outer tube's increment (deg) instead of the scale's.
+
+    Returns
+    -------
+    Plan
     """
     _check_scale(scale)
     n = robot.n_tubes
-    lv = tuple(float(v) for v in (levels if levels is not None else
-                                  (PAPER_FULL_LEVELS_MM if scale == "full" else PAPER_QUICK_LEVELS_MM)))
-    outer = outer_step_deg if outer_step_deg is not None else (10.0 if scale == "full" else 90.0)
+    size = PAPER_SIZES[scale]
+    lv = tuple(float(v) for v in (levels if levels is not None else size.levels_mm))
+    outer = outer_step_deg if outer_step_deg is not None else size.outer_step_deg
     if not 0 < outer <= 360:
         raise ValueError(f"outer_step_deg must be in (0, 360], got {outer}")
     angles = tuple(float(a) for a in np.arange(0.0, 360.0 - 1e-9, outer))
@@ -131,8 +200,26 @@ def paper(robot: Robot, scale: Scale = "full", seed: int = 0,
 
 def sweeps(robot: Robot, scale: Scale = "full", seed: int = 0,
            levels: tuple[float, ...] | None = None, step_deg: float = 1.0) -> Plan:
-    """Full inner rotations forward and back at five relative translations (Fig. 2b, 6, 10a), the
-    outer tube at α = 0, βN = 0; one run, the inner tube translating between levels unrecorded."""
+    """Full inner rotations forward and back at five relative translations (Fig. 2b, 6, 10a).
+
+    The outer tube at α = 0, βN = 0; one run, the inner tube translating between levels unrecorded.
+
+    Parameters
+    ----------
+    robot : Robot
+    scale : {"full", "quick", "tiny"}
+        Unused: the sweeps do not depend on the scale.
+    seed : int
+        Unused (deterministic).
+    levels : tuple of float, optional
+        Relative translations d (mm); default d = 4, 8, 12, 16, 20 (the paper's β12 = 15..55).
+    step_deg : float
+        The inner tube's increment (deg).
+
+    Returns
+    -------
+    Plan
+    """
     _check_scale(scale)
     n = robot.n_tubes
     lv = tuple(float(v) for v in (levels if levels is not None else PAPER_LEVELS_MM))
@@ -151,8 +238,25 @@ def sweeps(robot: Robot, scale: Scale = "full", seed: int = 0,
 
 
 def random_points(robot: Robot, scale: Scale = "full", seed: int = 0, n_points: int = 20) -> Plan:
-    """N random configurations (Fig. 10b), each reached by a move from the previous one (1°, 0.1 mm
-    steps), starting at rest at α = 0, d = 4 mm, βN = 0. One sequence per move."""
+    """N random configurations (Fig. 10b), each reached by a move from the previous one.
+
+    The moves go in 1° / 0.1 mm steps, starting at rest at α = 0, d = 4 mm, βN = 0; one sequence
+    per move, whose last sample is the target (`is_target`).
+
+    Parameters
+    ----------
+    robot : Robot
+    scale : {"full", "quick", "tiny"}
+        Unused.
+    seed : int
+        Draws the configurations (α uniform in [0, 360)°, d in [4, 20] mm, βN in [−5, 0] mm).
+    n_points : int
+        N.
+
+    Returns
+    -------
+    Plan
+    """
     _check_scale(scale)
     if n_points < 1:
         raise ValueError(f"n_points must be >= 1, got {n_points}")
@@ -182,8 +286,24 @@ def random_points(robot: Robot, scale: Scale = "full", seed: int = 0, n_points: 
 
 
 def arbitrary(robot: Robot, scale: Scale = "full", seed: int = 0, samples: int = 361) -> Plan:
-    """The paper's simultaneous trajectory (Fig. 10c) in our convention: βN 0 → −5 mm, β1 −20 → −10
-    mm, αN 0 → 360°, α1 360 → 0°, linear in `samples` steps (1° per step by default)."""
+    """The paper's simultaneous trajectory (Fig. 10c) in ctrkin's convention.
+
+    βN 0 → −5 mm, β1 −20 → −10 mm, αN 0 → 360°, α1 360 → 0°, linear.
+
+    Parameters
+    ----------
+    robot : Robot
+    scale : {"full", "quick", "tiny"}
+        Unused.
+    seed : int
+        Unused.
+    samples : int
+        Steps (361: 1° per step).
+
+    Returns
+    -------
+    Plan
+    """
     _check_scale(scale)
     if samples < 2:
         raise ValueError(f"samples must be >= 2, got {samples}")
@@ -209,8 +329,25 @@ SNAP_TURN_OUTER_BETAS_MM = (-1.25, -3.75)
 
 def snap_turns(robot: Robot, scale: Scale = "full", seed: int = 0, d: float = 20.0,
                step_deg: float = 1.0) -> Plan:
-    """Full inner turns at relative translation d (default: full overlap on the paper robot) at outer
-    angles and translations off the paper protocol's grid; one run (from rest) per turn."""
+    """Full inner turns at outer angles and translations the paper protocol never records.
+
+    Parameters
+    ----------
+    robot : Robot
+    scale : {"full", "quick", "tiny"}
+        Unused.
+    seed : int
+        Unused.
+    d : float
+        Relative translation (mm); default 20, full curved overlap on the paper robot.
+    step_deg : float
+        The inner tube's increment (deg).
+
+    Returns
+    -------
+    Plan
+        One run, from rest, per turn (outer α = 10, 70, …, 310°).
+    """
     _check_scale(scale)
     n = robot.n_tubes
     _check_levels(robot, (d,), SNAP_TURN_OUTER_BETAS_MM)
@@ -227,7 +364,38 @@ PROTOCOLS: dict[str, Any] = {"paper": paper, "sweeps": sweeps, "random-points": 
 
 
 def build(name: str, robot: Robot, scale: Scale = "full", seed: int = 0, **kw: Any) -> Plan:
-    """The plan of protocol `name` (one of PROTOCOLS) for `robot`."""
+    """The plan of a protocol, its joints checked against the robot.
+
+    Parameters
+    ----------
+    name : str
+        One of `PROTOCOLS`: "paper", "sweeps", "random-points", "arbitrary", "snap-turns".
+    robot : Robot
+    scale : {"full", "quick", "tiny"}
+        The paper protocol's size (`PAPER_SIZES`).
+    seed : int
+        Random draws of the protocol (random points).
+    **kw
+        The protocol's own options (e.g. ``levels``, ``n_points``).
+
+    Returns
+    -------
+    Plan
+
+    Raises
+    ------
+    ValueError
+        An unknown protocol or scale.
+    JointError
+        A plan the robot cannot perform (e.g. a level beyond its reach).
+
+    Examples
+    --------
+    >>> from ctrkin.acquisition import protocols
+    >>> from ctrkin.robots import paper_robot
+    >>> protocols.build("paper", paper_robot(), scale="quick").n_samples
+    51912
+    """
     if name not in PROTOCOLS:
         raise ValueError(f"unknown protocol {name!r}; choose one of {sorted(PROTOCOLS)}")
     plan: Plan = PROTOCOLS[name](robot, scale=scale, seed=seed, **kw)

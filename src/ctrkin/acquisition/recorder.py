@@ -54,8 +54,27 @@ class _Chunk:
 
 def record_run(virtual: VirtualRobot, run: Run, run_index: int, seed: int,
                on_segment: Any = None) -> list[_Chunk]:
-    """Perform one run; returns its recorded segments. on_segment(n_steps) is called after each
-    segment (progress). A snap during an unrecorded transition is flagged on the next sample."""
+    """Perform one run on the virtual robot and keep its recorded segments.
+
+    Parameters
+    ----------
+    virtual : VirtualRobot
+    run : Run
+        Starts at rest at its first joints; state carries over between its segments.
+    run_index : int
+        Selects the run's own noise stream (the data do not depend on how runs are spread over
+        workers).
+    seed : int
+        The recording's seed.
+    on_segment : callable, optional
+        Called with the segment's step count after each segment (progress).
+
+    Returns
+    -------
+    list of _Chunk
+        One per recorded segment. A snap during an unrecorded transition is flagged on the next
+        recorded sample.
+    """
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), NOISE_STREAM, int(run_index)]))
     state = virtual.rest(run.start)
     prev_alpha = float(run.start[0])
@@ -123,10 +142,29 @@ def _record_parallel(plan: Plan, virtual: VirtualRobot, seed: int, workers: int,
 
 def record(plan: Plan, virtual: VirtualRobot, seed: int = 0, workers: int | None = None,
            progress: bool = True, meta: dict[str, Any] | None = None) -> Dataset:
-    """Perform `plan` on `virtual` and return the dataset of its recorded segments.
+    """Perform a plan on the virtual robot and return the dataset of its recorded segments.
 
-    seed: measurement noise and encoder glitches. workers: processes (default: all cores, at most
-    one per run; 1 records in this process). meta: extra entries for the dataset meta.
+    Parameters
+    ----------
+    plan : Plan
+        What to do (`ctrkin.acquisition.protocols.build`).
+    virtual : VirtualRobot
+        The robot (its robot seed is the hardware draw).
+    seed : int
+        Measurement noise and encoder glitches; each run draws from its own stream, so the dataset
+        does not depend on `workers` (tested).
+    workers : int, optional
+        Processes (default: all cores, at most one per run; 1 records in this process).
+    progress : bool
+        Report progress on stderr (`ctrkin.util.progress`).
+    meta : dict, optional
+        Extra entries for the dataset's meta.
+
+    Returns
+    -------
+    Dataset
+        One sequence per recorded segment, with the true poses, the `run`, `level`, `direction`,
+        `is_target` and `n_readings` columns, and the virtual robot's description in the meta.
     """
     n_workers = min(workers if workers is not None else (os.cpu_count() or 1), len(plan.runs))
     n_workers = max(n_workers, 1)

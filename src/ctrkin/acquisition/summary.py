@@ -24,9 +24,24 @@ def _levels_mm(ds: Dataset) -> list[float]:
 
 
 def sweep_hysteresis(ds: Dataset, true: bool = True) -> pd.DataFrame:
-    """Per level of a sweep dataset (paper, sweeps): mean and max forward/backward tip distance (mm),
-    max T(L) difference (deg), samples flagged snap, sequences. true: use the true poses (else the
-    measured ones, which add tracker noise). Outlier rows are left out."""
+    """Hysteresis per level of a sweep dataset (the paper or sweeps protocol).
+
+    At each commanded inner angle, the distance between the forward and the backward tip positions
+    and the difference of T(L); outlier rows are left out.
+
+    Parameters
+    ----------
+    ds : Dataset
+        A recording with `level` and `direction` columns (the virtual robot's).
+    true : bool
+        Use the true poses (else the measured ones, which add tracker noise).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per level: ``relative_translation_mm``, ``sequences``, ``snap_samples``,
+        ``hysteresis_mean_mm``, ``hysteresis_max_mm`` (mm) and ``azimuth_gap_max_deg`` (deg).
+    """
     f = ds.frame
     n = ds.n_tubes
     cols = schema.TRUE_POSE_COLUMNS if true else schema.POSE_COLUMNS
@@ -67,10 +82,26 @@ def sweep_hysteresis(ds: Dataset, true: bool = True) -> pd.DataFrame:
 
 def nominal_error(ds: Dataset, robot: Robot | None = None, every: int = 1,
                   targets_only: bool = False) -> dict[str, Any]:
-    """Error of the point-wise nominal TCM (the paper's "TCM" baseline: no history) at the recorded
-    joints, against the measured and the true poses. every: use every k-th non-outlier sample;
-    targets_only: only rows with is_target (random points). Returns mean/RMSE position (mm) and mean
-    tangent angle (deg) errors and the number of samples used."""
+    """The point-wise nominal TCM (the paper's "TCM" baseline: no history) against a recording.
+
+    Parameters
+    ----------
+    ds : Dataset
+        A recording with true poses (the virtual robot's).
+    robot : Robot, optional
+        The model robot (default: the dataset's nominal robot).
+    every : int
+        Use every k-th non-outlier sample.
+    targets_only : bool
+        Only rows with ``is_target`` (random points).
+
+    Returns
+    -------
+    dict
+        Mean and RMSE position errors (mm) and the mean tangent angle (deg) against the measured
+        and the true poses (``position_mean_mm_vs_measured``, ``position_mean_mm_vs_true``, …), and
+        the number of samples used.
+    """
     robot = robot if robot is not None else ds.robot
     f = ds.frame
     keep = ~f["outlier"].to_numpy()
@@ -93,7 +124,18 @@ def nominal_error(ds: Dataset, robot: Robot | None = None, every: int = 1,
 
 
 def measurement_error(ds: Dataset) -> dict[str, float]:
-    """Measured vs true pose (tracker: sensor offset, registration, noise), non-outlier rows."""
+    """The tracker's own error: measured against true poses on the non-outlier rows.
+
+    Parameters
+    ----------
+    ds : Dataset
+        A recording with true poses.
+
+    Returns
+    -------
+    dict
+        ``position_mean_mm`` (sensor offset, registration and noise) and ``orientation_mean_deg``.
+    """
     f = ds.frame[~ds.frame["outlier"]]
     m, t = f[schema.POSE_COLUMNS].to_numpy(), f[schema.TRUE_POSE_COLUMNS].to_numpy()
     return {"position_mean_mm": float(position_error(m, t).mean()),

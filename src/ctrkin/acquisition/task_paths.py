@@ -30,7 +30,7 @@ from ctrkin.data import schema
 from ctrkin.errors import DatasetError
 from ctrkin.geometry import pose_rotation, quat_from_tangent
 from ctrkin.mechanics import solve
-from ctrkin.util.files import atomic_path, atomic_write_text
+from ctrkin.util.folders import build_folder, reading_folder
 from ctrkin.virtual.robot import VirtualRobot
 
 SHAPES = {"square": 4, "triangle": 3}
@@ -43,8 +43,20 @@ CORNER = {"relative_rotation_deg": 90.0, "relative_translation_mm": 10.0, "beta_
 
 @dataclass(frozen=True, eq=False)
 class TaskPath:
-    """shape: "square" | "triangle"; poses (P, 6) target tip poses (x, y, z mm, q0, qx, qy);
-    corners (C, 6) corner poses; corner_joints (C, 2N) their joints (deg, mm); meta: provenance."""
+    """IK target poses along a square or a triangle (paper Fig. 12).
+
+    Attributes
+    ----------
+    shape : {"square", "triangle"}
+    poses : ndarray, shape (P, 6)
+        Target tip poses (x, y, z mm, q0, qx, qy).
+    corners : ndarray, shape (C, 6)
+        The corner poses.
+    corner_joints : ndarray, shape (C, 2N)
+        The corners' joints (deg, mm).
+    meta : dict
+        Provenance: corner joints and poses, robot, seed, version.
+    """
 
     shape: str
     poses: np.ndarray
@@ -53,27 +65,43 @@ class TaskPath:
     meta: dict[str, Any]
 
     def save(self, folder: str | Path) -> Path:
+        """Write the folder as one unit (ctrkin.util.folders): targets.csv and meta.json are built
+        aside and swapped in together, so a failure leaves the previous folder whole. `folder`, if it
+        exists, must be a task path ctrkin wrote (ctrkin.util.ownership), or empty."""
         out = Path(folder)
-        out.mkdir(parents=True, exist_ok=True)
         frame = pd.DataFrame(self.poses, columns=schema.POSE_COLUMNS)
         frame.insert(0, "step", np.arange(len(frame), dtype=np.int64))
-        with atomic_path(out / TARGETS_FILE) as tmp:
-            frame.to_csv(tmp, index=False)
-        atomic_write_text(out / META_FILE, json.dumps(self.meta, indent=2))
+        with build_folder(out, "task path", DatasetError, "collect") as build:
+            frame.to_csv(build / TARGETS_FILE, index=False)
+            (build / META_FILE).write_text(json.dumps(self.meta, indent=2))
         return out
 
 
 def task_path(virtual: VirtualRobot, shape: str, n_points: int = 10, seed: int = 0,
               corner: dict[str, float] | None = None) -> TaskPath:
-    """The `shape` path of n_points target poses for `virtual` (see module docstring).
+    """Target poses along a square or a triangle that the virtual robot can reach (module docstring).
 
-    seed turns the whole polygon about the insertion axis by a seeded angle (so different seeds give
-    different, equally reachable paths).
+    Parameters
+    ----------
+    virtual : VirtualRobot
+        The robot whose true tip poses make the corners.
+    shape : {"square", "triangle"}
+    n_points : int
+        Targets, spaced evenly along the closed polygon (at least its corners).
+    seed : int
+        Turns the whole polygon about the insertion axis by a seeded angle (different seeds give
+        different, equally reachable paths).
+    corner : dict, optional
+        The corner configuration (default `CORNER`: relative rotation, relative translation, βN).
+
+    Returns
+    -------
+    TaskPath
     """
     if shape not in SHAPES:
-        raise ValueError(f"shape must be one of {sorted(SHAPES)}, got {shape!r}")
+        raise DatasetError(f"shape must be one of {sorted(SHAPES)}, got {shape!r}")
     if n_points < SHAPES[shape]:
-        raise ValueError(f"a {shape} needs n_points >= {SHAPES[shape]}, got {n_points}")
+        raise DatasetError(f"a {shape} needs n_points >= {SHAPES[shape]}, got {n_points}")
     c = {**CORNER, **(corner or {})}
     n = virtual.nominal.n_tubes
     k = SHAPES[shape]
@@ -111,8 +139,23 @@ def task_path(virtual: VirtualRobot, shape: str, n_points: int = 10, seed: int =
 
 
 def load_targets(folder: str | Path) -> tuple[np.ndarray, dict[str, Any]]:
-    """Read a task path folder -> (poses (P, 6), meta)."""
-    src = Path(folder)
+    """Read a folder written by `TaskPath.save` (`ctrkin collect --protocol square|triangle`).
+
+    Returns
+    -------
+    poses : ndarray, shape (P, 6)
+    meta : dict
+
+    Raises
+    ------
+    DatasetError
+        If the folder is not a task path.
+    """
+    with reading_folder(folder) as src:
+        return _load_targets(src)
+
+
+def _load_targets(src: Path) -> tuple[np.ndarray, dict[str, Any]]:
     if not (src / TARGETS_FILE).is_file() or not (src / META_FILE).is_file():
         raise DatasetError(f"{src} is not a task path: it needs {TARGETS_FILE} and {META_FILE} "
                            "(made by `ctrkin collect --protocol square|triangle`)")

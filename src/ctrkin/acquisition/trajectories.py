@@ -16,17 +16,46 @@ PAPER_LEVELS_MM = (4.0, 8.0, 12.0, 16.0, 20.0)
 
 
 def paper_level_to_relative_translation(beta12_paper: float) -> float:
-    """The paper's β12 (15..55) -> our d = β_N − β_1 (mm): d = 0.4 β12 − 2."""
+    """The paper's level β12 (its encoder units, 15..55) as ctrkin's relative translation.
+
+    Parameters
+    ----------
+    beta12_paper : float
+
+    Returns
+    -------
+    float
+        d = βN − β1 = 0.4 β12 − 2 (mm): 4..20 mm.
+    """
     return 0.4 * beta12_paper - 2.0
 
 
 def rotation_sweep(n_tubes: int, relative_translation: float, outer_beta: float = 0.0,
                    outer_alpha: float = 0.0, step_deg: float = 1.0, turns: float = 1.0,
                    start_deg: float = 0.0) -> np.ndarray:
-    """Paper Fig. 2b: inner tube rotated start → start + 360°·turns → start in `step_deg`
-    increments, other tubes fixed at α = outer_alpha and β = outer_beta; inner β = outer_beta − d.
+    """Paper Fig. 2b: the inner tube turning forward and back, the other tubes fixed.
 
-    Returns Q (T, 2N) with T = 2·(360·turns / step) + 1.
+    Parameters
+    ----------
+    n_tubes : int
+        N.
+    relative_translation : float
+        d = βN − β1 (mm); the inner tube's β is outer_beta − d.
+    outer_beta : float
+        β of the other tubes (mm).
+    outer_alpha : float
+        α of the other tubes (deg).
+    step_deg : float
+        Increment of the inner rotation (deg).
+    turns : float
+        How far it turns: start → start + 360°·turns → start.
+    start_deg : float
+        Where the inner rotation starts (deg).
+
+    Returns
+    -------
+    ndarray, shape (T, 2N)
+        Joints, T = 2·(360·turns / step) + 1.
     """
     n_half = round(360.0 * turns / step_deg)
     fwd = start_deg + step_deg * np.arange(n_half + 1)

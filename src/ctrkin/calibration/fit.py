@@ -140,12 +140,15 @@ class _Jacobian:
                 jac[:, :, k] = pos @ _rotvec_derivative(x, names, "xyz".index(name[-1])).T
             elif name == "marker_mm":
                 jac[:, :, k] = tan @ rot.T
-        if mech and self.analytic:
-            dm = self._mechanics_analytic(x, eqs, model)[:, :, mech]
-            jac[:, :, mech] = np.einsum("ij,tjk->tik", rot, dm)
-        elif mech:
+        # per-tube bending stiffness has no exact sensitivity (sensitivity.py): forward differences
+        by_difference = [k for k in mech if names[k].startswith("bending_scale_") or not self.analytic]
+        exact = [k for k in mech if k not in by_difference]
+        if exact:
+            dm = self._mechanics_analytic(x, eqs, model)[:, :, exact]
+            jac[:, :, exact] = np.einsum("ij,tjk->tik", rot, dm)
+        if by_difference:
             base = self._tracker(pos, model)
-            for k in mech:
+            for k in by_difference:
                 h = self.step * max(1.0, abs(float(x[k])))
                 if x[k] + h > self.hi[k]:
                     h = -h

@@ -7,6 +7,10 @@ alpha_offset and beta_offset (all tubes but the outermost: a common rotation or 
 tubes is the registration's), transmission_length (per tube, mm), marker (tip-marker distance, mm),
 friction (μ between the tubes: fitted on the continued TCM, calibration/friction.py, after the
 other groups; in the default groups when the nominal robot has friction, `default_groups`).
+Not fitted unless asked (`--fit ...,bending_stiffness`): bending_stiffness, per tube but the
+outermost a scale of E (so of E·I and G·J together; the unloaded TCM depends on the tubes'
+stiffnesses only through their ratios, so the outermost tube's E is the reference), for tubes of
+one robot whose E differs (nylon tubes drawn from different stock).
 
 Prior (`prior=True`, the default): each physical parameter has a Gaussian prior about its nominal
 value with the standard deviation in PRIOR_SIGMA, chosen from what a lab knows before calibrating
@@ -31,18 +35,20 @@ from ctrkin.robots.robot import Robot
 from ctrkin.robots.tube import Section
 
 PRIOR_SIGMA = {"curvature_scale": 0.15, "stiffness_ratio": 0.2, "alpha_offset": 10.0, "beta_offset": 5.0,
-               "transmission_length": 100.0, "marker_mm": 10.0}
+               "transmission_length": 100.0, "marker_mm": 10.0, "bending_scale": 0.3}
 GROUPS = ("registration", "precurvature", "stiffness_ratio", "alpha_offset", "beta_offset",
           "transmission_length", "marker")
-PHYSICAL = GROUPS[1:]
 FRICTION = "friction"        # μ: not a point-wise parameter (calibration/friction.py)
-ALL_GROUPS = (*GROUPS, FRICTION)
+OPTIONAL_GROUPS = ("bending_stiffness", FRICTION)   # fitted only when named (--fit; μ: default_groups)
+ALL_GROUPS = GROUPS + OPTIONAL_GROUPS
+PHYSICAL = GROUPS[1:]
+BENDING_SCALE_BOUNDS = (0.3, 3.0)
 MAX_FRICTION = 1.0
 
 
 def default_groups(robot: Robot) -> tuple[str, ...]:
     """GROUPS, and μ when the nominal robot has friction between its tubes."""
-    return ALL_GROUPS if robot.friction > 0 else GROUPS
+    return (*GROUPS, FRICTION) if robot.friction > 0 else GROUPS
 
 
 @dataclass(frozen=True)
@@ -80,6 +86,9 @@ class ParameterSet:
         for i, t in enumerate(self.robot.tubes):
             if "stiffness_ratio" in self.groups:
                 out.append((f"stiffness_ratio_{i + 1}", "-", 1.0 + t.poisson_ratio, 1.0, 1.49))
+        for i in range(n - 1):
+            if "bending_stiffness" in self.groups:
+                out.append((f"bending_scale_{i + 1}", "-", 1.0, *BENDING_SCALE_BOUNDS))
         for i in range(n - 1):
             if "alpha_offset" in self.groups:
                 out.append((f"alpha_offset_{i + 1}", "deg", 0.0, -self.max_offset_deg, self.max_offset_deg))
@@ -131,9 +140,11 @@ class ParameterSet:
         for i, t in enumerate(self.robot.tubes):
             scale = v.get(f"curvature_scale_{i + 1}", 1.0)
             ratio = v.get(f"stiffness_ratio_{i + 1}", 1.0 + t.poisson_ratio)
-            secs = tuple(Section(s.length, s.curvature * scale) for s in t.sections)
+            secs = tuple(Section(s.length, s.curvature * scale, s.curvature_y * scale) for s in t.sections)
             tubes.append(dataclasses.replace(t, curvature=t.curvature * scale, sections=secs,
-                                             poisson_ratio=float(np.clip(ratio - 1.0, 0.0, 0.499))))
+                                             poisson_ratio=float(np.clip(ratio - 1.0, 0.0, 0.499)),
+                                             youngs_modulus=t.youngs_modulus * v.get(f"bending_scale_{i + 1}",
+                                                                                     1.0)))
         tl = tuple(v.get(f"transmission_length_{i + 1}", (self.robot.transmission_length or (0.0,) * n)[i])
                    for i in range(n))
         robot = dataclasses.replace(self.robot, tubes=tuple(tubes),

@@ -17,7 +17,7 @@ import tomli_w
 
 from ctrkin.calibration import calibrate, leave_one_sequence_out
 from ctrkin.calibration.params import ALL_GROUPS, default_groups
-from ctrkin.cli.common import check_output, emit_json, output_options, say
+from ctrkin.cli.common import InputPath, emit_json, output_file, output_options, say
 from ctrkin.data.dataset import Dataset
 from ctrkin.robots import load_robot
 from ctrkin.util.files import atomic_write_text
@@ -28,19 +28,21 @@ Examples:
   ctrkin calibrate --data data/optitrack --robot examples/robots/comet_nylon_optitrack.toml \\
       --out robots/optitrack_cal.toml --loso --prior-scales 0.5,1,2
   ctrkin calibrate --data data/optitrack --out robots/optitrack_cal.toml --json > calibration.json""")
-@click.option("--data", "data_dir", required=True, type=click.Path(exists=True, file_okay=False),
+@click.option("--data", "data_dir", required=True, type=InputPath(file_okay=False),
               help="Dataset folder (ctrkin dataset import).")
 @click.option("--robot", "robot_spec", default=None,
               help="Nominal robot (name or TOML file); default: the dataset's robot.")
-@click.option("--out", "out_file", required=True, type=click.Path(dir_okay=False),
+@click.option("--out", "out_file", required=True, type=click.Path(),
               help="Calibrated robot file to write (a normal robot file plus a [calibration] table).")
 @click.option("--fit", "fit", default=None,
               help=f"Parameter groups to fit, comma-separated, from {','.join(ALL_GROUPS)}; default: all "
-              "but friction, and friction (μ between the tubes, fitted on the continued TCM) too when "
-              "the robot file has friction > 0.")
+              "but bending_stiffness (per tube a scale of E, relative to the outermost tube: tubes whose "
+              "E differs) and friction (μ between the tubes, fitted on the continued TCM), friction "
+              "included when the robot file has friction > 0.")
 @click.option("--loso", is_flag=True, help="Also report leave-one-sequence-out error (one refit per "
               "sequence).")
-@click.option("--max-evaluations", default=60, show_default=True, help="Least-squares evaluations.")
+@click.option("--max-evaluations", default=60, show_default=True, type=click.IntRange(1, 100_000),
+              help="Least-squares evaluations.")
 @click.option("--no-prior", is_flag=True, help="Fit without the prior about the nominal values "
               "(ctrkin.calibration.params.PRIOR_SIGMA).")
 @click.option("--prior-scales", default="1", show_default=True,
@@ -62,7 +64,7 @@ def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str
     if not scales or not all(v > 0 for v in scales):
         raise click.BadParameter(f"positive numbers, e.g. 0.5,1,2; got {prior_scales!r}",
                                  param_hint="--prior-scales")
-    check_output(out_file, overwrite)
+    output_file(out_file, "robot description", overwrite, inputs=[data_dir, robot_spec])
     ds = Dataset.load(data_dir)
     robot = load_robot(robot_spec) if robot_spec else ds.robot
     groups = (default_groups(robot) if fit is None
@@ -74,6 +76,7 @@ def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str
     d = res.model.robot.to_dict()
     d["name"] = f"{robot.name}-calibrated"
     d["calibration"] = {**res.model.to_dict(), "dataset": str(data_dir),
+                        "data_sha256": ds.meta.get("data_sha256"), "prior": not no_prior,
                         "fit": json.loads(json.dumps(res.to_dict(), default=float, allow_nan=True)
                                           .replace("NaN", "null"))}
     atomic_write_text(out_file, tomli_w.dumps(cast(dict[str, Any], _drop_none(d))))

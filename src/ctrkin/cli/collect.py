@@ -1,6 +1,6 @@
 """`ctrkin collect`: record a protocol on the virtual robot into a dataset folder.
 
-    ctrkin collect --protocol paper --scale quick --seed 0 --out data/paper-quick
+    ctrkin collect --protocol paper --scale quick --out data/paper-quick      # reproduce --scale quick's data
     ctrkin collect --protocol paper --scale full --out data/paper            # the paper's ~208k samples
     ctrkin collect --protocol paper --scale tiny --out data/paper-tiny       # reproduce --scale tiny's data
     ctrkin collect --protocol sweeps --out data/sweeps
@@ -8,6 +8,12 @@
     ctrkin collect --protocol random-points --n-points 20 --seed 1 --out data/random
     ctrkin collect --protocol arbitrary --out data/arbitrary
     ctrkin collect --protocol square --out data/square        # IK targets, not a dataset
+    ctrkin collect --rig examples/rigs/paper.toml --protocol paper --scale full --out data/rig-paper
+
+With --rig the protocol runs on the rig the file describes (motors over CANopen and an NDI tracker,
+or the virtual robot, or a replayed log; docs/hardware.md): the same dataset format, tracker
+readings averaged, safety checks before every move, Ctrl-C stops the motors, and the same command
+resumes an interrupted collection.
 
 The robot seed (--robot-seed) draws the virtual hardware (true tubes, offsets, registration); keep it
 the same for training and test data of one "robot". --seed draws the measurement noise, glitches
@@ -22,16 +28,17 @@ import time
 import click
 
 from ctrkin.acquisition import protocols
+from ctrkin.acquisition.plan import Plan
 from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.acquisition.task_paths import SHAPES, task_path
-from ctrkin.cli.common import check_output, emit_json, output_options, parse_floats, robot_option, say
+from ctrkin.cli.common import emit_json, output_folder, output_options, parse_floats, robot_option, say
 from ctrkin.cli.from_config import parse_key_values
-from ctrkin.evaluation.scales import SCALES
-from ctrkin.robots import load_robot
+from ctrkin.robots import Robot, load_robot
 from ctrkin.virtual import VirtualConfig, VirtualConfigError, VirtualRobot
 
 CHOICES = [*protocols.PROTOCOLS, *SHAPES]
+MAX_POINTS = 100_000      # random points or path points: far beyond any protocol, within memory
 
 
 def _config(settings: tuple[str, ...]) -> VirtualConfig:
@@ -41,59 +48,92 @@ def _config(settings: tuple[str, ...]) -> VirtualConfig:
         raise click.BadParameter(str(e), param_hint="--set") from None
 
 
+def build_plan(protocol: str, robot: Robot, scale: str, seed: int, n_points: int | None,
+               levels: tuple[float, ...] | None) -> Plan:
+    """The plan of `protocol` at `scale` (tiny, quick, full) with the command's options."""
+    kw: dict[str, object] = ({"n_points": 20 if n_points is None else n_points}
+                             if protocol == "random-points" else {})
+    if levels is not None:
+        kw["levels"] = levels
+    return protocols.build(protocol, robot, scale=scale, seed=seed, **kw)  # type: ignore[arg-type]
+
+
 @click.command("collect", epilog="""\b
 Examples:
   ctrkin collect --protocol paper --scale tiny --out data/paper-tiny
   ctrkin collect --protocol random-points --n-points 20 --seed 1 --out data/random
   ctrkin collect --protocol sweeps --set noise_mm=0.1 --out data/sweeps-noisy
-  ctrkin collect --protocol sweeps --levels 8 --out data/sweeps-8 --json > collect.json""")
+  ctrkin collect --protocol sweeps --levels 8 --out data/sweeps-8 --json > collect.json
+  ctrkin collect --rig examples/rigs/paper.toml --protocol paper --scale full --out data/rig""")
 @click.option("--protocol", type=click.Choice(CHOICES), required=True, help="What to record.")
-@click.option("--scale", type=click.Choice(sorted(SCALES)), default="quick", show_default=True,
-              help="Size of the paper protocol (the others do not depend on it). full: the paper's "
-              "(~208k samples); quick: 3 levels x 4 outer angles (~8.6k); tiny: 2 levels x 4 outer angles "
-              "(~5.8k), the data of reproduce --scale tiny.")
+@click.option("--scale", type=click.Choice(sorted(protocols.SCALES)), default="quick", show_default=True,
+              help="Size of the paper protocol, the training data of `reproduce --scale` of the same "
+              "name (the other protocols do not depend on it). full: the paper's, 8 levels x 36 outer "
+              "angles (207,648 samples); quick: 4 levels x 18 outer angles (51,912); tiny: 2 levels x 4 "
+              "outer angles (5,768).")
 @robot_option
 @click.option("--seed", default=0, show_default=True, help="Noise, glitches, random configurations.")
 @click.option("--robot-seed", default=0, show_default=True, help="The virtual hardware draw.")
-@click.option("--n-points", default=None, type=int,
+@click.option("--n-points", default=None, type=click.IntRange(1, MAX_POINTS),
               help="random-points: number of targets (default 20); square/triangle: number of path "
-              "points (default 10, as in the paper).")
+              "points (default 10, as in the paper; at least 4 for a square, 3 for a triangle).")
 @click.option("--levels", default=None,
               help="paper/sweeps: relative translations d = beta_N - beta_1 (mm), comma-separated "
               "(default: the protocol's; needed for robots that cannot reach d = 20 mm).")
 @click.option("--workers", default=None, type=int, help="Processes (default: all cores).")
+@click.option("--rig", "rig_file", default=None, type=click.Path(exists=True, dir_okay=False),
+              help="Run the protocol on the rig this TOML file describes (docs/hardware.md) instead of "
+              "the virtual robot; the robot is the rig's. Running the same command again resumes an "
+              "interrupted collection; --overwrite starts over.")
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
               help="Override a virtual robot effect magnitude (repeatable).")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
-              help="Output folder (written as a whole: a failure leaves the previous one).")
+@click.option("--out", "out_dir", required=True, type=click.Path(),
+              help="Output folder (written as a whole: a failure leaves the previous one; a second "
+              "collect into it is refused while one runs).")
 @output_options
 def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_seed: int,
-                n_points: int | None, levels: str | None, workers: int | None,
+                n_points: int | None, levels: str | None, workers: int | None, rig_file: str | None,
                 settings: tuple[str, ...], out_dir: str, overwrite: bool, as_json: bool) -> None:
-    """Record a protocol on the virtual robot (or write square/triangle IK targets)."""
+    """Record a protocol on the virtual robot or on a rig (or write square/triangle IK targets)."""
     config = _config(settings)
     if levels is not None and protocol not in ("paper", "sweeps"):
         raise click.BadParameter("--levels applies to the paper and sweeps protocols")
     level_values = None if levels is None else tuple(parse_floats(levels, "--levels"))
-    out = check_output(out_dir, overwrite)
+    if protocol in SHAPES and n_points is not None and n_points < SHAPES[protocol]:
+        raise click.BadParameter(f"a {protocol} needs at least {SHAPES[protocol]} points, got {n_points}",
+                                 param_hint="--n-points")
+    if n_points is not None and protocol not in (*SHAPES, "random-points"):
+        raise click.BadParameter("--n-points applies to random-points, square and triangle",
+                                 param_hint="--n-points")
+    if rig_file is not None:
+        from ctrkin.cli.collect_rig import collect_on_rig
+
+        ctx = click.get_current_context()
+        options = {"robot_spec": "--robot", "robot_seed": "--robot-seed", "settings": "--set"}
+        given = [o for p, o in options.items()
+                 if ctx.get_parameter_source(p) == click.core.ParameterSource.COMMANDLINE]
+        if given:
+            raise click.BadParameter(f"{', '.join(given)}: not used with --rig (the rig file names the "
+                                     "robot, and its [virtual] table the virtual robot's seeds and "
+                                     "settings)", param_hint="--rig")
+        if protocol in SHAPES:
+            raise click.BadParameter("square and triangle are IK targets, not a collection; drop --rig",
+                                     param_hint="--rig")
+        collect_on_rig(rig_file, protocol, scale, seed, n_points, level_values, out_dir, overwrite,
+                       as_json)
+        return
+    out = output_folder(out_dir, "task path" if protocol in SHAPES else "dataset", overwrite,
+                        inputs=[robot_spec])
     robot = load_robot(robot_spec)
     virtual = VirtualRobot(robot, config, seed=robot_seed)
     if protocol in SHAPES:
-        path = task_path(virtual, protocol, n_points=n_points or 10, seed=seed)
+        path = task_path(virtual, protocol, n_points=10 if n_points is None else n_points, seed=seed)
         path.save(out)
         say(f"wrote {len(path.poses)} {protocol} targets to {out}")
         if as_json:
             emit_json({"protocol": protocol, "robot": robot.name, "targets": len(path.poses), "out": out})
         return
-    kw: dict[str, object] = {"n_points": n_points or 20} if protocol == "random-points" else {}
-    if level_values is not None:
-        kw["levels"] = level_values
-    if protocol == "paper" and scale == "tiny":
-        tiny = SCALES["tiny"]
-        kw.setdefault("levels", tiny.paper_levels)
-        kw["outer_step_deg"] = tiny.paper_outer_step_deg
-    protocol_scale = SCALES[scale].protocol_scale
-    plan = protocols.build(protocol, robot, scale=protocol_scale, seed=seed, **kw)  # type: ignore[arg-type]
+    plan = build_plan(protocol, robot, scale, seed, n_points, level_values)
     t0 = time.perf_counter()
     ds = record(plan, virtual, seed=seed, workers=workers)
     elapsed = time.perf_counter() - t0

@@ -1,20 +1,28 @@
 """Options and parsing shared by the sub-commands, and the one rule for existing output.
 
-Output rule: a command never replaces an existing output file, or a folder that is not empty, unless
-it is given `--overwrite` (`--force` is kept, hidden, as a deprecated alias where it existed).
-`ctrkin train` and `ctrkin reproduce` resume their own run in --out instead (same settings); that is
-not replacing.
+Output rule (one meaning of `--overwrite` for every command): a command never replaces an existing
+output file, or a folder that is not empty, unless it is given `--overwrite`; and even then only a
+ctrkin output of the same kind that holds nothing ctrkin did not write, never an input of the command,
+`/`, a home folder, the working folder or a folder above it (ctrkin.util.ownership). A replaced folder
+is replaced as a whole (built aside, swapped in). `--force` is kept, hidden, as a deprecated alias
+where it existed. `ctrkin train` and `ctrkin reproduce` continue their own run in --out instead (same
+settings); that is not replacing.
 """
 
 from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable
+import os
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any, TypeVar
 
 import click
+
+from ctrkin.errors import OutputError
+from ctrkin.util.folders import folder_lock
+from ctrkin.util.ownership import check_file_replaceable, check_not_input, check_replaceable, protected_reason
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -89,10 +97,33 @@ class OutputExistsError(click.ClickException):
     exit_code = 1
 
 
-def overwrite_option(force_alias: bool = False) -> Callable[[F], F]:
+class InputError(click.ClickException):
+    """A path argument that names nothing, or the wrong thing (exit status 1, like every input that is
+    wrong for the task; 2 is kept for a command line that is wrong in itself)."""
+
+    exit_code = 1
+
+
+class InputPath(click.Path):
+    """click.Path(exists=True) whose failures exit 1 (InputError) instead of click's 2."""
+
+    def __init__(self, **kw: Any) -> None:
+        super().__init__(exists=True, **kw)
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        try:
+            return super().convert(value, param, ctx)
+        except click.BadParameter as e:
+            raise InputError(e.format_message()) from None
+
+
+OVERWRITE_HELP = ("Replace the output if it is a ctrkin output of the same kind holding nothing else "
+                  "(never an input, your files, a home folder or the working folder).")
+
+
+def overwrite_option(force_alias: bool = False, help: str = OVERWRITE_HELP) -> Callable[[F], F]:
     """`--overwrite` (and, with force_alias, the hidden deprecated `--force`) as one `overwrite` flag."""
-    flag = click.option("--overwrite", is_flag=True,
-                        help="Replace the output if it exists (otherwise an existing output is refused).")
+    flag = click.option("--overwrite", is_flag=True, help=help)
     if not force_alias:
         return flag
 
@@ -115,15 +146,52 @@ def output_options(f: F) -> F:
     return overwrite_option()(json_option(f))
 
 
-def check_output(path: str | Path, overwrite: bool) -> Path:
-    """The output rule: refuse (OutputExistsError) an existing file or non-empty folder `path` unless
-    `overwrite`. Call it after the arguments are checked and before any work is done."""
+def _hold(cm: Any) -> None:
+    """Keep context manager `cm` entered until the running command ends (outside a command: enter
+    and leave it at once, for the checks it makes)."""
+    ctx = click.get_current_context(silent=True)
+    if ctx is not None:
+        ctx.with_resource(cm)
+    else:
+        with cm:
+            pass
+
+
+def output_folder(path: str | Path, kind: str, overwrite: bool, inputs: Iterable[str | Path | None] = (),
+                  reuse: bool = False) -> Path:
+    """The output rule for a folder (ctrkin.util.ownership), checked before any work is done:
+
+    never `/`, a home folder, the working folder or one above it, nor an input of the command (or a
+    folder inside or around one); the folder's writer lock is taken and held until the command ends
+    (a second writer is refused at once; leftovers of killed runs are cleaned). An existing folder
+    that is not empty must be a ctrkin output of `kind` holding nothing else, and is replaced only
+    with `overwrite` (OutputExistsError otherwise), or, with `reuse`, continued by the command (train
+    resumes, reproduce reuses its stages)."""
     p = Path(path)
-    if overwrite or not p.exists():
-        return p
-    if p.is_dir() and not any(p.iterdir()):
-        return p
-    raise OutputExistsError(f"{p} exists; pass --overwrite to replace it (or choose another --out)")
+    reason = protected_reason(p)
+    if reason is not None:
+        raise OutputError(f"--out {p} is {reason}: ctrkin never writes an output there; name a new "
+                          "sub-folder")
+    check_not_input(p, inputs, OutputError)
+    _hold(folder_lock(p, OutputError, "write"))
+    if os.path.lexists(p) and not (p.is_dir() and not p.is_symlink() and not any(p.iterdir())):
+        check_replaceable(p, kind, OutputError)
+        if not (overwrite or reuse):
+            raise OutputExistsError(f"{p} exists; pass --overwrite to replace it (or choose another --out)")
+    return p
+
+
+def output_file(path: str | Path, kind: str, overwrite: bool,
+                inputs: Iterable[str | Path | None] = ()) -> Path:
+    """The output rule for a file: a new file, or an existing ctrkin file of `kind` (ctrkin.util.
+    ownership.FILE_KINDS) replaced with `overwrite`; never a folder, a link or an input."""
+    p = Path(path)
+    check_not_input(p, inputs, OutputError)
+    if os.path.lexists(p):
+        check_file_replaceable(p, kind, OutputError)
+        if not overwrite:
+            raise OutputExistsError(f"{p} exists; pass --overwrite to replace it (or choose another --out)")
+    return p
 
 
 def parse_floats(text: str, what: str) -> list[float]:

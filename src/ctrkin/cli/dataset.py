@@ -16,6 +16,7 @@
 
     ctrkin dataset split data/mylog --kind random --seed 0 --fractions 0.7,0.15,0.15
     ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate   # test sequence by name
+    ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate --val-rows 0.15 --overwrite
 """
 
 from __future__ import annotations
@@ -28,11 +29,25 @@ import click
 from rich.console import Console
 from rich.table import Table
 
-from ctrkin.cli.common import check_output, overwrite_option, parse_floats, quiet, robot_option, say
+from ctrkin.cli.common import (
+    InputPath,
+    output_folder,
+    overwrite_option,
+    parse_floats,
+    quiet,
+    robot_option,
+    say,
+)
 from ctrkin.data.cleaning import CleaningConfig
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
-from ctrkin.data.splits import random_split, split_by_sequence, split_warnings, split_with_test
+from ctrkin.data.splits import (
+    random_split,
+    split_by_sequence,
+    split_warnings,
+    split_with_test,
+    split_with_test_val_rows,
+)
 from ctrkin.data.summary import summarize
 from ctrkin.robots import load_robot
 
@@ -96,7 +111,7 @@ def print_summary(s: dict[str, Any], title: str) -> None:
 @dataset_group.command("info", epilog="""\b
 Examples:
   ctrkin dataset info data/paper --json""")
-@click.argument("folder", type=click.Path(exists=True, file_okay=False))
+@click.argument("folder", type=InputPath(file_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def info_cmd(folder: str, as_json: bool) -> None:
     """Summary of the dataset in FOLDER: samples, sequences, ranges, snaps, cleaning, noise, split."""
@@ -162,13 +177,13 @@ Examples:
   ctrkin dataset import robot_log.csv --robot paper --units rad,m --out data/mylog
   ctrkin dataset import logs/*.csv --profile examples/profiles/comet_optitrack.toml \\
       --robot examples/robots/comet_nylon_optitrack.toml --out data/optitrack""")
-@click.argument("log_files", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
+@click.argument("log_files", nargs=-1, required=True, type=InputPath(dir_okay=False))
 @robot_option
-@click.option("--profile", "profile_file", default=None, type=click.Path(exists=True, dir_okay=False),
+@click.option("--profile", "profile_file", default=None, type=InputPath(dir_okay=False),
               help="Import profile (TOML: columns by position or name, scales, travel zero, groups, "
                    "drops, reference body, orientation). With a profile, several files make one "
                    "dataset, one sequence per file, and --map/--units/--quaternion are not used.")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
+@click.option("--out", "out_dir", required=True, type=click.Path(),
               help="Dataset folder to write.")
 @click.option("--map", "maps", multiple=True, metavar="LOG_COLUMN=FIELD",
               help="Map a log column to a field (alpha_1.., beta_1.., x, y, z, q0, qw, qx, qy, qz, tx, "
@@ -207,7 +222,8 @@ def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | 
                                "profile import one file")
     quaternion_columns = tuple(c.strip() for c in quat_cols.split(",")) if quat_cols else ()
     mapping, unit_kw, gap = parse_map(maps), parse_units(units), parse_gap(gap_text)
-    out = check_output(out_dir, overwrite or force)
+    out = output_folder(out_dir, "dataset", overwrite or force,
+                        inputs=[*log_files, profile_file, robot_spec])
     robot = load_robot(robot_spec)
     cfg = ImportConfig(
         mapping=mapping, quaternion_columns=quaternion_columns,
@@ -235,8 +251,9 @@ def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | 
 @dataset_group.command("split", epilog="""\b
 Examples:
   ctrkin dataset split data/paper --fractions 0.8,0.1,0.1 --seed 2
-  ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate""")
-@click.argument("folder", type=click.Path(exists=True, file_okay=False))
+  ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate
+  ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate --val-rows 0.15 --overwrite""")
+@click.argument("folder", type=InputPath(file_okay=False))
 @click.option("--kind", type=click.Choice(["sequence", "random"]), default="sequence", show_default=True,
               help="sequence: whole sequences per part (no leakage through the input buffer); "
                    "random: the paper's per-sample shuffle.")
@@ -246,7 +263,14 @@ Examples:
 @click.option("--test", "test_seqs", default=None, metavar="NAMES|INDICES",
               help="Sequences for the test part, by name (file stem for imported logs) or index, "
                    "comma-separated; the rest is split into train and validation by --fractions.")
-def split_cmd(folder: str, kind: str, seed: int, fractions: str, test_seqs: str | None) -> None:
+@click.option("--val-rows", "val_rows", default=None, type=float, metavar="FRACTION",
+              help="With --test: validation is this fraction of the other sequences' rows, drawn at "
+                   "random, instead of whole sequences (with few sequences a whole one is spent on "
+                   "validation); the split of benchmarks/bench_realdata.py is --val-rows 0.15.")
+@overwrite_option(help="Replace a split.json that FOLDER already has (otherwise a different saved split "
+                  "is refused: models trained on it would no longer match).")
+def split_cmd(folder: str, kind: str, seed: int, fractions: str, test_seqs: str | None,
+              val_rows: float | None, overwrite: bool) -> None:
     """Make a train/validation/test split of the dataset in FOLDER and save it as split.json. Warns
     when the parts are far from the requested fractions (few, unequal sequences)."""
     f = parse_floats(fractions, "--fractions")
@@ -254,15 +278,23 @@ def split_cmd(folder: str, kind: str, seed: int, fractions: str, test_seqs: str 
         raise click.BadParameter(f"three fractions needed, got {f}", param_hint="--fractions")
     ds = Dataset.load(folder)
     frac = (f[0], f[1], f[2])
+    if val_rows is not None and test_seqs is None:
+        raise click.BadParameter("--val-rows needs --test (the held-out sequences)", param_hint="--val-rows")
     if test_seqs is not None:
         labels = [str(v) for v in ds.meta.get("sequence_labels") or []]
-        split = split_with_test(ds.frame["sequence_id"].to_numpy(), labels,
-                                [t.strip() for t in test_seqs.split(",") if t.strip()], frac, seed=seed)
+        names = [t.strip() for t in test_seqs.split(",") if t.strip()]
+        sid = ds.frame["sequence_id"].to_numpy()
+        if val_rows is not None:
+            split = split_with_test_val_rows(sid, labels, names, val_rows, seed=seed)
+            kind = f"test {','.join(names)}, validation {val_rows:.0%} of the other rows"
+            frac = split.fractions
+        else:
+            split = split_with_test(sid, labels, names, frac, seed=seed)
     elif kind == "sequence":
         split = split_by_sequence(ds.frame["sequence_id"].to_numpy(), frac, seed=seed)
     else:
         split = random_split(len(ds.frame), frac, seed=seed)
-    ds.save_split(folder, split)
+    ds.save_split(folder, split, overwrite=overwrite)
     sizes = split.sizes()
     say(f"{folder}: {kind} split, seed {seed}: train {sizes['train']}, val {sizes['val']}, "
         f"test {sizes['test']} samples -> {Path(folder) / 'split.json'}")

@@ -3,11 +3,16 @@
     ctrkin evaluate --data data/optitrack --predictor tcm --out out/eval_tcm
     ctrkin evaluate --data data/optitrack --predictor robots/optitrack_cal.toml --out out/eval_cal
     ctrkin evaluate --data data/optitrack --predictor out/fk_model --out out/eval_fk
+    ctrkin evaluate --data data/optitrack --predictor robots/optitrack_cal.toml --loso
+
+Figures are given per part, each labelled with what the predictor knew of its rows: a learned
+model's training, validation and held-out (test) rows (its own split), a calibration's in-sample
+rows; --loso adds leave-one-sequence-out figures (each sequence predicted by a refit on the others).
 """
 
 from __future__ import annotations
 
-import shutil
+import contextlib
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -15,11 +20,17 @@ from typing import Any
 
 import click
 
-from ctrkin.cli.common import check_output, emit_json, output_options, say
+from ctrkin.cli.common import InputPath, emit_json, output_folder, output_options, say
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import CtrkinError
-from ctrkin.evaluation.real import evaluate
-from ctrkin.util.folders import swap_in
+from ctrkin.evaluation.real import evaluate, loso, predictor_name
+from ctrkin.util.folders import build_folder
+
+
+def folder_names(predictors: tuple[str, ...]) -> list[str]:
+    """One sub-folder name per predictor: its own name, numbered only where two share one."""
+    names = [predictor_name(p) for p in predictors]
+    return [n if names.count(n) == 1 else f"{n}-{k + 1}" for k, n in enumerate(names)]
 
 
 @click.command("evaluate", epilog="""\b
@@ -27,64 +38,87 @@ Examples:
   ctrkin evaluate --data data/optitrack --predictor tcm --out out/eval_tcm
   ctrkin evaluate --data data/optitrack --predictor robots/optitrack_cal.toml --out out/eval_cal
   ctrkin evaluate --data data/optitrack --predictor models/fk_optitrack --out out/eval_fk
+  ctrkin evaluate --data data/optitrack --predictor robots/optitrack_cal.toml --loso
   ctrkin evaluate --data data/optitrack --predictor tcm --json > eval_tcm.json""")
-@click.option("--data", "data_dir", required=True, type=click.Path(exists=True, file_okay=False),
+@click.option("--data", "data_dir", required=True, type=InputPath(file_okay=False),
               help="Dataset folder.")
 @click.option("--predictor", "predictors", required=True, multiple=True,
               help="tcm (nominal robot of the dataset, registration fitted here), a robot file "
                    "(.toml, calibrated or not) or a trained FK model folder. Repeatable.")
-@click.option("--out", "out_dir", default=None, type=click.Path(file_okay=False),
-              help="Folder for results.json and plots (one sub-folder per predictor when several); "
-              "written as a whole: with --overwrite it replaces the folder's earlier content.")
+@click.option("--out", "out_dir", default=None, type=click.Path(),
+              help="Folder for results.json and plots (one sub-folder per predictor, named after it, "
+              "when several); written as a whole (with --overwrite it replaces an earlier evaluation "
+              "folder).")
+@click.option("--loso", "with_loso", is_flag=True,
+              help="Also leave-one-sequence-out: each sequence predicted by the predictor refitted to "
+              "the other sequences (a calibration's groups, or a model retrained with its own settings).")
+@click.option("--loso-epochs", default=None, type=int,
+              help="With --loso and a learned model: cap its epochs per fold (default: its own).")
 @output_options
-def evaluate_cmd(data_dir: str, predictors: tuple[str, ...], out_dir: str | None, overwrite: bool,
-                 as_json: bool) -> None:
+def evaluate_cmd(data_dir: str, predictors: tuple[str, ...], out_dir: str | None, with_loso: bool,
+                 loso_epochs: int | None, overwrite: bool, as_json: bool) -> None:
     """Compare predictors with the measured tips: position (and orientation, where measured) errors
-    overall and per sequence; plots of predicted vs measured tips and of error against joints."""
+    per part (training, validation, held out, in-sample), per sequence and overall; plots of predicted
+    vs measured tips, of error against joints and of the error per sequence."""
     if out_dir is not None:
-        check_output(out_dir, overwrite)
+        output_folder(out_dir, "evaluation", overwrite, inputs=[data_dir, *predictors])
     ds = Dataset.load(data_dir)
+    ds.meta.setdefault("path", data_dir)
     # without --out (and without --json) the printed table is the result
     show = click.echo if out_dir is None and not as_json else say
-    build = None
-    if out_dir is not None:         # written beside --out, swapped in when every predictor is done
-        target = Path(out_dir)
-        target.parent.mkdir(parents=True, exist_ok=True)
-        build = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
     results = []
-    try:
-        for k, spec in enumerate(predictors):
-            out = None if build is None else (build if len(predictors) == 1 else build / str(k))
+    subs = folder_names(predictors)
+    # written beside --out, swapped in when every predictor is done
+    with (contextlib.nullcontext(None) if out_dir is None
+          else build_folder(out_dir, "evaluation", CtrkinError, "evaluate")) as build:
+        for spec, sub in zip(predictors, subs, strict=True):
+            out = None if build is None else (build if len(predictors) == 1 else build / sub)
             res = evaluate(ds, spec, out)
+            if with_loso:
+                with tempfile.TemporaryDirectory() as work:
+                    res["loso"] = loso(ds, spec, Path(work), loso_epochs)
             results.append({"predictor": spec, **res,
                             "out": None if out_dir is None else
-                            (out_dir if len(predictors) == 1 else f"{out_dir}/{k}")})
+                            (out_dir if len(predictors) == 1 else f"{out_dir}/{sub}")})
             _print(spec, res, show)
-        if build is not None and out_dir is not None:
-            swap_in(build, Path(out_dir), CtrkinError)
-            build = None
-            for r in results:
-                say(f"wrote {r['out']}/results.json, tips.png, error_vs_joints.png")
-    finally:
-        if build is not None:
-            shutil.rmtree(build, ignore_errors=True)
+    if out_dir is not None:
+        for r in results:
+            say(f"wrote {r['out']}/results.json, {', '.join(r['figures'])}")
     if as_json:
         emit_json({"data": data_dir, "predictors": results})
 
 
+def _row(label: str, s: dict[str, Any]) -> str:
+    return (f"  {label:36s} {s['samples']:7d} {s['position_mean_mm']:8.3f} {s['position_rmse_mm']:8.3f} "
+            f"{s['position_max_mm']:8.3f}")
+
+
 def _print(spec: str, res: dict[str, Any], show: Callable[[str], None]) -> None:
-    """One predictor's figures, and a warning (stderr) for joints outside a model's training range."""
+    """One predictor's figures by part and by sequence; warnings (stderr) for joints outside a
+    model's training range and for joints the held-out rows move that training never moved."""
     o = res["overall"]
-    show(f"{spec}: {o['samples']} samples, position mean {o['position_mean_mm']:.3f} mm, "
-         f"RMSE {o['position_rmse_mm']:.3f} mm, max {o['position_max_mm']:.3f} mm"
-         + (f", orientation mean {o['orientation_mean_deg']:.2f} deg"
-            if "orientation_mean_deg" in o else ", orientation: not measured"))
+    show(f"{spec}: {o['samples']} samples; parts: {res['parts_source']}"
+         + ("" if "orientation_mean_deg" in o else "; orientation: not measured"))
     if "registration" in res:
         show(f"  registration: {res['registration']}")
-    show(f"  {'sequence':32s} {'samples':>7s} {'mean mm':>8s} {'rmse mm':>8s}")
+    head = f"  {'':36s} {'samples':>7s} {'mean mm':>8s} {'rmse mm':>8s} {'max mm':>8s}"
+    show(head.replace("  " + " " * 36, f"  {'part':36s}", 1))
+    for part, s in res["per_part"].items():
+        show(_row(part, s))
+    show(_row("all rows (mixes the parts above)" if len(res["per_part"]) > 1 else "all rows", o))
+    show(head.replace("  " + " " * 36, f"  {'sequence':36s}", 1))
     for name, s in res["per_sequence"].items():
-        show(f"  {name:32s} {s['samples']:7d} {s['position_mean_mm']:8.3f} "
-             f"{s['position_rmse_mm']:8.3f}")
+        show(_row(name, s) + f"  {'+'.join(s['parts'])}")
+    if "loso" in res:
+        lo = res["loso"]
+        show(f"  leave-one-sequence-out (held out): {lo['mean_mm']:.3f} mm mean over {lo['samples']} "
+             f"samples; {lo['how']}")
+        for name, e in lo["per_sequence"].items():
+            show(f"    {name:34s} {e:8.3f} mm")
+        for w in lo.get("warnings", []):
+            click.echo(f"  warning: {w}", err=True)
+    for w in res.get("warnings", []):
+        click.echo(f"  warning: {w}", err=True)
     if res.get("out_of_range_samples"):
         click.echo(f"  WARNING: {res['out_of_range_samples']} samples have joints outside the model's "
                    "training range (beyond the margin); their predictions are extrapolations:", err=True)

@@ -5,13 +5,16 @@
     ctrkin --quiet reproduce --scale quick --out out/reproduce
 
 Exit status: 0 done; 1 the input is wrong for the task (ctrkin.errors: invalid joints, a robot that
-does not match, bad data or model files; an output that exists without --overwrite), with a one-line
-message on stderr; 2 the command line is wrong (click's usage errors).
+does not match, missing or bad data and model files, an output that exists without --overwrite or
+that ctrkin may not replace; and the system's refusals: no permission, a full disk), with a one-line
+message on stderr; 2 the command line is wrong in itself (click's usage errors: an unknown option, a
+value that is not a number or outside its range, a missing or conflicting option).
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import importlib
 import os
 from collections.abc import Iterator
@@ -32,13 +35,15 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
                   "transmission length, marker offset) by bounded least squares; print them with "
                   "standard errors."),
     "collect": ("ctrkin.cli.collect", "collect_cmd",
-                "Record a protocol on the virtual robot (or write square/triangle IK targets)."),
+                "Record a protocol on the virtual robot or on a rig (or write square/triangle IK "
+                "targets)."),
     "dataset": ("ctrkin.cli.dataset", "dataset_group",
                 "Inspect datasets, import robot logs (CSV) and split datasets."),
     "evaluate": ("ctrkin.cli.evaluate", "evaluate_cmd",
                  "Compare predictors with the measured tips: position (and orientation, where measured) "
-                 "errors overall and per sequence; plots of predicted vs measured tips and of error "
-                 "against joints."),
+                 "errors per part (training, validation, held out, in-sample), per sequence and overall; "
+                 "plots of predicted vs measured tips, of error against joints and of the error per "
+                 "sequence."),
     "export": ("ctrkin.cli.export", "export_cmd",
                "Export MODEL_DIR (from `ctrkin train`) to an ONNX file (written atomically)."),
     "predict": ("ctrkin.cli.predict", "predict_cmd",
@@ -47,6 +52,9 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "reproduce": ("ctrkin.cli.reproduce", "reproduce_cmd",
                   "Collect data, train the models, run every experiment of the paper, write the report."),
     "robot": ("ctrkin.cli.robot", "robot_group", "Robot description files: a documented template."),
+    "show": ("ctrkin.cli.show", "show_cmd",
+             "Draw the robot's 3-D shape (tubes with their diameters, the tip's path, snaps marked), or "
+             "animate a sweep with its snap."),
     "solve": ("ctrkin.cli.mechanics", "solve_cmd",
               "Solve the TCM at one configuration (point-wise, no history)."),
     "sweep": ("ctrkin.cli.mechanics", "sweep_cmd",
@@ -90,6 +98,19 @@ class CtrkinGroup(click.Group):
             return super().invoke(ctx)
         except CtrkinError as e:
             raise DomainError(" ".join(str(e).split())) from e
+        except OSError as e:        # the system refused: permission, full disk, read-only, ...
+            raise DomainError(_os_message(e)) from e
+
+
+def _os_message(e: OSError) -> str:
+    """One line for an error of the operating system: what, where, and what to do for the common ones."""
+    where = " ".join(f"{p}" for p in (e.filename, e.filename2) if p is not None)
+    what = e.strerror or type(e).__name__
+    hint = {errno.ENOSPC: "; free some space (the previous output, if any, is intact)",
+            errno.EFBIG: "; the file would exceed the size limit (the previous output, if any, is intact)",
+            errno.EACCES: "; check the permissions", errno.EPERM: "; check the permissions",
+            errno.EROFS: "; write somewhere else"}.get(e.errno or 0, "")
+    return f"{what}{': ' + where if where else ''}{hint}"
 
 
 @contextlib.contextmanager
@@ -106,10 +127,12 @@ def _environ(name: str, value: str) -> Iterator[None]:
 
 
 @click.group(cls=CtrkinGroup, context_settings={"help_option_names": ["-h", "--help"]}, epilog="""\b
-Progress is one updating line on a terminal and a few lines (25/50/75/100 %) in a log or pipe;
-CTRKIN_NO_PROGRESS=1 (or --quiet) turns it off.
-Exit status: 0 done; 1 the input is wrong for the task (invalid joints, robot mismatch, bad data,
-an existing output without --overwrite), one line on stderr; 2 a usage error.
+Progress is one updating line on a terminal; in a log or pipe, a line at 25/50/75/100 % and at
+least one a minute while work goes on. CTRKIN_NO_PROGRESS=1 (or --quiet) turns it off.
+Exit status: 0 done; 1 the input is wrong for the task (invalid joints, robot mismatch, missing or
+bad data, an existing output without --overwrite or one ctrkin may not replace, no permission, a full
+disk), one line on stderr; 2 a usage error (the command line itself: unknown option, a value that is
+not a number or outside its range, a missing or conflicting option).
 
 \b
 Examples:

@@ -15,11 +15,12 @@ import numpy as np
 import pandas as pd
 
 from ctrkin.acquisition.trajectories import PAPER_LEVELS_MM, rotation_sweep
-from ctrkin.cli.common import check_output, emit_json, output_options, parse_floats, robot_option, say
+from ctrkin.cli.common import emit_json, output_folder, output_options, parse_floats, robot_option, say
+from ctrkin.errors import CtrkinError
 from ctrkin.geometry import POSE_COLUMNS, tip_azimuth
 from ctrkin.mechanics import Equilibrium, follow, solve
 from ctrkin.robots import load_robot
-from ctrkin.util.files import atomic_path
+from ctrkin.util.folders import build_folder
 from ctrkin.util.progress import progress_bar
 
 
@@ -74,6 +75,9 @@ def backbone_dict(eq: Equilibrium) -> dict[str, object]:
             "twist_deg": [[float(v) if np.isfinite(v) else None for v in row] for row in eq.twist]}
 
 
+MIN_STEP_DEG = 1e-3      # a sweep of 720 / step steps per level: at most 720,000
+
+
 @click.command("sweep", epilog="""\b
 Examples:
   ctrkin sweep --out out/sweep
@@ -85,7 +89,8 @@ Examples:
               show_default=True, help="Relative translations d = β_N − β_1 (mm).")
 @click.option("--outer-beta", default=0.0, show_default=True, help="β of the other tubes (mm).")
 @click.option("--outer-alpha", default=0.0, show_default=True, help="α of the other tubes (deg).")
-@click.option("--step", "step_deg", default=1.0, show_default=True, help="Rotation step (deg).")
+@click.option("--step", "step_deg", default=1.0, show_default=True,
+              type=click.FloatRange(MIN_STEP_DEG, 360.0), help="Rotation step (deg).")
 @click.option("--friction", type=click.FloatRange(0.0, 2.0), default=None,
               help="Coulomb coefficient μ between the tubes (docs/mechanics.md: Friction and "
               "clearance); default: the robot file's (0 for the built-in robots). With μ > 0 the plot "
@@ -94,7 +99,7 @@ Examples:
               help="Share of the tubes' radial gap the inner tube may tilt in at an outer tube's tip "
               "(1: all of it); default: the robot file's (0).")
 @click.option("--out", "out_dir", default="out/sweep", show_default=True,
-              type=click.Path(file_okay=False), help="Output folder for sweep.csv and sweep.png.")
+              type=click.Path(), help="Output folder for sweep.csv and sweep.png.")
 @output_options
 def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha: float,
               step_deg: float, friction: float | None, clearance: float | None, out_dir: str,
@@ -104,7 +109,9 @@ def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha
     from ctrkin.viz.sweep import plot_sweeps
 
     levels = parse_floats(translations, "--translations")
-    out = check_output(out_dir, overwrite)
+    if not levels:
+        raise click.BadParameter("give at least one relative translation (mm)", param_hint="--translations")
+    out = output_folder(out_dir, "sweep", overwrite, inputs=[robot_spec])
     robot = load_robot(robot_spec)
     robot = dataclasses.replace(robot, friction=robot.friction if friction is None else friction,
                                 clearance=robot.clearance if clearance is None else clearance)
@@ -130,13 +137,13 @@ def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha
             curves.append({"label": f"d = {d:g} mm", "alpha0": alpha0, "azimuth": tr.azimuth,
                            "snaps": tr.snaps, "forward": forward,
                            **({"folds_frictionless": ref} if free is not None else {})})
-    out.mkdir(parents=True, exist_ok=True)
     table = pd.concat(frames, ignore_index=True)
-    with atomic_path(out / "sweep.csv") as tmp:
-        table.to_csv(tmp, index=False)
     extra = f", μ = {robot.friction:g}" if robot.friction else ""
     extra += f", clearance {robot.clearance:g}" if robot.clearance else ""
-    plot_sweeps(curves, out / "sweep.png", title=f"{robot.name}{extra}: T(L) over full inner rotations")
+    with build_folder(out, "sweep", CtrkinError, "sweep") as build:     # written as one unit
+        table.to_csv(build / "sweep.csv", index=False)
+        plot_sweeps(curves, build / "sweep.png",
+                    title=f"{robot.name}{extra}: T(L) over full inner rotations")
     summary = []
     for d, f in zip(levels, frames, strict=True):
         snaps = f.loc[f["snap"], "alpha_1"].tolist()

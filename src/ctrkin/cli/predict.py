@@ -25,7 +25,7 @@ import click
 import numpy as np
 import pandas as pd
 
-from ctrkin.cli.common import check_output, overwrite_option, parse_floats, say
+from ctrkin.cli.common import InputPath, output_file, overwrite_option, parse_floats, say
 from ctrkin.data.schema import INDEX_COLUMNS, POSE_COLUMNS
 from ctrkin.errors import DatasetError, ModelError
 from ctrkin.util.files import atomic_path
@@ -61,16 +61,16 @@ Examples:
   ctrkin predict models/fk --data data/paper --out fk.parquet
   ctrkin predict models/ik --poses targets.csv --out joints.csv
   ctrkin predict models/ik_follow --poses targets.csv --start-joints 0,0,-20,-5""")
-@click.argument("model_dir", type=click.Path(exists=True, file_okay=False))
-@click.option("--data", "data_dir", default=None, type=click.Path(exists=True, file_okay=False),
+@click.argument("model_dir", type=InputPath(file_okay=False))
+@click.option("--data", "data_dir", default=None, type=InputPath(file_okay=False),
               help="Dataset folder (from the model's robot).")
-@click.option("--poses", "poses_file", default=None, type=click.Path(exists=True, dir_okay=False),
+@click.option("--poses", "poses_file", default=None, type=InputPath(dir_okay=False),
               help="IK model: a .csv or .parquet file of target poses, columns x, y, z (mm), q0, qx, qy "
               "(optional sequence_id, step), in the frame of the model's training data.")
 @click.option("--start-joints", default=None, metavar="A1,..,AN,B1,..,BN",
               help="Follow IK (follow_mlp) with --poses: the robot's joints (deg, mm) at the start of every "
               "sequence (default: those of the nearest training target).")
-@click.option("--out", "out_file", default=None, type=click.Path(dir_okay=False), callback=_check_format,
+@click.option("--out", "out_file", default=None, type=click.Path(), callback=_check_format,
               help="File to write, format by extension: .csv, .parquet or .json (a list of rows). "
               "Default: CSV on stdout.")
 @overwrite_option()
@@ -88,7 +88,7 @@ def predict_cmd(model_dir: str, data_dir: str | None, poses_file: str | None, st
         raise click.BadParameter(f"{poses_file!r}: a .csv or .parquet file", param_hint="--poses")
     start = None if start_joints is None else np.array(parse_floats(start_joints, "--start-joints"))
     if out_file is not None:
-        check_output(out_file, overwrite)
+        output_file(out_file, "predictions", overwrite, inputs=[model_dir, data_dir, poses_file])
     kin = Kinematics.load(model_dir)
     if poses_file is not None:
         if kin.task != "ik":

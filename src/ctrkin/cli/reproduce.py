@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import click
 
-from ctrkin.cli.common import robot_option, say
+from ctrkin.cli.common import output_folder, overwrite_option, robot_option, say
 from ctrkin.evaluation.scales import SCALES, get_scale
 from ctrkin.robots import load_robot
 
@@ -43,14 +43,18 @@ Examples:
     "out_dir",
     default="out/reproduce",
     show_default=True,
-    type=click.Path(file_okay=False),
-    help="Output folder.",
+    type=click.Path(),
+    help="Output folder. A rerun with the same settings reuses its data and models; one with other "
+    "settings is refused unless --overwrite.",
 )
+@overwrite_option(help="Replace --out if it holds a reproduction of other settings (only a ctrkin "
+                  "reproduction folder holding nothing else is ever replaced).")
 def reproduce_cmd(scale: str, robot_spec: str, robot_seed: int, workers: int, executor: str,
-                  out_dir: str) -> None:
+                  out_dir: str, overwrite: bool) -> None:
     """Collect data, train the models, run every experiment of the paper, write the report."""
     from ctrkin.evaluation.reproduce import reproduce
 
+    output_folder(out_dir, "reproduction", overwrite, inputs=[robot_spec], reuse=True)
     results = reproduce(
         load_robot(robot_spec),
         get_scale(scale),
@@ -59,6 +63,7 @@ def reproduce_cmd(scale: str, robot_spec: str, robot_seed: int, workers: int, ex
         workers=workers,
         log=say,
         executor=executor,
+        overwrite=overwrite,
     )
     fk, ik = results.fk, results.ik["lstm_mlp"]
     say(

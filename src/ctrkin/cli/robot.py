@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import click
 
-from ctrkin.cli.common import check_output, overwrite_option, say
+from ctrkin.cli.common import output_file, overwrite_option, say
 from ctrkin.robots.builtin import robot_template
 from ctrkin.util.files import atomic_write_text
 
@@ -24,7 +24,7 @@ def robot_group() -> None:
 Examples:
   ctrkin robot template --out my_robot.toml
   ctrkin robot template > my_robot.toml""")
-@click.option("--out", "out_file", default=None, type=click.Path(dir_okay=False),
+@click.option("--out", "out_file", default=None, type=click.Path(),
               help="TOML file to write (default: stdout).")
 @overwrite_option()
 def template_cmd(out_file: str | None, overwrite: bool) -> None:
@@ -34,6 +34,6 @@ def template_cmd(out_file: str | None, overwrite: bool) -> None:
     if out_file is None:
         click.echo(text, nl=False)
         return
-    check_output(out_file, overwrite)
+    output_file(out_file, "robot description", overwrite)
     atomic_write_text(out_file, text)
     say(f"wrote {out_file}: edit it, then pass it as --robot {out_file}")

@@ -19,12 +19,11 @@ ctrkin.cli.from_config).
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from typing import Any
 
 import click
 
-from ctrkin.cli.common import check_output, emit_json, json_option, log_line, say
+from ctrkin.cli.common import InputPath, emit_json, json_option, log_line, output_folder, say
 from ctrkin.cli.from_config import config_options, parse_key_values
 from ctrkin.data import Dataset
 from ctrkin.training.config import TrainConfig
@@ -41,16 +40,6 @@ def _list_models(ctx: click.Context, _param: click.Parameter, value: bool) -> No
     ctx.exit()
 
 
-def _check_model_folder(out: Path, overwrite: bool) -> None:
-    """The output rule for a model folder: the same setup resumes, another model needs --overwrite
-    (ctrkin.training checks both); anything else in --out is refused here unless --overwrite."""
-    from ctrkin.models.store import CONFIG
-    from ctrkin.training.loop import CHECKPOINT
-
-    if not ((out / CONFIG).is_file() or (out / CHECKPOINT).is_file()):
-        check_output(out, overwrite)
-
-
 # The command line differs from TrainConfig only here: older option names, and --task is required.
 # `options` is set by --structure and --option.
 ALIASES = {"max_epochs": ("--epochs",), "angle_encoding": ("--angles",), "pose_source": ("--pose",)}
@@ -65,15 +54,15 @@ Examples:
   ctrkin train --task fk --data data/paper --out models/fk --json > fk_metrics.json""")
 @click.option("--list-models", is_flag=True, expose_value=False, is_eager=True, callback=_list_models,
               help="List the model registry and exit.")
-@click.option("--data", "data_dir", required=True, type=click.Path(exists=True, file_okay=False),
+@click.option("--data", "data_dir", required=True, type=InputPath(file_okay=False),
               help="Dataset folder (data.parquet + meta.json).")
-@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Model folder.")
+@click.option("--out", "out_dir", required=True, type=click.Path(), help="Model folder.")
 @config_options(TrainConfig, aliases=ALIASES, required=REQUIRED, exclude=("options",))
 @click.option("--structure", default=None, help="LSTM-MLP/LSTM/MLP structure: paper, S1..S5 or 'L128|D64'.")
 @click.option("--option", "model_options", multiple=True, metavar="KEY=VALUE",
               help="Other model options, e.g. channels=32 (cnn/tcn), width=64 (resnet).")
 @click.option("--overwrite", is_flag=True, help="Start over even if --out holds a checkpoint or another "
-              "model; replace --out if it is a folder that is not a model.")
+              "model (--out must be a ctrkin model folder holding nothing else, or new).")
 @json_option
 def train_cmd(data_dir: str, out_dir: str, structure: str | None, model_options: tuple[str, ...],
               overwrite: bool, as_json: bool, **settings: Any) -> None:
@@ -84,7 +73,8 @@ def train_cmd(data_dir: str, out_dir: str, structure: str | None, model_options:
     if structure is not None:
         opts["structure"] = structure
     cfg = TrainConfig(**settings, options=opts)
-    _check_model_folder(Path(out_dir), overwrite)
+    # a model folder resumes (same setup) or needs --overwrite (another one): ctrkin.training decides
+    output_folder(out_dir, "model", overwrite, inputs=[data_dir], reuse=True)
     ds = Dataset.load(data_dir)
     ds.meta.setdefault("path", data_dir)
     res = train(ds, cfg, out_dir, overwrite=overwrite, log=log_line)

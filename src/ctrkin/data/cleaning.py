@@ -3,10 +3,13 @@
 The paper averaged five tracker readings per joint sample and removed outliers caused by encoder
 errors. Here, on (R,) readings grouped into samples and then per sequence:
 
-1. Repeated readings: consecutive readings of one joint sample (same `step`, or identical joints when
-   the log has no step) are averaged: joints and positions by the mean, orientations by the mean tip
-   tangent. Within a sample of three or more readings, a reading farther from the sample's median
-   position than max(k·1.4826·MAD, floor) is left out first. The spread of the readings about their
+1. Repeated readings: consecutive readings of one joint sample (identical joints, to repeat_tol, the
+   encoder's resolution, and the same `step` where the log has one) are averaged; readings of
+   different joints are never averaged, even where the log gives them one step (`distinct_in_step`
+   counts them; the importer then numbers the steps itself and warns): joints and positions by
+   the mean, orientations by the mean tip tangent. Within a sample of three or more readings, a
+   reading farther from the sample's median position than max(k·1.4826·MAD, floor) is left out
+   first. The spread of the readings about their
    mean is the tracker noise estimate reported in meta["noise"].
 2. Encoder glitches: a joint value far from the midpoint of its neighbours while the neighbours
    agree with each other (|q_t − (q_t−1 + q_t+1)/2| > thr and |q_t+1 − q_t−1| ≤ thr), with
@@ -101,17 +104,31 @@ class Samples:
 def repeat_groups(sequence: np.ndarray, joints: np.ndarray, step: np.ndarray | None,
                   tol: float) -> np.ndarray:
     """(R,) sample index of each reading: a new sample starts with a new sequence, a new `step`
-    (when the log has one) or, without steps, joints differing by more than `tol` from the previous
-    reading. joints: (R, 2N)."""
+    (when the log has one) or joints differing by more than `tol` (deg / mm, the encoder's
+    resolution) from the previous reading. joints: (R, 2N)."""
     new = np.ones(len(sequence), dtype=bool)
     if len(sequence) > 1:
-        same_seq = sequence[1:] == sequence[:-1]
+        same = (sequence[1:] == sequence[:-1]) & _same_joints(joints, tol)
         if step is not None:
-            same = step[1:] == step[:-1]
-        else:
-            same = np.abs(np.diff(joints, axis=0)).max(axis=1) <= tol
-        new[1:] = ~(same_seq & same)
+            same &= step[1:] == step[:-1]
+        new[1:] = ~same
     return np.cumsum(new) - 1
+
+
+def _same_joints(joints: np.ndarray, tol: float) -> np.ndarray:
+    """(R − 1,) consecutive readings whose joints agree to `tol`."""
+    return np.abs(np.diff(joints, axis=0)).max(axis=1, initial=0.0) <= tol
+
+
+def distinct_in_step(sequence: np.ndarray, joints: np.ndarray, step: np.ndarray | None,
+                     tol: float) -> np.ndarray:
+    """(R,) readings that repeat the previous reading's step (same sequence) with joints differing by
+    more than `tol`: distinct configurations the log numbered as one sample (never averaged)."""
+    out = np.zeros(len(sequence), dtype=bool)
+    if step is not None and len(sequence) > 1:
+        out[1:] = ((sequence[1:] == sequence[:-1]) & (step[1:] == step[:-1])
+                   & ~_same_joints(joints, tol))
+    return out
 
 
 def _angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:

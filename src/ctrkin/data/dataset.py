@@ -7,9 +7,6 @@ never leaves a half-written dataset and never loses the one that was there.
 from __future__ import annotations
 
 import json
-import shutil
-import tempfile
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,7 +19,8 @@ from ctrkin.data import schema
 from ctrkin.data.splits import Split, split_by_sequence
 from ctrkin.errors import DatasetError, RobotDescriptionError
 from ctrkin.robots.robot import Robot
-from ctrkin.util.folders import file_hash, folder_lock, recover, swap_in
+from ctrkin.util.folders import build_folder, file_hash, reading_folder
+from ctrkin.util.locks import swapping, writer_lock
 
 DATA_FILE = "data.parquet"
 META_FILE = "meta.json"
@@ -132,48 +130,56 @@ class Dataset:
             self.split = split_by_sequence(self.frame["sequence_id"].to_numpy(), seed=seed)
         return self.split
 
-    def save_split(self, folder: str | Path, split: Split) -> None:
-        """Attach `split` and write only split.json into the saved dataset `folder` (atomically)."""
+    def save_split(self, folder: str | Path, split: Split, overwrite: bool = False) -> None:
+        """Attach `split` and write only split.json into the saved dataset `folder` (atomically,
+        under the folder's writer lock, while no reader reads the folder). A saved split that
+        differs is replaced only if `overwrite` (DatasetError otherwise); saving the same split
+        again changes nothing."""
         _check_split(split, len(self.frame), str(folder))
-        if not (Path(folder) / DATA_FILE).is_file():
-            raise DatasetError(f"{folder} is not a saved dataset; save it first")
-        split.save(Path(folder) / SPLIT_FILE)
+        target = Path(folder)
+        with writer_lock(target, DatasetError, "split"):
+            if not (target / DATA_FILE).is_file():
+                raise DatasetError(f"{folder} is not a saved dataset; save it first")
+            path = target / SPLIT_FILE
+            if path.is_file() and not overwrite:
+                saved = Split.load(path)
+                if saved.to_dict() == split.to_dict():
+                    self.split = split
+                    return
+                raise DatasetError(f"{folder} already has a saved {saved.kind} split (seed {saved.seed}, "
+                                   f"sizes {saved.sizes()}); pass --overwrite to replace it")
+            with swapping(target):          # a reader of the folder sees the old split or the new
+                split.save(path)
         self.split = split
 
     # --- files -----------------------------------------------------------------------------------
     def save(self, folder: str | Path) -> Path:
         """Write the dataset folder (data.parquet, meta.json, split.json if any) atomically: it is
-        built beside `folder` and swapped in, so a failure leaves the previous folder intact."""
+        built beside `folder` and swapped in, so a failure leaves the previous folder intact.
+        `folder`, if it exists, must be a dataset ctrkin wrote (ctrkin.util.ownership), or empty."""
         target = Path(folder)
-        target.parent.mkdir(parents=True, exist_ok=True)
         meta = {**self.meta, "format_version": schema.FORMAT_VERSION, "robot": self.robot.to_dict(),
                 "robot_fingerprint": self.robot.fingerprint(), "n_tubes": self.n_tubes,
                 "units": schema.UNITS, "samples": len(self.frame),
                 "sequences": int(self.frame["sequence_id"].nunique()),
                 "ctrkin_version": __version__}
-        with folder_lock(target, DatasetError, "save"):
-            recover(target)
-            tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
-            try:
-                self.frame.to_parquet(tmp / DATA_FILE, index=False)
-                meta["data_sha256"] = file_hash(tmp / DATA_FILE)
-                (tmp / META_FILE).write_text(json.dumps(meta, indent=2, default=_json_default))
-                if self.split is not None:
-                    self.split.save(tmp / SPLIT_FILE)
-                swap_in(tmp, target, DatasetError)
-            finally:
-                if tmp.exists():
-                    shutil.rmtree(tmp)
+        with build_folder(target, "dataset", DatasetError, "save") as tmp:
+            self.frame.to_parquet(tmp / DATA_FILE, index=False)
+            meta["data_sha256"] = file_hash(tmp / DATA_FILE)
+            (tmp / META_FILE).write_text(json.dumps(meta, indent=2, default=_json_default))
+            if self.split is not None:
+                self.split.save(tmp / SPLIT_FILE)
         self.meta = meta
         return target
 
     @classmethod
     def load(cls, folder: str | Path, robot: Robot | None = None) -> Dataset:
         """Read and validate a dataset folder. If `robot` is given it must be the dataset's robot."""
-        src = Path(folder)
-        done = recover(src)     # a write interrupted between its two renames (ctrkin.util.folders)
-        if done is not None and done.startswith("restored"):
-            warnings.warn(done, stacklevel=2)
+        with reading_folder(folder) as src:     # one version, never a mix (ctrkin.util.folders)
+            return cls._load(src, robot)
+
+    @classmethod
+    def _load(cls, src: Path, robot: Robot | None) -> Dataset:
         if not (src / META_FILE).is_file() or not (src / DATA_FILE).is_file():
             raise DatasetError(f"{src} is not a ctrkin dataset: it needs {DATA_FILE} and {META_FILE}")
         try:

@@ -24,6 +24,18 @@ def fields(n_tubes: int) -> list[str]:
     return [*schema.joint_columns(n_tubes), *schema.POSITION_COLUMNS, *ORIENTATION_FIELDS, *OPTIONAL_FIELDS]
 
 
+# characters that cannot separate fields: line ends and quotes (the CSV syntax itself) and those of
+# numbers (a field separator inside "1.5e-3" would cut it)
+NOT_DELIMITERS = "\n\r\"0123456789.+-eE\0"
+
+
+def check_delimiter(delimiter: object, where: str) -> None:
+    """A field separator: one character that is not a line end, a quote or part of a number."""
+    if not isinstance(delimiter, str) or len(delimiter) != 1 or delimiter in NOT_DELIMITERS:
+        raise DatasetError(f"{where} must be one character that is not a line end, a quote or part of "
+                           f"a number (e.g. ',', ';', '\\t', ' '), got {delimiter!r}")
+
+
 @dataclass(frozen=True)
 class ImportConfig:
     """How to read a log. mapping: (log column, field) pairs (module docstring); units of the log's
@@ -66,8 +78,7 @@ class ImportConfig:
         gap = self.sequence_gap
         if gap is not None and gap != "auto" and not (isinstance(gap, int | float) and gap > 0):
             raise DatasetError(f"sequence_gap must be None, 'auto' or a positive time gap, got {gap!r}")
-        if not isinstance(self.delimiter, str) or len(self.delimiter) != 1:
-            raise DatasetError(f"delimiter must be one character, got {self.delimiter!r}")
+        check_delimiter(self.delimiter, "delimiter")
         fields_seen: dict[str, str] = {}
         for col, fld in self.field_mapping():
             if fld in fields_seen:

@@ -56,11 +56,18 @@ class _Log:
     """The raw CSV with its field -> column resolution; errors name the file, line and column."""
 
     def __init__(self, path: Path, robot: Robot, cfg: ImportConfig, raw: pd.DataFrame | None = None,
-                 origins: list[tuple[str, int]] | None = None) -> None:
+                 origins: list[tuple[str, int]] | None = None, profile: str | None = None) -> None:
         """raw: the log's cells as text, already read (an import profile reads them); origins: the
-        (file, line) of each of its rows, for messages."""
+        (file, line) of each of its rows, for messages; profile: the import profile that read them
+        (messages then point at its keys, not at --map and --units, which a profile ignores)."""
         self.path, self.robot, self.cfg = path, robot, cfg
         self.origins = origins
+        self.units_hint = ("check --units and --map" if profile is None else
+                           f"check {profile}: its [columns] (positions, scale, offset, zero) and "
+                           "[pose] unit")
+        self.metres_hint = "--units position=m" if profile is None else f'{profile}: [pose] unit = "m"'
+        self.quaternion_hint = ("check --map, --quaternion and --quat-order" if profile is None else
+                                f"check {profile}: the quaternion columns and [pose] quaternion_order")
         if raw is not None:
             self.raw = raw.reset_index(drop=True)
             self.field_names: dict[str, str] = {}
@@ -270,7 +277,7 @@ class _Rows:
             read = {cols[c]: float(values[c][r]) for c in schema.beta_columns(n)}
             raise DatasetError(f"{log.where(self.line[r])}: joints outside the limits of robot "
                                f"{robot.name!r}: {reason}; columns {beta_cols} read {read} "
-                               f"({cfg.beta_unit}). Fix the log, check --units and --map, or pass "
+                               f"({cfg.beta_unit}). Fix the log, {log.units_hint}, or pass "
                                "--drop-invalid to drop such rows")
         self.keep(~invalid)
         if len(self.line) == 0:
@@ -321,6 +328,7 @@ class _Cleaned:
     pose_out: np.ndarray         # (S,) pose outliers
     snap: np.ndarray             # (K,) bool
     snap_source: str             # "log" | "detected"
+    distinct: np.ndarray         # (R,) readings of other joints than the previous one in its step
 
 
 def _clean(rows: _Rows, sequence: np.ndarray, joints: np.ndarray, position: np.ndarray,
@@ -332,10 +340,11 @@ def _clean(rows: _Rows, sequence: np.ndarray, joints: np.ndarray, position: np.n
         groups = cleaning.repeat_groups(sequence, joints, values.get("step"), cc.repeat_tol)
     else:
         groups = np.arange(len(rows.line))
+    distinct = cleaning.distinct_in_step(sequence, joints, values.get("step"), cc.repeat_tol)
     samples = cleaning.average_readings(groups, joints, position, tangent, cc)
     first = samples.first
     s_seq, s_joints, s_pos, s_tan = sequence[first], samples.joints, samples.position, samples.tangent
-    if "step" in values:
+    if "step" in values and not distinct.any():     # else the log's steps would repeat: renumbered
         s_step = values["step"][first].astype(np.int64)
     else:
         s_step = np.concatenate([np.arange(b - a) for a, b in schema.sequence_bounds(s_seq)]).astype(np.int64)
@@ -359,7 +368,8 @@ def _clean(rows: _Rows, sequence: np.ndarray, joints: np.ndarray, position: np.n
         for a, b in schema.sequence_bounds(s_seq):
             snap[a:b] = cleaning.snap_mask(s_joints[a:b], s_pos[a:b], n, cc)
     return _Cleaned(samples, groups, idx, s_seq, rows.line[first][idx], s_step[idx], s_joints, s_pos,
-                    s_tan[idx], glitch, pose_out, snap, "log" if "snap" in values else "detected")
+                    s_tan[idx], glitch, pose_out, snap, "log" if "snap" in values else "detected",
+                    distinct)
 
 
 def _dataset(s: _Cleaned, rows: _Rows, seq_labels: list[str], robot: Robot, cfg: ImportConfig, mode: str,
@@ -369,10 +379,17 @@ def _dataset(s: _Cleaned, rows: _Rows, seq_labels: list[str], robot: Robot, cfg:
     warnings: list[str] = []
     if np.abs(s.position).max() < 1.0:
         warnings.append("every tip position is within 1 mm of the origin: are the positions in metres? "
-                        "(--units position=m)")
+                        f"({rows.log.metres_hint})")
     if np.median(s.tangent[:, 2]) < 0:
         warnings.append("most tip tangents point backwards (-z): check the quaternion order "
                         "(--quat-order) and the tracker-to-robot registration")
+    if s.distinct.any():
+        first = rows.log.file_line(rows.line[int(np.argmax(s.distinct))])
+        warnings.append(f"{int(s.distinct.sum())} readings share their step (or group) with readings "
+                        f"of other joints (first: data line {first}): distinct configurations are never "
+                        "averaged, so each became its own sample and the steps were numbered anew; if "
+                        "they are repeated readings of one sample, set the repeat tolerance to the "
+                        "encoder's resolution")
     seq_ids = np.unique(s.sequence, return_inverse=True)[1].astype(np.int64)  # renumber 0..K-1 after drops
     pose = np.column_stack([s.position, quat_from_tangent(s.tangent)])
     outlier = s.glitch | s.pose_out
@@ -388,6 +405,7 @@ def _dataset(s: _Cleaned, rows: _Rows, seq_labels: list[str], robot: Robot, cfg:
     report = {
         **counts,
         "readings_rejected": samples.rejected,
+        "readings_distinct_in_step": int(s.distinct.sum()),
         "samples_averaged": len(samples.first),
         "readings_per_sample": {"min": int(samples.n_readings.min()),
                                 "median": float(np.median(samples.n_readings)),
@@ -434,7 +452,7 @@ def _tangents(values: dict[str, np.ndarray], mode: str | None, line: np.ndarray,
         used = [log.columns[c] for c in names]
         extra = "" if mode == "quaternion" else " (a 5-DOF quaternion needs qz = 0)"
         raise DatasetError(f"{log.where(line[r])}: the quaternion in columns {used} has norm "
-                           f"{norm[r]:.4f}, not 1{extra}; check --map, --quaternion and --quat-order")
+                           f"{norm[r]:.4f}, not 1{extra}; {log.quaternion_hint}")
     return tangent_from_quaternion(q) if mode == "quaternion" else tangent_from_quat(q)
 
 

@@ -30,15 +30,24 @@ both comet-lab formats; examples/profiles/ has the files):
     [drop]
     all_zero = true                # preallocated rows that are all zero
 
+    [expect]                       # what this format must hold, or the log is not of this robot
+    zero = [7]                     # columns that stay 0 (an unused rotation)
+    equal = [[3, 4]]               # columns that hold the same value (a carriage moving with another)
+    hint = "a three-tube log? use comet_ndi_3tube.toml"   # added to the message when they do not
+
 Column value = scale · cell + offset. For β, `zero` is β at zero travel (mm, a number) or
 "straight_length": β = travel − the tube's straight length (the curved part starts at the front plate
-at zero travel). Orientation "tangent" needs qw, qx, qy, qz columns whose rotation turns z onto the tip
-tangent. A reference body (`[reference]` with x, y, z, qw, qx, qy, qz columns) makes the tip pose
-relative to it: p = R_refᵀ (p_tip − p_ref). Errors name the profile file, its line and the key.
+at zero travel). `[expect]` guards against a log of another robot read with this profile (a
+three-tube log read as two tubes): a column that should stay zero or equal another but does not is
+an error naming the line and the hint. Orientation "tangent" needs qw, qx, qy, qz columns whose
+rotation turns z onto the tip tangent. A reference body (`[reference]` with x, y, z, qw, qx, qy,
+qz columns) makes the tip pose relative to it: p = R_refᵀ (p_tip − p_ref). Errors name the
+profile file, its line and the key.
 """
 
 from __future__ import annotations
 
+import math
 import re
 import tomllib
 from collections.abc import Mapping
@@ -46,6 +55,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from ctrkin.data.import_config import check_delimiter
 from ctrkin.errors import DatasetError
 from ctrkin.geometry import POSITION_COLUMNS
 from ctrkin.robots.robot import joint_names
@@ -55,7 +65,9 @@ ORIENTATIONS = ("tangent", "marker", "absent")
 POSE_FIELDS = POSITION_COLUMNS
 QUAT_FIELDS = ("qw", "qx", "qy", "qz")
 REFERENCE_FIELDS = (*POSE_FIELDS, *QUAT_FIELDS)
-SECTIONS = {"file", "columns", "pose", "reference", "groups", "drop"}
+SECTIONS = {"file", "columns", "pose", "reference", "groups", "drop", "expect"}
+MAX_GROUP = 100_000     # readings per configuration ([groups] count): far beyond any tracker log
+MAX_COLUMN = 100_000    # column positions
 
 
 @dataclass(frozen=True)
@@ -101,6 +113,9 @@ class Profile:
     joints_unchanged: bool = False
     drop_all_zero: bool = False
     status: tuple[StatusRule, ...] = ()
+    expect_zero: tuple[int | str, ...] = ()
+    expect_equal: tuple[tuple[int | str, int | str], ...] = ()
+    expect_hint: str = ""
     source: str = "profile"
 
     def to_dict(self) -> dict[str, object]:
@@ -111,7 +126,9 @@ class Profile:
                 "reference": {k: v.to_dict() for k, v in self.reference.items()},
                 "group_count": self.group_count, "joints_unchanged": self.joints_unchanged,
                 "drop_all_zero": self.drop_all_zero,
-                "status": [{"column": s.column, "keep": list(s.keep)} for s in self.status]}
+                "status": [{"column": s.column, "keep": list(s.keep)} for s in self.status],
+                "expect": {"zero": list(self.expect_zero), "equal": [list(e) for e in self.expect_equal],
+                           "hint": self.expect_hint}}
 
 
 class _Where:
@@ -138,15 +155,21 @@ class _Where:
 def _number(value: object, where: str, what: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise DatasetError(f"{where}: {what} must be a number, got {value!r}")
-    return float(value)
+    try:
+        out = float(value)
+    except OverflowError:
+        out = math.inf
+    if not math.isfinite(out):
+        raise DatasetError(f"{where}: {what} must be a finite number, got {value!r}")
+    return out
 
 
 def _column_ref(value: object, where: str) -> int | str:
     if isinstance(value, bool):
         raise DatasetError(f"{where}: a column is a position (1, 2, ...) or a header name, got {value!r}")
     if isinstance(value, int):
-        if value < 1:
-            raise DatasetError(f"{where}: column positions count from 1, got {value}")
+        if not 1 <= value <= MAX_COLUMN:
+            raise DatasetError(f"{where}: column positions count from 1 (at most {MAX_COLUMN}), got {value}")
         return value
     if isinstance(value, str) and value.strip():
         return value.strip()
@@ -211,8 +234,7 @@ def parse_profile(text: str, n_tubes: int, source: str = "profile") -> Profile:
     if not isinstance(header, bool):
         raise DatasetError(f"{where('file', 'header')}: must be true or false")
     delimiter = file_.get("delimiter", ",")
-    if not isinstance(delimiter, str) or len(delimiter) != 1:
-        raise DatasetError(f"{where('file', 'delimiter')}: must be one character, got {delimiter!r}")
+    check_delimiter(delimiter, where("file", "delimiter"))
     pose = d.get("pose", {})
     unit = _choice(pose.get("unit", "mm"), ("mm", "m"), where("pose", "unit"))
     order = _choice(pose.get("quaternion_order", "wxyz"), ("wxyz", "xyzw"), where("pose", "quaternion_order"))
@@ -225,6 +247,14 @@ def parse_profile(text: str, n_tubes: int, source: str = "profile") -> Profile:
         raise DatasetError(f"{source}: needs a [columns] table mapping fields {allowed} to columns")
     columns: dict[str, ColumnSpec] = {}
     cols_raw = _expand_quaternion(dict(cols_raw), order, where("columns", "quaternion"))
+    profile_tubes = max((int(k.split("_")[1]) for k in cols_raw if re.fullmatch(r"(alpha|beta)_\d+", str(k))),
+                        default=0)
+    complete = all(f in cols_raw for f in joint_names(profile_tubes)) if profile_tubes else False
+    if complete and profile_tubes != n_tubes:       # a whole K-tube profile with an N-tube robot
+        raise DatasetError(f"{where('columns')}: this profile maps the joints of a {profile_tubes}-tube "
+                           f"robot (alpha_1..{profile_tubes}, beta_1..{profile_tubes}) but the robot has "
+                           f"{n_tubes} tubes; use a {n_tubes}-tube profile with this robot, or the "
+                           f"{profile_tubes}-tube robot with this profile")
     for key, value in cols_raw.items():
         w = where("columns", key)
         if key not in allowed:
@@ -256,8 +286,9 @@ def parse_profile(text: str, n_tubes: int, source: str = "profile") -> Profile:
 
     groups = d.get("groups", {})
     count = groups.get("count", 0)
-    if isinstance(count, bool) or not isinstance(count, int) or count < 0:
-        raise DatasetError(f"{where('groups', 'count')}: must be a whole number >= 0, got {count!r}")
+    if isinstance(count, bool) or not isinstance(count, int) or not 0 <= count <= MAX_GROUP:
+        raise DatasetError(f"{where('groups', 'count')}: must be a whole number in 0..{MAX_GROUP} "
+                           f"(readings per configuration), got {count!r}")
     unchanged = groups.get("joints_unchanged", False)
     if not isinstance(unchanged, bool):
         raise DatasetError(f"{where('groups', 'joints_unchanged')}: must be true or false")
@@ -282,10 +313,28 @@ def parse_profile(text: str, n_tubes: int, source: str = "profile") -> Profile:
         if not isinstance(keep, list) or not all(isinstance(k, str) for k in keep):
             raise DatasetError(f"{w}: keep must be a list of strings, got {keep!r}")
         status.append(StatusRule(_column_ref(rule["column"], w), tuple(keep)))
+    expect = d.get("expect", {})
+    unknown = set(expect) - {"zero", "equal", "hint"}
+    if unknown:
+        raise DatasetError(f"{where('expect')}: unknown key(s) {sorted(unknown)}; allowed: zero, equal, hint")
+    zero_cols = expect.get("zero", [])
+    if not isinstance(zero_cols, list):
+        raise DatasetError(f"{where('expect', 'zero')}: a list of columns, got {zero_cols!r}")
+    equal_raw = expect.get("equal", [])
+    if not isinstance(equal_raw, list) or not all(isinstance(e, list) and len(e) == 2 for e in equal_raw):
+        raise DatasetError(f"{where('expect', 'equal')}: a list of column pairs [[a, b], ...], got "
+                           f"{equal_raw!r}")
+    hint = expect.get("hint", "")
+    if not isinstance(hint, str):
+        raise DatasetError(f"{where('expect', 'hint')}: text, got {hint!r}")
     return Profile(columns=columns, header=header, delimiter=delimiter, position_unit=unit,
                    quaternion_order=order, orientation=orientation, reference=reference,
                    group_count=count, joints_unchanged=unchanged, drop_all_zero=all_zero,
-                   status=tuple(status), source=source)
+                   status=tuple(status),
+                   expect_zero=tuple(_column_ref(c, where("expect", "zero")) for c in zero_cols),
+                   expect_equal=tuple((_column_ref(a, where("expect", "equal")),
+                                       _column_ref(b, where("expect", "equal"))) for a, b in equal_raw),
+                   expect_hint=hint, source=source)
 
 
 def load_profile(path: str | Path, n_tubes: int) -> Profile:

@@ -9,6 +9,8 @@ outliers, snaps), with messages naming the file and line of the log.
 
 from __future__ import annotations
 
+import csv
+import io
 from pathlib import Path
 
 import numpy as np
@@ -37,20 +39,40 @@ def relative_pose(p_tip: np.ndarray, q_tip: np.ndarray | None, p_ref: np.ndarray
 
 
 class _File:
-    """One log file's cells (text) with column lookup by position or header name."""
+    """One log file's cells (text) with column lookup by position or header name. Rows may have
+    different lengths (a tracker that leaves out a missing tool's fields): short rows are padded
+    with empty cells. Blank lines are skipped; `lines` keeps each row's line in the file."""
 
     def __init__(self, path: Path, profile: Profile) -> None:
         self.path = path
         try:
-            raw = pd.read_csv(path, sep=profile.delimiter, dtype=str, keep_default_na=False,
-                              header=0 if profile.header else None, skipinitialspace=True)
+            text = path.read_text()
         except FileNotFoundError:
             raise DatasetError(f"log file {path} does not exist") from None
-        except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
+        except UnicodeDecodeError as e:
             raise DatasetError(f"{path} is not a readable CSV file: {e}") from None
-        self.raw = raw.fillna("")
-        self.first_line = 2 if profile.header else 1
-        self.names = [str(c).strip() for c in self.raw.columns]
+        reader = csv.reader(io.StringIO(text), delimiter=profile.delimiter)
+        rows, lines = [], []
+        try:
+            for row in reader:
+                if any(c.strip() for c in row):
+                    rows.append(row)
+                    lines.append(reader.line_num)
+        except csv.Error as e:
+            raise DatasetError(f"{path} is not a readable CSV file: {e}") from None
+        if profile.header:
+            if not rows:
+                raise DatasetError(f"{path} is empty")
+            head, rows, lines = rows[0], rows[1:], lines[1:]
+        width = max((len(r) for r in rows), default=0)
+        if profile.header:
+            width = max(width, len(head))
+            self.names = [c.strip() for c in head] + [""] * (width - len(head))
+        else:
+            self.names = [str(k) for k in range(width)]
+        self.raw = pd.DataFrame([r + [""] * (width - len(r)) for r in rows], dtype=str,
+                                columns=range(width) if width else None)
+        self.lines = np.array(lines, dtype=np.int64)
 
     def cells(self, ref: int | str, what: str) -> pd.Series:
         if isinstance(ref, int):
@@ -65,13 +87,15 @@ class _File:
                                        "column positions)"))
         return self.raw.iloc[:, self.names.index(ref)].str.strip()
 
-    def numbers(self, spec: ColumnSpec, what: str) -> np.ndarray:
+    def numbers(self, spec: ColumnSpec, what: str, keep: np.ndarray | None = None) -> np.ndarray:
+        """scale · cell + offset; NaN for empty cells. Text that is not a number is an error in the
+        rows kept (keep; default all), NaN in rows a [drop] rule removes."""
         text = self.cells(spec.column, what)
         vals = pd.to_numeric(text, errors="coerce").to_numpy(dtype=float)
-        bad = np.isnan(vals) & (text != "").to_numpy()
+        bad = np.isnan(vals) & (text != "").to_numpy() & (True if keep is None else keep)
         if bad.any():
             r = int(np.argmax(bad))
-            raise DatasetError(f"{self.path}: line {r + self.first_line}, column {spec.column!r} ({what}): "
+            raise DatasetError(f"{self.path}: line {self.lines[r]}, column {spec.column!r} ({what}): "
                                f"{text.iloc[r]!r} is not a number")
         return spec.scale * vals + spec.offset
 
@@ -85,16 +109,10 @@ def _beta_zero(spec: ColumnSpec, robot: Robot, field: str) -> float:
     return float(spec.zero)
 
 
-def read_file(path: Path, profile: Profile, robot: Robot, label: str
-              ) -> tuple[pd.DataFrame, list[tuple[str, int]], dict[str, int]]:
-    """One file -> (fields as text in dataset units, (file, line) per row, drop counts)."""
-    f = _File(path, profile)
-    n_rows = len(f.raw)
-    keep = np.ones(n_rows, dtype=bool)
-    counts = {"rows_read": n_rows, "rows_all_zero": 0, "rows_status": 0}
-    vals = {k: f.numbers(s, k) for k, s in profile.columns.items()}
-    ref = {k: f.numbers(s, f"reference {k}") for k, s in profile.reference.items()}
-    if profile.drop_all_zero:
+def _drops(f: _File, profile: Profile, counts: dict[str, int]) -> np.ndarray:
+    """(R,) rows kept after [drop]: all-zero padding, then the status rules."""
+    keep = np.ones(len(f.raw), dtype=bool)
+    if profile.drop_all_zero and len(f.raw):
         numeric = pd.DataFrame({c: pd.to_numeric(f.raw[c].str.strip(), errors="coerce")
                                 for c in f.raw.columns})
         used = numeric.loc[:, numeric.notna().any(axis=0)]
@@ -105,6 +123,79 @@ def read_file(path: Path, profile: Profile, robot: Robot, label: str
         ok = f.cells(rule.column, "status").isin(rule.keep).to_numpy()
         counts["rows_status"] += int((~ok & keep).sum())
         keep &= ok
+    return keep
+
+
+def _check_expect(f: _File, profile: Profile, keep: np.ndarray) -> None:
+    """[expect]: columns that stay zero or equal another in every kept row (the robot the profile
+    describes); the first row that breaks one is an error with the profile's hint."""
+    hint = f"; {profile.expect_hint}" if profile.expect_hint else ""
+    for col in profile.expect_zero:
+        v = f.numbers(ColumnSpec(col), "[expect] zero", keep)
+        bad = keep & np.isfinite(v) & (v != 0)
+        if bad.any():
+            r = int(np.argmax(bad))
+            raise DatasetError(f"{f.path}: line {f.lines[r]}, column {col!r} reads {v[r]:g} where "
+                               f"{profile.source} [expect] says it stays 0: this log moves a joint the "
+                               f"profile does not map{hint}")
+    for a, b in profile.expect_equal:
+        va = f.numbers(ColumnSpec(a), "[expect] equal", keep)
+        vb = f.numbers(ColumnSpec(b), "[expect] equal", keep)
+        bad = keep & (np.abs(va - vb) > 1e-9)
+        if bad.any():
+            r = int(np.argmax(bad))
+            raise DatasetError(f"{f.path}: line {f.lines[r]}: columns {a!r} and {b!r} read {va[r]:g} and "
+                               f"{vb[r]:g} where {profile.source} [expect] says they are equal: this log "
+                               f"moves a joint the profile does not map{hint}")
+
+
+def _check_groups(f: _File, profile: Profile, joints: np.ndarray, padding: np.ndarray) -> None:
+    """[groups] count must be the log's readings per configuration: the joints stay the same within
+    each group, and the runs of equal joints (padding rows left out) are `count` rows long. A wrong
+    count would average different configurations, or split one into several "samples"."""
+    count = profile.group_count
+    rows = np.nonzero(~padding)[0]
+    if count == 0 or len(rows) < 2:
+        return
+    q = np.round(joints[rows], 9)
+    change = np.r_[True, (q[1:] != q[:-1]).any(axis=1) & ~(np.isnan(q[1:]) & np.isnan(q[:-1])).all(axis=1)]
+    starts = np.nonzero(change)[0]
+    runs = np.diff(np.r_[starts, len(rows)])
+    values, freq = np.unique(runs, return_counts=True)
+    typical = int(values[np.argmax(freq * values)])          # the run length most rows belong to
+    where = f"{profile.source}: [groups] count = {count}"
+    group = rows // count
+    mixed = np.nonzero(change[1:] & (group[1:] == group[:-1]))[0]
+    if mixed.size:
+        r = rows[mixed[0] + 1]
+        raise DatasetError(f"{f.path}: line {f.lines[r]}: the joints change inside a group of {count} "
+                           f"readings ({where}); in this log a configuration lasts {typical} rows: set "
+                           f"[groups] count = {typical} (or joints_unchanged = true)")
+    if typical != count and typical % count == 0 and (runs == typical).mean() >= 0.5:
+        raise DatasetError(f"{f.path}: {where}, but the joints stay the same for {typical} rows: each "
+                           f"configuration would be split into {typical // count} samples; set [groups] "
+                           f"count = {typical} (or joints_unchanged = true)")
+
+
+def read_file(path: Path, profile: Profile, robot: Robot, label: str
+              ) -> tuple[pd.DataFrame, list[tuple[str, int]], dict[str, int]]:
+    """One file -> (fields as text in dataset units, (file, line) per row, drop counts)."""
+    f = _File(path, profile)
+    n_rows = len(f.raw)
+    counts = {"rows_read": n_rows, "rows_all_zero": 0, "rows_status": 0}
+    keep = _drops(f, profile, counts)
+    padding = np.zeros(n_rows, dtype=bool)
+    if profile.drop_all_zero:
+        padding = ~keep.copy()
+        for rule in profile.status:                        # status drops are not padding
+            padding &= f.cells(rule.column, "status").isin(rule.keep).to_numpy() | (
+                f.cells(rule.column, "status") == "").to_numpy()
+    _check_expect(f, profile, keep)
+    vals = {k: f.numbers(s, k, keep) for k, s in profile.columns.items()}
+    ref = {k: f.numbers(s, f"reference {k}", keep) for k, s in profile.reference.items()}
+    joint_keys = [k for k in vals if k.startswith(("alpha_", "beta_"))]
+    lenient = {k: f.numbers(profile.columns[k], k, np.zeros(n_rows, dtype=bool)) for k in joint_keys}
+    _check_groups(f, profile, np.column_stack([lenient[k] for k in joint_keys]), padding)
     for k, spec in profile.columns.items():
         if k.startswith("beta_"):
             vals[k] = vals[k] + _beta_zero(spec, robot, k)
@@ -119,7 +210,7 @@ def read_file(path: Path, profile: Profile, robot: Robot, label: str
         bad = keep & ~(np.isfinite(q_ref).all(axis=1) & (np.linalg.norm(q_ref, axis=1) > 0.5))
         if bad.any():
             r = int(np.argmax(bad))
-            raise DatasetError(f"{path}: line {r + f.first_line}: the reference body's quaternion is "
+            raise DatasetError(f"{path}: line {f.lines[r]}: the reference body's quaternion is "
                                "missing or not a unit quaternion; drop such rows ([drop] status) or fix "
                                "[reference]")
         safe = np.where(keep[:, None], q_ref, [1.0, 0.0, 0.0, 0.0])
@@ -135,7 +226,7 @@ def read_file(path: Path, profile: Profile, robot: Robot, label: str
     if "step" in text:
         text["step"] = [str(int(v)) for v in out["step"]]
     text["sequence_id"] = label
-    origins = [(str(path), r + f.first_line) for r in range(n_rows)]
+    origins = [(str(path), int(line)) for line in f.lines]
     idx = np.nonzero(keep)[0]
     return text.iloc[idx].reset_index(drop=True), [origins[r] for r in idx], counts
 
@@ -170,7 +261,7 @@ def import_with_profile(paths: list[str | Path], profile: Profile, robot: Robot,
             t["step"] = [str(k) for k in range(len(t))]
     raw = pd.concat(parts, ignore_index=True)
     label = ", ".join(str(p) for p in paths)
-    log = _Log(Path(paths[0]), robot, cfg, raw=raw, origins=origins)
+    log = _Log(Path(paths[0]), robot, cfg, raw=raw, origins=origins, profile=profile.source)
     ds = import_frame(log, robot, cfg, label)
     ds.meta["protocol_params"] = {"source": [r["file"] for r in report], "profile": profile.source}
     ds.meta["import"].update(profile=profile.to_dict(), files=report)

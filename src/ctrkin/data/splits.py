@@ -169,6 +169,42 @@ def split_with_test(sequence_id: np.ndarray, labels: list[str], test: list[str],
                  fractions=fractions, n_rows=len(sid), test_chosen=True)
 
 
+def split_with_test_val_rows(sequence_id: np.ndarray, labels: list[str], test: list[str],
+                             val_fraction: float = 0.15, seed: int = 0) -> Split:
+    """Test part = the sequences named in `test`; validation = `val_fraction` of the other sequences'
+    rows, drawn at random (seeded); training = the rest. With few, unequal sequences a whole
+    validation sequence would be unlike the test one and stop training early; these rows only choose
+    the epoch (they are neighbours of training rows, so their error is not a held-out figure). The
+    split of benchmarks/bench_realdata.py."""
+    if not 0 < val_fraction < 1:
+        raise DatasetError(f"the validation fraction must be in (0, 1), got {val_fraction}")
+    by_seq = split_with_test(sequence_id, labels, test, (1 - val_fraction, val_fraction, 0.0), seed)
+    rest = np.sort(np.r_[by_seq.train, by_seq.val])
+    perm = np.random.default_rng(seed).permutation(rest)
+    n_val = round(val_fraction * len(rest))
+    return Split(np.sort(perm[n_val:]), np.sort(perm[:n_val]), by_seq.test, kind="random", seed=seed,
+                 fractions=(1 - val_fraction, val_fraction, 0.0), n_rows=len(sequence_id),
+                 test_chosen=True)
+
+
+def joint_coverage(joints_train: np.ndarray, joints_other: np.ndarray, names: list[str],
+                   tol: float = 1e-6) -> list[str]:
+    """Messages for the joints that another part (held out, validation) moves but the training rows
+    never moved: a model (learned or calibrated) knows nothing of their effect there.
+    joints_*: (T, 2N) deg, mm."""
+    out: list[str] = []
+    if len(joints_train) == 0 or len(joints_other) == 0:
+        return out
+    for k, name in enumerate(names):
+        t, o = joints_train[:, k], joints_other[:, k]
+        if np.ptp(t) <= tol and np.abs(o - t[0]).max() > tol:
+            unit = "deg" if name.startswith("alpha") else "mm"
+            out.append(f"{name} never moved in training (always {t[0]:.4g} {unit}) but the held-out rows "
+                       f"take it over [{o.min():.4g}, {o.max():.4g}] {unit}: its effect is unknown to the "
+                       "model there")
+    return out
+
+
 def split_warnings(split: Split, fractions: tuple[float, float, float]) -> list[str]:
     """Messages for parts more than FAR_FROM_RATIO away from the requested fractions (the advice to
     name the test sequences only where they were not)."""

@@ -83,12 +83,7 @@ def collect(
         ds.save(folder)
         return Dataset.load(folder, robot=robot)
 
-    paper_kw: dict[str, object] = {}
-    if scale.paper_levels is not None:
-        paper_kw["levels"] = scale.paper_levels
-    if scale.paper_outer_step_deg is not None:
-        paper_kw["outer_step_deg"] = scale.paper_outer_step_deg
-    paper = get("paper", **paper_kw)
+    paper = get("paper", **_paper_kw(scale))
     shapes = {
         s: virtual.tracker.registered(task_path(virtual, s, n_points=10, seed=SEEDS[s]).poses)
         for s in ("square", "triangle")
@@ -107,3 +102,17 @@ def collect(
 
 def _key(name: str, scale: ReproScale, robot_seed: int, kw: dict[str, object]) -> str:
     return f"{name}|{scale.protocol_scale}|{robot_seed}|{sorted((k, str(v)) for k, v in kw.items())}"
+
+
+def _paper_kw(scale: ReproScale) -> dict[str, object]:
+    kw: dict[str, object] = {}
+    if scale.paper_levels is not None:
+        kw["levels"] = scale.paper_levels
+    if scale.paper_outer_step_deg is not None:
+        kw["outer_step_deg"] = scale.paper_outer_step_deg
+    return kw
+
+
+def paper_key(scale: ReproScale, robot_seed: int) -> str:
+    """The key the paper dataset of a reproduction at `scale` is recorded with (its meta.json)."""
+    return _key("paper", scale, robot_seed, _paper_kw(scale))

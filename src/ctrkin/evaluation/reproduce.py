@@ -16,10 +16,12 @@ import numpy as np
 from ctrkin import __version__
 from ctrkin.calibration.fit import CalibrationResult, calibrate
 from ctrkin.calibration.params import FRICTION, GROUPS
+from ctrkin.errors import OutputError
 from ctrkin.evaluation import experiments_fk, experiments_ik, grids
 from ctrkin.evaluation.context import FK_ROWS, IK_ROWS, RECOMMENDED, Context
 from ctrkin.evaluation.datasets import ReproData, collect
 from ctrkin.evaluation.report import write_report
+from ctrkin.evaluation.repro_folder import claim
 from ctrkin.evaluation.results import (
     DatasetSummary,
     Memory,
@@ -34,6 +36,7 @@ from ctrkin.evaluation.tcm_baseline import TCMBaseline
 from ctrkin.evaluation.training_runs import train_all
 from ctrkin.inference import Kinematics
 from ctrkin.robots.robot import Robot
+from ctrkin.util.folders import folder_lock
 
 NOTES = [
     "The robot is the virtual robot (the TCM with perturbed tubes, backlash, friction, tracker noise, "
@@ -79,12 +82,22 @@ def reproduce(
     workers: int = 2,
     log: Callable[[str], None] = print,
     executor: str = "local",
+    overwrite: bool = False,
 ) -> ReproResults:
     """Run the whole reproduction into `out`; workers: trainings run in parallel (one thread each);
     executor: where they run, "local" processes or "ray" tasks (ctrkin.evaluation.executors).
     Stages: collect data, train, fit the TCM baseline, FK experiments, IK experiments, grids,
-    timing; then results.json and report.md. Returns the results as written to results.json."""
+    timing; then results.json and report.md. Returns the results as written to results.json.
+    `out` may hold a reproduction of the same settings (reused); one of other settings is refused
+    unless `overwrite`, which replaces it (ctrkin.evaluation.repro_folder)."""
     out = Path(out)
+    with folder_lock(out, OutputError, "reproduce"):
+        claim(out, robot, scale, robot_seed, overwrite)
+        return _reproduce(robot, scale, out, robot_seed, workers, log, executor)
+
+
+def _reproduce(robot: Robot, scale: ReproScale, out: Path, robot_seed: int, workers: int,
+               log: Callable[[str], None], executor: str) -> ReproResults:
     figures = out / "figures"
     figures.mkdir(parents=True, exist_ok=True)
     st = _Stages(log)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any
 
+from ctrkin.acquisition.protocols import PAPER_SIZES
 from ctrkin.errors import CtrkinError
 from ctrkin.training.config import LrSchedule, scaled_lr
 
@@ -26,7 +27,8 @@ class Budget:
 
 @dataclass(frozen=True)
 class ReproScale:
-    """paper_levels / paper_outer_step_deg: the training protocol (None: the protocol's own);
+    """paper_levels / paper_outer_step_deg: the training protocol (None: the protocol's own; the
+    quick and tiny sizes are acquisition.protocols.PAPER_SIZES, which `ctrkin collect` records);
     main: the LSTM-MLP FK and IK models (the paper's); branch: the snap-aware FK model
     (lstm_mlp_branch, the recommended FK); follow: the follow IK (follow_mlp, the recommended IK,
     ctrkin.models.follow); compare: baselines and the Δα0 ablation; grid: the IB and
@@ -84,7 +86,8 @@ SCALES = {
     # after the pose loss flattens). Adam's default kernel: the same weights, bit for bit, as before
     # issue 11 (the fused one rounds differently, and a run stopped early lands elsewhere).
     "quick": ReproScale(
-        "quick", "quick", (4.0, 10.0, 15.0, 20.0), 20.0, main=Budget(150, 15, 64, fused_adam=False),
+        "quick", "quick", PAPER_SIZES["quick"].levels_mm, PAPER_SIZES["quick"].outer_step_deg,
+        main=Budget(150, 15, 64, fused_adam=False),
         branch=Budget(80, 80, 256, 2e-3, "cosine", fused_adam=False),
         follow=Budget(40, 40, 512, 2e-3, "cosine", fused_adam=False),
         compare=Budget(40, 8, 128, fused_adam=False), grid=Budget(15, 5, 128, fused_adam=False),
@@ -93,9 +96,9 @@ SCALES = {
     # the CI test of the whole pipeline: every step and key, seconds of training
     "tiny": ReproScale(
         "tiny",
-        "quick",
-        (4.0, 20.0),
-        90.0,
+        "quick",   # with the tiny size's levels and step: the key of reproductions recorded before
+        PAPER_SIZES["tiny"].levels_mm,
+        PAPER_SIZES["tiny"].outer_step_deg,
         main=Budget(2, 2, 256),
         branch=Budget(2, 2, 256, 2e-3, "cosine"),
         follow=Budget(2, 2, 512, 2e-3, "cosine"),

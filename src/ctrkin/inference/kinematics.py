@@ -53,6 +53,7 @@ from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle, read_json
 from ctrkin.models.workspace import WORKSPACE_FILE, Workspace
 from ctrkin.robots.robot import Robot
+from ctrkin.util.folders import reading_folder
 
 REFINE_FILE, REFINE_FK = "refine.json", "fk"
 JUMP_DEG, JUMP_TARGET_MM = 20.0, 1.0    # an α change this large between targets this close is flagged
@@ -179,8 +180,13 @@ class Kinematics:
     @classmethod
     def load(cls, path: str | Path, fused: bool = True) -> Kinematics:
         """Load a model folder written by `ctrkin train`. fused=False: FK steps take the reference
-        path (engine kernels called one by one from Python) even where the fused step applies."""
-        src = Path(path)
+        path (engine kernels called one by one from Python) even where the fused step applies.
+        The folder is read as one version while another process may replace it (ctrkin.util.folders)."""
+        with reading_folder(path) as src:
+            return cls._load(src, fused)
+
+    @classmethod
+    def _load(cls, src: Path, fused: bool) -> Kinematics:
         bundle = ModelBundle.load(src)
         ws = Workspace.load(src) if (src / WORKSPACE_FILE).is_file() else None
         if bundle.layout.task == "ik" and ws is None:

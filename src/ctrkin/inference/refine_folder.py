@@ -6,13 +6,14 @@ from __future__ import annotations
 
 import json
 import shutil
-import tempfile
 from pathlib import Path
 
 from ctrkin.errors import ModelError
 from ctrkin.inference.kinematics import REFINE_FILE, REFINE_FK, Kinematics
 from ctrkin.inference.refine import RefineSettings
-from ctrkin.util.folders import swap_in
+from ctrkin.util.folders import build_folder, reading_folder
+
+_NOT_COPIED = shutil.ignore_patterns("checkpoint*", ".lock", "*.tmp")
 
 
 def assemble_refined(ik_dir: str | Path, fk_dir: str | Path, out: str | Path,
@@ -24,16 +25,9 @@ def assemble_refined(ik_dir: str | Path, fk_dir: str | Path, out: str | Path,
     if ik.refined:
         raise ModelError(f"{ik_src} is already a refined IK model")
     ik.attach_fk(fk, settings)          # checks task, robot and the workspace's training joints
-    target.parent.mkdir(parents=True, exist_ok=True)
-    build = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
-    try:
-        shutil.copytree(ik_src, build, dirs_exist_ok=True,
-                        ignore=shutil.ignore_patterns("checkpoint*", ".lock", "*.tmp"))
-        shutil.copytree(fk_src, build / REFINE_FK,
-                        ignore=shutil.ignore_patterns("checkpoint*", ".lock", "*.tmp"))
+    with (build_folder(target, "model", ModelError) as build, reading_folder(ik_src),
+          reading_folder(fk_src)):
+        shutil.copytree(ik_src, build, dirs_exist_ok=True, ignore=_NOT_COPIED)
+        shutil.copytree(fk_src, build / REFINE_FK, ignore=_NOT_COPIED)
         (build / REFINE_FILE).write_text(json.dumps((settings or RefineSettings()).to_dict(), indent=2))
-        swap_in(build, target, ModelError)
-    finally:
-        if build.exists():
-            shutil.rmtree(build)
     return target

@@ -166,6 +166,14 @@ def _side(y, kx, ky, pres, k, gj, inner, sign, dist, h, dm, ddm, gm, vx, vy, aa)
     return nd, kin, ksum - kin
 
 
+@njit(cache=True, inline="always")
+def turn_wrapped(x):
+    """x (rad) less its whole turns, in [−π, π]: the relative angle φ of a pair and its stuck
+    offset θ are angles, and the solver reduces each α to (−180°, 180°] (pointwise.whole_turns_removed),
+    so φ − θ jumps by 2π where a tube's α crosses 180° between two steps; the slip is the rest."""
+    return x - 2.0 * math.pi * math.floor(x / (2.0 * math.pi) + 0.5)
+
+
 @njit(cache=True)
 def station(y, b, p, lmax, hl, hr, theta, dd, bounds_n, kap, kapy, present, k, gj,
             gap, rc, lmin, mu, eps, dist, clearance, dfdy, scr, gm, out):
@@ -237,7 +245,7 @@ def station(y, b, p, lmax, hl, hr, theta, dd, bounds_n, kap, kapy, present, k, g
             dfdy[j] = 0.0
         return 0.0
     eps_t = eps / rc[p]
-    a = (phi - theta) / eps_t
+    a = turn_wrapped(phi - theta) / eps_t
     bb = dd / eps
     nrm = math.sqrt(a * a + bb * bb)
     if nrm <= 1.0:
@@ -343,7 +351,7 @@ def apply_stations(cst, cpr, cvar, cprm, cout, b, js, y, phi, zb, with_var, with
         if with_body:
             if math.isfinite(theta) and ot[7] > 0.0:
                 eps_t = eps / rc[p]
-                zb[12] += ot[7] * eps_t * huber((ot[0] - theta) / eps_t)
+                zb[12] += ot[7] * eps_t * huber(turn_wrapped(ot[0] - theta) / eps_t)
             if cst[js, ST_TIP] > 0.0 and ot[4] > 0.0:
                 tilt(zb, ot[5], ot[6], ot[4])
         js += 1

@@ -52,6 +52,9 @@ SAME_BRANCH_RAD = 0.02  # a state this close (rad of twist) after a failed step 
 # changes by more than this has left the branch (near-critical folds have a small twist gap)
 DET_SLACK, DET_RATE = 0.05, 0.5
 MIN_FRACTION = 1.0 / 256  # smallest sub-step, as a fraction of one trajectory step
+# largest turn of any α in one sub-step (deg): the end of a longer step can look like its start (a
+# whole turn brings the branch back), so a step of 340° or 720° crossed folds unseen (issue 27)
+MAX_TURN_DEG = 30.0
 PATH_STATES = 3  # states of the previous steps the predictor extrapolates through (a parabola)
 
 
@@ -137,8 +140,11 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     det = prev.stability
     state = prev.friction_state      # friction state of the last accepted (sub)step
     modes = b"" if prev.contact is None else prev.contact.modes
+    n = arr.lengths.shape[0]
+    turn = float(np.abs(q_to[:n] - q_from[:n]).max())
+    most = 1.0 if turn <= MAX_TURN_DEG else MAX_TURN_DEG / turn    # largest sub-step fraction
     t = 0.0
-    dt = 1.0
+    dt = most
     snapped = False
     last = None
     work = [0]      # RK4 steps spent on this step, bounded by settings.max_search_steps
@@ -160,7 +166,7 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
                 and (abs(sol.det_j - det) <= DET_SLACK + DET_RATE * det or sol.modes != modes)):
             x, det, t, last = sol.x, sol.det_j, t_try, (pb, sol)
             state, modes = _after(pb, sol, state)
-            dt = min(2.0 * dt, 1.0)
+            dt = min(2.0 * dt, most)
             continue
         if work[0] > settings.max_search_steps:
             # continuation too costly (an extreme robot): give up this step, reported not converged
@@ -170,7 +176,7 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
         if path is not None:  # retry from the plain warm start before sub-stepping
             path = None
             continue
-        if dt > MIN_FRACTION:
+        if dt > MIN_FRACTION * most:
             dt *= 0.5
             continue
         # fold: no stable equilibrium near the current one, however small the step
@@ -184,7 +190,7 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
         snapped = snapped or _distance(sol.x, x, pb.arrays.lengths) > SAME_BRANCH_RAD
         x, det, t, last = sol.x, sol.det_j, t_try, (pb, sol)
         state, modes = _after(pb, sol, state)
-        dt = 1.0 - t
+        dt = min(1.0 - t, most)
     assert last is not None
     return equilibrium(*last, state), snapped
 

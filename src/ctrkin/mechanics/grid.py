@@ -73,6 +73,13 @@ def build_grid(beta, tube_len, sec_len, sec_kap, sec_kapy, n_sec, h_max):
     present = np.zeros((m, n))
     nsteps = np.ones(m, dtype=np.int64)
     nsample = np.ones(m, dtype=np.int64)
+    # per tube, the section holding the stretch midpoint and the cumulative length to its end: the
+    # midpoints increase with k, so each cursor only moves forward (O(M + S), not O(M S))
+    sec = np.zeros(n, dtype=np.int64)
+    cum = np.zeros(n)
+    for i in range(n):
+        if n_sec[i] > 0:
+            cum[i] = sec_len[i, 0]
     for k in range(m):
         a, b = bounds[k], bounds[k + 1]
         mid = 0.5 * (a + b)
@@ -82,13 +89,13 @@ def build_grid(beta, tube_len, sec_len, sec_kap, sec_kapy, n_sec, h_max):
             if tips[i] > mid:
                 present[k, i] = 1.0
                 sigma = mid - beta[i]  # position along tube i from its base
-                cum = 0.0
-                for j in range(n_sec[i]):
-                    cum += sec_len[i, j]
-                    if sigma < cum:
-                        kap[k, i] = sec_kap[i, j]
-                        kapy[k, i] = sec_kapy[i, j]
-                        break
+                while sec[i] < n_sec[i] and not sigma < cum[i]:
+                    sec[i] += 1
+                    if sec[i] < n_sec[i]:
+                        cum[i] += sec_len[i, sec[i]]
+                if sec[i] < n_sec[i]:
+                    kap[k, i] = sec_kap[i, sec[i]]
+                    kapy[k, i] = sec_kapy[i, sec[i]]
                 curved = curved or kap[k, i] != 0.0 or kapy[k, i] != 0.0
         nsteps[k] = nsample[k] if curved else 1
     return bounds, kap, kapy, present, nsteps, nsample, code

@@ -152,7 +152,10 @@ def prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: bool
     if arr is None:
         arr = robot_arrays(robot)
     h = rk4_step(arr, settings)
-    alpha, beta, tips, grid, code = kernels.prepare(qa, arr.lengths, arr.extra, arr.sec_len,
+    n = arr.lengths.shape[0]
+    qk = qa.copy()
+    qk[:n] = whole_turns_removed(qa[:n])
+    alpha, beta, tips, grid, code = kernels.prepare(qk, arr.lengths, arr.extra, arr.sec_len,
                                                     arr.sec_kap, arr.sec_kapy, arr.n_sec, h)
     n_rk4 = int(grid[5].sum())  # the steps the stretches would take if none were straight
     if n_rk4 > settings.max_rk4_steps:
@@ -177,8 +180,8 @@ def with_alpha(pb: Problem, q: np.ndarray, state: FrictionState | object | None 
     transmission lengths and friction stations depend on β alone (kernels.prepare), so only α is
     new (a rotation step of a continuation needs no new grid). state: the friction state to solve
     for (default: pb's)."""
-    out = Problem(pb.arrays, q, np.radians(q[:pb.alpha.shape[0]]), pb.beta, pb.tips, pb.grid,
-                  pb.n_rk4, pb.stations, pb.cvar, pb.state)
+    out = Problem(pb.arrays, q, np.radians(whole_turns_removed(q[:pb.alpha.shape[0]])), pb.beta,
+                  pb.tips, pb.grid, pb.n_rk4, pb.stations, pb.cvar, pb.state)
     return out if state is _KEEP else with_state(out, state)  # type: ignore[arg-type]
 
 
@@ -192,18 +195,29 @@ def with_state(pb: Problem, state: FrictionState | None) -> Problem:
     return Problem(pb.arrays, pb.q, pb.alpha, pb.beta, pb.tips, pb.grid, pb.n_rk4, st, cvar, state)
 
 
+def whole_turns_removed(alpha_deg: np.ndarray) -> np.ndarray:
+    """α (N,) deg less its whole turns, in (−180°, 180°], exactly: fmod is exact in floating point,
+    and so is the one ±360° that follows (Sterbenz), so every α + k·360° gives the same bits and α in
+    (−180°, 180°] passes unchanged. The equilibrium depends on α only through its angle, but sin and
+    cos of a huge angle lose every digit (α + 1e12° did not converge, α + 1e15° was 0.01 mm off): the
+    solver sees the reduced angle, the result keeps the α given."""
+    r = np.fmod(alpha_deg, 360.0)
+    r = np.where(r > 180.0, r - 360.0, r)
+    return np.where(r <= -180.0, r + 360.0, r)
+
+
 @functools.lru_cache(maxsize=64)
 def rk4_step(arr: RobotArrays, settings: SolverSettings) -> float:
     """Largest RK4 step (mm) where a tube is curved: SolverSettings.step, or less where the robot
     bends or twists faster than SolverSettings.angle_step rad per step, or where the tip error
-    estimate e(h) = κ*⁵ ℓc min(L, 1/κ*) h⁴ / 120 (SolverSettings) would exceed tip_tol, if set."""
+    estimate e(h) = κ*⁴ ℓc h⁴ / 120 (SolverSettings) would exceed tip_tol, if set:
+    h_tol = (120 tip_tol / ℓc)^¼ / κ*, written so that no power of a tiny κ* underflows."""
     kap = arr.kappa_scale
     if kap <= 0.0 or arr.curved_length <= 0.0:
         return settings.step
     if settings.tip_tol is None:
         return min(settings.step, settings.angle_step / kap)
-    arm = min(float(arr.lengths.max()), 1.0 / kap)
-    h_tol = (120.0 * settings.tip_tol / (kap ** 5 * arr.curved_length * arm)) ** 0.25
+    h_tol = (120.0 * settings.tip_tol / arr.curved_length) ** 0.25 / kap
     return min(settings.step, settings.angle_step / kap, h_tol)
 
 

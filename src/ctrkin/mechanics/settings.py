@@ -11,11 +11,12 @@ from ctrkin.errors import CtrkinError
 @dataclass(frozen=True)
 class SolverSettings:
     """tip_tol: tip-position error (mm) the RK4 step is chosen for, by the estimate
-    e(h) = κ*⁵ ℓc min(L, 1/κ*) h⁴ / 120 (docs/mechanics.md: Numerics; RK4's phase error (κh)⁵/120
-    per step of a rotation at rate κ*, over the precurved length ℓc, times the lever arm, at most the
-    longest tube L and the radius 1/κ* of a wound arc). Default 1e-3 mm: the measured error is 2-8× below it
-    (paper robot 2.4e-4 mm at a 5.26 mm step, TIMClab robot 1.2e-4 mm at 14.8 mm; tests/mechanics
-    check the tolerance against a tight reference); a tighter one on request, e.g.
+    e(h) = κ*⁴ ℓc h⁴ / 120 (docs/mechanics.md: Numerics; RK4's phase error (κh)⁵/120 per step of a
+    rotation at rate κ*, over the precurved length ℓc, acting on the arc's radius 1/κ*: a single
+    curved tube's tip error is exactly this, whatever its length). Default 1e-3 mm: the measured
+    error is 2-8× below it (paper robot 2.4e-4 mm at a 5.26 mm step, TIMClab robot 1.2e-4 mm at
+    14.8 mm; tests/mechanics check the tolerance against a tight reference); a tighter one on
+    request, e.g.
     `SolverSettings(tip_tol=1e-6)`; None: no tolerance, the step is min(step, angle_step / κ*).
     step: largest RK4 step (mm) where a tube is curved (a straight stretch is one exact step),
     default no cap; angle_step: largest turn of the state per RK4 step (rad), a guard that keeps RK4

@@ -30,6 +30,7 @@ from ctrkin.models.choices import ANGLE_ENCODINGS, AngleEncoding, Task
 from ctrkin.robots.robot import alpha_names, beta_names
 
 POSE_NAMES = POSE_COLUMNS    # the pose features are named as the dataset's pose columns
+MAX_TUBES = 64               # bounds what a stored feature layout can make ctrkin allocate
 
 
 @dataclass(frozen=True)
@@ -55,8 +56,8 @@ class FeatureLayout:
     def __post_init__(self) -> None:
         if self.task not in ("fk", "ik"):
             raise ModelError(f"task must be 'fk' or 'ik', got {self.task!r}")
-        if not isinstance(self.n_tubes, int) or self.n_tubes < 1:
-            raise ModelError(f"n_tubes must be a positive integer, got {self.n_tubes!r}")
+        if not isinstance(self.n_tubes, int) or not 1 <= self.n_tubes <= MAX_TUBES:
+            raise ModelError(f"n_tubes must be an integer in 1..{MAX_TUBES}, got {self.n_tubes!r}")
         if not isinstance(self.ib, int) or not 1 <= self.ib <= 32:
             raise ModelError(f"input buffer ib must be an integer in 1..32 (paper: 1..5), got {self.ib!r}")
         if self.angle_encoding not in ANGLE_ENCODINGS:

@@ -15,12 +15,16 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+import torch
+
 from ctrkin.errors import ModelError
 from ctrkin.models.base import KinematicsNet
 from ctrkin.models.branch import BranchNet
 from ctrkin.models.conv import CNN, TCN
 from ctrkin.models.resnet import ResNet
 from ctrkin.models.seqnet import SeqNet
+
+MAX_PARAMETERS = 20_000_000     # 80 MB of float32 weights: 200x the largest model ctrkin trains
 
 
 @dataclass(frozen=True)
@@ -102,8 +106,20 @@ def resolve_options(name: str, options: dict[str, Any] | None) -> dict[str, Any]
 
 def build_model(name: str, n_inputs: int, n_outputs: int, ib: int, output_activation: str = "relu",
                 options: dict[str, Any] | None = None) -> KinematicsNet:
-    """A fresh (randomly initialised, seed it with torch.manual_seed) network by registry name."""
+    """A fresh (randomly initialised, seed it with torch.manual_seed) network by registry name.
+
+    The network is first built on torch's meta device (shapes only, no memory) and refused if it
+    would hold more than MAX_PARAMETERS weights: a configuration or a model folder's config.json
+    cannot make ctrkin allocate without bound (LSTM units, layers, widths, channels)."""
     entry = get_entry(name)
-    net = entry.build(n_inputs, n_outputs, ib, output_activation, **resolve_options(name, options))
+    opts = resolve_options(name, options)
+    with torch.device("meta"):
+        size = sum(p.numel() for p in entry.build(n_inputs, n_outputs, ib, output_activation,
+                                                   **opts).parameters())
+    if size > MAX_PARAMETERS:
+        raise ModelError(f"model {name!r} with options {opts} would have {size:,} parameters, more than "
+                         f"ctrkin's bound of {MAX_PARAMETERS:,} (the paper's LSTM-MLP has ~86,000); "
+                         "choose smaller layers")
+    net = entry.build(n_inputs, n_outputs, ib, output_activation, **opts)
     net.init_output_bias()
     return net

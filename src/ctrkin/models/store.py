@@ -39,7 +39,7 @@ from ctrkin.models.normalize import MinMax
 from ctrkin.models.registry import build_model
 from ctrkin.robots.robot import Robot
 from ctrkin.util.files import atomic_write_bytes, atomic_write_text
-from ctrkin.util.folders import check_manifest, write_manifest
+from ctrkin.util.folders import check_manifest, reading_folder, write_manifest
 
 CONFIG, FEATURES, NORMALIZATION, ROBOT, WEIGHTS = ("config.json", "features.json", "normalization.json",
                                                    "robot.json", "weights.pt")
@@ -51,10 +51,15 @@ def write_json(path: Path, obj: Any) -> None:
     atomic_write_text(path, json.dumps(obj, indent=2))
 
 
+MAX_JSON_BYTES = 64 << 20      # a model folder's JSON files hold settings and small tables
+
+
 def read_json(path: Path) -> Any:
     try:
+        if path.stat().st_size > MAX_JSON_BYTES:
+            raise ModelError(f"{path} is larger than {MAX_JSON_BYTES >> 20} MB: not a file ctrkin wrote")
         return json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as e:
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError, RecursionError) as e:
         raise ModelError(f"cannot read {path}: {e}") from None
 
 
@@ -150,7 +155,11 @@ class ModelBundle:
 
     @classmethod
     def load(cls, folder: str | Path) -> ModelBundle:
-        src = Path(folder)
+        with reading_folder(folder) as src:     # one version, never a mix (ctrkin.util.folders)
+            return cls._load(src)
+
+    @classmethod
+    def _load(cls, src: Path) -> ModelBundle:
         missing = [f for f in REQUIRED if not (src / f).is_file()]
         if missing:
             raise ModelError(f"{src} is not a trained ctrkin model folder: missing {missing} "

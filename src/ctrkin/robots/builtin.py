@@ -21,8 +21,18 @@ NITINOL_NU = 0.33
 def paper_robot(transmission: str = "compliant") -> Robot:
     """The two-tube robot of paper Table I, innermost first.
 
-    Inner: OD 0.4, ID 0.2 mm, straight 57 mm, curved 15 mm, radius 27 mm.
-    Outer: OD 0.635, ID 0.48 mm, straight 37 mm, curved 14.5 mm, radius 24 mm.
+    Inner: OD 0.4, ID 0.2 mm, straight 57 mm, curved 15 mm, radius 27 mm. Outer: OD 0.635, ID 0.48
+    mm, straight 37 mm, curved 14.5 mm, radius 24 mm. E = 58 GPa, ν = 0.33 (module docstring).
+
+    Parameters
+    ----------
+    transmission : {"compliant", "rigid"}
+        The transmission model (`Robot`).
+
+    Returns
+    -------
+    Robot
+        Named "paper".
     """
     inner = Tube(od=0.4, id=0.2, straight_length=57.0, curved_length=15.0, curvature=1 / 27.0,
                  youngs_modulus=NITINOL_E_GPA, poisson_ratio=NITINOL_NU)
@@ -32,11 +42,21 @@ def paper_robot(transmission: str = "compliant") -> Robot:
 
 
 def timclab_robot(transmission: str = "compliant") -> Robot:
-    """The three-tube robot of the public C++ TCM of TIMClab-CAMI (issue 11), innermost first.
+    """The three-tube robot of the public C++ TCM of TIMClab-CAMI, innermost first.
 
     OD 1.524 / 1.8 / 2.35 mm, ID 1.3 / 1.62 / 2.06 mm, lengths 463 / 330.5 / 199 mm of which the
-    last 50 mm are curved, curvature 0.010 / 0.005 / 0.007 1/mm, E = 58 GPa, ν = 0.3. A benchmark
-    robot (benchmarks/bench_mechanics.py): long, stiff, mildly curved tubes.
+    last 50 mm are curved, curvature 0.010 / 0.005 / 0.007 1/mm, E = 58 GPa, ν = 0.3: long, stiff,
+    mildly curved tubes (benchmarks/bench_mechanics.py).
+
+    Parameters
+    ----------
+    transmission : {"compliant", "rigid"}
+        The transmission model (`Robot`).
+
+    Returns
+    -------
+    Robot
+        Named "timclab".
     """
     spec = ((1.524, 1.3, 463.0, 0.010), (1.8, 1.62, 330.5, 0.005), (2.35, 2.06, 199.0, 0.007))
     tubes = tuple(Tube(od=od, id=idd, straight_length=length - 50.0, curved_length=50.0,
@@ -49,7 +69,22 @@ BUILTIN = {"paper": paper_robot, "timclab": timclab_robot}
 
 
 def load_robot(spec: str) -> Robot:
-    """`paper` (or another built-in name) or a path to a TOML robot file."""
+    """A built-in robot by name, or a robot TOML file.
+
+    Parameters
+    ----------
+    spec : str
+        "paper", "timclab", or the path of a robot file (`ctrkin robot template` writes one).
+
+    Returns
+    -------
+    Robot
+
+    Raises
+    ------
+    RobotDescriptionError
+        If the file is missing or not a valid description.
+    """
     if spec in BUILTIN:
         return BUILTIN[spec]()
     return Robot.from_toml(spec)
@@ -59,6 +94,11 @@ TEMPLATE_FILE = "robot_template.toml"
 
 
 def robot_template() -> str:
-    """The documented robot TOML template (package data robots/data/robot_template.toml): the paper
-    robot, every field commented with its unit; `ctrkin robot template` writes it."""
+    """The documented robot TOML template: the paper robot, every field commented with its unit.
+
+    Returns
+    -------
+    str
+        The text of the package's robots/data/robot_template.toml (`ctrkin robot template` writes it).
+    """
     return (resources.files("ctrkin.robots") / "data" / TEMPLATE_FILE).read_text(encoding="utf-8")

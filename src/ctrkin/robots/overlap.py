@@ -15,8 +15,18 @@ from ctrkin.robots.robot import Robot
 
 
 def curved_sections(robot: Robot) -> list[tuple[int, float, float]]:
-    """(tube index, offset of the section from the tube's base (mm), length (mm)) of every section
-    with non-zero precurvature; at joints β it spans s ∈ [βi + offset, βi + offset + length]."""
+    """Every section with non-zero precurvature.
+
+    Parameters
+    ----------
+    robot : Robot
+
+    Returns
+    -------
+    list of (int, float, float)
+        (tube index, offset of the section from the tube's base in mm, length in mm); at joints β
+        it spans s ∈ [βi + offset, βi + offset + length].
+    """
     out = []
     for i, t in enumerate(robot.tubes):
         cum = 0.0
@@ -28,9 +38,18 @@ def curved_sections(robot: Robot) -> list[tuple[int, float, float]]:
 
 
 def curved_overlap(robot: Robot, Q: np.ndarray) -> np.ndarray:
-    """Length (mm) of s ≥ 0 where at least two tubes with non-zero precurvature overlap.
+    """The length of s ≥ 0 where at least two tubes with non-zero precurvature overlap.
 
-    Q: (T, 2N) joints (deg, mm) -> (T,) mm. On the paper robot: 0 for d ≤ 5.5 mm, 14.5 at d = 20 mm.
+    Parameters
+    ----------
+    robot : Robot
+    Q : ndarray, shape (T, 2N) or (2N,)
+        Joints (deg, mm).
+
+    Returns
+    -------
+    ndarray, shape (T,)
+        Curved overlap (mm); on the paper robot 0 for d ≤ 5.5 mm and 14.5 mm at d = 20 mm.
     """
     Qa = np.atleast_2d(np.asarray(Q, dtype=float))
     beta = Qa[:, robot.n_tubes:]
@@ -48,8 +67,21 @@ def curved_overlap(robot: Robot, Q: np.ndarray) -> np.ndarray:
 
 
 def curved_overlap_one(robot: Robot, beta: np.ndarray) -> float:
-    """`curved_overlap` of one joint vector in scalar arithmetic (a streaming step's ~3 µs against
-    the vectorised function's ~25 µs on one row): beta (N,) translations (mm) -> mm."""
+    """`curved_overlap` at one set of translations, in scalar arithmetic.
+
+    A streaming step's ~3 µs against the vectorised function's ~25 µs on one row.
+
+    Parameters
+    ----------
+    robot : Robot
+    beta : ndarray, shape (N,)
+        Translations β1..βN (mm).
+
+    Returns
+    -------
+    float
+        Curved overlap (mm).
+    """
     spans = [(max(float(beta[i]) + off, 0.0), max(float(beta[i]) + off + length, 0.0))
              for i, off, length in curved_sections(robot)]
     if len(spans) < 2:

@@ -11,10 +11,11 @@ import functools
 import hashlib
 import json
 import math
+import reprlib
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import tomli_w
@@ -44,16 +45,66 @@ def joint_names(n_tubes: int) -> list[str]:
     return alpha_names(n_tubes) + beta_names(n_tubes)
 
 
+def _lengths_mm(values: Any, n_tubes: int) -> tuple[float, ...]:
+    """Robot.transmission_length as floats: empty, or one finite number >= 0 (mm) per tube. Anything
+    else (text, lists, tables, booleans) is a RobotDescriptionError naming what was given."""
+    what = (f"Robot.transmission_length needs {n_tubes} finite numbers >= 0 mm (one per tube) or "
+            f"none, got {reprlib.repr(values)}")
+    if isinstance(values, (str, bytes, dict)):
+        raise RobotDescriptionError(what)
+    try:
+        items: tuple[Any, ...] = tuple(values)
+    except TypeError:
+        raise RobotDescriptionError(what) from None
+    if not items:
+        return ()
+    ok = len(items) == n_tubes and all(
+        isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+        for v in items)
+    try:
+        out = tuple(float(v) for v in items) if ok else ()
+    except OverflowError:       # an int beyond float range
+        ok = False
+    if not ok or not all(math.isfinite(v) and v >= 0 for v in out):
+        raise RobotDescriptionError(what)
+    return out
+
+
 @dataclass(frozen=True)
 class Robot:
-    """tubes: innermost first. transmission: "compliant" (the part s < 0 is straight but twists,
-    docs/mechanics.md: Model) or "rigid" (the tube base angle is αi at s = 0). transmission_length: (N,)
-    mm of extra twisting length between each tube's actuator and its carriage, beyond the −βi inside
-    the actuation unit (a calibrated parameter; empty = zeros).
-    friction: Coulomb coefficient μ between neighbouring tubes (0, the default: the frictionless
-    TCM; docs/mechanics.md: Friction and clearance). clearance: how much of the radial gap between
-    neighbouring tubes (from their diameters) lets a tube tilt where it leaves the next one's tip
-    (0, the default: concentric centrelines, the standard TCM; 1: the whole gap)."""
+    """A concentric tube robot: its tubes and how their bases are driven.
+
+    Joints are q = (α1..αN deg, β1..βN mm), innermost tube first; βi ≤ 0 is the base of tube i
+    relative to the front plate, and valid joints satisfy β1 ≤ … ≤ βN ≤ 0 and
+    β1 + L1 ≥ … ≥ βN + LN ≥ 0 (`check_joints`; docs/design.md: Conventions).
+
+    Parameters
+    ----------
+    tubes : tuple of Tube
+        Innermost first; inner tubes at least as long as outer ones.
+    transmission : {"compliant", "rigid"}
+        "compliant": the part s < 0 inside the actuation unit is straight but twists
+        (docs/mechanics.md: Model); "rigid": the tube's base angle is αi at s = 0.
+    name : str
+        A label (files and reports); not part of `mechanical_fingerprint`.
+    transmission_length : tuple of float, optional
+        (N,) mm of extra twisting length between each tube's actuator and its carriage, beyond the
+        −βi inside the actuation unit (a calibrated parameter; empty: zeros).
+    friction : float
+        Coulomb coefficient μ between neighbouring tubes (0, the default: the frictionless TCM;
+        docs/mechanics.md: Friction and clearance).
+    clearance : float
+        How much of the radial gap between neighbouring tubes (from their diameters) lets a tube
+        tilt where it leaves the next one's tip (0, the default: concentric centrelines, the
+        standard TCM; 1: the whole gap).
+
+    Examples
+    --------
+    >>> import ctrkin
+    >>> robot = ctrkin.paper_robot()
+    >>> robot.n_tubes, robot.joint_names()
+    (2, ['alpha_1', 'alpha_2', 'beta_1', 'beta_2'])
+    """
 
     tubes: tuple[Tube, ...]
     transmission: Transmission = "compliant"
@@ -69,11 +120,8 @@ class Robot:
             raise RobotDescriptionError(
                 f"Robot.tubes must be a sequence of Tube, innermost first, got {self.tubes!r}") from None
         object.__setattr__(self, "tubes", tubes)
-        tl = tuple(float(v) for v in self.transmission_length)
+        tl = _lengths_mm(self.transmission_length, len(tubes))
         object.__setattr__(self, "transmission_length", tl)
-        if tl and (len(tl) != len(tubes) or not all(math.isfinite(v) and v >= 0 for v in tl)):
-            raise RobotDescriptionError(f"Robot.transmission_length needs {len(tubes)} finite values >= 0 mm "
-                                        f"(one per tube), got {list(tl)}")
         for name, upper in (("friction", 2.0), ("clearance", 10.0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= upper:
@@ -101,24 +149,39 @@ class Robot:
 
     @property
     def n_tubes(self) -> int:
+        """N, the number of tubes."""
         return len(self.tubes)
 
     @property
     def n_joints(self) -> int:
+        """2N: a rotation and a translation per tube."""
         return 2 * len(self.tubes)
 
     @property
     def lengths(self) -> np.ndarray:
-        """(N,) mm."""
+        """(N,) mm: each tube's total length L, innermost first."""
         return np.array([t.length for t in self.tubes])
 
     def joint_names(self) -> list[str]:
+        """alpha_1..alpha_N, beta_1..beta_N: the dataset's joint columns, in joint order."""
         return joint_names(self.n_tubes)
 
     def project_joints(self, Q: np.ndarray) -> np.ndarray:
-        """Project joints (T, 2N) onto the valid set by moving translations only, as the mechanical
-        stops would: βN ≤ 0, βN + LN ≥ 0, then outward-in βi ≤ βi+1 and βi + Li ≥ βi+1 + Li+1.
-        Rotations are unlimited and unchanged."""
+        """Project joints onto the valid set by moving translations only, as the mechanical stops would.
+
+        βN ≤ 0 and βN + LN ≥ 0 first, then outward-in βi ≤ βi+1 and βi + Li ≥ βi+1 + Li+1; rotations
+        are unlimited and unchanged.
+
+        Parameters
+        ----------
+        Q : ndarray, shape (T, 2N)
+            Joints (deg, mm).
+
+        Returns
+        -------
+        ndarray, shape (T, 2N)
+            A projected copy.
+        """
         out = np.array(Q, dtype=float, copy=True)
         n = self.n_tubes
         lengths = self.lengths
@@ -151,9 +214,23 @@ class Robot:
                 f"(inner tubes reach further)")
 
     def check_joints(self, q: np.ndarray) -> np.ndarray:
-        """Validate joints q: (2N,) or (T, 2N) in (deg, mm); returns them as float arrays.
+        """Validate joints against the convention and the robot's limits.
 
-        Raises JointError naming the violated condition (and the row for a trajectory).
+        Parameters
+        ----------
+        q : array_like, shape (2N,) or (T, 2N)
+            Joints (α deg, β mm).
+
+        Returns
+        -------
+        ndarray
+            The joints as floats, same shape.
+
+        Raises
+        ------
+        JointError
+            Naming the violated condition (and the row of a trajectory): a wrong shape, NaN, inf or
+            complex values, or a translation the robot cannot take.
         """
         if np.iscomplexobj(q):
             raise JointError("joints must be real numbers (deg, mm), got complex values")
@@ -178,7 +255,17 @@ class Robot:
         raise JointError(self._rule_message(first) + where)
 
     def is_valid(self, q: np.ndarray) -> np.ndarray:
-        """Boolean mask of valid rows for joints (T, 2N) (no exception)."""
+        """Which rows of joints are valid, without raising for the invalid ones.
+
+        Parameters
+        ----------
+        q : array_like, shape (2N,) or (T, 2N)
+            Joints (deg, mm).
+
+        Returns
+        -------
+        ndarray of bool, shape (T,)
+        """
         if np.iscomplexobj(q):
             raise JointError("joints must be real numbers (deg, mm), got complex values")
         rows = np.atleast_2d(np.asarray(q, dtype=float))
@@ -191,6 +278,7 @@ class Robot:
 
     # --- serialisation -------------------------------------------------------------------------
     def to_dict(self) -> dict[str, object]:
+        """The description as a dict, the layout of a robot TOML file (`ctrkin robot template`)."""
         d: dict[str, object] = {"name": self.name, "transmission": self.transmission}
         if any(self.transmission_length):
             d["transmission_length"] = list(self.transmission_length)
@@ -202,6 +290,20 @@ class Robot:
 
     @classmethod
     def from_dict(cls, d: dict[str, object], source: str = "robot description") -> Robot:
+        """A robot from the layout of `to_dict`, validated.
+
+        Parameters
+        ----------
+        d : dict
+            ``name``, ``transmission``, ``transmission_length`` and a ``tubes`` list of `Tube` fields.
+        source : str
+            Where `d` came from, for the messages (a file name).
+
+        Raises
+        ------
+        RobotDescriptionError
+            Naming the source, the tube and the field.
+        """
         if not isinstance(d, dict) or "tubes" not in d:
             raise RobotDescriptionError(f"{source}: needs a 'tubes' list ([[tubes]] in TOML), "
                                         "innermost tube first")
@@ -248,10 +350,18 @@ class Robot:
                    name=name, transmission_length=tuple(tl), **contact)  # type: ignore[arg-type]
 
     def to_toml(self, path: str | Path) -> None:
+        """Write the description as a TOML file (atomically)."""
         atomic_write_text(path, tomli_w.dumps(self.to_dict()))
 
     @classmethod
     def from_toml(cls, path: str | Path) -> Robot:
+        """Read a robot TOML file.
+
+        Raises
+        ------
+        RobotDescriptionError
+            If the file is missing, not TOML, or not a valid description (naming the file).
+        """
         p = Path(path)
         if not p.is_file():
             raise RobotDescriptionError(f"robot file {p} does not exist")

@@ -19,12 +19,25 @@ OD_RANGE_MM = (1e-3, 100.0)
 MAX_LENGTH_MM = 10_000.0        # 10 m, per tube and per section
 MAX_CURVATURE_PER_MM = 10.0     # a 0.1 mm bending radius
 YOUNGS_RANGE_GPA = (1e-3, 1e3)
+# precurvature sections per tube: a measured profile at 0.1 mm over a 1 m tube; every section is a
+# stretch of the solver's grid, so this also bounds the work of one integration pass
+MAX_SECTIONS = 10_000
 
 
 @dataclass(frozen=True)
 class Section:
-    """A stretch of tube with constant precurvature. length: mm; curvature: κx (1/mm), in the tube's
-    precurvature plane; curvature_y: κy (1/mm), out of it (default 0: a planar tube)."""
+    """A stretch of tube with constant precurvature.
+
+    Attributes
+    ----------
+    length : float
+        Length (mm).
+    curvature : float
+        Precurvature κx (1/mm), 0 on a straight stretch, in the tube's precurvature plane: it lies
+        in the tube's material frame as û = (κx, κy, 0).
+    curvature_y : float
+        Precurvature κy (1/mm) out of that plane (default 0: a planar tube).
+    """
 
     length: float
     curvature: float
@@ -63,14 +76,46 @@ def _section(k: int, s: object) -> Section:
     return Section(float(s[0]), float(s[1]), float(s[2]) if len(s) == 3 else 0.0)
 
 
+def _check_count(sections: object) -> None:
+    try:
+        count = len(sections)  # type: ignore[arg-type]
+    except TypeError:
+        raise RobotDescriptionError(
+            f"Tube.sections must be a list of [length mm, curvature 1/mm] pairs, got {sections!r}") from None
+    if count > MAX_SECTIONS:
+        raise RobotDescriptionError(f"Tube.sections has {count} sections, more than {MAX_SECTIONS} "
+                                    "(merge neighbouring sections of equal curvature)")
+
+
 @dataclass(frozen=True)
 class Tube:
-    """A nitinol tube: straight part at the base, then a curved part (the common case).
+    """A nitinol tube: a straight part at the base, then a curved part (the common case).
 
-    od, id: outer and inner diameter (mm); straight_length, curved_length: mm; curvature: 1/mm
-    (1 / radius of curvature); youngs_modulus: GPa; poisson_ratio: dimensionless.
-    `sections` may instead give general piecewise-constant precurvature from base to tip
-    (see `Tube.from_sections`); it is always filled in, so the mechanics reads only `sections`.
+    Validated on construction: a value outside physical bounds raises `RobotDescriptionError` with
+    what to change.
+
+    Parameters
+    ----------
+    od, id : float
+        Outer and inner diameter (mm), 0 ≤ id < od.
+    straight_length, curved_length : float
+        Lengths of the straight and the curved part (mm).
+    curvature : float
+        Precurvature of the curved part (1/mm: 1 / radius of curvature).
+    youngs_modulus : float
+        E (GPa); superelastic nitinol is ~58 GPa.
+    poisson_ratio : float
+        ν, in [0, 0.5): sets the bending-to-torsion stiffness ratio EI/GJ = 1 + ν.
+    sections : tuple of Section, optional
+        General piecewise-constant precurvature from base to tip instead (see `from_sections`);
+        always filled in, so the mechanics reads only `sections`.
+
+    Examples
+    --------
+    >>> from ctrkin import Tube
+    >>> inner = Tube(od=0.4, id=0.2, straight_length=57.0, curved_length=15.0, curvature=1 / 27)
+    >>> round(inner.length, 1), len(inner.sections)
+    (72.0, 2)
     """
 
     od: float
@@ -120,6 +165,7 @@ class Tube:
                          if s.length > 0)
             object.__setattr__(self, "sections", secs)
         else:
+            _check_count(self.sections)
             secs = tuple(_section(k, s) for k, s in enumerate(self.sections))
             for k, s in enumerate(secs):
                 _require_finite(owner, f"sections[{k}].length", s.length)
@@ -150,13 +196,28 @@ class Tube:
                       youngs_modulus: float = 58.0, poisson_ratio: float = 0.33) -> Tube:
         """A tube with general piecewise-constant precurvature.
 
-        sections: [(length mm, curvature 1/mm), ...] from base to tip, or (length, κx, κy)
-        triples for precurvature out of the tube's plane. straight_length is set to the leading
-        straight stretch, curved_length to the rest, curvature to the first non-zero |κx|.
+        Parameters
+        ----------
+        od, id : float
+            Outer and inner diameter (mm).
+        sections : list of (float, float) or (float, float, float)
+            (length mm, curvature 1/mm) pairs from base to tip, or (length, κx, κy) triples for
+            precurvature out of the tube's plane.
+        youngs_modulus : float
+            E (GPa).
+        poisson_ratio : float
+            ν.
+
+        Returns
+        -------
+        Tube
+            With straight_length the leading straight stretch, curved_length the rest and curvature
+            the first non-zero |κx|.
         """
         if not isinstance(sections, (list, tuple)):
             raise RobotDescriptionError(
                 f"Tube.sections must be a list of [length mm, curvature 1/mm] pairs, got {sections!r}")
+        _check_count(sections)
         secs = tuple(_section(k, s) for k, s in enumerate(sections))
         straight = 0.0
         for s in secs:
@@ -190,6 +251,7 @@ class Tube:
         return self.bending_stiffness / (1.0 + self.poisson_ratio)
 
     def to_dict(self) -> dict[str, object]:
+        """The tube as a robot TOML file's `[[tube]]` table (sections only where not the default)."""
         d: dict[str, object] = {
             "od": self.od, "id": self.id, "straight_length": self.straight_length,
             "curved_length": self.curved_length, "curvature": self.curvature,

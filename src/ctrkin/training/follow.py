@@ -46,6 +46,7 @@ from ctrkin.training.loop import (
     split_signature,
 )
 from ctrkin.util.folders import swap_in, write_manifest
+from ctrkin.util.ownership import write_marker
 from ctrkin.util.progress import progress_bar
 
 SETTLE_ITERATIONS = 5        # net applications at a sequence start (from the nearest training joints)
@@ -162,8 +163,9 @@ def train_follow(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, prog
     write_json(build / "metrics.json", metrics)
     _write_history(build / "history.csv", history)
     plot_curves(history, build / "curves.png", f"IK {cfg.model}: training and validation loss")
+    write_marker(build, "model")
     write_manifest(build)
-    swap_in(build, out, ModelError)
+    swap_in(build, out, ModelError, "model")
     return TrainResult(out, metrics, history)
 
 

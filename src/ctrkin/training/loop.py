@@ -30,7 +30,7 @@ from ctrkin.data.tracker_view import recorded_tracker_view
 from ctrkin.errors import ModelError
 from ctrkin.metrics import metrics_json_joint_errors, metrics_json_pose_errors
 from ctrkin.models.branch import UNKNOWN_STATE, BranchNet
-from ctrkin.models.features import postprocess
+from ctrkin.models.features import delta_columns, postprocess
 from ctrkin.models.fold_gate import FoldGate, build_fold_gate, recorded_motion
 from ctrkin.models.registry import get_entry
 from ctrkin.models.store import ModelBundle, write_json
@@ -39,7 +39,8 @@ from ctrkin.training.config import TrainConfig
 from ctrkin.training.curves import plot_curves
 from ctrkin.training.data import Prepared, data_signature, prepare
 from ctrkin.util.files import atomic_path, atomic_write_text
-from ctrkin.util.folders import folder_lock, recover, swap_in, write_manifest
+from ctrkin.util.folders import folder_lock, swap_in, write_manifest
+from ctrkin.util.ownership import check_replaceable, write_marker
 from ctrkin.util.progress import progress_bar
 
 CHECKPOINT = "checkpoint.pt"
@@ -250,8 +251,8 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
     never a mix, and a second training into the same `out` is refused while one runs.
     """
     out = Path(out)
-    with folder_lock(out, ModelError, "train"):
-        recover(out)
+    with folder_lock(out, ModelError, "train"):        # also cleans what killed runs left
+        check_replaceable(out, "model", ModelError)     # only a model folder is ever replaced
         if cfg.follow:                       # its own loop: features depend on perturbed joints
             from ctrkin.training.follow import train_follow
             return train_follow(ds, cfg, out, overwrite, progress, log)
@@ -370,8 +371,9 @@ def _train_locked(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, pro
     _write_history(build / "history.csv", state["history"])
     plot_curves(state["history"], build / "curves.png",
                 f"{cfg.task.upper()} {cfg.model} (IB = {cfg.ib}): training and validation loss")
+    write_marker(build, "model")
     write_manifest(build, skip=(CHECKPOINT,))
-    swap_in(build, out, ModelError)
+    swap_in(build, out, ModelError, "model")
     return TrainResult(out, metrics, state["history"])
 
 
@@ -390,16 +392,25 @@ def _load_checkpoint(path: Path) -> dict[str, Any]:
 
 
 def evaluate(bundle: ModelBundle, ds: Dataset, prep: Prepared) -> dict[str, Any]:
-    """Loss (normalised MAE) and physical errors on the validation and test rows."""
+    """Loss (normalised MAE) and physical errors on the validation and test rows, with the inputs
+    the trained model gets in use: step-change features clipped to their training range, as
+    `Kinematics.predict` clips them. Without it, a held-out file with larger steps than training's
+    (random configurations against sweeps) was reported on extrapolated inputs, and `ctrkin
+    evaluate` gave another figure for the same rows."""
     res: dict[str, Any] = {}
     n = ds.n_tubes
     measured_fk = prep.layout.task == "fk" and prep_pose_source(bundle) == "measured"
     truth = recorded_tracker_view(ds) if measured_fk else None
+    X = prep.X
+    dcols = delta_columns(prep.layout)
+    if len(dcols):                  # normalised on the training rows: their range is [0, 1]
+        X = X.copy()
+        X[..., dcols] = np.clip(X[..., dcols], 0.0, 1.0)
     for part in ("val", "test"):
         rows = prep.rows[part]
         if len(rows) == 0:
             continue
-        yn = predict_normalised(bundle.net, prep.X, rows, bounds=prep.bounds)
+        yn = predict_normalised(bundle.net, X, rows, bounds=prep.bounds)
         m: dict[str, Any] = {"loss": float(np.mean(np.abs(yn - prep.Y[rows]))), "rows": len(rows)}
         pred = prep.to_world(postprocess(prep.layout, prep.y_norm.inverse(yn)), rows)
         if prep.layout.task == "fk":

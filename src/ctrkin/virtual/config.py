@@ -18,46 +18,76 @@ SHAPES = ("em_distortion_length_mm",)   # fields that shape an effect but switch
 
 
 class VirtualConfigError(CtrkinError, ValueError):
-    """A virtual robot effect magnitude is out of range."""
+    """A virtual robot effect magnitude is out of range, or not a setting at all."""
 
 
 @dataclass(frozen=True)
 class VirtualConfig:
-    """Magnitudes of the imperfections (all >= 0; zero switches an effect off).
+    """Magnitudes of the imperfections (all ≥ 0; zero switches an effect off).
 
-    Tubes (drawn once per robot seed, per tube):
-      precurvature_error: relative std of each tube's precurvature (shape-setting springback).
-      stiffness_error: relative std of each tube's E·I (diameter tolerance, E of nitinol).
-      residual_curvature: std (1/mm) of the curvature of the nominally straight parts.
-      alpha_zero_error_deg: std (deg) of the offset between a rotation encoder's zero and the tube's
-        precurvature plane (tube clamped into its gear by hand).
-      precurvature_variation: relative std of the precurvature's variation along each curved
-        section (a smooth profile of zero mean, on top of precurvature_error).
-      precurvature_plane_deg: std (deg) of the turn of the precurvature plane along each curved
-        section (the shape-set curve leaves its plane: û = (κx, κy)).
-    Between the tubes (the true robot's mechanics, docs/mechanics.md: Friction and clearance):
-      tube_friction: Coulomb coefficient μ between neighbouring tubes (contact forces from the
-        bending moments they exchange, concentrated at curvature changes and tube ends).
-      clearance: the share of the tubes' radial gap (from their diameters) the inner tube may tilt
-        in where it leaves an outer tube's tip (1: all of it).
-    Transmission (direction-dependent dead band between motor and tube base, i.e. hysteresis):
-      gear_backlash_deg: full width (deg) of the gear backlash of each rotation stage.
-      friction_deg: full width (deg) of the torsional-friction wind-up of a tube in its bearings.
-      friction_deg_per_mm: extra wind-up width (deg) per mm of curved overlap of two or more tubes, a
-        lumped stand-in for the friction between the tubes (default 0: tube_friction models it).
-      leadscrew_backlash_mm: full width (mm) of the lead-screw backlash of each translation stage.
-    Tracker (EM sensor, registered to the robot base):
-      registration_mm, registration_deg: std of the residual rigid registration error (per axis; angle).
-      em_distortion_mm: RMS (mm) over the robot's workspace of the part of a smooth warp of the
-        tracker's space (field distortion by metal and motors) that no rigid registration removes;
-        em_distortion_length_mm: the warp's length scale (mm).
-      sensor_offset_mm: distance (mm) of the sensor coil's centre beyond the tube tip, along the tip
-        tangent (the sensor sits in a fixture on the tip; the nominal model predicts the tube tip).
-      noise_mm, noise_deg: std of one reading's position noise (per axis) and tangent noise (angle).
-      readings_per_sample: readings averaged into one sample (the paper averaged five).
-    Encoder:
-      glitch_rate: probability that a recorded sample carries a corrupted joint reading.
-      glitch_deg, glitch_mm: largest corruption of a rotation (deg) / translation (mm) reading.
+    Frozen and validated on construction (`VirtualConfigError` says which value and why); stored in
+    the meta of every dataset the virtual robot records. The tube effects are drawn once per robot
+    seed and tube; the transmission's dead band between motor and tube base is what makes the
+    robot's response depend on the direction of motion (hysteresis). docs/virtual_robot.md gives
+    the source of each default.
+
+    Attributes
+    ----------
+    precurvature_error : float
+        Relative std of each tube's precurvature (shape-setting springback).
+    stiffness_error : float
+        Relative std of each tube's E·I (diameter tolerance, E of nitinol).
+    residual_curvature : float
+        Std (1/mm) of the curvature of the nominally straight parts.
+    alpha_zero_error_deg : float
+        Std (deg) of the offset between a rotation encoder's zero and the tube's precurvature plane
+        (a tube clamped into its gear by hand).
+    precurvature_variation : float
+        Relative std of the precurvature's variation along each curved section (a smooth profile of
+        zero mean, on top of precurvature_error).
+    precurvature_plane_deg : float
+        Std (deg) of the turn of the precurvature plane along each curved section (the shape-set
+        curve leaves its plane: û = (κx, κy)).
+    tube_friction : float
+        Coulomb coefficient μ between neighbouring tubes of the true robot (contact forces from the
+        bending moments they exchange, concentrated at curvature changes and tube ends;
+        docs/mechanics.md: Friction and clearance).
+    clearance : float
+        The share of the tubes' radial gap (from their diameters) the inner tube may tilt in where it
+        leaves an outer tube's tip (1: all of it).
+    gear_backlash_deg : float
+        Full width (deg) of the gear backlash of each rotation stage.
+    friction_deg : float
+        Full width (deg) of the torsional-friction wind-up of a tube in its bearings.
+    friction_deg_per_mm : float
+        Extra wind-up width (deg) per mm of curved overlap of two or more tubes, a lumped stand-in
+        for the friction between the tubes (default 0: tube_friction models it).
+    leadscrew_backlash_mm : float
+        Full width (mm) of the lead-screw backlash of each translation stage.
+    registration_mm : float
+        Std (mm, per axis) of the tracker's residual rigid registration error.
+    registration_deg : float
+        Std (deg) of its rotation.
+    em_distortion_mm : float
+        RMS (mm) over the robot's workspace of the part of a smooth warp of the tracker's space
+        (field distortion by metal and motors) that no rigid registration removes.
+    em_distortion_length_mm : float
+        The warp's length scale (mm).
+    sensor_offset_mm : float
+        Distance (mm) of the sensor coil's centre beyond the tube tip, along the tip tangent (the
+        sensor sits in a fixture on the tip; the nominal model predicts the tube tip).
+    noise_mm : float
+        Std (mm, per axis) of one reading's position noise.
+    noise_deg : float
+        Std (deg) of one reading's tangent noise.
+    readings_per_sample : int
+        Tracker readings averaged into one sample (the paper averaged five).
+    glitch_rate : float
+        Probability that a recorded sample carries a corrupted joint reading.
+    glitch_deg : float
+        Largest corruption (deg) of a rotation reading.
+    glitch_mm : float
+        Largest corruption (mm) of a translation reading.
     """
 
     precurvature_error: float = 0.08
@@ -129,10 +159,18 @@ class VirtualConfig:
                 f"VirtualConfig.readings_per_sample must be an integer in 1..1000, got {n!r}")
 
     def to_dict(self) -> dict[str, Any]:
+        """Every field by name (for the dataset meta and JSON)."""
         return asdict(self)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> VirtualConfig:
+        """The inverse of `to_dict`, validated.
+
+        Raises
+        ------
+        VirtualConfigError
+            On an unknown key (listing the known ones) or a value out of range.
+        """
         known = {f.name for f in fields(cls)}
         unknown = set(d) - known
         if unknown:
