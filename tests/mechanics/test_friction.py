@@ -269,3 +269,18 @@ def test_translation_releases_the_torsional_stick() -> None:
         share = np.abs(rc * dphi + np.sign(dphi) * rc * eps_t) / np.hypot(rc * dphi, dd)
         assert (share < 0.9).all()
         np.testing.assert_allclose(np.abs(rep.torque[slip]), share * rep.bound[slip], rtol=0.15)
+
+
+def test_a_tube_crossing_180_degrees_keeps_its_stuck_twist() -> None:
+    """The solver removes whole turns of α (α in (−180°, 180°]), so the relative angle of a pair
+    jumps by 360° where the inner tube crosses 180°; the friction element must see only the slip.
+    Turning both tubes by the same angle turns the whole robot about z, so the path with the inner
+    tube crossing 180° equals, turned by 180°, the same path 180° lower, which crosses nothing."""
+    rough = with_friction(0.2)
+    a = np.arange(120.0, 241.0, 2.0)
+    Q = np.c_[a, 0 * a, np.full(len(a), -8.0), 0 * a]
+    crossing = follow(rough, Q).tip_poses[:, :3]
+    shifted = follow(rough, Q - [180.0, 180.0, 0.0, 0.0]).tip_poses[:, :3]
+    turned = shifted * [-1.0, -1.0, 1.0]                       # Rz(180°)
+    np.testing.assert_allclose(crossing, turned, atol=1e-6)
+    assert np.abs(crossing - follow(PAPER, Q).tip_poses[:, :3]).max() > 0.05   # friction acts
