@@ -12,7 +12,7 @@ from ctrkin import follow, paper_robot
 from ctrkin.acquisition.trajectories import rotation_sweep
 from ctrkin.calibration import calibrate
 from ctrkin.calibration.friction import sequences
-from ctrkin.calibration.params import ALL_GROUPS, GROUPS, default_groups
+from ctrkin.calibration.params import ALL_GROUPS, FRICTION, GROUPS, default_groups
 from ctrkin.data import Dataset, schema
 from ctrkin.geometry import Registration
 
@@ -46,7 +46,8 @@ def rubbing() -> Dataset:
 
 def test_friction_is_a_default_group_only_for_a_robot_with_friction() -> None:
     assert default_groups(paper_robot()) == GROUPS
-    assert default_groups(dataclasses.replace(paper_robot(), friction=0.1)) == ALL_GROUPS
+    assert default_groups(dataclasses.replace(paper_robot(), friction=0.1)) == (*GROUPS, FRICTION)
+    assert FRICTION in ALL_GROUPS and "bending_stiffness" in ALL_GROUPS   # both only when named
 
 
 def test_calibration_recovers_the_friction_between_the_tubes(rubbing: Dataset) -> None:

@@ -76,3 +76,16 @@ class FieldWarp:
     def to_dict(self) -> dict[str, Any]:
         return {"amplitude_mm": self.amp.tolist(), "wave_per_mm": self.wave.tolist(),
                 "phase_rad": self.phase.tolist(), "centre_mm": self.centre.tolist()}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> FieldWarp:
+        """The warp `to_dict` wrote (a dataset's meta: virtual_robot → tracker → field_warp)."""
+        amp = np.array(d["amplitude_mm"], dtype=float)
+        wave = np.array(d["wave_per_mm"], dtype=float)
+        phase = np.array(d["phase_rad"], dtype=float)
+        centre = np.array(d["centre_mm"], dtype=float)
+        m = amp.shape[0] if amp.ndim == 2 else -1
+        if amp.shape != (m, 3) or wave.shape != (m, 3) or phase.shape != (m,) or centre.shape != (3,):
+            raise ValueError(f"a field warp needs amplitude and wave (M, 3), phase (M,) and centre (3,), "
+                             f"got {amp.shape}, {wave.shape}, {phase.shape}, {centre.shape}")
+        return cls(amp, wave, phase, centre)
