@@ -92,9 +92,9 @@ Examples:
 @click.option("--step", "step_deg", default=1.0, show_default=True,
               type=click.FloatRange(MIN_STEP_DEG, 360.0), help="Rotation step (deg).")
 @click.option("--friction", type=click.FloatRange(0.0, 2.0), default=None,
-              help="Coulomb coefficient μ between the tubes (docs/mechanics.md: Friction and "
-              "clearance); default: the robot file's (0 for the built-in robots). With μ > 0 the plot "
-              "also marks the frictionless folds (circles).")
+              help="Coulomb coefficient μ between the tubes "
+              "(docs/mechanics.md: Friction and clearance); default: the robot file's (0 for the "
+              "built-in robots). With μ > 0 the plot also marks the frictionless folds (circles).")
 @click.option("--clearance", type=click.FloatRange(0.0, 10.0), default=None,
               help="Share of the tubes' radial gap the inner tube may tilt in at an outer tube's tip "
               "(1: all of it); default: the robot file's (0).")

@@ -17,8 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ctrkin.errors import DatasetError
-from ctrkin.geometry import RigidTransform, sensor_view
-from ctrkin.virtual.field import FieldWarp
+from ctrkin.geometry import RigidTransform, sensor_view, wave_warp
 
 if TYPE_CHECKING:
     from ctrkin.data.dataset import Dataset
@@ -44,10 +43,16 @@ def recorded_tracker_view(ds: Dataset) -> np.ndarray | None:
     view = sensor_view(ds.poses(true=True), registration, offset)
     if tracker.get("field_warp") is None:
         return view
+    warp = tracker["field_warp"]
     try:
-        warp = FieldWarp.from_dict(tracker["field_warp"])
+        amp, wave, phase, centre = (np.array(warp[k], dtype=float) for k in
+                                    ("amplitude_mm", "wave_per_mm", "phase_rad", "centre_mm"))
     except (KeyError, TypeError, ValueError) as e:
         raise DatasetError(f"the dataset's recorded field warp (meta virtual_robot.tracker.field_warp) is "
                            f"incomplete: {e}; record the dataset again") from None
-    view[:, :3] += warp.displacement(view[:, :3])     # positions only (ctrkin.virtual.field)
+    m = amp.shape[0] if amp.ndim == 2 else -1
+    if amp.shape != (m, 3) or wave.shape != (m, 3) or phase.shape != (m,) or centre.shape != (3,):
+        raise DatasetError("the dataset's recorded field warp is not amplitude and wave (M, 3), phase "
+                           "(M,) and centre (3,); record the dataset again")
+    view[:, :3] += wave_warp(view[:, :3], amp, wave, phase, centre)   # positions only (virtual.field)
     return view

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ctrkin.geometry import RigidTransform
+from ctrkin.geometry import RigidTransform, wave_warp
 
 WAVES = 6
 
@@ -66,8 +66,7 @@ class FieldWarp:
 
     def displacement(self, p: np.ndarray) -> np.ndarray:
         """d(p) (T, 3) mm at points p (T, 3) mm."""
-        arg = (p - self.centre) @ self.wave.T + self.phase     # (T, M)
-        return np.sin(arg) @ self.amp
+        return wave_warp(p, self.amp, self.wave, self.phase, self.centre)
 
     def apply(self, p: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Warped points (T, 3) p + d(p) and the sensor axes (T, 3), unchanged (module docstring)."""
@@ -76,16 +75,3 @@ class FieldWarp:
     def to_dict(self) -> dict[str, Any]:
         return {"amplitude_mm": self.amp.tolist(), "wave_per_mm": self.wave.tolist(),
                 "phase_rad": self.phase.tolist(), "centre_mm": self.centre.tolist()}
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> FieldWarp:
-        """The warp `to_dict` wrote (a dataset's meta: virtual_robot → tracker → field_warp)."""
-        amp = np.array(d["amplitude_mm"], dtype=float)
-        wave = np.array(d["wave_per_mm"], dtype=float)
-        phase = np.array(d["phase_rad"], dtype=float)
-        centre = np.array(d["centre_mm"], dtype=float)
-        m = amp.shape[0] if amp.ndim == 2 else -1
-        if amp.shape != (m, 3) or wave.shape != (m, 3) or phase.shape != (m,) or centre.shape != (3,):
-            raise ValueError(f"a field warp needs amplitude and wave (M, 3), phase (M,) and centre (3,), "
-                             f"got {amp.shape}, {wave.shape}, {phase.shape}, {centre.shape}")
-        return cls(amp, wave, phase, centre)
