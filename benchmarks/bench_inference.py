@@ -27,8 +27,8 @@ import numpy as np
 import torch
 
 from ctrkin.inference import Kinematics
-from ctrkin.inference.batch import padded_rows, seqnet_predict
 from ctrkin.models import SeqNet
+from ctrkin.models.batch import padded_rows, seqnet_predict
 
 
 def _latency(fn: Any, inputs: np.ndarray, warmup: int = 500) -> dict[str, float]:
@@ -46,9 +46,9 @@ def _latency(fn: Any, inputs: np.ndarray, warmup: int = 500) -> dict[str, float]
 
 
 def _default_models(root: Path) -> tuple[Path, Path]:
+    from ctrkin.acquisition.demo import sweep_dataset
     from ctrkin.robots import paper_robot
     from ctrkin.training import TrainConfig, train
-    from ctrkin.training.demo import sweep_dataset
 
     ds = sweep_dataset(paper_robot(), translations=(8, 14, 20), outer_alphas=(0, 120, 240), step_deg=4)
     for task in ("fk", "ik"):

@@ -16,16 +16,16 @@ import heapq
 import time
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from ctrkin.data import Dataset
 from ctrkin.evaluation.scales import get_scale
 from ctrkin.evaluation.training_runs import plan_runs
-from ctrkin.models.registry import get_entry
+from ctrkin.families.registry import build_net, recipe
+from ctrkin.models.recipe import TrainingData
 from ctrkin.models.store import ModelBundle
-from ctrkin.training.data import prepare
-from ctrkin.training.loop import _BranchBatch, _epoch_gathered, _near_switch, _optimizer, _val_loss
+from ctrkin.training.data import split_rows
+from ctrkin.training.engine import _epoch_gathered, _optimizer
 
 
 def main() -> None:
@@ -40,30 +40,27 @@ def main() -> None:
     costs = []
     for run in plan_runs(get_scale(args.scale)):
         cfg = run.config
-        prep = prepare(ds, cfg, branches=get_entry(cfg.model).stateful)
-        net = ModelBundle.create(cfg.to_dict(), prep.layout, prep.x_norm, prep.y_norm, ds.robot, {}).net
+        rec = recipe(cfg)                      # the family's: its features, loss and validation
+        split, rows = split_rows(ds, cfg)
+        prepared = rec.prepare(TrainingData(ds, cfg, split, rows))
+        bundle = ModelBundle.create(cfg.to_dict(), prepared.layout, prepared.x_norm, prepared.y_norm,
+                                    ds.robot, {}, frame=prepared.frame, build=build_net)
+        net = bundle.net
         opt, gen = _optimizer(net, cfg), torch.Generator().manual_seed(0)
-        train_rows = prep.rows["train"]
-        sub = train_rows[: args.rows]
-        X, Y = torch.from_numpy(prep.X[sub]), torch.from_numpy(prep.Y[sub])
-        if get_entry(cfg.model).stateful:        # the gate loss: time it like the real loop does
-            assert prep.state is not None and prep.state_prev is not None and prep.forced is not None
-            branch = _BranchBatch(torch.from_numpy(prep.state[sub].astype(np.float32)),
-                                  torch.from_numpy(prep.state_prev[sub]), torch.from_numpy(prep.forced[sub]),
-                                  torch.from_numpy(_near_switch(prep.state, prep.bounds)[sub]), 0.1, 0.1)
-        else:
-            branch = None
-        _epoch_gathered(net, opt, X[:2048], Y[:2048], cfg.batch_size, gen, branch)   # warm-up
+        X, Y = rec.epoch_tensors(0, bundle)
+        n_train = len(X)
+        X, Y = X[: args.rows], Y[: args.rows]
+        _epoch_gathered(net, opt, X[:2048], Y[:2048], cfg.batch_size, gen, rec.loss)   # warm-up
         t0 = time.perf_counter()
-        _epoch_gathered(net, opt, X, Y, cfg.batch_size, gen, branch)
-        t_train = (time.perf_counter() - t0) * len(train_rows) / len(sub)
+        _epoch_gathered(net, opt, X, Y, cfg.batch_size, gen, rec.loss)
+        t_train = (time.perf_counter() - t0) * n_train / len(X)
         t0 = time.perf_counter()
-        _val_loss(net, prep, "val")
+        rec.val_loss(net)
         t_val = time.perf_counter() - t0
         total = cfg.max_epochs * (t_train + t_val)
         costs.append((total, run.name))
         print(f"{run.name:24s} batch {cfg.batch_size:5d} epochs <= {cfg.max_epochs:3d}: "
-              f"{t_train:6.1f} s + val {t_val:4.1f} s per epoch ({len(train_rows)} rows) -> {total:6.0f} s",
+              f"{t_train:6.1f} s + val {t_val:4.1f} s per epoch ({n_train} rows) -> {total:6.0f} s",
               flush=True)
     loads = [0.0] * args.workers
     for total, _ in sorted(costs, reverse=True):

@@ -9,8 +9,12 @@ Areas: solve, follow, Tube/Robot construction, robot TOML files, learned FK pred
 predict and step, CSV log import, corrupted dataset folders, corrupted model folders; and (issue 27,
 benchmarks/fuzz_folders.py) the output rule of the commands (`output`), folders under file-system
 adversity (`fs`: planted links, glob and odd names, leftovers of killed runs, read-only folders, full
-disks) and concurrent readers and writers of datasets and model folders (`concurrency`). Every input
-is drawn from a seeded generator (--seed) and its outcome classified:
+disks) and concurrent readers and writers of datasets and model folders (`concurrency`); and (issue 27,
+benchmarks/fuzz_inference.py) the inference classes in fk_predict, fk_step and ik (labelled columns,
+ragged and empty inputs, interleaved sequence ids, non-unit IK quaternions, absurd start joints, the
+ONNX graph's non-finite rows and empty batch) and calls interleaved with a stream's steps
+(`interleaved`: batch predicts, a second thread, copies). Every input is drawn from a seeded
+generator (--seed) and its outcome classified:
 
     ok       a result that passes the oracle          clear    a CtrkinError (names what to change)
     flagged  a result marked as doubtful (converged=False, in_workspace=False, projected ...)
@@ -53,6 +57,7 @@ import tomli_w
 import torch
 
 from ctrkin import Robot, Tube, follow, paper_robot, solve
+from ctrkin.acquisition.demo import sweep_dataset
 from ctrkin.data import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
 from ctrkin.data.schema import POSE_COLUMNS
@@ -60,18 +65,20 @@ from ctrkin.errors import CtrkinError
 from ctrkin.inference import Kinematics
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS
 from ctrkin.pose import tangent_from_quat
+from ctrkin.robots.tube import MAX_STRAIN
 from ctrkin.training import TrainConfig, train
-from ctrkin.training.demo import sweep_dataset
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import fuzz_folders  # a sibling module of this script
+import fuzz_folders  # sibling modules of this script
+import fuzz_inference
 
 HANG_S = 10.0
 OUTCOMES = ("ok", "clear", "flagged", "crash", "silent", "hang", "lost", "mixed")
 BAD = ("crash", "silent", "hang", "lost", "mixed")
-AREAS = {  # area: inputs at scale 1 (21,740 in all)
+AREAS = {  # area: inputs at scale 1 (22,340 in all)
     "tube_robot": 7000, "solve": 3000, "toml": 4000, "follow": 200, "fk_predict": 2000, "fk_step": 2000,
     "ik": 1500, "csv": 600, "dataset_folder": 500, "model_folder": 300, **fuzz_folders.COUNTS,
+    **fuzz_inference.COUNTS,
 }
 
 
@@ -98,7 +105,9 @@ def nasty(rng: np.random.Generator, good: float) -> Any:
 
 
 def plausible_robot(rng: np.random.Generator, n: int | None = None) -> Robot:
-    """1-3 nested tubes, curvature 1e-3..3 /mm (log-uniform; 1 in 10 up to 10 /mm), lengths 5..200 mm."""
+    """1-3 nested tubes, curvature 1e-3..3 /mm (log-uniform; 1 in 10 up to 10 /mm), 9 in 10 of them
+    held within the wall strain a tube can take (robots.tube.MAX_STRAIN; the others must be refused),
+    lengths 5..200 mm."""
     n = n or int(rng.integers(1, 4))
     tubes = []
     od, length = 0.3 + rng.uniform(0, 0.3), 0.0
@@ -106,6 +115,8 @@ def plausible_robot(rng: np.random.Generator, n: int | None = None) -> Robot:
     for i in range(n):
         top = 1.0 if rng.random() < 0.1 else 0.5
         kappa = 0.0 if rng.random() < 0.15 else float(10 ** rng.uniform(-3, top))
+        if rng.random() < 0.9:
+            kappa = min(kappa, 2 * MAX_STRAIN / od)
         total = float(lengths[i]) if i == 0 else min(float(lengths[i]), length)
         curved = float(rng.uniform(0.0, total))
         nu = float(rng.uniform(0, 0.45))
@@ -289,6 +300,8 @@ def _fk_seq(rng: np.random.Generator, robot: Robot) -> tuple[Any, bool]:
 
 
 def case_fk_predict(rng: np.random.Generator, ctx: dict[str, Any]) -> str:
+    if rng.random() < 0.3:
+        return fuzz_inference.fk_predict_input(rng, ctx)
     fk: Kinematics = ctx["fk"]
     Q, valid = _fk_seq(rng, fk.robot)
     poses = fk.predict(Q)
@@ -305,6 +318,8 @@ def case_fk_predict(rng: np.random.Generator, ctx: dict[str, Any]) -> str:
 
 def case_fk_step(rng: np.random.Generator, ctx: dict[str, Any]) -> str:
     """Stream a valid sequence with a bad step injected; the steps after it must equal the clean run."""
+    if rng.random() < 0.2:
+        return fuzz_inference.fk_step_input(rng, ctx)
     fk: Kinematics = ctx["fk"]
     Q, _ = _fk_seq(rng, fk.robot)
     Q = np.asarray(Q)
@@ -333,6 +348,8 @@ def case_fk_step(rng: np.random.Generator, ctx: dict[str, Any]) -> str:
 
 
 def case_ik(rng: np.random.Generator, ctx: dict[str, Any]) -> str:
+    if rng.random() < 0.3:
+        return fuzz_inference.ik_input(rng, ctx)
     ik: Kinematics = ctx["ik"]
     targets = ctx["ik_targets"]
     m = int(rng.integers(1, 12))
@@ -474,6 +491,7 @@ CASES: dict[str, Callable[[np.random.Generator, dict[str, Any]], str]] = {
     "tube_robot": case_tube_robot, "solve": case_solve, "toml": case_toml, "follow": case_follow,
     "fk_predict": case_fk_predict, "fk_step": case_fk_step, "ik": case_ik, "csv": case_csv,
     "dataset_folder": case_dataset_folder, "model_folder": case_model_folder, **fuzz_folders.CASES,
+    **fuzz_inference.CASES,
 }
 
 
@@ -507,6 +525,7 @@ def setup(tmp: Path, seed: int) -> dict[str, Any]:
     ctx["log"] = pd.DataFrame({"step": reps, **{c: q[reps, j] for j, c in enumerate(robot.joint_names())},
                                **{c: poses[reps, j] for j, c in enumerate(POSE_COLUMNS)}})
     fuzz_folders.setup(ctx, seed)
+    fuzz_inference.setup(ctx, seed)
     assert np.allclose(np.linalg.norm(tangent_from_quat(poses[:, 3:]), axis=1), 1.0)
     return ctx
 
@@ -552,7 +571,7 @@ def _one(fn: Callable[[np.random.Generator, dict[str, Any]], str], rng: np.rando
             outcome = fn(rng, ctx)
     except (Hang, fuzz_folders.Hang) as e:
         outcome, note = "hang", str(e)
-    except (Silent, fuzz_folders.Silent) as e:
+    except (Silent, fuzz_folders.Silent, fuzz_inference.Silent) as e:
         outcome, note = "silent", str(e)
     except fuzz_folders.Lost as e:
         outcome, note = "lost", str(e)

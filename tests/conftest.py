@@ -16,3 +16,44 @@ def robot():
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
+
+
+@pytest.fixture(scope="session")
+def sweeps():
+    """6 rotation sweeps (d = 8, 14, 20 mm; outer α 0, 90°) at 4° steps, 0.02 mm tracker noise."""
+    from ctrkin.acquisition.demo import sweep_dataset
+
+    return sweep_dataset(paper_robot(), translations=(8, 14, 20), outer_alphas=(0, 90), step_deg=4,
+                         noise_mm=0.02, seed=2)
+
+
+@pytest.fixture(scope="session")
+def model_dirs(sweeps, tmp_path_factory):
+    """Small trained FK and IK models (few epochs, small LSTM), and the IK refined on the snap-aware FK
+    (imported here: the tests of other stages need no torch)."""
+    from ctrkin.families.refined import assemble_refined
+    from ctrkin.training import TrainConfig, train
+
+    root = tmp_path_factory.mktemp("models")
+    dirs = {}
+    for name, cfg in {
+        "fk": TrainConfig(task="fk", max_epochs=3, threads=1, options={"structure": "L16|D16"}),
+        "ik": TrainConfig(task="ik", ib=3, max_epochs=3, threads=1, options={"structure": "L16|D16"}),
+        "fk_cnn": TrainConfig(task="fk", model="cnn", max_epochs=1, threads=1, options={"channels": 8}),
+        "fk_default": TrainConfig(task="fk", max_epochs=1, threads=1),
+        "fk_branch": TrainConfig(task="fk", model="lstm_mlp_branch", max_epochs=3, threads=1,
+                                 options={"structure": "L16|D16", "gate_units": 8}),
+    }.items():
+        train(sweeps, cfg, root / name, progress=False)
+        dirs[name] = root / name
+    dirs["ik_refined"] = assemble_refined(dirs["ik"], dirs["fk_branch"], root / "ik_refined")
+    return dirs
+
+
+@pytest.fixture(scope="session")
+def quick_ds():
+    """8 rotation sweeps (d = 8, 12, 16, 20 mm; outer α 0, 180°) at 3° steps, 0.02 mm tracker noise."""
+    from ctrkin.acquisition.demo import sweep_dataset
+
+    return sweep_dataset(paper_robot(), translations=(8, 12, 16, 20), outer_alphas=(0, 180), step_deg=3,
+                         noise_mm=0.02, seed=1)

@@ -11,6 +11,7 @@ from pathlib import Path
 from click.testing import CliRunner
 
 import ctrkin
+import ctrkin.version
 from ctrkin.cli.main import cli
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -23,7 +24,9 @@ def test_version_is_semantic_and_the_same_everywhere() -> None:
     assert importlib.metadata.version("ctrkin") == ctrkin.__version__      # the installed metadata
     pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
     assert pyproject["project"]["dynamic"] == ["version"]
-    assert pyproject["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "ctrkin.__version__"}
+    # the version's one place is the leaf module ctrkin.version (the package root re-exports it)
+    assert pyproject["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "ctrkin.version.__version__"}
+    assert ctrkin.version.__version__ == ctrkin.__version__
 
 
 def test_license_is_mit_as_pyproject_says() -> None:

@@ -14,8 +14,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from ctrkin.util.lazy import lazy_attributes
-
-__version__ = "0.2.0"   # semantic versioning: CONTRIBUTING.md; pyproject.toml reads it
+from ctrkin.version import __version__
 
 __all__ = ["Equilibrium", "Kinematics", "Robot", "SolverSettings", "Trajectory", "Tube", "__version__",
            "follow", "load_robot", "paper_robot", "solve", "solve_many"]

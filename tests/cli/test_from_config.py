@@ -55,6 +55,26 @@ def test_each_field_is_an_option_with_its_type_default_and_help() -> None:
         assert words in text
 
 
+@dataclass(frozen=True)
+class Levels:
+    levels: tuple[float, ...] = field(default=(8.0, 20.0), metadata=_help("Which levels."))
+    names: tuple[str, ...] | None = field(default=None, metadata=_help("Which names, or none."))
+
+
+def test_a_tuple_field_is_a_comma_separated_list() -> None:
+    @click.command()
+    @config_options(Levels)
+    def cmd(**settings: Any) -> None:
+        click.echo(repr(Levels(**settings)))
+
+    assert _params(cmd, ["--names", "a,b"])["names"] == ("a", "b") and _params(cmd, [])["names"] is None
+    assert _params(cmd, [])["levels"] == (8.0, 20.0)
+    assert _params(cmd, ["--levels", "4, 12,20"])["levels"] == (4.0, 12.0, 20.0)
+    assert "[default: 8.0,20.0]" in CliRunner().invoke(cmd, ["--help"]).output
+    with pytest.raises(click.BadParameter):
+        _params(cmd, ["--levels", "4,x"])
+
+
 def test_bad_values_are_usage_errors() -> None:
     cmd = _command()
     for args in (["--count", "2.5"], ["--mode", "z"], ["--rate", "fast"]):
@@ -113,3 +133,78 @@ def test_bad_key_values_are_one_usage_error(item: str, words: str) -> None:
         parse_key_values([item], "--set", Settings)
     assert caught.value.exit_code == 2
     assert words in caught.value.format_message() and "--set" in caught.value.format_message()
+
+
+@pytest.mark.parametrize(("command", "config", "own"), [
+    ("ctrkin.cli.train:train_cmd", "ctrkin.training.config:TrainConfig",
+     {"options": ("structure", "model_options")}),
+    ("ctrkin.cli.dataset:import_cmd", "ctrkin.data.import_config:ImportConfig",
+     {"mapping": ("maps",), "quaternion_columns": ("quat_cols",), "sequence_gap": ("gap_text",),
+      "cleaning": ("keep_outliers", "no_average")}),
+    ("ctrkin.cli.reproduce:reproduce_cmd", "ctrkin.evaluation.scales:ReproduceConfig", {}),
+    ("ctrkin.cli.dataset:split_cmd", "ctrkin.cli.dataset:SplitConfig", {}),
+    ("ctrkin.cli.collect:collect_cmd", "ctrkin.cli.collect:CollectConfig", {}),
+    ("ctrkin.cli.mechanics:solve_cmd", "ctrkin.cli.mechanics:SolveConfig", {}),
+    ("ctrkin.cli.mechanics:sweep_cmd", "ctrkin.cli.mechanics:SweepConfig", {}),
+])
+def test_commands_take_every_field_of_their_config(command: str, config: str, own: dict) -> None:
+    """Each field of the command's configuration is an option of the command (with the field's help
+    where the command generates it), or one the command reads into that field itself (`own`)."""
+    import dataclasses
+    import importlib
+
+    def load(spec: str) -> Any:
+        module, name = spec.split(":")
+        return getattr(importlib.import_module(module), name)
+
+    cmd, cfg = load(command), load(config)
+    params = {p.name: p for p in cmd.params}
+    for f in dataclasses.fields(cfg):
+        if f.name in own:
+            assert all(p in params for p in own[f.name]), f.name
+        else:
+            assert f.name in params, f.name
+            assert params[f.name].help == f.metadata["help"], f.name
+
+
+def test_the_reproduce_config_names_every_scale_and_refuses_bad_values() -> None:
+    from typing import get_args
+
+    from ctrkin.errors import CtrkinError
+    from ctrkin.evaluation.scales import SCALES, ReproduceConfig, Scale
+
+    assert set(get_args(Scale)) == set(SCALES)
+    with pytest.raises(CtrkinError, match="workers"):
+        ReproduceConfig(workers=0)
+    with pytest.raises(CtrkinError, match="executor"):
+        ReproduceConfig(executor="cluster")  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class Bounded:
+    points: int | None = field(default=None, metadata={"range": (1, 100), **_help("How many points.")})
+    step: float = field(default=1.0, metadata={"range": (1e-3, 360.0), **_help("Step (deg).")})
+
+
+def test_a_field_range_bounds_its_option() -> None:
+    @click.command()
+    @config_options(Bounded)
+    def cmd(**settings: Any) -> None:
+        click.echo(repr(Bounded(**settings)))
+
+    assert _params(cmd, ["--points", "100", "--step", "360"]) == {"points": 100, "step": 360.0}
+    assert _params(cmd, []) == {"points": None, "step": 1.0}
+    runner = CliRunner()
+    for args, option in ((["--points", "0"], "--points"), (["--points", "101"], "--points"),
+                         (["--step", "0"], "--step"), (["--step", "361"], "--step")):
+        res = runner.invoke(cmd, args)
+        assert res.exit_code == 2 and option in res.output and "range" in res.output, (args, res.output)
+
+
+def test_a_range_on_a_field_that_is_not_a_number_is_refused() -> None:
+    @dataclass(frozen=True)
+    class Wrong:
+        name: str = field(default="a", metadata={"range": (1, 2), **_help("A name.")})
+
+    with pytest.raises(TypeError, match="range applies to int and float"):
+        config_options(Wrong)

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from ctrkin.acquisition import protocols
+from ctrkin.acquisition.demo import sweep_dataset
 from ctrkin.acquisition.recorder import record
 from ctrkin.data import Dataset
 from ctrkin.data.tracker_view import recorded_tracker_view
 from ctrkin.errors import DatasetError
-from ctrkin.training.demo import sweep_dataset
 from ctrkin.virtual import VirtualRobot
 from ctrkin.virtual.truth import tracker_truth
 

@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 
-from ctrkin.evaluation.figure_captions import FIGURES
+from ctrkin.evaluation.experiments import FIGURES
 from ctrkin.evaluation.report import TINY_WARNING, describe_structure, write_report
 from ctrkin.evaluation.results import ReproResults
 

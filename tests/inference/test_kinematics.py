@@ -200,7 +200,7 @@ def _lagged(model_dirs, inputs: bool = False, lag: tuple[float, float] = (0.8, 0
     from dataclasses import replace
 
     kin = Kinematics.load(model_dirs["fk_branch"])
-    kin.frame = replace(kin.frame, lag=lag, lagged_inputs=inputs)
+    kin.predictor.frame = replace(kin.frame, lag=lag, lagged_inputs=inputs)
     return kin
 
 
@@ -215,7 +215,7 @@ def test_outer_lag_turns_the_frame_batch_and_streaming_alike(model_dirs, sweeps)
     """With a lag (and commanded inputs, as folders from before lagged_inputs) the frame turns with
     αN − λ(β)·m_N: batch equals streaming, rows at rest are unchanged, and rows after an outer turn
     are turned about the registered axis by ∓λ."""
-    from ctrkin.models.fold_gate import outer_motion
+    from ctrkin.models.motion import outer_motion
     from ctrkin.robots.overlap import curved_overlap
 
     kin, plain = _lagged(model_dirs), _lagged(model_dirs, lag=(0.0, 0.0))
@@ -239,7 +239,7 @@ def test_lagged_inputs_see_the_outer_tubes_angle(model_dirs, sweeps):
     """With lagged inputs the network sees αN − λ(β)·m_N as its αN: the model answers at joints q
     exactly as the same network without a lag answers at q with αN so turned (same branch states),
     and batch equals streaming."""
-    from ctrkin.models.fold_gate import outer_motion
+    from ctrkin.models.motion import outer_motion
     from ctrkin.robots.overlap import curved_overlap
 
     kin, plain = _lagged(model_dirs, inputs=True), _lagged(model_dirs, lag=(0.0, 0.0))
@@ -264,7 +264,7 @@ def test_onnx_takes_the_outer_lag(model_dirs, sweeps, tmp_path, inputs):
     With lagged inputs the window's αN already is the frame's angle: no such input."""
     import json
 
-    from ctrkin.models.fold_gate import outer_motion
+    from ctrkin.models.motion import outer_motion
     from ctrkin.models.outer_lag import lag_deg
 
     kin = _lagged(model_dirs, inputs=inputs)

@@ -131,7 +131,8 @@ def test_follow_step_work_is_bounded_and_reported():
     """Found by benchmarks/fuzz.py: follow on an extreme robot (κ = 10/mm over 100 mm) ran for minutes.
     A step whose continuation needs more than SolverSettings.max_search_steps RK4 steps is given up
     and reported not converged (NaN pose), never a plausible-looking answer."""
-    tubes = (Tube(0.4, 0.2, 60.0, 60.0, 10.0), Tube(0.8, 0.5, 40.0, 50.0, 10.0))
+    c = 0.04    # the fuzz input's diameters (0.4 / 0.8 mm) scaled so that a tube can hold 10 /mm
+    tubes = (Tube(0.4 * c, 0.2 * c, 60.0, 60.0, 10.0), Tube(0.8 * c, 0.5 * c, 40.0, 50.0, 10.0))
     robot = Robot(tubes)
     Q = np.array([[0.0, 0.0, -30.0, -20.0], [90.0, 0.0, -30.0, -20.0]])
     traj = follow(robot, Q, settings=SolverSettings(max_search_steps=1000))

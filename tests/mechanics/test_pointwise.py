@@ -11,6 +11,7 @@ from ctrkin import Robot, SolverSettings, Tube, paper_robot, solve, solve_many
 from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 from ctrkin.mechanics import kernels
 from ctrkin.mechanics.pointwise import prepare
+from ctrkin.robots.tube import MAX_STRAIN
 
 from .reference_tcm import reference_tip
 
@@ -173,7 +174,8 @@ def test_high_curvature_arc_is_accurate_at_default_settings(kappa: float) -> Non
     meets its 1e-3 mm, and a tighter tolerance on request its own."""
     from .test_analytic import arc_tip
 
-    robot = Robot((Tube(0.4, 0.2, 50.0, 20.0, kappa),))
+    od = min(0.4, 2 * MAX_STRAIN / kappa)       # a tube that can hold κ (a lone tube's arc has no od)
+    robot = Robot((Tube(od, od / 2, 50.0, 20.0, kappa),))
     exact = arc_tip(kappa, 50.0, 20.0, 0.0)
     for settings_, tol in ((SolverSettings(), 1e-3), (SolverSettings(tip_tol=1e-5), 1e-5)):
         eq = solve(robot, [0.0, 0.0], settings=settings_)
@@ -201,7 +203,7 @@ def test_default_step_from_tolerance_keeps_paper_robot_snaps() -> None:
     for robot, h in ((ROBOT, 5.256), (timclab_robot(), 14.75)):
         assert rk4_step(robot_arrays(robot), SolverSettings()) == pytest.approx(h_tol(robot, 1e-3))
         assert rk4_step(robot_arrays(robot), SolverSettings()) == pytest.approx(h, abs=0.01)
-    curly = Robot((Tube(0.4, 0.2, 50.0, 20.0, 2.0),))
+    curly = Robot((Tube(0.2, 0.1, 50.0, 20.0, 2.0),))
     assert rk4_step(robot_arrays(curly), SolverSettings()) == pytest.approx(
         min(0.3 / (2.0 * np.sqrt(1.33)), h_tol(curly, 1e-3)))
     Q = rotation_sweep(2, 20.0)
@@ -218,7 +220,7 @@ def test_insane_result_is_never_converged() -> None:
     The default (step from tip_tol) never takes such a step, so the step is forced both ways the
     settings allow: a fixed 3 mm step without a tolerance, and an absurdly loose tolerance (1 m,
     a 3.8 mm step) with the angle guard lifted; the default solves the same tube sanely."""
-    robot = Robot((Tube(0.4, 0.2, 50.0, 20.0, 2.0),))
+    robot = Robot((Tube(0.2, 0.1, 50.0, 20.0, 2.0),))
     for coarse in (SolverSettings(tip_tol=None, step=3.0, angle_step=100.0),
                    SolverSettings(tip_tol=1e3, angle_step=100.0)):
         eq = solve(robot, [0.0, 0.0], settings=coarse)
@@ -238,11 +240,16 @@ def test_step_count_guard_refuses_instead_of_hanging() -> None:
 
 def test_three_tubes_extreme_curvature_no_linalg_error() -> None:
     """Curvature 1e300 on 3 tubes raised LinAlgError; now the tube refuses it, and the largest
-    allowed curvature solves or reports non-convergence without a numpy exception."""
+    allowed curvature solves or reports non-convergence without a numpy exception. The diameters
+    are the earlier test's (0.5 / 0.9 / 1.3 mm) scaled by 0.03, so that 10 /mm is a strain a tube
+    can hold; the TCM sees only stiffness ratios, which a common scale keeps."""
     with pytest.raises(RobotDescriptionError, match="1/mm"):
         Tube(0.5, 0.4, 30.0, 20.0, 1e300)
-    tubes = (Tube(0.5, 0.4, 80.0, 20.0, 10.0), Tube(0.9, 0.7, 55.0, 20.0, 10.0),
-             Tube(1.3, 1.1, 30.0, 25.0, 10.0))
+    with pytest.raises(RobotDescriptionError, match="strains its wall"):
+        Tube(0.5, 0.4, 80.0, 20.0, 10.0)
+    c = 0.03
+    tubes = (Tube(0.5 * c, 0.4 * c, 80.0, 20.0, 10.0), Tube(0.9 * c, 0.7 * c, 55.0, 20.0, 10.0),
+             Tube(1.3 * c, 1.1 * c, 30.0, 25.0, 10.0))
     eq = solve(Robot(tubes), [0.0, 120.0, 240.0, -20.0, -10.0, 0.0])
     assert isinstance(eq.converged, bool)
     if eq.converged:

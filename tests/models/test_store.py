@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from ctrkin.errors import ModelError
+from ctrkin.families.registry import build_net
 from ctrkin.models.normalize import MinMax
 from ctrkin.models.store import ModelBundle, ModelConfig
 from ctrkin.training.config import TrainConfig
@@ -20,7 +21,8 @@ def _bundle(robot, cfg: TrainConfig) -> ModelBundle:
     x_norm = MinMax.fit(rng.normal(size=(20, layout.n_inputs)))
     y_norm = MinMax.fit(rng.normal(size=(20, layout.n_outputs)))
     torch.manual_seed(0)
-    return ModelBundle.create(cfg.to_dict(), layout, x_norm, y_norm, robot, {"data": {"samples": 20}})
+    return ModelBundle.create(cfg.to_dict(), layout, x_norm, y_norm, robot, {"data": {"samples": 20}},
+                              build=build_net)
 
 
 def test_config_json_keeps_the_training_keys_in_order(robot, tmp_path) -> None:
@@ -30,7 +32,7 @@ def test_config_json_keeps_the_training_keys_in_order(robot, tmp_path) -> None:
     assert list(written) == ["train", "ctrkin_version", "data"]
     assert written["train"] == cfg.to_dict()
     assert list(written["train"]) == list(cfg.to_dict())         # same keys, same order
-    loaded = ModelBundle.load(tmp_path / "m")
+    loaded = ModelBundle.load(tmp_path / "m", build_net)
     assert isinstance(loaded.config, ModelConfig)
     assert (loaded.config.model, loaded.config.pose_source, loaded.config.target_frame) == \
         ("lstm_mlp", "true", "tracker")

@@ -95,3 +95,25 @@ def test_a_tube_of_absurdly_many_sections_is_refused_at_once() -> None:
     with pytest.raises(RobotDescriptionError, match="more than"):
         Tube(1.0, 0.6, 0.0, 400.0, 0.01, sections=tuple(tuple(s) for s in sections))
     assert time.perf_counter() - t0 < 5.0
+
+
+def test_a_precurvature_no_tube_can_hold_is_refused() -> None:
+    """Issue 27's fuzz: a 0.68 mm tube coiled at 1.98 /mm (67 % wall strain) made follow spend its
+    work bound on every step (11 s for 7 steps). Nitinol recovers about 8-10 %; beyond 20 % no tube
+    exists, so the description is refused, naming the curvature this diameter allows."""
+    Tube(od=1.0, id=0.8, straight_length=10.0, curved_length=10.0, curvature=0.4)       # 20 %: the bound
+    with pytest.raises(RobotDescriptionError, match=r"strains its wall by 67%.*curvature <= 0\.586"):
+        Tube(od=0.6822, id=0.41, straight_length=26.0, curved_length=111.0, curvature=1.978)
+    with pytest.raises(RobotDescriptionError, match="strains its wall"):
+        Tube.from_sections(od=1.0, id=0.8, sections=[(10.0, 0.0), (5.0, -0.5)])
+
+
+def test_the_strain_bound_reads_the_whole_precurvature_magnitude() -> None:
+    """A section's precurvature is û = (κx, κy, 0): its wall strain is √(κx² + κy²)·od/2. Two
+    components each within the bound (0.3 /mm on 1 mm: 15 %) make 0.424 /mm, 21 %: refused; the same
+    magnitude in one component is refused alike, and 0.28 + 0.28 (0.396 /mm, 19.8 %) passes."""
+    Tube.from_sections(od=1.0, id=0.8, sections=[(10.0, 0.0), (5.0, 0.28, 0.28)])
+    with pytest.raises(RobotDescriptionError, match="strains its wall by 21%"):
+        Tube.from_sections(od=1.0, id=0.8, sections=[(10.0, 0.0), (5.0, 0.3, 0.3)])
+    with pytest.raises(RobotDescriptionError, match="strains its wall by 21%"):
+        Tube.from_sections(od=1.0, id=0.8, sections=[(10.0, 0.0), (5.0, 0.0, -0.4243)])

@@ -11,7 +11,7 @@ import torch
 from ctrkin.errors import ModelError
 from ctrkin.training import TrainConfig, train
 from ctrkin.training.config import scaled_lr
-from ctrkin.training.loop import _early_stopping
+from ctrkin.training.engine import _early_stopping
 
 SMALL = {"structure": "L16|D16"}
 

@@ -12,6 +12,7 @@ import pytest
 
 from ctrkin.data import Split
 from ctrkin.errors import ModelError
+from ctrkin.families.registry import build_net
 from ctrkin.inference import Kinematics
 from ctrkin.models.store import ModelBundle
 from ctrkin.training import TrainConfig, train
@@ -41,7 +42,7 @@ def test_mixed_files_from_two_trainings_are_refused(quick_ds, tmp_path):
     shutil.copytree(tmp_path / "a", bare)
     (bare / "manifest.json").unlink()
     with pytest.raises(ModelError, match=r"no manifest\.json"):
-        ModelBundle.load(bare)
+        ModelBundle.load(bare, build_net)
 
 
 def test_overwrite_swaps_the_whole_folder(quick_ds, tmp_path):

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import torch
 
+from ctrkin.acquisition.demo import sweep_dataset
 from ctrkin.data import Split
 from ctrkin.errors import ModelError
 from ctrkin.inference import Kinematics
@@ -15,7 +16,6 @@ from ctrkin.models import MinMax, sequence_features
 from ctrkin.pose import position_error
 from ctrkin.robots import paper_robot
 from ctrkin.training import TrainConfig, train
-from ctrkin.training.demo import sweep_dataset
 
 SMALL = {"structure": "L16|D16"}   # the tests are about the code's mechanics, not the paper's accuracy
 

@@ -7,6 +7,7 @@ import matplotlib
 import numpy as np
 import pytest
 
+from ctrkin.evaluation.experiments_fk import TURN_ROWS, turn_curves
 from ctrkin.viz import experiments as fx
 
 matplotlib.use("Agg")
@@ -38,7 +39,7 @@ def test_sweeps_figure_legend_has_directions_and_snaps(tmp_path, monkeypatch) ->
     snaps[36] = True
     panel = {"label": "d = 20 mm", "alpha0": a0, "measured": tl, "truth": tl, "lstm_mlp_branch": tl,
              "snaps": snaps}
-    fx.sweeps_figure([panel, panel], tmp_path / "s.png")
+    fx.sweeps_figure([panel, panel], tmp_path / "s.png", turn_curves(TURN_ROWS))
     assert (tmp_path / "s.png").stat().st_size > 5_000
     fig = figs[0]
     labels = [t.get_text() for t in fig.legends[0].get_texts()]

@@ -40,7 +40,6 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ctrkin import __version__
 from ctrkin.acquisition.plan import Plan, move
 from ctrkin.data import Dataset, schema
 from ctrkin.data.cleaning import CleaningConfig, snap_mask
@@ -58,6 +57,7 @@ from ctrkin.hardware.readings_log import LoggedSample, ReadingsLog
 from ctrkin.hardware.rig import RigDescription
 from ctrkin.util.ownership import MARKER, RIG_JOURNAL, write_marker
 from ctrkin.util.progress import progress_bar
+from ctrkin.version import __version__
 
 SESSION_FILE, LOG_FILE = RIG_JOURNAL     # the journal (util.ownership counts it as the dataset's)
 OWNED_FILES = (LOG_FILE, SESSION_FILE, "data.parquet", "meta.json", "split.json")

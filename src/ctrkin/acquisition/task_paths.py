@@ -24,13 +24,13 @@ import numpy as np
 import pandas as pd
 from scipy.spatial.transform import Rotation
 
-from ctrkin import __version__
 from ctrkin.acquisition.protocols import config
 from ctrkin.data import schema
 from ctrkin.errors import DatasetError
 from ctrkin.geometry import pose_rotation, quat_from_tangent
 from ctrkin.mechanics import solve
 from ctrkin.util.folders import build_folder, reading_folder
+from ctrkin.version import __version__
 from ctrkin.virtual.robot import VirtualRobot
 
 SHAPES = {"square": 4, "triangle": 3}

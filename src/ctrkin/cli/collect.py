@@ -24,6 +24,8 @@ docs/virtual_robot.md), e.g. --set friction_deg_per_mm=0 --set noise_mm=0.1.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
+from typing import Any
 
 import click
 
@@ -32,8 +34,9 @@ from ctrkin.acquisition.plan import Plan
 from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.acquisition.task_paths import SHAPES, task_path
-from ctrkin.cli.common import emit_json, output_folder, output_options, parse_floats, robot_option, say
-from ctrkin.cli.from_config import parse_key_values
+from ctrkin.cli.common import emit_json, output_folder, output_options, say
+from ctrkin.cli.from_config import RANGE, config_options, parse_key_values
+from ctrkin.evaluation.scales import Scale
 from ctrkin.robots import Robot, load_robot
 from ctrkin.virtual import VirtualConfig, VirtualConfigError, VirtualRobot
 
@@ -48,14 +51,56 @@ def _config(settings: tuple[str, ...]) -> VirtualConfig:
         raise click.BadParameter(str(e), param_hint="--set") from None
 
 
-def build_plan(protocol: str, robot: Robot, scale: str, seed: int, n_points: int | None,
-               levels: tuple[float, ...] | None) -> Plan:
-    """The plan of `protocol` at `scale` (tiny, quick, full) with the command's options."""
-    kw: dict[str, object] = ({"n_points": 20 if n_points is None else n_points}
-                             if protocol == "random-points" else {})
-    if levels is not None:
-        kw["levels"] = levels
-    return protocols.build(protocol, robot, scale=scale, seed=seed, **kw)  # type: ignore[arg-type]
+def _help(text: str) -> dict[str, str]:
+    return {"help": text}
+
+
+@dataclass(frozen=True)
+class CollectConfig:
+    """What `ctrkin collect` records (one option per field; the virtual robot's effect magnitudes
+    are VirtualConfig's, set by --set KEY=VALUE; the rig, where there is one, is --rig's file)."""
+
+    protocol: str = field(default="paper", metadata=_help("What to record: " + ", ".join(CHOICES) + "."))
+    scale: Scale = field(default="quick", metadata=_help(
+        "Size of the paper protocol, the training data of `reproduce --scale` of the same name (the other "
+        "protocols do not depend on it). full: the paper's, 8 levels x 36 outer angles (207,648 "
+        "samples); quick: 4 levels x 18 outer angles (51,912); tiny: 2 levels x 4 outer angles "
+        "(5,768)."))
+    robot: str = field(default="paper", metadata=_help(
+        "Built-in robot name (paper, timclab) or path to a robot TOML file."))
+    seed: int = field(default=0, metadata=_help("Noise, glitches, random configurations."))
+    robot_seed: int = field(default=0, metadata=_help("The virtual hardware draw."))
+    n_points: int | None = field(default=None, metadata={RANGE: (1, MAX_POINTS), **_help(
+        "random-points: number of targets (default 20); square/triangle: number of path points (default "
+        "10, as in the paper; at least 4 for a square, 3 for a triangle).")})
+    levels: tuple[float, ...] | None = field(default=None, metadata=_help(
+        "paper/sweeps: relative translations d = beta_N - beta_1 (mm), comma-separated (default: the "
+        "protocol's; needed for robots that cannot reach d = 20 mm)."))
+    workers: int | None = field(default=None, metadata=_help("Processes (default: all cores)."))
+
+    def __post_init__(self) -> None:
+        if self.protocol not in CHOICES:
+            raise click.BadParameter(f"{self.protocol!r} is not one of {', '.join(CHOICES)}",
+                                     param_hint="--protocol")
+        if self.levels is not None and self.protocol not in ("paper", "sweeps"):
+            raise click.BadParameter("--levels applies to the paper and sweeps protocols")
+        n = self.n_points
+        if n is not None and not 1 <= n <= MAX_POINTS:
+            raise click.BadParameter(f"{n} is not in the range 1<=x<={MAX_POINTS}", param_hint="--n-points")
+        if self.protocol in SHAPES and n is not None and n < SHAPES[self.protocol]:
+            raise click.BadParameter(f"a {self.protocol} needs at least {SHAPES[self.protocol]} points, "
+                                     f"got {n}", param_hint="--n-points")
+        if n is not None and self.protocol not in (*SHAPES, "random-points"):
+            raise click.BadParameter("--n-points applies to random-points, square and triangle",
+                                     param_hint="--n-points")
+
+    def plan(self, robot: Robot) -> Plan:
+        """The plan of the protocol at its scale (tiny, quick, full) for `robot`, with these options."""
+        kw: dict[str, object] = ({"n_points": 20 if self.n_points is None else self.n_points}
+                                 if self.protocol == "random-points" else {})
+        if self.levels is not None:
+            kw["levels"] = self.levels
+        return protocols.build(self.protocol, robot, scale=self.scale, seed=self.seed, **kw)
 
 
 @click.command("collect", epilog="""\b
@@ -65,22 +110,9 @@ Examples:
   ctrkin collect --protocol sweeps --set noise_mm=0.1 --out data/sweeps-noisy
   ctrkin collect --protocol sweeps --levels 8 --out data/sweeps-8 --json > collect.json
   ctrkin collect --rig examples/rigs/paper.toml --protocol paper --scale full --out data/rig""")
-@click.option("--protocol", type=click.Choice(CHOICES), required=True, help="What to record.")
-@click.option("--scale", type=click.Choice(sorted(protocols.SCALES)), default="quick", show_default=True,
-              help="Size of the paper protocol, the training data of `reproduce --scale` of the same "
-              "name (the other protocols do not depend on it). full: the paper's, 8 levels x 36 outer "
-              "angles (207,648 samples); quick: 4 levels x 18 outer angles (51,912); tiny: 2 levels x 4 "
-              "outer angles (5,768).")
-@robot_option
-@click.option("--seed", default=0, show_default=True, help="Noise, glitches, random configurations.")
-@click.option("--robot-seed", default=0, show_default=True, help="The virtual hardware draw.")
-@click.option("--n-points", default=None, type=click.IntRange(1, MAX_POINTS),
-              help="random-points: number of targets (default 20); square/triangle: number of path "
-              "points (default 10, as in the paper; at least 4 for a square, 3 for a triangle).")
-@click.option("--levels", default=None,
-              help="paper/sweeps: relative translations d = beta_N - beta_1 (mm), comma-separated "
-              "(default: the protocol's; needed for robots that cannot reach d = 20 mm).")
-@click.option("--workers", default=None, type=int, help="Processes (default: all cores).")
+@click.option("--protocol", type=click.Choice(CHOICES), required=True,
+              help=CollectConfig.__dataclass_fields__["protocol"].metadata["help"])
+@config_options(CollectConfig, exclude=("protocol",))
 @click.option("--rig", "rig_file", default=None, type=click.Path(exists=True, dir_okay=False),
               help="Run the protocol on the rig this TOML file describes (docs/hardware.md) instead of "
               "the virtual robot; the robot is the rig's. Running the same command again resumes an "
@@ -91,26 +123,18 @@ Examples:
               help="Output folder (written as a whole: a failure leaves the previous one; a second "
               "collect into it is refused while one runs).")
 @output_options
-def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_seed: int,
-                n_points: int | None, levels: str | None, workers: int | None, rig_file: str | None,
-                settings: tuple[str, ...], out_dir: str, overwrite: bool, as_json: bool) -> None:
+def collect_cmd(settings: tuple[str, ...], out_dir: str, overwrite: bool, as_json: bool,
+                rig_file: str | None, **options: Any) -> None:
     """Record a protocol on the virtual robot or on a rig (or write square/triangle IK targets)."""
     config = _config(settings)
-    if levels is not None and protocol not in ("paper", "sweeps"):
-        raise click.BadParameter("--levels applies to the paper and sweeps protocols")
-    level_values = None if levels is None else tuple(parse_floats(levels, "--levels"))
-    if protocol in SHAPES and n_points is not None and n_points < SHAPES[protocol]:
-        raise click.BadParameter(f"a {protocol} needs at least {SHAPES[protocol]} points, got {n_points}",
-                                 param_hint="--n-points")
-    if n_points is not None and protocol not in (*SHAPES, "random-points"):
-        raise click.BadParameter("--n-points applies to random-points, square and triangle",
-                                 param_hint="--n-points")
+    cfg = CollectConfig(**options)
+    protocol, scale, seed, n_points = cfg.protocol, cfg.scale, cfg.seed, cfg.n_points
     if rig_file is not None:
         from ctrkin.cli.collect_rig import collect_on_rig
 
         ctx = click.get_current_context()
-        options = {"robot_spec": "--robot", "robot_seed": "--robot-seed", "settings": "--set"}
-        given = [o for p, o in options.items()
+        named = {"robot": "--robot", "robot_seed": "--robot-seed", "settings": "--set"}
+        given = [o for p, o in named.items()
                  if ctx.get_parameter_source(p) == click.core.ParameterSource.COMMANDLINE]
         if given:
             raise click.BadParameter(f"{', '.join(given)}: not used with --rig (the rig file names the "
@@ -119,13 +143,12 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
         if protocol in SHAPES:
             raise click.BadParameter("square and triangle are IK targets, not a collection; drop --rig",
                                      param_hint="--rig")
-        collect_on_rig(rig_file, protocol, scale, seed, n_points, level_values, out_dir, overwrite,
-                       as_json)
+        collect_on_rig(rig_file, protocol, cfg.plan, out_dir, overwrite, as_json)
         return
     out = output_folder(out_dir, "task path" if protocol in SHAPES else "dataset", overwrite,
-                        inputs=[robot_spec])
-    robot = load_robot(robot_spec)
-    virtual = VirtualRobot(robot, config, seed=robot_seed)
+                        inputs=[cfg.robot])
+    robot = load_robot(cfg.robot)
+    virtual = VirtualRobot(robot, config, seed=cfg.robot_seed)
     if protocol in SHAPES:
         path = task_path(virtual, protocol, n_points=10 if n_points is None else n_points, seed=seed)
         path.save(out)
@@ -133,9 +156,9 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
         if as_json:
             emit_json({"protocol": protocol, "robot": robot.name, "targets": len(path.poses), "out": out})
         return
-    plan = build_plan(protocol, robot, scale, seed, n_points, level_values)
+    plan = cfg.plan(robot)
     t0 = time.perf_counter()
-    ds = record(plan, virtual, seed=seed, workers=workers)
+    ds = record(plan, virtual, seed=seed, workers=cfg.workers)
     elapsed = time.perf_counter() - t0
     ds.save(out)
     f = ds.frame
@@ -143,7 +166,7 @@ def collect_cmd(protocol: str, scale: str, robot_spec: str, seed: int, robot_see
         f"{int(f['snap'].sum())} snap samples, {int(f['outlier'].sum())} encoder glitches; "
         f"{elapsed:.1f} s ({len(f) / max(elapsed, 1e-9):.0f} samples/s)")
     summary: dict[str, object] = {
-        "protocol": protocol, "scale": scale, "robot": robot.name, "seed": seed, "robot_seed": robot_seed,
+        "protocol": protocol, "scale": scale, "robot": robot.name, "seed": seed, "robot_seed": cfg.robot_seed,
         "samples": len(f), "sequences": int(f["sequence_id"].nunique()), "snap_samples": int(f["snap"].sum()),
         "encoder_glitches": int(f["outlier"].sum()), "seconds": elapsed, "out": out}
     if protocol in ("paper", "sweeps"):

@@ -9,6 +9,7 @@ a collection writes; any other non-empty folder is refused.
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -19,11 +20,15 @@ from ctrkin.errors import CtrkinError
 from ctrkin.util.folders import folder_lock
 
 if TYPE_CHECKING:
+    from ctrkin.acquisition.plan import Plan
     from ctrkin.acquisition.rig_recorder import RigCollection
+    from ctrkin.robots import Robot
 
 
-def collect_on_rig(rig_file: str, protocol: str, scale: str, seed: int, n_points: int | None,
-                   levels: tuple[float, ...] | None, out_dir: str, overwrite: bool, as_json: bool) -> None:
+def collect_on_rig(rig_file: str, protocol: str, plan_for: Callable[[Robot], Plan], out_dir: str,
+                   overwrite: bool, as_json: bool) -> None:
+    """Run `protocol`, planned by plan_for(the rig's robot), on the rig `rig_file` describes into
+    out_dir (resumed where its journal is; --overwrite starts over)."""
     from ctrkin.acquisition.rig_recorder import (
         OWNED_FILES,
         SESSION_FILE,
@@ -31,7 +36,6 @@ def collect_on_rig(rig_file: str, protocol: str, scale: str, seed: int, n_points
         RigInterrupted,
         write_dataset,
     )
-    from ctrkin.cli.collect import build_plan
     from ctrkin.hardware import RigDescription, open_rig
     from ctrkin.hardware.interfaces import HardwareError, RigStop
 
@@ -40,7 +44,7 @@ def collect_on_rig(rig_file: str, protocol: str, scale: str, seed: int, n_points
     resuming = (out / SESSION_FILE).is_file() and not overwrite
     # the ownership rule of every output (a rig's journal counts as the dataset's own files)
     output_folder(out, "dataset", overwrite, inputs=[rig_file], reuse=resuming)
-    plan = build_plan(protocol, rig.robot, scale, seed, n_points, levels)
+    plan = plan_for(rig.robot)
     with folder_lock(out, CtrkinError, "collect"):
         if overwrite:
             for name in OWNED_FILES:            # only what a collection writes, never anything else

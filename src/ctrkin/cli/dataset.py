@@ -22,26 +22,21 @@
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, cast
+from typing import Any, Literal, cast
 
 import click
 from rich.console import Console
 from rich.table import Table
 
-from ctrkin.cli.common import (
-    InputPath,
-    output_folder,
-    overwrite_option,
-    parse_floats,
-    quiet,
-    robot_option,
-    say,
-)
+from ctrkin.cli.common import InputPath, output_folder, overwrite_option, quiet, robot_option, say
+from ctrkin.cli.from_config import config_options
 from ctrkin.data.cleaning import CleaningConfig
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
 from ctrkin.data.splits import (
+    Split,
     random_split,
     split_by_sequence,
     split_warnings,
@@ -172,6 +167,13 @@ def parse_gap(text: str) -> float | str | None:
                                  param_hint="--sequence-gap") from None
 
 
+# The command line differs from ImportConfig only here: older option names; --map, --quaternion,
+# --units and --sequence-gap are read into mapping, quaternion_columns, the units and sequence_gap,
+# and --keep-outliers / --no-average into its CleaningConfig.
+IMPORT_ALIASES = {"quaternion_order": ("--quat-order",), "drop_invalid_joints": ("--drop-invalid",)}
+IMPORT_OWN = ("mapping", "quaternion_columns", "sequence_gap", "cleaning")
+
+
 @dataset_group.command("import", epilog="""\b
 Examples:
   ctrkin dataset import robot_log.csv --robot paper --units rad,m --out data/mylog
@@ -190,30 +192,21 @@ Examples:
                    "ty, tz, sequence_id, time, step, snap). Repeatable or comma-separated. Columns "
                    "already named like a field need no mapping.")
 @click.option("--units", "units", multiple=True, metavar="UNITS",
-              help="Units of the log, e.g. 'rad,m' or 'angles=rad,beta=mm,position=m' "
-                   "(default deg, mm).")
+              help="Units of the log in one option, e.g. 'rad,m' or 'angles=rad,beta=mm,position=m' "
+                   "(over --angle-unit, --beta-unit, --position-unit).")
 @click.option("--quaternion", "quat_cols", default=None, metavar="C1,C2,C3,C4",
               help="Four log columns holding a full quaternion, in --quat-order.")
-@click.option("--quat-order", type=click.Choice(["wxyz", "xyzw"]), default="wxyz", show_default=True,
-              help="Order of the --quaternion columns.")
 @click.option("--sequence-gap", "gap_text", default="auto", show_default=True,
               help="Without sequence_id: start a new sequence after a time gap larger than this "
                    "(log time unit), 'auto' (10x the median time step) or 'none'.")
-@click.option("--drop-invalid", is_flag=True, help="Drop rows whose joints are outside the robot's "
-              "limits instead of failing.")
-@click.option("--drop-incomplete", is_flag=True, help="Drop rows with empty or NaN cells instead of "
-              "failing.")
+@config_options(ImportConfig, aliases=IMPORT_ALIASES, exclude=IMPORT_OWN)
 @click.option("--keep-outliers", is_flag=True, help="Keep outliers, flagged outlier = True, instead "
               "of dropping them (the paper dropped them).")
 @click.option("--no-average", is_flag=True, help="Do not average repeated readings of one sample.")
-@click.option("--unwrap", is_flag=True, help="Unwrap alpha (for logs wrapping angles to ±180°).")
-@click.option("--delimiter", default=",", show_default=True, help="CSV field separator.")
 @overwrite_option(force_alias=True)
 def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | None, out_dir: str,
-               maps: tuple[str, ...], units: tuple[str, ...],
-               quat_cols: str | None, quat_order: str, gap_text: str, drop_invalid: bool,
-               drop_incomplete: bool, keep_outliers: bool, no_average: bool, unwrap: bool,
-               delimiter: str, overwrite: bool, force: bool) -> None:
+               maps: tuple[str, ...], units: tuple[str, ...], quat_cols: str | None, gap_text: str,
+               keep_outliers: bool, no_average: bool, overwrite: bool, force: bool, **settings: Any) -> None:
     """Import robot logs LOG_FILES (CSV, one row a tracker reading) into one cleaned dataset: repeated
     readings averaged, encoder glitches and pose outliers removed, snaps detected (see docs/data.md,
     and docs/real_robot.md for import profiles). Without --profile, one file."""
@@ -221,17 +214,14 @@ def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | 
         raise click.UsageError("several log files need --profile (one sequence per file); without a "
                                "profile import one file")
     quaternion_columns = tuple(c.strip() for c in quat_cols.split(",")) if quat_cols else ()
-    mapping, unit_kw, gap = parse_map(maps), parse_units(units), parse_gap(gap_text)
+    mapping, gap = parse_map(maps), parse_gap(gap_text)
     out = output_folder(out_dir, "dataset", overwrite or force,
                         inputs=[*log_files, profile_file, robot_spec])
     robot = load_robot(robot_spec)
     cfg = ImportConfig(
-        mapping=mapping, quaternion_columns=quaternion_columns,
-        quaternion_order=cast(Any, quat_order), sequence_gap=cast(Any, gap),
-        drop_invalid_joints=drop_invalid, drop_incomplete=drop_incomplete, unwrap=unwrap,
-        delimiter=delimiter,
+        mapping=mapping, quaternion_columns=quaternion_columns, sequence_gap=cast(Any, gap),
         cleaning=CleaningConfig(average_repeats=not no_average, outliers="flag" if keep_outliers else "drop"),
-        **cast(Any, unit_kw))
+        **{**settings, **parse_units(units)})
     if profile_file is not None:
         from ctrkin.data.profile import load_profile
         from ctrkin.data.profile_import import import_with_profile
@@ -248,55 +238,76 @@ def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | 
 
 
 # --- split -----------------------------------------------------------------------------------------
+def _help(text: str) -> dict[str, str]:
+    return {"help": text}
+
+
+@dataclass(frozen=True)
+class SplitConfig:
+    """How `ctrkin dataset split` splits a dataset (one option per field)."""
+
+    kind: Literal["sequence", "random"] = field(default="sequence", metadata=_help(
+        "sequence: whole sequences per part (no leakage through the input buffer); random: the paper's "
+        "per-sample shuffle."))
+    seed: int = field(default=0, metadata=_help("Seed of the shuffle."))
+    fractions: tuple[float, ...] = field(default=(0.7, 0.15, 0.15), metadata=_help(
+        "Train, validation, test fractions."))
+    test: tuple[str, ...] | None = field(default=None, metadata=_help(
+        "Sequences for the test part, by name (file stem for imported logs) or index, comma-separated; "
+        "the rest is split into train and validation by --fractions."))
+    val_rows: float | None = field(default=None, metadata=_help(
+        "With --test: validation is this fraction of the other sequences' rows, drawn at random, instead "
+        "of whole sequences (with few sequences a whole one is spent on validation); the split of "
+        "benchmarks/bench_realdata.py is --val-rows 0.15."))
+
+    def __post_init__(self) -> None:
+        if len(self.fractions) != 3:
+            raise click.BadParameter(f"three fractions needed, got {list(self.fractions)}",
+                                     param_hint="--fractions")
+        if self.val_rows is not None and self.test is None:
+            raise click.BadParameter("--val-rows needs --test (the held-out sequences)",
+                                     param_hint="--val-rows")
+
+    def describe(self) -> str:
+        """The kind of split, as `ctrkin dataset split` reports it."""
+        if self.test is not None and self.val_rows is not None:
+            return f"test {','.join(self.test)}, validation {self.val_rows:.0%} of the other rows"
+        return self.kind
+
+    def make(self, ds: Dataset) -> Split:
+        """The split of `ds` (DatasetError: fractions that do not sum to 1, unknown test sequences)."""
+        frac = (self.fractions[0], self.fractions[1], self.fractions[2])
+        sid = ds.frame["sequence_id"].to_numpy()
+        if self.test is not None:
+            labels = [str(v) for v in ds.meta.get("sequence_labels") or []]
+            if self.val_rows is not None:
+                return split_with_test_val_rows(sid, labels, list(self.test), self.val_rows, seed=self.seed)
+            return split_with_test(sid, labels, list(self.test), frac, seed=self.seed)
+        if self.kind == "sequence":
+            return split_by_sequence(sid, frac, seed=self.seed)
+        return random_split(len(ds.frame), frac, seed=self.seed)
+
+
 @dataset_group.command("split", epilog="""\b
 Examples:
   ctrkin dataset split data/paper --fractions 0.8,0.1,0.1 --seed 2
   ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate
   ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate --val-rows 0.15 --overwrite""")
 @click.argument("folder", type=InputPath(file_okay=False))
-@click.option("--kind", type=click.Choice(["sequence", "random"]), default="sequence", show_default=True,
-              help="sequence: whole sequences per part (no leakage through the input buffer); "
-                   "random: the paper's per-sample shuffle.")
-@click.option("--seed", default=0, show_default=True, help="Seed of the shuffle.")
-@click.option("--fractions", default="0.7,0.15,0.15", show_default=True,
-              help="Train, validation, test fractions.")
-@click.option("--test", "test_seqs", default=None, metavar="NAMES|INDICES",
-              help="Sequences for the test part, by name (file stem for imported logs) or index, "
-                   "comma-separated; the rest is split into train and validation by --fractions.")
-@click.option("--val-rows", "val_rows", default=None, type=float, metavar="FRACTION",
-              help="With --test: validation is this fraction of the other sequences' rows, drawn at "
-                   "random, instead of whole sequences (with few sequences a whole one is spent on "
-                   "validation); the split of benchmarks/bench_realdata.py is --val-rows 0.15.")
+@config_options(SplitConfig)
 @overwrite_option(help="Replace a split.json that FOLDER already has (otherwise a different saved split "
                   "is refused: models trained on it would no longer match).")
-def split_cmd(folder: str, kind: str, seed: int, fractions: str, test_seqs: str | None,
-              val_rows: float | None, overwrite: bool) -> None:
+def split_cmd(folder: str, overwrite: bool, **settings: Any) -> None:
     """Make a train/validation/test split of the dataset in FOLDER and save it as split.json. Warns
     when the parts are far from the requested fractions (few, unequal sequences)."""
-    f = parse_floats(fractions, "--fractions")
-    if len(f) != 3:
-        raise click.BadParameter(f"three fractions needed, got {f}", param_hint="--fractions")
+    cfg = SplitConfig(**settings)
     ds = Dataset.load(folder)
-    frac = (f[0], f[1], f[2])
-    if val_rows is not None and test_seqs is None:
-        raise click.BadParameter("--val-rows needs --test (the held-out sequences)", param_hint="--val-rows")
-    if test_seqs is not None:
-        labels = [str(v) for v in ds.meta.get("sequence_labels") or []]
-        names = [t.strip() for t in test_seqs.split(",") if t.strip()]
-        sid = ds.frame["sequence_id"].to_numpy()
-        if val_rows is not None:
-            split = split_with_test_val_rows(sid, labels, names, val_rows, seed=seed)
-            kind = f"test {','.join(names)}, validation {val_rows:.0%} of the other rows"
-            frac = split.fractions
-        else:
-            split = split_with_test(sid, labels, names, frac, seed=seed)
-    elif kind == "sequence":
-        split = split_by_sequence(ds.frame["sequence_id"].to_numpy(), frac, seed=seed)
-    else:
-        split = random_split(len(ds.frame), frac, seed=seed)
+    split = cfg.make(ds)
     ds.save_split(folder, split, overwrite=overwrite)
     sizes = split.sizes()
-    say(f"{folder}: {kind} split, seed {seed}: train {sizes['train']}, val {sizes['val']}, "
+    say(f"{folder}: {cfg.describe()} split, seed {cfg.seed}: train {sizes['train']}, val {sizes['val']}, "
         f"test {sizes['test']} samples -> {Path(folder) / 'split.json'}")
+    f = cfg.fractions
+    frac = split.fractions if cfg.val_rows is not None else (f[0], f[1], f[2])
     for w in split_warnings(split, frac):
         click.echo(f"warning: {w}", err=True)

@@ -124,5 +124,7 @@ def _print(spec: str, res: dict[str, Any], show: Callable[[str], None]) -> None:
                    "training range (beyond the margin); their predictions are extrapolations:", err=True)
         for name, j in res["out_of_range"].items():
             if j["count"]:
-                click.echo(f"    {name}: {j['count']} samples outside [{j['lo']:.4g}, {j['hi']:.4g}] "
-                           f"± {j['margin']:.3g}", err=True)
+                unit = "deg" if name.startswith("alpha") else "mm"
+                pad = f" ± {j['margin']:.3g}" if j["margin"] else ""   # a sin/cos arc holds its margin
+                click.echo(f"    {name}: {j['count']} samples outside [{j['lo']:.4g}, {j['hi']:.4g}]{pad} "
+                           f"{unit} (trained range)", err=True)

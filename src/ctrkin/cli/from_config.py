@@ -11,8 +11,10 @@ command line at once, with the same default.
 
 Field -> option: `max_epochs` -> `--max-epochs` (and its aliases), passed to the command as
 `max_epochs`; int, float and str fields take a value of that type; `X | None` the same, default None;
-`Literal["a", "b"]` a choice; bool `--name/--no-name`. The help is the field's
-`field(metadata={"help": ...})`. A field without help, or of another type (a dict, a list), is an
+`Literal["a", "b"]` a choice; bool `--name/--no-name`; `tuple[X, ...]` of int, float or str a
+comma-separated list ("8,14,20" -> (8.0, 14.0, 20.0)); an int or float field with
+`metadata={"range": (lo, hi)}` a value in that closed range (click.IntRange, FloatRange). The help is
+the field's `field(metadata={"help": ...})`. A field without help, or of another type (a dict, a list), is an
 error where the command is defined, unless excluded (the command then sets it from options of its
 own).
 
@@ -33,10 +35,29 @@ import click
 F = TypeVar("F", bound=Callable[..., Any])
 
 HELP = "help"      # the metadata key of a field's help text
+RANGE = "range"    # the metadata key of an int or float field's bounds (lo, hi), inclusive (None: open)
 
 
 def _option_name(field_name: str) -> str:
     return "--" + field_name.replace("_", "-")
+
+
+class CommaList(click.ParamType):
+    """A comma-separated list of one type: "8,14,20" -> (8.0, 14.0, 20.0) for float items."""
+
+    def __init__(self, item: type) -> None:
+        self.item = click.types.convert_type(item)
+        self.name = f"{item.__name__},..."
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, tuple):
+            return value
+        parts = [p.strip() for p in str(value).split(",") if p.strip()]
+        try:
+            return tuple(self.item.convert(p, param, ctx) for p in parts)
+        except click.BadParameter:
+            self.fail(f"expected comma-separated {self.name.split(',')[0].lower()} values, got {value!r}",
+                      param, ctx)
 
 
 def _click_type(hint: Any) -> tuple[Any, bool]:
@@ -50,6 +71,9 @@ def _click_type(hint: Any) -> tuple[Any, bool]:
         optional, hint = True, rest[0]
     if get_origin(hint) is Literal and all(isinstance(a, str) for a in get_args(hint)):
         return click.Choice(get_args(hint)), optional
+    args = get_args(hint)
+    if get_origin(hint) is tuple and len(args) == 2 and args[1] is Ellipsis and args[0] in (int, float, str):
+        return CommaList(args[0]), optional
     if hint in (bool, int, float, str):
         return hint, optional
     raise TypeError(f"{hint} has no command-line form")
@@ -90,6 +114,11 @@ def config_options(cls: type, *, aliases: Mapping[str, Sequence[str]] | None = N
             kind, _optional = _click_type(hints[f.name])
         except TypeError as e:
             raise TypeError(f"{where}: {e}; exclude it and give the command its own option") from None
+        if RANGE in f.metadata:
+            if kind not in (int, float):
+                raise TypeError(f"{where}: a range applies to int and float fields")
+            lo, hi = f.metadata[RANGE]
+            kind = click.IntRange(lo, hi) if kind is int else click.FloatRange(lo, hi)
         name = _option_name(f.name)
         if kind is bool:
             name += "/" + _option_name("no_" + f.name)
@@ -98,7 +127,10 @@ def config_options(cls: type, *, aliases: Mapping[str, Sequence[str]] | None = N
         if f.name in required:
             kw["required"] = True
         else:
-            kw["default"] = defaults.get(f.name, _default(f))
+            default = defaults.get(f.name, _default(f))
+            if isinstance(kind, CommaList) and default:     # shown and parsed as typed: "8,14,20"
+                default = ",".join(map(str, default))
+            kw["default"] = default
         decorators.append(click.option(*decls, f.name, type=kind, **kw))
 
     def decorate(func: F) -> F:

@@ -22,9 +22,9 @@ from typing import Any
 
 import click
 
-from ctrkin import __version__
 from ctrkin.cli.common import QUIET
 from ctrkin.errors import CtrkinError
+from ctrkin.version import __version__
 
 # name: (module, attribute, the one-line help `ctrkin --help` lists). A sub-command's module (and
 # numba, torch, pandas behind it) is imported only when that command runs or shows its own help;

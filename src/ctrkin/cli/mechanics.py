@@ -9,13 +9,16 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from dataclasses import dataclass, field
+from typing import Any
 
 import click
 import numpy as np
 import pandas as pd
 
 from ctrkin.acquisition.trajectories import PAPER_LEVELS_MM, rotation_sweep
-from ctrkin.cli.common import emit_json, output_folder, output_options, parse_floats, robot_option, say
+from ctrkin.cli.common import emit_json, output_folder, output_options, say
+from ctrkin.cli.from_config import RANGE, config_options
 from ctrkin.errors import CtrkinError
 from ctrkin.geometry import POSE_COLUMNS, tip_azimuth
 from ctrkin.mechanics import Equilibrium, follow, solve
@@ -24,22 +27,67 @@ from ctrkin.util.folders import build_folder
 from ctrkin.util.progress import progress_bar
 
 
+def _help(text: str) -> dict[str, str]:
+    return {"help": text}
+
+
+ROBOT_HELP = "Built-in robot name (paper, timclab) or path to a robot TOML file."
+MIN_STEP_DEG = 1e-3      # a sweep of 720 / step steps per level: at most 720,000
+
+
+@dataclass(frozen=True)
+class SolveConfig:
+    """One point-wise TCM solve (`ctrkin solve`, one option per field)."""
+
+    robot: str = field(default="paper", metadata=_help(ROBOT_HELP))
+    q: tuple[float, ...] = field(default=(), metadata=_help(
+        "Joints α1..αN (deg), β1..βN (mm), comma-separated, e.g. 0,0,-15,-5."))
+    backbone: bool = field(default=False, metadata=_help(
+        "Also give the backbone: s (mm), points (mm) and each tube's twist ψ (deg) along it (in the JSON "
+        "with --json, else as a table)."))
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    """Full inner-tube rotations followed by continuation (`ctrkin sweep`, one option per field)."""
+
+    robot: str = field(default="paper", metadata=_help(ROBOT_HELP))
+    translations: tuple[float, ...] = field(default=tuple(float(v) for v in PAPER_LEVELS_MM), metadata=_help(
+        "Relative translations d = β_N − β_1 (mm)."))
+    outer_beta: float = field(default=0.0, metadata=_help("β of the other tubes (mm)."))
+    outer_alpha: float = field(default=0.0, metadata=_help("α of the other tubes (deg)."))
+    step_deg: float = field(default=1.0, metadata={RANGE: (MIN_STEP_DEG, 360.0),
+                                                   **_help("Rotation step (deg).")})
+    friction: float | None = field(default=None, metadata={RANGE: (0.0, 2.0), **_help(
+        "Coulomb coefficient μ between the tubes (docs/mechanics.md: Friction and clearance); default: "
+        "the robot file's (0 for the built-in robots). With μ > 0 the plot also marks the frictionless "
+        "folds (circles).")})
+    clearance: float | None = field(default=None, metadata={RANGE: (0.0, 10.0), **_help(
+        "Share of the tubes' radial gap the inner tube may tilt in at an outer tube's tip (1: all of "
+        "it); default: the robot file's (0).")})
+
+    def __post_init__(self) -> None:
+        if not self.translations:
+            raise click.BadParameter("give at least one relative translation (mm)",
+                                     param_hint="--translations")
+        if not MIN_STEP_DEG <= self.step_deg <= 360.0:
+            raise click.BadParameter(f"{self.step_deg} is not in the range {MIN_STEP_DEG}<=x<=360.0",
+                                     param_hint="--step")
+
+
 @click.command("solve", epilog="""\b
 Examples:
   ctrkin solve --q 0,0,-15,-5
   ctrkin solve --robot paper --q 90,0,-20,0 --json
   ctrkin solve --q 180,0,-20,0 --json --backbone > eq.json""")
-@robot_option
-@click.option("--q", "q_text", required=True,
-              help="Joints α1..αN (deg), β1..βN (mm), comma-separated, e.g. 0,0,-15,-5.")
+@config_options(SolveConfig, required=("q",))
 @click.option("--json", "as_json", is_flag=True, help="Print the result as one JSON object.")
-@click.option("--backbone", is_flag=True,
-              help="Also give the backbone: s (mm), points (mm) and each tube's twist ψ (deg) along it "
-              "(in the JSON with --json, else as a table).")
-def solve_cmd(robot_spec: str, q_text: str, as_json: bool, backbone: bool) -> None:
+def solve_cmd(as_json: bool, **settings: Any) -> None:
     """Solve the TCM at one configuration (point-wise, no history)."""
-    robot = load_robot(robot_spec)
-    q = parse_floats(q_text, "--q")
+    cfg = SolveConfig(**settings)
+    backbone = cfg.backbone
+    robot = load_robot(cfg.robot)
+    q = list(cfg.q)
     eq = solve(robot, np.array(q))
     azimuth = azimuth_deg(eq.tip_position, q[robot.n_tubes - 1])
     if as_json:
@@ -75,46 +123,28 @@ def backbone_dict(eq: Equilibrium) -> dict[str, object]:
             "twist_deg": [[float(v) if np.isfinite(v) else None for v in row] for row in eq.twist]}
 
 
-MIN_STEP_DEG = 1e-3      # a sweep of 720 / step steps per level: at most 720,000
-
-
 @click.command("sweep", epilog="""\b
 Examples:
   ctrkin sweep --out out/sweep
   ctrkin sweep --translations 4,20 --step 2 --out out/sweep-coarse
   ctrkin sweep --translations 8,16 --step 5 --out out/sweep-json --json > sweep.json
   ctrkin sweep --friction 0.2 --clearance 1 --out out/sweep-friction""")
-@robot_option
-@click.option("--translations", default=",".join(str(v) for v in PAPER_LEVELS_MM),
-              show_default=True, help="Relative translations d = β_N − β_1 (mm).")
-@click.option("--outer-beta", default=0.0, show_default=True, help="β of the other tubes (mm).")
-@click.option("--outer-alpha", default=0.0, show_default=True, help="α of the other tubes (deg).")
-@click.option("--step", "step_deg", default=1.0, show_default=True,
-              type=click.FloatRange(MIN_STEP_DEG, 360.0), help="Rotation step (deg).")
-@click.option("--friction", type=click.FloatRange(0.0, 2.0), default=None,
-              help="Coulomb coefficient μ between the tubes "
-              "(docs/mechanics.md: Friction and clearance); default: the robot file's (0 for the "
-              "built-in robots). With μ > 0 the plot also marks the frictionless folds (circles).")
-@click.option("--clearance", type=click.FloatRange(0.0, 10.0), default=None,
-              help="Share of the tubes' radial gap the inner tube may tilt in at an outer tube's tip "
-              "(1: all of it); default: the robot file's (0).")
+@config_options(SweepConfig, aliases={"step_deg": ("--step",)})
 @click.option("--out", "out_dir", default="out/sweep", show_default=True,
               type=click.Path(), help="Output folder for sweep.csv and sweep.png.")
 @output_options
-def sweep_cmd(robot_spec: str, translations: str, outer_beta: float, outer_alpha: float,
-              step_deg: float, friction: float | None, clearance: float | None, out_dir: str,
-              overwrite: bool, as_json: bool) -> None:
+def sweep_cmd(out_dir: str, overwrite: bool, as_json: bool, **settings: Any) -> None:
     """Full inner-tube rotation forward and back at several relative translations (paper
     Fig. 2b), solved by continuation: writes sweep.csv and a plot of T(L) against α0."""
+    cfg = SweepConfig(**settings)
+    outer_beta, outer_alpha, step_deg = cfg.outer_beta, cfg.outer_alpha, cfg.step_deg
     from ctrkin.viz.sweep import plot_sweeps
 
-    levels = parse_floats(translations, "--translations")
-    if not levels:
-        raise click.BadParameter("give at least one relative translation (mm)", param_hint="--translations")
-    out = output_folder(out_dir, "sweep", overwrite, inputs=[robot_spec])
-    robot = load_robot(robot_spec)
-    robot = dataclasses.replace(robot, friction=robot.friction if friction is None else friction,
-                                clearance=robot.clearance if clearance is None else clearance)
+    levels = list(cfg.translations)
+    out = output_folder(out_dir, "sweep", overwrite, inputs=[cfg.robot])
+    robot = load_robot(cfg.robot)
+    robot = dataclasses.replace(robot, friction=robot.friction if cfg.friction is None else cfg.friction,
+                                clearance=robot.clearance if cfg.clearance is None else cfg.clearance)
     free = dataclasses.replace(robot, friction=0.0) if robot.friction > 0 else None
     n = robot.n_tubes
     frames, curves = [], []

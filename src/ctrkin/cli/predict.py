@@ -113,7 +113,7 @@ def predict_cmd(model_dir: str, data_dir: str | None, poses_file: str | None, st
         table["reason"] = res.reasons
         table["projected"] = res.projected
         table["jump"] = res.jump
-        if kin.refined:
+        if res.residual_mm is not None and np.isfinite(res.residual_mm).any():     # a refined IK
             table["residual_mm"] = res.residual_mm
         flags = (f" ({int((~res.in_workspace).sum())} targets outside the trained workspace, "
                  f"{int(np.sum(res.projected))} projected onto the joint limits, "

@@ -32,7 +32,8 @@ from ctrkin.training.config import TrainConfig
 def _list_models(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
     if not value or ctx.resilient_parsing:
         return
-    from ctrkin.models import MODELS, STRUCTURES
+    from ctrkin.families.registry import MODELS
+    from ctrkin.models import STRUCTURES
 
     for name, e in MODELS.items():
         click.echo(f"{name:20s} {e.description}")

@@ -14,13 +14,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ctrkin import __version__
 from ctrkin.data import schema
 from ctrkin.data.splits import Split, split_by_sequence
 from ctrkin.errors import DatasetError, RobotDescriptionError
 from ctrkin.robots.robot import Robot
 from ctrkin.util.folders import build_folder, file_hash, reading_folder
 from ctrkin.util.locks import swapping, writer_lock
+from ctrkin.version import __version__
 
 DATA_FILE = "data.parquet"
 META_FILE = "meta.json"
@@ -60,14 +60,10 @@ def validate_frame(frame: pd.DataFrame, n_tubes: int, source: str = "dataset") -
         r = int(np.argmax(bad_order)) + 1
         raise DatasetError(f"{source}: row {r}: 'step' must increase within sequence "
                            f"{sid[r]} (got {step[r - 1]} then {step[r]}); sort by time")
-    starts = np.r_[True, ~same]
-    if len(np.unique(sid)) != int(starts.sum()):
-        seen: set[object] = set()
-        for row in np.nonzero(starts)[0]:
-            if sid[row] in seen:
-                raise DatasetError(f"{source}: row {row}: sequence_id {sid[row]} starts again after "
-                                   "other sequences; the rows of each sequence_id must be contiguous")
-            seen.add(sid[row])
+    row = schema.restarted_sequence(sid)
+    if row is not None:
+        raise DatasetError(f"{source}: row {row}: sequence_id {sid[row]} starts again after "
+                           "other sequences; the rows of each sequence_id must be contiguous")
 
 
 def _check_split(split: Split, n_rows: int, source: str) -> None:

@@ -19,6 +19,11 @@ OPTIONAL_FIELDS = ("sequence_id", "time", "step", "snap")
 ORIENTATION_FIELDS = ("q0", "qw", "qx", "qy", "qz", "tx", "ty", "tz")
 
 
+def _help(text: str) -> dict[str, str]:
+    """A field's metadata: its meaning, which is also its `ctrkin dataset import --help` text."""
+    return {"help": text}
+
+
 def fields(n_tubes: int) -> list[str]:
     """Every field a log column can be mapped to, for an N-tube robot."""
     return [*schema.joint_columns(n_tubes), *schema.POSITION_COLUMNS, *ORIENTATION_FIELDS, *OPTIONAL_FIELDS]
@@ -48,19 +53,28 @@ class ImportConfig:
     marker body's): the dataset keeps a placeholder orientation (base z) and meta["orientation"] =
     "absent", and orientation metrics are skipped."""
 
-    mapping: tuple[tuple[str, str], ...] = ()
-    angle_unit: AngleUnit = "deg"
-    beta_unit: LengthUnit = "mm"
-    position_unit: LengthUnit = "mm"
-    quaternion_columns: tuple[str, ...] = ()
-    quaternion_order: QuaternionOrder = "wxyz"
-    sequence_gap: float | Literal["auto"] | None = "auto"
-    drop_invalid_joints: bool = False
-    drop_incomplete: bool = False
-    unwrap: bool = False
-    delimiter: str = ","
-    position_only: bool = False
-    cleaning: CleaningConfig = field(default_factory=CleaningConfig)
+    mapping: tuple[tuple[str, str], ...] = field(default=(), metadata=_help(
+        "(log column, field) pairs; `ctrkin dataset import --map LOG_COLUMN=FIELD`."))
+    angle_unit: AngleUnit = field(default="deg", metadata=_help("Unit of the log's joint angles (alpha)."))
+    beta_unit: LengthUnit = field(default="mm", metadata=_help("Unit of the log's joint lengths (beta)."))
+    position_unit: LengthUnit = field(default="mm", metadata=_help("Unit of the log's tip positions."))
+    quaternion_columns: tuple[str, ...] = field(default=(), metadata=_help(
+        "Four log columns holding a full quaternion, in quaternion_order (`--quaternion C1,C2,C3,C4`)."))
+    quaternion_order: QuaternionOrder = field(default="wxyz", metadata=_help(
+        "Order of the quaternion columns."))
+    sequence_gap: float | Literal["auto"] | None = field(default="auto", metadata=_help(
+        "Without sequence_id: start a new sequence after a time gap larger than this (log time unit), "
+        "'auto' (10x the median time step) or none."))
+    drop_invalid_joints: bool = field(default=False, metadata=_help(
+        "Drop rows whose joints are outside the robot's limits instead of failing."))
+    drop_incomplete: bool = field(default=False, metadata=_help(
+        "Drop rows with empty or NaN cells instead of failing."))
+    unwrap: bool = field(default=False, metadata=_help("Unwrap alpha (for logs wrapping angles to ±180°)."))
+    delimiter: str = field(default=",", metadata=_help("CSV field separator."))
+    position_only: bool = field(default=False, metadata=_help(
+        "The log has no tip orientation (or not the tip tangent's): orientation metrics are skipped."))
+    cleaning: CleaningConfig = field(default_factory=CleaningConfig, metadata=_help(
+        "The cleaning rules' settings (ctrkin.data.cleaning)."))
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mapping", tuple((str(c), str(f)) for c, f in self.mapping))

@@ -41,7 +41,6 @@ from ctrkin.geometry import quat_from_tangent, tangent_from_quat, tangent_from_q
 from ctrkin.robots.robot import Robot
 
 AUTO_GAP_FACTOR = 10.0
-QUAT_NORM_TOL = 0.05          # a unit quaternion read with the wrong columns is rarely this close to 1
 
 
 def _line(row: int) -> int:
@@ -446,7 +445,7 @@ def _tangents(values: dict[str, np.ndarray], mode: str | None, line: np.ndarray,
     names = ["qw", "qx", "qy", "qz"] if mode == "quaternion" else ["qw", "qx", "qy"]
     q = np.column_stack([values[c] for c in names])
     norm = np.linalg.norm(q, axis=1)
-    off = np.abs(norm - 1.0) > QUAT_NORM_TOL
+    off = np.abs(norm - 1.0) > schema.QUAT_NORM_TOL
     if off.any():
         r = int(np.argmax(off))
         used = [log.columns[c] for c in names]

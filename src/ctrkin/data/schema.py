@@ -39,6 +39,7 @@ TRUE_POSE_COLUMNS = [f"true_{c}" for c in POSE_COLUMNS]
 INDEX_COLUMNS = ["sequence_id", "step"]
 FLAG_COLUMNS = ["snap", "outlier"]
 OPTIONAL_COLUMNS = ["time", "n_readings", "source_line"]
+QUAT_NORM_TOL = 0.05   # |q| − 1 of a unit quaternion as read (a wrong column is rarely this close to 1)
 UNITS = {"alpha": "deg", "beta": "mm", "position": "mm",
          "orientation": "unit quaternion (q0, qx, qy), qz = 0"}
 
@@ -71,3 +72,21 @@ def sequence_bounds(sequence_id: np.ndarray) -> list[tuple[int, int]]:
         return []
     edges = np.r_[0, np.nonzero(sid[1:] != sid[:-1])[0] + 1, len(sid)]
     return [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
+
+
+def restarted_sequence(sequence_id: np.ndarray) -> int | None:
+    """The first row (of sequence ids (T,)) where a sequence id starts again after other sequences,
+    or None if the rows of each sequence are contiguous. A Dataset refuses such a layout, and so does
+    a model's predict: an interleaved 0, 1, 0, 1, ... would otherwise be taken as T one-step runs."""
+    sid = np.asarray(sequence_id)
+    if sid.size == 0:
+        return None
+    starts = np.r_[True, sid[1:] != sid[:-1]]
+    if len(np.unique(sid)) == int(starts.sum()):
+        return None
+    seen: set[object] = set()
+    for row in np.nonzero(starts)[0]:
+        if sid[row] in seen:
+            return int(row)
+        seen.add(sid[row])
+    return None

@@ -8,20 +8,13 @@ a row beside them, point-wise (`tcm_calibrated`) and continued along each sequen
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from ctrkin.data.dataset import Dataset
-from ctrkin.evaluation.context import (
-    FK_ROWS,
-    HEADLINE,
-    RECOMMENDED,
-    Context,
-    summary,
-    valid_rows,
-    with_headline,
-)
+from ctrkin.evaluation.context import Context, summary, valid_rows
 from ctrkin.evaluation.snapping import (
     azimuth_series,
     glitch_window,
@@ -30,14 +23,74 @@ from ctrkin.evaluation.snapping import (
     snap_steps,
     snap_window,
 )
-from ctrkin.evaluation.training_runs import ABLATION, BASELINES
+from ctrkin.evaluation.table import (
+    ABLATION_ROW,
+    BASELINE_ROWS,
+    FK_BRANCH_ROW,
+    FK_LEARNED,
+    FK_PAPER_ROW,
+    HEADLINE,
+    RECOMMENDED,
+    TCM_CALIBRATED_ROWS,
+    TCM_COLOUR,
+    TCM_CONTINUED_ROW,
+    TCM_ROW,
+    Experiment,
+    Figure,
+    Row,
+    fk_predictions,
+    with_headline,
+)
 from ctrkin.metrics import position_error, timing_stats
 from ctrkin.viz import experiments as fig
 
-PAPER_ROW = "lstm_mlp_paper"
+
+def turn_curves(rows: Sequence[Row]) -> fig.Curves:
+    """The T(L) curves of the turn figures, in drawing order: the measurement, the rows drawn as
+    points, the truth, the rows drawn as lines with the recommended FK model's last (on top)."""
+    drawn = [r for r in rows if r.curve is not None]
+    points = [r for r in drawn if r.curve is not None and r.curve.kind == "points"]
+    lines = sorted((r for r in drawn if r not in points), key=lambda r: r is RECOMMENDED["fk"])
+    out: fig.Curves = {"measured": fig.MEASURED_CURVE}
+    out |= {r.name: (r.label, *r.curve) for r in points if r.curve is not None}
+    out["truth"] = fig.TRUTH_CURVE
+    out |= {r.name: (r.label, *r.curve) for r in lines if r.curve is not None}
+    return out
 
 
-def fk_comparison(ctx: Context) -> dict[str, Any]:
+SNAPPING_ROWS = (FK_PAPER_ROW.name, FK_BRANCH_ROW.name)   # scored at and away from the snaps per level
+TURNS = (
+    "Solid lines and filled dots: forward (α0 increasing); dashed lines and open dots: backward, so "
+    "the gap between a predictor's two curves is its hysteresis. Black crosses: the snaps flagged in "
+    "the data. The point-wise TCM has no history, so its forward and "
+    "backward points coincide; the continued TCM follows the equilibrium branch and snaps at its "
+    "folds. The snap-aware model's gate ablations are scored in the snap-prediction table, not drawn."
+)
+FIG5A = Figure("fig5a_model_comparison", "Fig. 5a: FK model comparison",
+               "Position MAE (mm, lower is better) of every FK model and the point-wise TCM on the "
+               "held-out test sequences, per relative translation d of the paper protocol. The paper "
+               "plotted normalised training MAE; the table above gives RMSE and MAE over all levels.")
+FIG5B = Figure("fig5b_delta_ablation", "Fig. 5b: the directional parameter Δα0",
+               "Position MAE (mm) of the paper's LSTM-MLP trained with and without Δα0 among its inputs, "
+               "per relative translation d, on the held-out test sequences.")
+FIG10A = Figure("fig10a_sweeps", "Fig. 10a: rotation sweeps",
+                "T(L), the tip azimuth measured from the outer tube's base rotation (deg), against the "
+                "relative rotation α0 = α1 − αN (deg), for full inner rotations 0 → 360 → 0° at each "
+                "relative translation d (one panel each, low nonlinearity to snapping). " + TURNS)
+FIG_SNAP_TURNS = Figure("snap_turns", "Snap turns (beyond the paper)",
+                    "As Fig. 10a, for full turns at full overlap at outer angles αN and translations βN that "
+                    "the training data never recorded (one panel each). " + TURNS)
+FIG10B = Figure("fig10b_random_points", "Fig. 10b: random points",
+                "The 20 random targets, numbered in the order visited: measured tip, the snap-aware "
+                "LSTM-MLP's and the point-wise TCM's predictions in the x–y and x–z planes (mm), and each "
+                "point's position error against the measurement.")
+FIG10C = Figure("fig10c_arbitrary", "Fig. 10c: arbitrary path",
+                "The paper's simultaneous trajectory: measured tip, snap-aware LSTM-MLP and point-wise "
+                "TCM in the x–y and x–z planes (mm), and the distribution of their position errors "
+                "against the measurement.")
+
+
+def fk_comparison(ctx: Context, rows_: tuple[Row, ...]) -> dict[str, Any]:
     """Every FK predictor on the paper dataset's held-out test sequences."""
     ds = ctx.data.paper
     rows = valid_rows(ds, ds.get_split().test)
@@ -46,11 +99,7 @@ def fk_comparison(ctx: Context) -> dict[str, Any]:
     near_snap = snap_window(ds.frame["snap"].to_numpy(), b)
     level = ds.frame["level"].to_numpy() if "level" in ds.frame else np.zeros(len(ds.frame), int)
     levels = [lv["relative_translation_mm"] for lv in ds.meta.get("levels", [])] or [0.0]
-    preds = {name: p[rows] for name, p in ctx.fk_rows(ds).items()}
-    preds |= {m: ctx.fk(f"fk_{m}", ds)[rows] for m in (*BASELINES, ABLATION)}
-    tcm_pred, tcm_times = ctx.tcm_rows(ds, rows, "TCM on test rows")
-    preds["tcm"] = tcm_pred
-    preds |= ctx.calibrated_rows(ds, rows)
+    preds, tcm_times = fk_predictions(ctx, rows_, ds, rows, "TCM on test rows")
     out: dict[str, Any] = {}
     for name, pred in preds.items():
         r = summary(pred, measured[rows], truth[rows])
@@ -64,29 +113,30 @@ def fk_comparison(ctx: Context) -> dict[str, Any]:
             if (level[rows] == k).any()
         }
         out[name] = r
-    out["tcm"]["timing"] = timing_stats(tcm_times)
-    groups = list(out[PAPER_ROW]["position_mae_by_level_mm"])
+    if tcm_times is not None:
+        out[TCM_ROW.name]["timing"] = timing_stats(tcm_times)
+    paper, ablation = FK_PAPER_ROW.name, ABLATION_ROW.name
+    groups = list(out[paper]["position_mae_by_level_mm"])
     fig.grouped_bars(
         [f"d = {g} mm" for g in groups],
-        {
-            m: [out[m]["position_mae_by_level_mm"].get(g, np.nan) for g in groups]
-            for m in (*FK_ROWS, *BASELINES, "tcm")
-        },
+        {r.label: [out[r.name]["position_mae_by_level_mm"].get(g, np.nan) for g in groups]
+         for r in rows_ if r.bars},
         "position MAE (mm)",
-        ctx.figures / "fig5a_model_comparison.png",
+        ctx.figures / f"{FIG5A.stem}.png",
         "FK models (Fig. 5a): position MAE on the test sequences, by relative translation d",
+        colours={TCM_ROW.label: TCM_COLOUR},
     )
     fig.grouped_bars(
         [f"d = {g} mm" for g in groups],
         {
-            "with Δα0": [out[PAPER_ROW]["position_mae_by_level_mm"].get(g, np.nan) for g in groups],
-            "without Δα0": [out[ABLATION]["position_mae_by_level_mm"].get(g, np.nan) for g in groups],
+            "with Δα0": [out[paper]["position_mae_by_level_mm"].get(g, np.nan) for g in groups],
+            "without Δα0": [out[ablation]["position_mae_by_level_mm"].get(g, np.nan) for g in groups],
         },
         "position MAE (mm)",
-        ctx.figures / "fig5b_delta_ablation.png",
+        ctx.figures / f"{FIG5B.stem}.png",
         "Δα0 (Fig. 5b): the paper's LSTM-MLP, position MAE on the test sequences",
     )
-    with_d, without = out[PAPER_ROW]["position_mae_mm"], out[ABLATION]["position_mae_mm"]
+    with_d, without = out[paper]["position_mae_mm"], out[ablation]["position_mae_mm"]
     out["ablation"] = {
         "position_mae_with_delta_mm": with_d,
         "position_mae_without_delta_mm": without,
@@ -95,13 +145,9 @@ def fk_comparison(ctx: Context) -> dict[str, Any]:
     return with_headline(out, "fk")
 
 
-def _turn_predictions(ctx: Context, ds: Dataset) -> dict[str, np.ndarray]:
-    """Every predictor of a turn experiment: learned rows, point-wise and continued TCM."""
-    preds = dict(ctx.fk_rows(ds))
-    preds["tcm"], _ = ctx.tcm_rows(ds, np.arange(len(ds.frame)), "TCM")
-    preds["tcm_continued"] = ctx.tcm_continued(ds)
-    preds |= ctx.calibrated_rows(ds, np.arange(len(ds.frame)))
-    return preds
+def _turn_predictions(ctx: Context, rows: tuple[Row, ...], ds: Dataset) -> dict[str, np.ndarray]:
+    """Every predictor of a turn experiment over every row of ds."""
+    return fk_predictions(ctx, rows, ds, np.arange(len(ds.frame)), "TCM")[0]
 
 
 def _turn_azimuths(ctx: Context, ds: Dataset, preds: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -136,14 +182,14 @@ def _snap_turn_scores(ctx: Context, ds: Dataset, preds: dict[str, np.ndarray],
     return out
 
 
-def sweeps(ctx: Context) -> dict[str, Any]:
+def sweeps(ctx: Context, rows_: tuple[Row, ...]) -> dict[str, Any]:
     """Full inner rotations at five relative translations: hysteresis and snaps (Fig. 10a)."""
     ds = ctx.data.sweeps
     rows = valid_rows(ds)
     b = ds.sequence_bounds()
     n = ds.n_tubes
     joints, measured, truth = ds.joints(), ds.poses(), ctx.truth(ds)
-    preds = _turn_predictions(ctx, ds)
+    preds = _turn_predictions(ctx, rows_, ds)
     az = _turn_azimuths(ctx, ds, preds)
     snap = ds.frame["snap"].to_numpy()
     near = snap_window(snap, b)
@@ -159,7 +205,7 @@ def sweeps(ctx: Context) -> dict[str, Any]:
         entry: dict[str, Any] = {name: summary(p, measured, truth, m) for name, p in preds.items()}
         entry["snap_samples"] = int(snap[lev == k].sum())
         if (snap & (lev == k)).any():
-            for name in FK_ROWS:
+            for name in SNAPPING_ROWS:
                 entry[f"{name}_away_from_snap"] = summary(preds[name], measured, truth, m & ~near)
                 entry[f"{name}_at_snap"] = summary(preds[name], measured, truth, m & near)
         by_level[f"{d:g}"] = entry
@@ -172,17 +218,17 @@ def sweeps(ctx: Context) -> dict[str, Any]:
             f"{name}_{where}": summary(preds[name], measured, truth,
                                        (in_rows & _snapping_sequences(ds) & ~near)
                                        if where == "away_from_snap" else near)
-            for name in FK_ROWS for where in ("away_from_snap", "at_snap")
+            for name in SNAPPING_ROWS for where in ("away_from_snap", "at_snap")
         }
     out["snap_prediction"] = _snap_turn_scores(ctx, ds, preds, az)
-    fig.sweeps_figure(panels, ctx.figures / "fig10a_sweeps.png")
+    fig.sweeps_figure(panels, ctx.figures / f"{FIG10A.stem}.png", turn_curves(rows_))
     return out
 
 
-def snap_turns(ctx: Context) -> dict[str, Any]:
+def snap_turns(ctx: Context, rows_: tuple[Row, ...]) -> dict[str, Any]:
     """Full turns at full overlap at outer angles and translations the training never recorded."""
     ds = ctx.data.snap_turns
-    preds = _turn_predictions(ctx, ds)
+    preds = _turn_predictions(ctx, rows_, ds)
     b = ds.sequence_bounds()
     n = ds.n_tubes
     joints, truth, measured = ds.joints(), ctx.truth(ds), ds.poses()
@@ -198,7 +244,7 @@ def snap_turns(ctx: Context) -> dict[str, Any]:
                        "alpha0": joints[a:c, 0] - joints[a:c, n - 1],
                        "snaps": ds.frame["snap"].to_numpy()[a:c],
                        **{key: series[a:c] for key, series in az.items()}})
-    fig.sweeps_figure(panels, ctx.figures / "snap_turns.png")
+    fig.sweeps_figure(panels, ctx.figures / f"{FIG_SNAP_TURNS.stem}.png", turn_curves(rows_))
     return out
 
 
@@ -209,44 +255,61 @@ def _snapping_sequences(ds: Any) -> np.ndarray:
     return np.isin(sid, snapped)
 
 
-def _point_rows(ctx: Context, ds: Dataset, rows: np.ndarray, desc: str) -> dict[str, Any]:
-    """Learned rows and the TCM at `rows` of ds: summaries (headline included) and predictions."""
+def _point_rows(ctx: Context, rows_: tuple[Row, ...], ds: Dataset, rows: np.ndarray, desc: str
+                ) -> dict[str, Any]:
+    """The predictors at `rows` of ds: summaries (headline included) and predictions."""
     measured, truth = ds.poses(), ctx.truth(ds)
-    preds = {name: p[rows] for name, p in ctx.fk_rows(ds).items()}
-    tcm, times = ctx.tcm_rows(ds, rows, desc)
-    preds["tcm"] = tcm
-    preds |= ctx.calibrated_rows(ds, rows)
+    preds, times = fk_predictions(ctx, rows_, ds, rows, desc)
     out: dict[str, Any] = {k: summary(p, measured[rows], truth[rows]) for k, p in preds.items()}
-    out["tcm"]["timing"] = timing_stats(times)
+    if times is not None:
+        out[TCM_ROW.name]["timing"] = timing_stats(times)
     out = with_headline(out, "fk")
     out["position_rmse_mm"] = out[HEADLINE]["position_rmse_mm"]
     return {"results": out, "preds": preds}
 
 
-def random_points(ctx: Context) -> dict[str, Any]:
+def random_points(ctx: Context, rows_: tuple[Row, ...]) -> dict[str, Any]:
     """20 random configurations, each reached from the previous one (Fig. 10b): errors at targets."""
     ds = ctx.data.random_points
     is_t = ds.frame["is_target"].to_numpy() if "is_target" in ds.frame else np.ones(len(ds.frame), bool)
     rows = valid_rows(ds, np.nonzero(is_t)[0])
-    r = _point_rows(ctx, ds, rows, "TCM on random points")
+    r = _point_rows(ctx, rows_, ds, rows, "TCM on random points")
     out, preds = r["results"], r["preds"]
     out["n_points"] = len(rows)
-    fig.points_figure(ds.poses()[rows], preds[RECOMMENDED["fk"]], preds["tcm"],
-                      ctx.figures / "fig10b_random_points.png", model_label=fig.LABELS[RECOMMENDED["fk"]])
+    model = RECOMMENDED["fk"]
+    fig.points_figure(ds.poses()[rows], preds[model.name], preds[TCM_ROW.name],
+                      ctx.figures / f"{FIG10B.stem}.png", model_label=model.label, tcm_label=TCM_ROW.label)
     return out
 
 
-def arbitrary(ctx: Context) -> dict[str, Any]:
+def arbitrary(ctx: Context, rows_: tuple[Row, ...]) -> dict[str, Any]:
     """The paper's simultaneous path (Fig. 10c): errors along it and their distribution."""
     ds = ctx.data.arbitrary
     rows = valid_rows(ds)
     measured = ds.poses()[rows]
-    r = _point_rows(ctx, ds, rows, "TCM on the arbitrary path")
+    r = _point_rows(ctx, rows_, ds, rows, "TCM on the arbitrary path")
     out, preds = r["results"], r["preds"]
     for name, p in preds.items():
         e = position_error(p, measured)
         out[name]["position_error_percentiles_mm"] = {f"p{q}": float(np.percentile(e, q))
                                                       for q in (50, 90, 99)}
-    fig.trajectory_figure(measured, preds[RECOMMENDED["fk"]], preds["tcm"],
-                          ctx.figures / "fig10c_arbitrary.png", model_label=fig.LABELS[RECOMMENDED["fk"]])
+    model = RECOMMENDED["fk"]
+    fig.trajectory_figure(measured, preds[model.name], preds[TCM_ROW.name],
+                          ctx.figures / f"{FIG10C.stem}.png", model_label=model.label,
+                          tcm_label=TCM_ROW.label)
     return out
+
+
+TURN_ROWS = (*FK_LEARNED, TCM_ROW, TCM_CONTINUED_ROW, *TCM_CALIBRATED_ROWS)
+POINT_ROWS = (*FK_LEARNED, TCM_ROW, *TCM_CALIBRATED_ROWS)
+FK_COMPARISON = Experiment("fk", "FK: model comparison on held-out sequences (Fig. 5)", fk_comparison,
+                           (*FK_LEARNED, *BASELINE_ROWS, ABLATION_ROW, TCM_ROW, *TCM_CALIBRATED_ROWS),
+                           (FIG5A, FIG5B), top_level=True)
+SWEEPS = Experiment("sweeps", "FK experiment: sweeps (Fig. 10)", sweeps, TURN_ROWS, (FIG10A,), section="fk")
+RANDOM_POINTS = Experiment("random_points", "FK experiment: random_points (Fig. 10)", random_points,
+                           POINT_ROWS, (FIG10B,), section="fk")
+ARBITRARY = Experiment("arbitrary", "FK experiment: arbitrary (Fig. 10)", arbitrary, POINT_ROWS,
+                       (FIG10C,), section="fk")
+SNAP_TURNS = Experiment("snap_turns", "FK experiment: snap_turns (Fig. 10)", snap_turns, TURN_ROWS,
+                        (FIG_SNAP_TURNS,), section="fk")
+EXPERIMENTS = (FK_COMPARISON, SWEEPS, RANDOM_POINTS, ARBITRARY, SNAP_TURNS)

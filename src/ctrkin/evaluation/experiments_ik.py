@@ -1,35 +1,40 @@
 """Inverse-kinematics experiments: held-out sequences, 20 random poses (Fig. 11) and the square and
 triangle paths (Fig. 12), for every IK row (the paper's LSTM-MLP, and the same network refined on the
-snap-aware FK, ctrkin.inference.refine). Predicted joints are checked two ways: through the learned
+snap-aware FK, ctrkin.families.refined.refine). Predicted joints are checked two ways: through the learned
 FK model (as the paper did) and by driving the virtual robot to them (what hardware would do)."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ctrkin.acquisition.plan import move
 from ctrkin.data.schema import sequence_bounds
-from ctrkin.evaluation.context import (
-    HEADLINE,
-    IK_ROWS,
-    RECOMMENDED,
-    Context,
-    summary,
-    valid_rows,
-    with_headline,
-)
-from ctrkin.evaluation.training_runs import FK_BRANCH
-from ctrkin.inference.kinematics import IKResult
+from ctrkin.evaluation.context import Context, summary, valid_rows
+from ctrkin.evaluation.table import HEADLINE, IK_ROWS, RECOMMENDED, Experiment, Figure, Row, with_headline
 from ctrkin.metrics import joint_errors
-from ctrkin.models.fold_gate import outer_motion, recorded_motion
+from ctrkin.models.motion import outer_motion, recorded_motion
 from ctrkin.models.outer_lag import lag_deg
 from ctrkin.virtual import VirtualRobot
 from ctrkin.virtual.transmission import clip_to_valid
 from ctrkin.viz import experiments as fig
 
-REFINED_HELDOUT_SEQUENCES = 2
+if TYPE_CHECKING:
+    from ctrkin.models.ik import IKResult
+
+FIG11 = Figure("fig11_ik_random", "Fig. 11: IK at random poses",
+               "The recommended IK at the 20 random poses: predicted (×) and recorded (○) α and β per "
+               "point (a mirror solution may differ in α and still reach the pose), and the targets "
+               "with the tips the predicted joints reach through the learned FK model and by driving "
+               "the virtual robot (x–y, mm).")
+FIG12_SQUARE = Figure("fig12_ik_square", "Fig. 12: IK along a square",
+                      "The recommended IK along a square of 10 target poses: targets and the tips reached "
+                      "through the learned FK model and by driving the virtual robot (3-D, mm), and the "
+                      "predicted joints per point.")
+FIG12_TRIANGLE = Figure("fig12_ik_triangle", "Fig. 12: IK along a triangle",
+                        "As the square (Fig. 12 above), along a triangle of 10 target poses: targets, tips "
+                        "reached and predicted joints.")
 
 
 def drive(
@@ -66,7 +71,7 @@ def _ik_checks(
 ) -> tuple[dict[str, Any], np.ndarray, np.ndarray]:
     """Errors of the tips reached through the recommended FK model and by driving the robot, the
     flags of the result, and those tips."""
-    fk = ctx.models[FK_BRANCH]
+    fk = ctx.models[str(RECOMMENDED["fk"].folder)]
     joints = res.joints
     sid = np.concatenate([np.full(y - x, k) for k, (x, y) in enumerate(b)])
     Qv = clip_to_valid(ctx.data.virtual.nominal, joints)
@@ -93,18 +98,19 @@ def _ik_checks(
     )
 
 
-def ik_heldout(ctx: Context) -> dict[str, Any]:
-    """IK on the paper dataset's test sequences: joint errors, and the tip the joints reach. A
-    refined IK model (step-by-step optimisation, milliseconds a step) is evaluated on the first
-    REFINED_HELDOUT_SEQUENCES test sequences only; `n` says how many targets each row saw."""
+def ik_heldout(ctx: Context, rows_: tuple[Row, ...]) -> dict[str, Any]:
+    """IK on the paper dataset's test sequences: joint errors, and the tip the joints reach. A row
+    with `heldout_sequences` (the refined IK: step-by-step optimisation, milliseconds a step) is
+    evaluated on the first so many test sequences only; `n` says how many targets each row saw."""
     ds = ctx.data.paper
     all_rows = valid_rows(ds, ds.get_split().test)
     sid = ds.frame["sequence_id"].to_numpy()
     out: dict[str, Any] = {}
-    for name, folder in IK_ROWS.items():
+    for row in rows_:
+        name, folder = row.name, str(row.folder)
         rows = all_rows
-        if ctx.models[folder].refined:
-            first = np.unique(sid[all_rows])[:REFINED_HELDOUT_SEQUENCES]
+        if row.heldout_sequences is not None:
+            first = np.unique(sid[all_rows])[:row.heldout_sequences]
             rows = all_rows[np.isin(sid[all_rows], first)]
         b = sequence_bounds(sid[rows])
         res = ctx.models[folder].predict(ds.poses()[rows], sequence_id=sid[rows])
@@ -123,7 +129,7 @@ def ik_heldout(ctx: Context) -> dict[str, Any]:
             "n": len(rows),
             **checks,
         }
-        if ctx.models[folder].layout.follow:
+        if row.from_robot_start:
             out[name]["from_robot_start"] = _from_robot_start(ctx, folder, rows, sid, b)
             out[name]["joint_alpha_median_tube_deg"] = _tube_alpha_median(ctx, folder, res.joints, rows, b)
     return with_headline(out, "ik")
@@ -161,7 +167,7 @@ def _from_robot_start(ctx: Context, folder: str, rows: np.ndarray, sid: np.ndarr
             "joint_rmse_mm": je["beta_mm"]["rmse"]}
 
 
-def ik_random(ctx: Context) -> dict[str, Any]:
+def ik_random(ctx: Context, rows_: tuple[Row, ...]) -> dict[str, Any]:
     """Fig. 11: IK at the 20 random poses (with the history of the moves between them)."""
     ds = ctx.data.random_points
     is_t = ds.frame["is_target"].to_numpy()
@@ -170,7 +176,8 @@ def ik_random(ctx: Context) -> dict[str, Any]:
     whole = [(b[0][0], b[-1][1])]
     targets = ds.poses()[rows]
     out: dict[str, Any] = {}
-    for name, folder in IK_ROWS.items():
+    for row in rows_:
+        name, folder = row.name, str(row.folder)
         res = ctx.models[folder].predict(ds)
         je = joint_errors(res.joints[rows], ds.joints()[rows], ds.n_tubes)
         # the robot is driven along the predicted joints of the whole run, looked at on the targets
@@ -188,20 +195,21 @@ def ik_random(ctx: Context) -> dict[str, Any]:
             "within_1mm_fraction": float(np.mean(_within(via_robot[rows], targets))),
             "position_rmse_mm": summary(via_robot[rows], targets, None)["position_rmse_mm"],
         }
-        if name == RECOMMENDED["ik"]:
+        if row is RECOMMENDED["ik"]:
             fig.ik_points_figure(ds.joints()[rows], res.joints[rows], targets, via_fk[rows],
-                                 via_robot[rows], ctx.figures / "fig11_ik_random.png")
+                                 via_robot[rows], ctx.figures / f"{FIG11.stem}.png")
     out = with_headline(out, "ik")
     out["position_rmse_mm"] = out[HEADLINE]["position_rmse_mm"]
     out["within_1mm_fraction"] = out[HEADLINE]["within_1mm_fraction"]
     return out
 
 
-def ik_path(ctx: Context, shape: str) -> dict[str, Any]:
+def ik_path(ctx: Context, rows_: tuple[Row, ...], shape: str, figure: Figure) -> dict[str, Any]:
     """Fig. 12: IK along a square or triangle of 10 target poses (tracker frame)."""
     targets = getattr(ctx.data, shape)
     out: dict[str, Any] = {}
-    for name, folder in IK_ROWS.items():
+    for row in rows_:
+        name, folder = row.name, str(row.folder)
         res = ctx.models[folder].predict(targets)
         checks, via_fk, via_robot = _ik_checks(ctx, res, targets, [(0, len(targets))])
         out[name] = {
@@ -213,10 +221,27 @@ def ik_path(ctx: Context, shape: str) -> dict[str, Any]:
             "outside_workspace_reasons": [r for r, ok in zip(res.reasons, res.in_workspace, strict=True)
                                           if not ok],
         }
-        if name == RECOMMENDED["ik"]:
-            fig.ik_path_figure(targets, via_fk, via_robot, res.joints, ctx.figures / f"fig12_ik_{shape}.png",
+        if row is RECOMMENDED["ik"]:
+            fig.ik_path_figure(targets, via_fk, via_robot, res.joints, ctx.figures / f"{figure.stem}.png",
                                f"IK along a {shape}")
     out = with_headline(out, "ik")
     out["position_rmse_mm"] = out[HEADLINE]["position_rmse_mm"]
     out["within_1mm_fraction"] = out[HEADLINE]["within_1mm_fraction"]
     return out
+
+
+def ik_square(ctx: Context, rows_: tuple[Row, ...]) -> dict[str, Any]:
+    return ik_path(ctx, rows_, "square", FIG12_SQUARE)
+
+
+def ik_triangle(ctx: Context, rows_: tuple[Row, ...]) -> dict[str, Any]:
+    return ik_path(ctx, rows_, "triangle", FIG12_TRIANGLE)
+
+
+STAGE = "IK: held-out sequences, random poses, square and triangle (Fig. 11, 12)"
+EXPERIMENTS = (
+    Experiment("ik", STAGE, ik_heldout, IK_ROWS, top_level=True),
+    Experiment("ik_random", STAGE, ik_random, IK_ROWS, (FIG11,), section="ik"),
+    Experiment("ik_square", STAGE, ik_square, IK_ROWS, (FIG12_SQUARE,), section="ik"),
+    Experiment("ik_triangle", STAGE, ik_triangle, IK_ROWS, (FIG12_TRIANGLE,), section="ik"),
+)

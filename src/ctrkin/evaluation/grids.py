@@ -7,15 +7,32 @@ from typing import Any
 
 import numpy as np
 
-from ctrkin.evaluation.context import FK_ROWS, IK_ROWS, RECOMMENDED, Context, summary, valid_rows
-from ctrkin.evaluation.scales import ReproScale
-from ctrkin.evaluation.training_runs import FK_PAPER, IK_PAPER, IK_REFINED
+from ctrkin.evaluation.context import Context, summary, valid_rows
+from ctrkin.evaluation.table import (
+    FK_PAPER_ROW,
+    IK_PAPER_ROW,
+    IK_REFINED_ROW,
+    RECOMMENDED,
+    Experiment,
+    Figure,
+    Row,
+)
 from ctrkin.metrics import joint_errors, timing_stats
 from ctrkin.viz import experiments as fig
 
+FIG7 = Figure("fig7_input_buffer", "Fig. 7 and Table II: input buffer",
+              "Errors on the held-out test sequences of the grid models against the input buffer IB: "
+              "FK position RMSE and IK β RMSE share the mm colour scale, IK α RMSE (wrapped to ±180°) "
+              "has its own deg scale. Darker is worse within a scale.")
+FIG8 = Figure("fig8_structures", "Fig. 8 and Table III: structures",
+              "FK position RMSE (mm) and orientation RMSE (deg), each on its own colour scale, of the "
+              "structures S1–S5 (spelled out in the Table III section) at IB = 2 and 3, on the held-out "
+              "test sequences. Darker is worse.")
 
-def grids(ctx: Context, scale: ReproScale) -> dict[str, Any]:
+
+def grids(ctx: Context, rows_: tuple[Row, ...] = ()) -> dict[str, Any]:
     """Test-split errors of every grid model; normalised test loss (MAE) as the paper's tables."""
+    scale = ctx.scale
     ds = ctx.data.paper
     rows = valid_rows(ds, ds.get_split().test)
     measured, truth = ds.poses(), ctx.truth(ds)
@@ -49,7 +66,7 @@ def grids(ctx: Context, scale: ReproScale) -> dict[str, Any]:
                 [out["ib"]["ik"][i]["joint_rmse_deg"] for i in ibs],
             ]
         ),
-        ctx.figures / "fig7_input_buffer.png",
+        ctx.figures / f"{FIG7.stem}.png",
         "Input buffer (Table II, Fig. 7): RMSE on the test sequences",
         "{:.2f}",
         units=["mm", "mm", "deg"],
@@ -64,7 +81,7 @@ def grids(ctx: Context, scale: ReproScale) -> dict[str, Any]:
                 for ib in scale.structure_ibs
             ]
         ),
-        ctx.figures / "fig8_structures.png",
+        ctx.figures / f"{FIG8.stem}.png",
         "FK by structure (Table III, Fig. 8): RMSE on the test sequences",
         "{:.2f}",
         units=["mm"] * len(scale.structure_ibs) + ["deg"] * len(scale.structure_ibs),
@@ -72,7 +89,7 @@ def grids(ctx: Context, scale: ReproScale) -> dict[str, Any]:
     return out
 
 
-def timing(ctx: Context, n_steps: int = 2000) -> dict[str, Any]:
+def timing(ctx: Context, rows_: tuple[Row, ...] = (), n_steps: int = 2000) -> dict[str, Any]:
     """Streaming single-step latency over a held-out sequence (one step a call, the control-loop
     case), in ms: "fk" / "ik" the recommended models (the IK with its refinement), "fk_paper" /
     "ik_paper" the paper's LSTM-MLP, "ik_refined" the IK refined on the learned FK (300 steps)."""
@@ -81,10 +98,10 @@ def timing(ctx: Context, n_steps: int = 2000) -> dict[str, Any]:
     q = ds.joints()[test][:n_steps]
     p = ds.poses()[test][:n_steps]
     out: dict[str, Any] = {}
-    models = {"fk": (FK_ROWS[RECOMMENDED["fk"]], q), "ik": (IK_ROWS[RECOMMENDED["ik"]], p),
-              "fk_paper": (FK_PAPER, q), "ik_paper": (IK_PAPER, p), "ik_refined": (IK_REFINED, p[:300])}
-    for name, (folder, x) in models.items():
-        model = ctx.models[folder]
+    models = {"fk": (RECOMMENDED["fk"], q), "ik": (RECOMMENDED["ik"], p), "fk_paper": (FK_PAPER_ROW, q),
+              "ik_paper": (IK_PAPER_ROW, p), "ik_refined": (IK_REFINED_ROW, p[:300])}
+    for name, (row, x) in models.items():
+        model = ctx.models[str(row.folder)]
         model.reset()
         for v in x[:50]:  # warm-up (numba dispatch, caches)
             model.step(v)
@@ -96,3 +113,11 @@ def timing(ctx: Context, n_steps: int = 2000) -> dict[str, Any]:
             t[k] = time.perf_counter() - t0
         out[name] = timing_stats(t)
     return out
+
+
+EXPERIMENTS = (
+    Experiment("grids", "input buffer and structure grids (Tables II, III)", grids, figures=(FIG7, FIG8),
+               top_level=True),
+    Experiment("timing", "timing", timing, (RECOMMENDED["fk"], RECOMMENDED["ik"], FK_PAPER_ROW, IK_PAPER_ROW,
+                                            IK_REFINED_ROW), top_level=True),
+)

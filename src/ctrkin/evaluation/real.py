@@ -34,6 +34,7 @@ from ctrkin.geometry import Registration, position_error, tangent_angle_error
 from ctrkin.util.files import atomic_write_text
 
 RANGE_MARGIN = 0.05
+MIN_PAD_DEG, MIN_PAD_MM = 1.0, 0.5   # the least margin: a joint held still in training still moves this much
 TRAIN, VAL, TEST = "training", "validation", "held out (test)"
 IN_SAMPLE_REG = "in-sample (registration fitted here)"
 IN_SAMPLE_CAL = "in-sample (calibrated on these samples)"
@@ -42,21 +43,55 @@ NOT_USED = "outlier (not used by the model)"
 HELD_OUT_PARTS = (TEST, HELD_OUT)
 
 
+def _arc(ok: np.ndarray, grid: np.ndarray) -> tuple[float, float]:
+    """The smallest arc (deg, lo ≤ hi, hi − lo < 360) holding every angle of `grid` where `ok`."""
+    if ok.all():
+        return -180.0, 180.0
+    idx = np.flatnonzero(ok)
+    if idx.size == 0:
+        return float("nan"), float("nan")
+    gaps = np.diff(np.r_[idx, idx[0] + len(grid)])       # steps to the next consistent angle, wrapped
+    k = int(np.argmax(gaps))                              # the largest gap lies outside the arc
+    start = float(grid[idx[(k + 1) % idx.size]])
+    end = float(grid[idx[k]])
+    return start, end + 360.0 if end < start else end
+
+
 def out_of_range(kin: Any, joints: np.ndarray, names: list[str], margin: float = RANGE_MARGIN
                  ) -> dict[str, Any]:
-    """Joints (T, 2N) outside a learned model's training range (from its input normalisation) by more
-    than margin · range: {"rows": (T,) bool, "joints": {name: {"lo", "hi", "count"}}}."""
-    lo, span = kin.bundle.x_norm.lo, kin.bundle.x_norm.span
+    """Joints (T, 2N) outside a learned model's training range by more than margin · range (at
+    least MIN_PAD: an encoder's repeatability), read from its input normalisation in every angle
+    encoding: a joint that is an input itself (min-max angles, β), or an angle the model sees as sin
+    and cos (flagged where either leaves its trained range; the range reported is the arc of angles
+    whose sin and cos both lie in theirs). Returns {"rows": (T,) bool, "joints": {name: {"lo", "hi",
+    "margin", "count"}}} (deg, mm)."""
+    trained = kin.bundle.x_norm.trained_range()
     inputs = list(kin.layout.input_names)
     rows = np.zeros(len(joints), dtype=bool)
     per: dict[str, Any] = {}
     for j, name in enumerate(names):
-        if name not in inputs:
+        q = joints[:, j]
+        pad_min = MIN_PAD_DEG if name.startswith("alpha") else MIN_PAD_MM
+        if name in inputs:
+            k = inputs.index(name)
+            a, b = float(trained[0][k]), float(trained[1][k])
+            pad = max(margin * (b - a), pad_min)
+            bad = (q < a - pad) | (q > b + pad)
+        elif f"sin_{name}" in inputs and f"cos_{name}" in inputs:
+            grid = np.arange(-180.0, 180.0, 0.25)
+            bad = np.zeros(len(q), dtype=bool)
+            ok = np.ones(len(grid), dtype=bool)
+            for f, fn in (("sin", np.sin), ("cos", np.cos)):
+                k = inputs.index(f"{f}_{name}")
+                a, b = float(trained[0][k]), float(trained[1][k])
+                pad = max(margin * (b - a), float(np.sin(np.radians(pad_min))))
+                v, g = fn(np.radians(q)), fn(np.radians(grid))
+                bad |= (v < a - pad) | (v > b + pad)
+                ok &= (g >= a - pad) & (g <= b + pad)
+            a, b = _arc(ok, grid)
+            pad = 0.0                                         # already inside the arc
+        else:
             continue
-        k = inputs.index(name)
-        a, b = float(lo[k]), float(lo[k] + span[k])
-        pad = margin * (b - a)
-        bad = (joints[:, j] < a - pad) | (joints[:, j] > b + pad)
         per[name] = {"lo": a, "hi": b, "margin": pad, "count": int(bad.sum())}
         rows |= bad
     return {"rows": rows, "joints": per}
@@ -190,7 +225,8 @@ def evaluate(ds: Dataset, spec: str, out: str | Path | None = None) -> dict[str,
 
         folder = Path(out)
         folder.mkdir(parents=True, exist_ok=True)
-        res["figures"] = plots(ds, pred, pos_e, part, predictor_name(spec), res, folder)
+        res["figures"] = plots(ds, pred, pos_e, np.isin(part, HELD_OUT_PARTS), sequence_names(ds),
+                               predictor_name(spec), res, folder)
         atomic_write_text(folder / "results.json", json.dumps(res, indent=2))
     return res
 

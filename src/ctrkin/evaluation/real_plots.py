@@ -28,22 +28,19 @@ def _summary(res: dict[str, Any]) -> str:
         f"all {res['overall']['position_mean_mm']:.2f} mm"
 
 
-def plots(ds: Dataset, pred: np.ndarray, pos_e: np.ndarray, part: np.ndarray, name: str,
+def plots(ds: Dataset, pred: np.ndarray, pos_e: np.ndarray, held: np.ndarray, labels: list[str], name: str,
           res: dict[str, Any], out: Path) -> list[str]:
-    """Write the three figures into `out`; returns their file names."""
+    """Write the three figures into `out`; returns their file names. held: (T,) bool, the rows of a
+    held-out part; labels: the name of each sequence id (ctrkin.evaluation.real.sequence_names)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ctrkin.evaluation.real import HELD_OUT_PARTS, sequence_names
-
     meas = ds.poses()
     sid = ds.frame["sequence_id"].to_numpy()
     ids = np.unique(sid)
-    labels = sequence_names(ds)
     colours = plt.get_cmap("tab10" if len(ids) <= 10 else "tab20")(np.arange(len(ids)) % 20)
-    held = np.isin(part, HELD_OUT_PARTS)
     title = f"{name}: {_summary(res)}"
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 5))

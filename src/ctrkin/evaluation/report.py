@@ -8,15 +8,27 @@ from pathlib import Path
 from typing import Any
 
 from ctrkin.evaluation import paper_numbers as P
+from ctrkin.evaluation.experiments import EXPERIMENTS, FIGURES
+from ctrkin.evaluation.experiments_fk import SNAPPING_ROWS, SWEEPS
 from ctrkin.evaluation.figure_captions import figure_section
 from ctrkin.evaluation.results import ReproResults
 from ctrkin.evaluation.scales import BUDGET_ROLES, ReproScale
+from ctrkin.evaluation.table import (
+    FK_BRANCH_ROW,
+    FK_PAPER_ROW,
+    HEADLINE,
+    IK_FOLLOW_ROW,
+    IK_ROWS,
+    TCM_CALIBRATED_CONTINUED_ROW,
+    TCM_CALIBRATED_ROW,
+    TCM_ROW,
+    labels,
+)
 from ctrkin.models.seqnet import STRUCTURES
 from ctrkin.util.files import atomic_write_text
-from ctrkin.viz.experiments import LABELS
 
-# IK rows of the experiment table, in column order
-IK_REPORT_ROWS = ("lstm_mlp_paper", "lstm_mlp_refined", "follow_mlp")
+CAL_CONT = TCM_CALIBRATED_CONTINUED_ROW.name   # the calibrated TCM continued: headline and Fig. 10 column
+IK_REPORT_ROWS = tuple(r.name for r in IK_ROWS)     # the columns of the IK experiments' table
 
 
 def write_report(r: ReproResults, path: Path) -> None:
@@ -31,7 +43,7 @@ def write_report(r: ReproResults, path: Path) -> None:
         _ik_experiments(r),
         _snap_prediction(r),
         _grids(r),
-        figure_section(Path(path).parent / "figures"),
+        figure_section(Path(path).parent / "figures", FIGURES),
         _notes(r),
     )
     atomic_write_text(path, "\n\n".join("\n".join(lines) for lines in sections) + "\n")
@@ -84,7 +96,8 @@ def _budgets(scale: ReproScale) -> str:
 def _headline(r: ReproResults) -> list[str]:
     """Three tables whose columns each hold one kind of number: FK accuracy (vs the measurement and
     vs the truth), IK accuracy, and time per prediction."""
-    fk, ik, tm = r.fk, r.ik["lstm_mlp"], r.timing
+    fk, ik, tm = r.fk, r.ik[HEADLINE], r.timing
+    head, tcm = fk[HEADLINE], fk[TCM_ROW.name]
     rec = r.recommended
     snap = r.snapping
     snap_meas = snap.per_model.get(snap.model, {}).get("vs_measured", {})
@@ -97,16 +110,15 @@ def _headline(r: ReproResults) -> list[str]:
              "Forward kinematics, RMSE on the held-out sequences:", ""]
     lines.append(_table(
         ["quantity", "paper", "ours vs measured", "ours vs truth"],
-        [["FK position RMSE (mm)", _f(P.FK["position_rmse_mm"]), _f(fk["lstm_mlp"]["position_rmse_mm"]),
-          _f(fk["lstm_mlp"]["position_rmse_true_mm"])],
+        [["FK position RMSE (mm)", _f(P.FK["position_rmse_mm"]), _f(head["position_rmse_mm"]),
+          _f(head["position_rmse_true_mm"])],
          ["FK orientation RMSE (deg)", _f(P.FK["orientation_rmse_deg"]),
-          _f(fk["lstm_mlp"]["orientation_rmse_deg"]), _f(fk["lstm_mlp"]["orientation_rmse_true_deg"])],
+          _f(head["orientation_rmse_deg"]), _f(head["orientation_rmse_true_deg"])],
          ["TCM (point-wise) position RMSE (mm)", "8.55 (random points), 10.94 (path)",
-          _f(fk["tcm"]["position_rmse_mm"]), _f(fk["tcm"]["position_rmse_true_mm"])],
+          _f(tcm["position_rmse_mm"]), _f(tcm["position_rmse_true_mm"])],
          *([[f"calibrated TCM with friction, continued, position RMSE (mm; μ = "
-             f"{_f(_mu(fk), 3)})", "–", _f(fk["tcm_calibrated_continued"]["position_rmse_mm"]),
-             _f(fk["tcm_calibrated_continued"]["position_rmse_true_mm"])]]
-           if "tcm_calibrated_continued" in fk else []),
+             f"{_f(_mu(fk), 3)})", "–", _f(fk[CAL_CONT]["position_rmse_mm"]),
+             _f(fk[CAL_CONT]["position_rmse_true_mm"])]] if CAL_CONT in fk else []),
          ["snap prediction precision / recall (sweeps)", "– (shown in Fig. 10a, not scored)",
           f"{_f(snap_meas.get('precision'))} / {_f(snap_meas.get('recall'))}",
           f"{_f(snap.precision)} / {_f(snap.recall)}"]]))
@@ -140,19 +152,20 @@ def _headline(r: ReproResults) -> list[str]:
 
 def _mu(fk: dict[str, Any]) -> float | None:
     """μ of the calibrated TCM (its calibration table), None without one."""
-    rows = fk.get("tcm_calibrated", {}).get("calibration", {}).get("parameters", [])
+    rows = fk.get(TCM_CALIBRATED_ROW.name, {}).get("calibration", {}).get("parameters", [])
     return next((r["value"] for r in rows if r["name"] == "friction_mu"), None)
 
 
 def _fk_comparison(r: ReproResults) -> list[str]:
     """Fig. 5: every FK predictor on the test sequences, and the Δα0 ablation."""
     fk = r.fk
-    rows = [[f"{LABELS.get(m, m)} (`{m}`)", _f(v["position_rmse_mm"]), _f(v["position_mae_mm"]),
+    names = labels()
+    rows = [[f"{names.get(m, m)} (`{m}`)", _f(v["position_rmse_mm"]), _f(v["position_mae_mm"]),
              _f(v["orientation_rmse_deg"]), _f(v["position_rmse_true_mm"]),
              _f(v["away_from_snap"]["position_rmse_mm"]),
              _f((v.get("at_snap") or {}).get("position_rmse_mm"))]
             for m, v in fk.items()
-            if m != "lstm_mlp" and isinstance(v, dict) and "position_rmse_mm" in v]
+            if m != HEADLINE and isinstance(v, dict) and "position_rmse_mm" in v]
     ab = fk["ablation"]
     return [
         "## FK model comparison and Δα0 ablation (Fig. 5)", "",
@@ -172,19 +185,19 @@ def _fk_experiments(r: ReproResults) -> list[str]:
     """Fig. 10: sweeps, random points, the arbitrary path and the snap turns, TCM beside learned."""
     ex = r.experiments
     rows = []
-    for name in ("sweeps", "random_points", "arbitrary", "snap_turns"):
+    for name in (e.name for e in EXPERIMENTS if e.section == "fk"):
         e, pp = ex[name], P.EXPERIMENTS.get(name, {})
-        cal = e.get("tcm_calibrated_continued")
-        rows.append([name, _pair(pp.get("tcm")), _err(e["tcm"]), _err(cal) if cal else "–",
-                     _pair(pp.get("lstm_mlp")), _err(e["lstm_mlp_paper"]), _err(e["lstm_mlp_branch"])])
+        cal = e.get(CAL_CONT)
+        rows.append([name, _pair(pp.get("tcm")), _err(e[TCM_ROW.name]), _err(cal) if cal else "–",
+                     _pair(pp.get("lstm_mlp")), _err(e[FK_PAPER_ROW.name]), _err(e[FK_BRANCH_ROW.name])])
     lines = ["## Experiments (Fig. 10, 11, 12)", "",
              "Position RMSE (mm) / orientation RMSE (deg) against the measurement.", "",
              _table(["experiment", "TCM, paper", "TCM, ours", "calibrated TCM with friction (continued), "
                      "ours", "LSTM-MLP, paper", "LSTM-MLP (paper's), ours", "snap-aware LSTM-MLP, ours"],
                     rows)]
-    sw = ex["sweeps"].get("snapping_levels")
-    for m in ("lstm_mlp_paper", "lstm_mlp_branch") if sw else ():
-        lines += ["", f"Snapping sweeps, {LABELS[m]}: away from the snap {_err(sw[m + '_away_from_snap'])}"
+    sw = ex[SWEEPS.name].get("snapping_levels")
+    for m in SNAPPING_ROWS if sw else ():
+        lines += ["", f"Snapping sweeps, {labels()[m]}: away from the snap {_err(sw[m + '_away_from_snap'])}"
                   f" (paper 0.8 mm, 4.2°); at the snap steps {_err(sw[m + '_at_snap'])}"
                   " (paper up to 12 mm, 20°)."]
     return lines
@@ -194,7 +207,7 @@ def _ik_experiments(r: ReproResults) -> list[str]:
     """Fig. 11, 12: IK at random poses and along the square and triangle, and on held-out sequences."""
     ex, ikh = r.experiments, r.ik
     rows = []
-    for name in ("ik_random", "ik_square", "ik_triangle"):
+    for name in (e.name for e in EXPERIMENTS if e.section == "ik"):
         e = ex[name]
         rows.append([name, _pair(P.EXPERIMENTS.get(name, {}).get("lstm_mlp"))]
                     + [f"{_err(e[m]['via_robot'])}, {_f(100 * e[m]['within_1mm_fraction'], 0)} % "
@@ -203,11 +216,11 @@ def _ik_experiments(r: ReproResults) -> list[str]:
                 + [f"{_f(ikh[m]['tip_error_mm'])} mm, {_f(100 * ikh[m]['within_1mm_fraction'], 0)} %, "
                    f"α median {_f(ikh[m]['joint_alpha_median_deg'], 1)}°, {ikh[m]['flagged_jumps']} "
                    f"α jumps flagged" for m in IK_REPORT_ROWS])
-    tube = ikh["follow_mlp"].get("joint_alpha_median_tube_deg")
+    tube = ikh[IK_FOLLOW_ROW.name].get("joint_alpha_median_tube_deg")
     if tube is not None:
         rows.append(["held-out, follow IK, α median of the outer tube's angle (the play removed)", "–",
                      "", "", f"{_f(tube, 1)}°"])
-    fs = ikh["follow_mlp"].get("from_robot_start")
+    fs = ikh[IK_FOLLOW_ROW.name].get("from_robot_start")
     if fs:
         rows.append(["held-out, follow IK from the robot's start joints", "–", "", "",
                      f"{_f(fs['tip_error_mm'])} mm, {_f(100 * fs['within_1mm_fraction'], 0)} %, α median "
@@ -228,7 +241,7 @@ def _snap_prediction(r: ReproResults) -> list[str]:
     """Snap events per predictor on the sweeps and snap turns, by the paper's 10° T(L) rule."""
     ex = r.experiments
     rows = []
-    for exp in ("sweeps", "snap_turns"):
+    for exp in (e.name for e in EXPERIMENTS if "snap_prediction" in ex.get(e.name, {})):
         for k, v in ex[exp]["snap_prediction"].items():
             fw, bw, vm = v["forward"], v["backward"], v["vs_measured"]
             rows.append([exp, k, _f(v["n_reference"], 0), _f(v["n_predicted"], 0), _f(v["n_matched"], 0),

@@ -13,13 +13,13 @@ from typing import Any
 
 import numpy as np
 
-from ctrkin import __version__
 from ctrkin.calibration.fit import CalibrationResult, calibrate
 from ctrkin.calibration.params import FRICTION, GROUPS
 from ctrkin.errors import OutputError
-from ctrkin.evaluation import experiments_fk, experiments_ik, grids
-from ctrkin.evaluation.context import FK_ROWS, IK_ROWS, RECOMMENDED, Context
+from ctrkin.evaluation.context import Context
 from ctrkin.evaluation.datasets import ReproData, collect
+from ctrkin.evaluation.experiments import EXPERIMENTS
+from ctrkin.evaluation.experiments_fk import SNAP_TURNS, SWEEPS
 from ctrkin.evaluation.report import write_report
 from ctrkin.evaluation.repro_folder import claim
 from ctrkin.evaluation.results import (
@@ -32,11 +32,13 @@ from ctrkin.evaluation.results import (
     write_results,
 )
 from ctrkin.evaluation.scales import ReproScale
+from ctrkin.evaluation.table import RECOMMENDED, TCM_CALIBRATED_ROW, TCM_ROW
 from ctrkin.evaluation.tcm_baseline import TCMBaseline
 from ctrkin.evaluation.training_runs import train_all
 from ctrkin.inference import Kinematics
 from ctrkin.robots.robot import Robot
 from ctrkin.util.folders import folder_lock
+from ctrkin.version import __version__
 
 NOTES = [
     "The robot is the virtual robot (the TCM with perturbed tubes, backlash, friction, tracker noise, "
@@ -56,7 +58,8 @@ NOTES = [
 
 
 class _Stages:
-    """Logs each stage's name as it starts and records its wall time (s) under that name."""
+    """Logs each stage's name as it starts and records its wall time (s) under that name (a stage
+    entered again, by the next experiment of the same stage, adds to it and is not logged again)."""
 
     def __init__(self, log: Callable[[str], None]) -> None:
         self.log = log
@@ -65,10 +68,11 @@ class _Stages:
 
     @contextmanager
     def stage(self, name: str) -> Iterator[None]:
-        self.log(f"== {name}")
+        if name not in self.seconds:
+            self.log(f"== {name}")
         t = time.perf_counter()
         yield
-        self.seconds[name] = time.perf_counter() - t
+        self.seconds[name] = self.seconds.get(name, 0.0) + time.perf_counter() - t
 
     def total(self) -> dict[str, float]:
         return {**self.seconds, "total": time.perf_counter() - self.t0}
@@ -111,18 +115,16 @@ def _reproduce(robot: Robot, scale: ReproScale, out: Path, robot_seed: int, work
         tcm = _tcm_baseline(robot, data, scale)
     with st.stage("calibrate the TCM on training rows (friction included)"):
         cal = _tcm_calibrated(robot, data, scale)
-    ctx = Context(data=data, models=models, tcm=tcm, figures=figures, tcm_cal=cal.model)
-    fk, experiments = _fk_experiments(ctx, st)
-    with st.stage("IK: held-out sequences, random poses, square and triangle (Fig. 11, 12)"):
-        ik = _ik_experiments(ctx, experiments)
-    with st.stage("input buffer and structure grids (Tables II, III)"):
-        grid = grids.grids(ctx, scale)
-    with st.stage("timing"):
-        lat = grids.timing(ctx)
+    ctx = Context(data=data, models=models, tcm=tcm, figures=figures, scale=scale, tcm_cal=cal.model)
+    top: dict[str, Any] = {}
+    experiments: dict[str, Any] = {}
+    for exp in EXPERIMENTS:            # the typed table, in run order (ctrkin.evaluation.experiments)
+        with st.stage(exp.stage):
+            (top if exp.top_level else experiments)[exp.name] = exp.run(ctx, exp.rows)
     seconds, memory = st.total(), peak_rss_mb(workers if executor == "local" else 0)
-    fk["tcm_calibrated"]["calibration"] = cal.to_dict()
-    results = _results(robot, scale, robot_seed, tcm, data, models, fk, ik, experiments, grid, lat,
-                       seconds, memory, ctx.seconds_per_step)
+    top["fk"][TCM_CALIBRATED_ROW.name]["calibration"] = cal.to_dict()
+    results = _results(robot, scale, robot_seed, tcm, data, models, top["fk"], top["ik"], experiments,
+                       top["grids"], top["timing"], seconds, memory, ctx.seconds_per_step)
     written = write_results(results, out / "results.json")
     write_report(written, out / "report.md")
     log(f"wrote {out / 'report.md'} and {out / 'results.json'} ({written.seconds['total']:.0f} s)")
@@ -154,31 +156,6 @@ def _tcm_calibrated(robot: Robot, data: ReproData, scale: ReproScale) -> Calibra
                      friction_samples=samples)
 
 
-def _fk_experiments(ctx: Context, st: _Stages) -> tuple[dict[str, Any], dict[str, Any]]:
-    """The FK model comparison (Fig. 5) and the FK experiments of Fig. 10 (and the snap turns)."""
-    with st.stage("FK: model comparison on held-out sequences (Fig. 5)"):
-        fk = experiments_fk.fk_comparison(ctx)
-    experiments: dict[str, Any] = {}
-    for name, fn in (
-        ("sweeps", experiments_fk.sweeps),
-        ("random_points", experiments_fk.random_points),
-        ("arbitrary", experiments_fk.arbitrary),
-        ("snap_turns", experiments_fk.snap_turns),
-    ):
-        with st.stage(f"FK experiment: {name} (Fig. 10)"):
-            experiments[name] = fn(ctx)
-    return fk, experiments
-
-
-def _ik_experiments(ctx: Context, experiments: dict[str, Any]) -> dict[str, Any]:
-    """IK on held-out sequences (returned) and the IK experiments (added to `experiments`)."""
-    ik = experiments_ik.ik_heldout(ctx)
-    experiments["ik_random"] = experiments_ik.ik_random(ctx)
-    experiments["ik_square"] = experiments_ik.ik_path(ctx, "square")
-    experiments["ik_triangle"] = experiments_ik.ik_path(ctx, "triangle")
-    return ik
-
-
 def _results(robot: Robot, scale: ReproScale, robot_seed: int, tcm: TCMBaseline, data: ReproData,
              models: dict[str, Kinematics], fk: dict[str, Any], ik: dict[str, Any],
              experiments: dict[str, Any], grid: dict[str, Any], lat: dict[str, Any],
@@ -186,7 +163,7 @@ def _results(robot: Robot, scale: ReproScale, robot_seed: int, tcm: TCMBaseline,
              per_step: dict[str, list[float]]) -> ReproResults:
     """The results of every stage, as results.json holds them; per_step: seconds per prediction
     of the calibrated TCM's rows (Context.seconds_per_step)."""
-    tcm_t = fk["tcm"]["timing"]
+    tcm_t = fk[TCM_ROW.name]["timing"]
     cal_us = {k: 1e6 * float(np.mean(v)) for k, v in per_step.items()}
     f = data.paper.frame
     return ReproResults(
@@ -207,8 +184,8 @@ def _results(robot: Robot, scale: ReproScale, robot_seed: int, tcm: TCMBaseline,
         ik=ik,
         experiments=experiments,
         snapping=_snapping(experiments),
-        recommended=Recommended(fk=f"models/{FK_ROWS[RECOMMENDED['fk']]}",
-                                ik=f"models/{IK_ROWS[RECOMMENDED['ik']]}"),
+        recommended=Recommended(fk=f"models/{RECOMMENDED['fk'].folder}",
+                                ik=f"models/{RECOMMENDED['ik'].folder}"),
         timing=Timing(
             fk_ms_mean=lat["fk"]["ms_mean"],
             fk_ms_std=lat["fk"]["ms_std"],
@@ -243,19 +220,19 @@ def peak_rss_mb(workers: int) -> Memory:
 def _snapping(experiments: dict[str, Any]) -> Snapping:
     """Snap prediction per predictor on the sweeps (vs truth, per direction, and vs measured) and on
     the snap turns; the headline precision/recall are the recommended FK model's on the sweeps."""
-    sweeps = experiments["sweeps"]["snap_prediction"]
-    head = sweeps[RECOMMENDED["fk"]]
+    sweeps = experiments[SWEEPS.name]["snap_prediction"]
+    head = sweeps[RECOMMENDED["fk"].name]
     return Snapping(
         precision=_zero_if_undefined(head["precision"], head["n_predicted"]),
         recall=_zero_if_undefined(head["recall"], head["n_reference"]),
         **{k: head[k] for k in Snapping.HEADLINE},
-        model=RECOMMENDED["fk"],
+        model=RECOMMENDED["fk"].name,
         rule="T(L) step > 10 deg, matched within 2 steps, vs the noise-free truth, sweeps "
              "(per model also per direction, vs measured, and on the snap turns)",
         per_model={model: {**score, "precision": _zero_if_undefined(score["precision"], score["n_predicted"]),
                            "recall": _zero_if_undefined(score["recall"], score["n_reference"])}
                    for model, score in sweeps.items()},
-        snap_turns=experiments["snap_turns"]["snap_prediction"],
+        snap_turns=experiments[SNAP_TURNS.name]["snap_prediction"],
     )
 
 

@@ -17,18 +17,14 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from ctrkin.evaluation.scales import ReproScale
+from ctrkin.evaluation.table import flat_rows
 from ctrkin.util.files import atomic_write_text
 
-# the rows and figures copied under flat names, in results.json's order
-FLAT_FK_ROWS = ("lstm_mlp", "lstm_mlp_paper", "lstm_mlp_branch", "tcm", "tcm_calibrated",
-                "tcm_calibrated_continued", "mlp", "lstm", "cnn", "tcn", "resnet")
+# the figures copied under flat names (the rows: Row.flat in ctrkin.evaluation.table), in results.json's
+# order; an experiment's position_rmse_mm and within_1mm_fraction where it reports them
 FLAT_FK = ("position_rmse_mm", "orientation_rmse_deg", "position_rmse_true_mm")
-FLAT_IK_ROWS = ("lstm_mlp", "lstm_mlp_paper", "lstm_mlp_refined", "follow_mlp")
 FLAT_IK = ("joint_rmse_mm", "joint_rmse_deg", "tip_error_mm", "joint_alpha_median_deg")
-FLAT_SNAP_ROWS = ("lstm_mlp_paper", "lstm_mlp_branch", "tcm", "tcm_continued")
 FLAT_SNAP = ("precision", "recall", "timing_error_steps", "magnitude_error_deg")
-IK_EXPERIMENTS = ("ik_random", "ik_square", "ik_triangle")
-EXPERIMENTS = ("sweeps", "random_points", "arbitrary", *IK_EXPERIMENTS)
 
 
 @dataclass(frozen=True)
@@ -169,14 +165,16 @@ class ReproResults:
     def flat(self) -> dict[str, Any]:
         """The headline figures under flat dotted names, in results.json's order."""
         out: dict[str, Any] = {}
-        out |= {f"fk.{m}.{k}": self.fk[m][k] for m in FLAT_FK_ROWS if m in self.fk for k in FLAT_FK}
-        out |= {f"ik.{m}.{k}": self.ik[m][k] for m in FLAT_IK_ROWS for k in FLAT_IK}
-        out |= {f"snapping.{m}.{k}": self.snapping.per_model[m][k] for m in FLAT_SNAP_ROWS for k in FLAT_SNAP}
-        out |= {f"experiments.{e}.within_1mm_fraction": self.experiments[e]["within_1mm_fraction"]
-                for e in IK_EXPERIMENTS}
+        ex = self.experiments
+        out |= {f"fk.{m}.{k}": self.fk[m][k] for m in flat_rows("fk") if m in self.fk for k in FLAT_FK}
+        out |= {f"ik.{m}.{k}": self.ik[m][k] for m in flat_rows("ik") for k in FLAT_IK}
+        out |= {f"snapping.{m}.{k}": self.snapping.per_model[m][k] for m in flat_rows("snapping")
+                for k in FLAT_SNAP}
+        out |= {f"experiments.{e}.within_1mm_fraction": v["within_1mm_fraction"] for e, v in ex.items()
+                if "within_1mm_fraction" in v}
         out |= {"recommended.fk": self.recommended.fk, "recommended.ik": self.recommended.ik}
-        out |= {f"experiments.{e}.position_rmse_mm": self.experiments[e]["position_rmse_mm"]
-                for e in EXPERIMENTS}
+        out |= {f"experiments.{e}.position_rmse_mm": v["position_rmse_mm"] for e, v in ex.items()
+                if "position_rmse_mm" in v}
         t, d = self.timing, self.dataset
         out |= {"snapping.precision": self.snapping.precision, "snapping.recall": self.snapping.recall,
                 "timing.fk_ms_mean": t.fk_ms_mean, "timing.fk_ms_std": t.fk_ms_std,

@@ -1,9 +1,11 @@
-"""How big a reproduction is: data sizes and training budgets of `ctrkin reproduce --scale`."""
+"""How big a reproduction is (data sizes and training budgets of `ctrkin reproduce --scale`), and the
+typed configuration of a reproduction (`ctrkin reproduce` is generated from it). A light module: the
+command line reads it without importing the networks."""
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
-from typing import Any
+from dataclasses import asdict, dataclass, field
+from typing import Any, Literal, get_args
 
 from ctrkin.acquisition.protocols import PAPER_SIZES
 from ctrkin.errors import CtrkinError
@@ -31,7 +33,7 @@ class ReproScale:
     quick and tiny sizes are acquisition.protocols.PAPER_SIZES, which `ctrkin collect` records);
     main: the LSTM-MLP FK and IK models (the paper's); branch: the snap-aware FK model
     (lstm_mlp_branch, the recommended FK); follow: the follow IK (follow_mlp, the recommended IK,
-    ctrkin.models.follow); compare: baselines and the Δα0 ablation; grid: the IB and
+    ctrkin.families.follow.features); compare: baselines and the Δα0 ablation; grid: the IB and
     structure grids (Tables II, III); grid_sequences: how many training sequences the grid and
     comparison models see (None: all); ib_grid / structure_grid: what the grids cover."""
 
@@ -113,3 +115,41 @@ def get_scale(name: str) -> ReproScale:
     if name not in SCALES:
         raise CtrkinError(f"unknown scale {name!r}; choose one of {sorted(SCALES)}")
     return SCALES[name]
+
+
+Scale = Literal["full", "quick", "tiny"]
+Executor = Literal["local", "ray"]
+
+
+def _help(text: str) -> dict[str, str]:
+    """A field's metadata: its meaning, which is also its `ctrkin reproduce --help` text."""
+    return {"help": text}
+
+
+@dataclass(frozen=True)
+class ReproduceConfig:
+    """What a reproduction runs on (`ctrkin reproduce` has one option per field, ctrkin.cli.from_config)."""
+
+    scale: Scale = field(default="quick", metadata=_help(
+        "quick: ~12 min on 2 cores; full: the paper's protocol (~208k samples), batch 1024 with early "
+        "stopping (the paper: batch 32, up to 500 epochs), ~30 min on 2 cores; tiny: a smoke test of "
+        "every step."))
+    robot: str = field(default="paper", metadata=_help(
+        "Built-in robot name (paper, timclab) or path to a robot TOML file."))
+    robot_seed: int = field(default=0, metadata=_help("The virtual hardware draw."))
+    workers: int = field(default=2, metadata=_help(
+        "Models trained in parallel (one thread each); with --executor ray and no RAY_ADDRESS, the CPUs "
+        "of the local Ray instance."))
+    executor: Executor = field(default="local", metadata=_help(
+        "local: spawned processes; ray: one Ray task per training, on the cluster at RAY_ADDRESS or a "
+        "local instance (pip install 'ctrkin[ray]')."))
+    out: str = field(default="out/reproduce", metadata=_help(
+        "Output folder. A rerun with the same settings reuses its data and models; one with other "
+        "settings is refused unless --overwrite."))
+
+    def __post_init__(self) -> None:
+        get_scale(self.scale)
+        if self.executor not in get_args(Executor):
+            raise CtrkinError(f"executor must be one of {get_args(Executor)}, got {self.executor!r}")
+        if not isinstance(self.workers, int) or self.workers < 1:
+            raise CtrkinError(f"workers must be an integer >= 1, got {self.workers!r}")

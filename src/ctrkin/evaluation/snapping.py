@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ctrkin.pose import tip_azimuth
+from ctrkin.geometry import tip_azimuth
 
 SNAP_THRESHOLD_DEG = 10.0  # paper II.B: a snap is a step where T(L) changes by more than 10°
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ctrkin.evaluation.registration import Registration
+from ctrkin.geometry import Registration
 from ctrkin.mechanics import follow, solve
 from ctrkin.robots.robot import Robot
 from ctrkin.util.progress import progress_bar

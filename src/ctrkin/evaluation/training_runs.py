@@ -1,7 +1,7 @@
 """Every model a reproduction trains: the paper's LSTM-MLP FK and IK models, the snap-aware FK
 model (lstm_mlp_branch), the baselines and the Δα0 ablation (Fig. 5), and the input-buffer and
 structure grids (Tables II, III). The refined IK (the IK model refined on the snap-aware FK,
-ctrkin.inference.refine) is assembled from two trained folders, not trained.
+ctrkin.families.refined.refine) is assembled from two trained folders, not trained.
 
 All runs use the same by-sequence split of the paper dataset (saved in it), so every model is tested
 on the same held-out sequences. Grid and comparison models may see fewer training sequences
@@ -20,16 +20,12 @@ import numpy as np
 from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.executors import run_jobs
 from ctrkin.evaluation.scales import Budget, ReproScale
+from ctrkin.evaluation.table import ABLATION, BASELINES, FK_BRANCH, FK_PAPER, IK_FOLLOW, IK_PAPER, IK_REFINED
+from ctrkin.families.refined.folder import assemble_refined
 from ctrkin.inference import Kinematics
-from ctrkin.inference.refine_folder import assemble_refined
 from ctrkin.training.config import TrainConfig
-from ctrkin.training.loop import train
+from ctrkin.training.engine import train
 from ctrkin.util.progress import progress_bar
-
-BASELINES = ("mlp", "lstm", "cnn", "tcn", "resnet")
-ABLATION = "lstm_mlp_no_delta"
-FK_PAPER, FK_BRANCH = "fk_lstm_mlp", "fk_lstm_mlp_branch"
-IK_PAPER, IK_REFINED, IK_FOLLOW = "ik_lstm_mlp", "ik_lstm_mlp_refined", "ik_follow_mlp"
 
 
 @dataclass(frozen=True)
@@ -56,8 +52,8 @@ def plan_runs(scale: ReproScale) -> list[Run]:
         )
 
     runs = [
-        Run("fk_lstm_mlp", "main", cfg(scale.main, task="fk")),
-        Run("ik_lstm_mlp", "main", cfg(scale.main, task="ik")),
+        Run(FK_PAPER, "main", cfg(scale.main, task="fk")),
+        Run(IK_PAPER, "main", cfg(scale.main, task="ik")),
         Run(FK_BRANCH, "main", cfg(scale.branch, task="fk", model="lstm_mlp_branch")),
         Run(IK_FOLLOW, "main", cfg(scale.follow, task="ik", model="follow_mlp")),
     ]

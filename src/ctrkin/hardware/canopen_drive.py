@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from ctrkin.hardware import cia402 as c
+import ctrkin.hardware.cia402 as c
 from ctrkin.hardware.interfaces import Actuator, HardwareError
 from ctrkin.hardware.rig import Drive, RigDescription
 

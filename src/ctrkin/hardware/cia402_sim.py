@@ -23,7 +23,7 @@ from typing import Any
 
 import canopen
 
-from ctrkin.hardware import cia402 as c
+import ctrkin.hardware.cia402 as c
 
 LIMIT_FAULT = 0x8612   # CiA 402 "reference limit": a target beyond the software position limits
 

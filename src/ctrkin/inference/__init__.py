@@ -17,6 +17,6 @@ __all__ = ["IKResult", "IKStep", "Kinematics", "Workspace", "export_onnx"]
 if TYPE_CHECKING:   # imported on first use instead (ctrkin.util.lazy)
     from ctrkin.inference.kinematics import IKResult, IKStep, Kinematics
     from ctrkin.inference.onnx_export import export_onnx
-    from ctrkin.inference.workspace import Workspace
+    from ctrkin.models.workspace import Workspace
 
 __getattr__, __dir__ = lazy_attributes(__name__, __file__)

@@ -1,137 +1,21 @@
-"""Export a trained model to ONNX, normalisation included.
+"""Export a trained model to ONNX, normalisation included (the graph: ctrkin.models.onnx_graph).
 
     from ctrkin.inference import Kinematics, export_onnx
     export_onnx(Kinematics.load("models/fk"), "fk.onnx")
 
-The ONNX graph maps "window": (B, IB, F) float32 raw features (Kinematics.feature_windows: the
-layout's input_names, un-normalised, oldest step first) to "output": (B, O) float32 in user units
-(FK: tip pose with unit quaternion; IK: joints). Metadata props record the task, IB, feature and output
-names and the robot fingerprint. A snap-aware model (BranchNet) has a second input "state": (B,)
-float32, the previous branch state (0.5 at a sequence start), and a second output "state_out": the
-new one, to be fed back at the next step. The graph holds its learned gate: it predicts as
-`Kinematics.predict(..., gate="learned")`; the fold gate (ctrkin.models.fold_gate) is not exported.
-A model whose outer frame has a transmission lag (ctrkin.models.frame, outer_lag) has one more input
-"outer_lag_deg": (B,) float32, λ(β)·m_N: how far the outer tube lags its command (deg; 0 at rest,
-λ after a forward turn of the outer motor, −λ after a backward one); metadata "ctrkin.outer_lag_deg"
-holds (a, b) of λ = a + b·curved_overlap(β) (ctrkin.robots.overlap). A model that learned with
-lagged inputs (OuterFrame.lagged_inputs, every such model trained since) has no such input: its
-window's αN column is already the outer tube's angle αN − λ(β)·m_N (Kinematics.feature_windows), and
-"ctrkin.outer_lag_deg" holds (a, b) so that a caller can compute it; "ctrkin.lagged_inputs" says so.
+Each family says what its graph holds (a snap-aware model's state input, an outer lag input) or why
+it has none (the follow IK's joint state loops outside its network).
 """
 
 from __future__ import annotations
 
-import json
-import math
-import warnings
 from pathlib import Path
 
-import torch
-from torch import nn
-
-from ctrkin.errors import ModelError
 from ctrkin.inference.kinematics import Kinematics
-from ctrkin.models.branch import BranchNet
-from ctrkin.util.files import atomic_path
-
-
-class ExportWrapper(nn.Module):
-    """normalise -> network -> denormalise (-> unit quaternion for FK), all in float32."""
-
-    def __init__(self, kin: Kinematics) -> None:
-        super().__init__()
-        self.net = kin.net
-        f32 = lambda a: torch.tensor(a, dtype=torch.float32)  # noqa: E731
-        self.x_norm, self.y_norm = kin.bundle.x_norm.torch(), kin.bundle.y_norm.torch()
-        self.fk = kin.task == "fk"
-        self.frame = kin.frame is not None
-        # a lagged frame needs λ(β)·m_N as an input, unless the window's αN already is the frame's angle
-        self.lag = kin.frame is not None and kin.frame.has_lag and not kin.frame.lags_inputs
-        self.rot: torch.Tensor
-        self.trans: torch.Tensor
-        reg = kin.frame.registration if kin.frame is not None else None
-        self.register_buffer("rot", f32(reg.rotation if reg is not None else torch.eye(3).numpy()))
-        self.register_buffer("trans", f32(reg.translation if reg is not None else torch.zeros(3).numpy()))
-        n = kin.layout.n_tubes
-        self.alpha_col = 2 * (n - 1) if kin.layout.angle_encoding == "sincos" else n - 1
-        self.sincos = kin.layout.angle_encoding == "sincos"
-
-    def forward(self, window: torch.Tensor, *extra: torch.Tensor
-                ) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
-        """extra: the branch state (B,) of a branch model, then the outer lag λ(β)·m_N (B,) deg of a
-        frame with a lag (ctrkin.models.frame), in this order."""
-        x = self.x_norm.transform(window)
-        lag = extra[-1] if self.lag else None
-        if isinstance(self.net, BranchNet):
-            state = extra[0]
-            h = self.net.trunk(x)
-            new_state = (self.net.gate_logit(h, state) > 0).to(h.dtype)
-            return self._finish(self.net.head_out(h, new_state), window, lag), new_state
-        return self._finish(self.net(x), window, lag)
-
-    def _finish(self, yn: torch.Tensor, window: torch.Tensor, lag: torch.Tensor | None = None
-                ) -> torch.Tensor:
-        y = self.y_norm.inverse(yn)
-        if self.fk:
-            q = y[:, 3:6]
-            q = q / torch.linalg.vector_norm(q, dim=1, keepdim=True).clamp_min(1e-12)
-            if self.frame:      # outer-tube frame -> tracker frame (ctrkin.models.frame)
-                last = window[:, -1]
-                a = torch.atan2(last[:, self.alpha_col], last[:, self.alpha_col + 1]) if self.sincos \
-                    else last[:, self.alpha_col] * (math.pi / 180.0)
-                if lag is not None:
-                    a = a - lag * (math.pi / 180.0)
-                c, s = torch.cos(a), torch.sin(a)
-                w, qx, qy = q[:, 0], q[:, 1], q[:, 2]
-                tan = torch.stack([2 * w * qy, -2 * w * qx, 1 - 2 * (qx * qx + qy * qy)], 1)
-                pos, tan = (torch.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], 1)
-                            for v in (y[:, :3], tan))
-                pos, tan = pos @ self.rot.T + self.trans, tan @ self.rot.T
-                q = torch.stack([1.0 + tan[:, 2], -tan[:, 1], tan[:, 0]], 1)   # geometry.quat_from_tangent
-                q = q / torch.linalg.vector_norm(q, dim=1, keepdim=True).clamp_min(1e-12)
-                return torch.cat([pos, q], 1)
-            y = torch.cat([y[:, :3], q], 1)
-        return y
 
 
 def export_onnx(kin: Kinematics, path: str | Path, opset: int = 17) -> Path:
     """Write `kin` as an ONNX file (dynamic batch size); returns the path."""
-    import onnx
-
-    if kin.layout.follow:
-        raise ModelError("a follow IK (follow_mlp) cannot be exported: its state (the robot's joints) "
-                         "and sub-steps loop outside the network; use Kinematics.step")
-    wrapper = ExportWrapper(kin).eval()
-    example: tuple[torch.Tensor, ...] = (torch.zeros(2, kin.ib, kin.layout.n_inputs),)
-    names, outputs = ["window"], ["output"]
-    axes = {"window": {0: "batch"}, "output": {0: "batch"}}
-    if isinstance(kin.net, BranchNet):
-        example += (torch.full((2,), 0.5),)
-        names.append("state")
-        outputs.append("state_out")
-        axes.update({"state": {0: "batch"}, "state_out": {0: "batch"}})
-    if wrapper.lag:
-        example += (torch.zeros(2),)
-        names.append("outer_lag_deg")
-        axes["outer_lag_deg"] = {0: "batch"}
     out = Path(path)
-    with atomic_path(out) as tmp:
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")   # legacy-exporter deprecation, tracer and LSTM notes
-                torch.onnx.export(wrapper, example, str(tmp), input_names=names, output_names=outputs,
-                                  opset_version=opset, dynamo=False, dynamic_axes=axes)
-        except Exception as e:  # the exporter raises many types
-            raise ModelError(f"ONNX export failed for model {kin.config.model!r}: {e}") from None
-        model = onnx.load(str(tmp))
-        meta = {"task": kin.task, "ib": str(kin.ib), "input_names": json.dumps(list(kin.layout.input_names)),
-                "output_names": json.dumps(list(kin.layout.output_names)),
-                "robot_fingerprint": kin.robot.fingerprint(), "model": kin.config.model}
-        if kin.frame is not None and kin.frame.has_lag:
-            meta["outer_lag_deg"] = json.dumps(list(kin.frame.lag))   # λ = a + b·overlap(β), deg
-            meta["lagged_inputs"] = json.dumps(kin.frame.lags_inputs)
-        for k, v in meta.items():
-            p = model.metadata_props.add()
-            p.key, p.value = f"ctrkin.{k}", v
-        onnx.save(model, str(tmp))
+    kin.predictor.export_onnx(out, opset)
     return out

@@ -24,8 +24,7 @@ import torch
 from torch import nn
 
 from ctrkin.errors import ModelError
-from ctrkin.models.branch import UNKNOWN_STATE, BranchNet
-from ctrkin.models.seqnet import SeqNet
+from ctrkin.models.seqnet import UNKNOWN_STATE, SeqNet
 
 _LN2_HI, _LN2_LO, _INV_LN2 = 0.693147180369123816490, 1.90821492927058770002e-10, 1.4426950408889634
 
@@ -62,7 +61,7 @@ def _lstm_rows(inp: np.ndarray, shared: bool, w_ih: np.ndarray, w_hh: np.ndarray
     inp: (R, in) inputs (row 0 only if `shared`); h_prev, c_prev: (R, H) chain states, row j is the
     chain that becomes row j+1; row 0 of the result starts from zero state. The result is computed
     in h_new, c_new (scratch) and copied back into h_prev, c_prev, so the state arrays keep their
-    identity (the fused FK step, ctrkin.inference.fused, holds them).
+    identity (the fused FK step, ctrkin.models.fused, holds them).
     w_ih, w_hh, b have the cell-candidate rows doubled, so that tanh(g) = 2·σ(2g) − 1 comes out of
     one sigmoid pass over all gates. Scratch: g (R, 4H), t (R, H), bits (R·4H,) int64.
     """
@@ -184,14 +183,13 @@ class StreamingEngine:
                 assert isinstance(layer, nn.Linear)
                 self.seq.append(("dense", (_f64(layer.weight), _f64(layer.bias))))
                 width = layer.out_features
-        self.head = [(_f64(lin.weight), _f64(lin.bias)) for lin in net.head]
-        self.out = (_f64(net.out.weight), _f64(net.out.bias))
-        # a BranchNet: the gate MLP, and the state appended to the first layer after pooling
-        self.gate, self.heads = [], [(self.head, self.out)]
-        if isinstance(net, BranchNet):
-            self.gate = [(_f64(lin.weight), _f64(lin.bias)) for lin in net.gate]
-            self.heads.append(([(_f64(lin.weight), _f64(lin.bias)) for lin in net.head1],
-                               (_f64(net.out1.weight), _f64(net.out1.bias))))
+        # one head per state of a net that carries one (SeqNet.heads), and its gate MLP on the trunk
+        # features with the previous state appended (SeqNet.gate_layers)
+        self.heads = [([(_f64(lin.weight), _f64(lin.bias)) for lin in head],
+                       (_f64(out.weight), _f64(out.bias))) for head, out in net.heads()]
+        self.head, self.out = self.heads[0]
+        gate = net.gate_layers()
+        self.gate = [] if gate is None else [(_f64(lin.weight), _f64(lin.bias)) for lin in gate]
         self.state = UNKNOWN_STATE
         ib = self.ib
         self._h = [np.zeros((ib, w[1].shape[1])) if kind == "lstm" else np.zeros(0)
@@ -218,8 +216,8 @@ class StreamingEngine:
 
     def step(self, x: np.ndarray, state: float | None = None) -> np.ndarray:
         """x: (F,) normalised features of the current step -> (O,) normalised outputs. state: a
-        BranchNet's branch state from outside (the fold gate, ctrkin.models.fold_gate) in place of
-        its learned gate's."""
+        state-carrying net's state from outside (a snap-aware model's fold gate) in place of its
+        learned gate's."""
         self._x[0, :] = x
         if self._fresh:
             self._fresh = False
@@ -302,7 +300,7 @@ class StreamingEngine:
         return y, states
 
     def _head(self, h: np.ndarray, state: float | None = None) -> np.ndarray:
-        """h: (1, W) trunk features -> (O,) outputs; a BranchNet first updates its state (from its
+        """h: (1, W) trunk features -> (O,) outputs; a net with a state first updates it (from its
         gate, or to `state` when given)."""
         head, out = self.head, self.out
         if self.gate and state is not None:

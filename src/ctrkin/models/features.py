@@ -21,6 +21,7 @@ cross a sequence boundary: the start of a sequence is padded by repeating its fi
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -40,7 +41,7 @@ class FeatureLayout:
     task: "fk" (joints -> tip pose) or "ik" (tip poses -> joints); n_tubes: N; ib: input buffer length
     (current + IB−1 previous steps, 1..5 in the paper); delta: include Δα0 (FK) or the pose deltas (IK);
     angle_encoding: "minmax" (paper), "sincos" or "phase" (FK inputs only; module docstring);
-    follow: IK only, the follow IK of ctrkin.models.follow (inputs: the target in the frame of the
+    follow: IK only, the follow IK of ctrkin.families.follow.features (inputs: the target in the frame of the
     current outer tube, its step change and the current joints; outputs: the joint change).
     """
 
@@ -66,7 +67,7 @@ class FeatureLayout:
             raise ModelError(f"angle_encoding={self.angle_encoding!r} applies to FK inputs only; use "
                              "'minmax' for IK")
         if self.follow and (self.task != "ik" or self.ib != 1):
-            raise ModelError("follow=True is an IK layout with input buffer 1 (ctrkin.models.follow)")
+            raise ModelError("follow=True is an IK layout with input buffer 1 (ctrkin.families.follow)")
         n = self.n_tubes
         alphas, betas = alpha_names(n), beta_names(n)
         if self.task == "fk":
@@ -103,6 +104,13 @@ class FeatureLayout:
     def raw_width(self) -> int:
         """Columns of the raw per-step input: joints (2N) for FK, poses (6) for IK."""
         return 2 * self.n_tubes if self.task == "fk" else 6
+
+    @property
+    def raw_names(self) -> tuple[str, ...]:
+        """Names of the raw per-step input's columns, in order: the dataset's joint columns
+        (alpha_1..alpha_N, beta_1..beta_N) for FK, its pose columns (x, y, z, q0, qx, qy) for IK."""
+        n = self.n_tubes
+        return (*alpha_names(n), *beta_names(n)) if self.task == "fk" else tuple(POSE_NAMES)
 
     def to_dict(self) -> dict[str, object]:
         return {"task": self.task, "n_tubes": self.n_tubes, "ib": self.ib, "delta": self.delta,
@@ -169,7 +177,7 @@ def delta_columns(layout: FeatureLayout) -> np.ndarray:
 
 def _features(layout: FeatureLayout, cur: np.ndarray, prev: np.ndarray) -> np.ndarray:
     if layout.follow:
-        raise ModelError("a follow IK's features depend on the current joints: see ctrkin.models.follow")
+        raise ModelError("a follow IK's features depend on the current joints: see ctrkin.families.follow")
     n = layout.n_tubes
     if layout.task == "ik":
         cols = [cur] + ([cur - prev] if layout.delta else [])
@@ -192,13 +200,42 @@ def _features(layout: FeatureLayout, cur: np.ndarray, prev: np.ndarray) -> np.nd
     return np.concatenate(cols_, axis=1)
 
 
-def check_raw(layout: FeatureLayout, raw: np.ndarray) -> np.ndarray:
-    """Validate a raw (T, 2N) joint or (T, 6) pose array for this layout."""
-    if np.iscomplexobj(raw):
+def real_array(x: Any) -> np.ndarray:
+    """x as a float64 array; complex values are refused (ModelError), not truncated to their real part,
+    and so is anything that is not an array of numbers (a ragged list)."""
+    try:
+        complex_ = bool(np.iscomplexobj(x))
+        arr = None if complex_ else np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise ModelError(f"model inputs must be an array of numbers (equal-length rows): {e}") from None
+    if arr is None:
         raise ModelError("model inputs must be real numbers, got complex values")
-    arr = np.asarray(raw, dtype=np.float64)
+    return arr
+
+
+def by_name(x: Any, names: tuple[str, ...], what: str) -> Any:
+    """x with its columns in the order `names` where x labels them (a pandas DataFrame's column
+    names, a Series' index: `df.iloc[t]`), so that labelled inputs are read by name, never by
+    position; x unchanged where it carries no text labels (an array, a list, a frame built from an
+    array). A labelled x that lacks some of `names` is refused (ModelError naming them)."""
+    if type(x).__module__.partition(".")[0] != "pandas":
+        return x
+    labels = list(x.columns if getattr(x, "ndim", 1) == 2 else x.index)
+    if not labels or not all(isinstance(c, str) for c in labels):
+        return x
+    missing = [c for c in names if c not in labels]
+    if missing:
+        raise ModelError(f"the {what} lack the column(s) {missing} (got {labels}); a model reads its "
+                         f"inputs {list(names)} by name")
+    return x[list(names)]
+
+
+def check_raw(layout: FeatureLayout, raw: Any) -> np.ndarray:
+    """Validate a raw (T, 2N) joint or (T, 6) pose array for this layout (a pandas DataFrame is read
+    by its column names, `by_name`)."""
     what = f"joints (α1..α{layout.n_tubes} deg, β1..β{layout.n_tubes} mm)" if layout.task == "fk" \
         else "tip poses (x, y, z mm, q0, qx, qy)"
+    arr = real_array(by_name(raw, layout.raw_names, what))
     if arr.ndim != 2 or arr.shape[1] != layout.raw_width:
         raise ModelError(f"this {layout.task.upper()} model expects {what}: an array (T, "
                          f"{layout.raw_width}), got shape {arr.shape}")

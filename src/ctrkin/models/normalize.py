@@ -18,10 +18,14 @@ from ctrkin.errors import ModelError
 
 @dataclass(frozen=True, eq=False)
 class MinMax:
-    """x_n = (x − lo) / span per column. A constant column (span 0) gets span 1, so it maps to 0."""
+    """x_n = (x − lo) / span per column. A constant column (span 0) gets span 1, so it maps to 0.
+
+    data_hi, where known (fitted since 0.2), is each column's training maximum: the range the data
+    had, [lo, data_hi], which span cannot give for a constant column."""
 
     lo: np.ndarray
     span: np.ndarray
+    data_hi: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         lo = np.asarray(self.lo, dtype=np.float64).ravel()
@@ -30,6 +34,16 @@ class MinMax:
             raise ModelError("MinMax needs finite lo and positive span of equal length")
         object.__setattr__(self, "lo", lo)
         object.__setattr__(self, "span", span)
+        if self.data_hi is not None:
+            hi = np.asarray(self.data_hi, dtype=np.float64).ravel()
+            if hi.shape != lo.shape or not np.all(np.isfinite(hi)) or np.any(hi < lo):
+                raise ModelError("MinMax data_hi must be finite, of lo's length and not below lo")
+            object.__setattr__(self, "data_hi", hi)
+
+    def trained_range(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) of the training data per column; a folder from before 0.2 gives lo + span, which
+        is one unit too wide for a column that was constant."""
+        return self.lo, self.lo + self.span if self.data_hi is None else self.data_hi
 
     @classmethod
     def fit(cls, x: np.ndarray) -> MinMax:
@@ -40,7 +54,7 @@ class MinMax:
                              f"split is empty?")
         lo, hi = x.min(axis=0), x.max(axis=0)
         span = hi - lo
-        return cls(lo, np.where(span > 1e-12, span, 1.0))
+        return cls(lo, np.where(span > 1e-12, span, 1.0), hi)
 
     @property
     def hi(self) -> np.ndarray:
@@ -56,19 +70,23 @@ class MinMax:
 
     def subset(self, columns: slice | np.ndarray) -> MinMax:
         """The normaliser of some of the columns (e.g. the pose inputs of an IK model)."""
-        return MinMax(self.lo[columns], self.span[columns])
+        return MinMax(self.lo[columns], self.span[columns],
+                      None if self.data_hi is None else self.data_hi[columns])
 
     def torch(self) -> TorchMinMax:
         """The same step as a torch module (float32 buffers), for exported graphs."""
         return TorchMinMax(self)
 
     def to_dict(self) -> dict[str, list[float]]:
-        return {"lo": self.lo.tolist(), "span": self.span.tolist()}
+        d = {"lo": self.lo.tolist(), "span": self.span.tolist()}
+        return d if self.data_hi is None else {**d, "data_hi": self.data_hi.tolist()}
 
     @classmethod
     def from_dict(cls, d: dict) -> MinMax:
         try:
-            return cls(np.array(d["lo"], dtype=np.float64), np.array(d["span"], dtype=np.float64))
+            hi = d.get("data_hi")
+            return cls(np.array(d["lo"], dtype=np.float64), np.array(d["span"], dtype=np.float64),
+                       None if hi is None else np.array(hi, dtype=np.float64))
         except KeyError as e:
             raise ModelError(f"normalisation entry lacks {e}") from None
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ctrkin.metrics import wrap_deg
 from ctrkin.robots.overlap import curved_overlap, curved_overlap_one
 from ctrkin.robots.robot import Robot
 
@@ -106,7 +107,7 @@ def _pair_lags(phi: np.ndarray, ang: np.ndarray, m: int, lam: float, rest: np.nd
         w = (target - phi[lo]) / span if span > 1e-9 else 0.0
         a_hi = ang[lo] + (ang[hi] - ang[lo] + 180.0) % 360.0 - 180.0
         a_p = (1.0 - w) * ang[lo] + w * a_hi
-        diff = (a_p - ang[r] + 180.0) % 360.0 - 180.0
+        diff = float(wrap_deg(a_p - ang[r]))
         out.append(-diff / m)
     return out
 

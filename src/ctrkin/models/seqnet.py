@@ -36,6 +36,7 @@ STRUCTURES = {
     "S5": "L128,D64,L32|",
 }
 _LAYER = re.compile(r"^([LD])(\d+)$")
+UNKNOWN_STATE = 0.5     # the previous state of a net that carries one, at a sequence start
 
 
 @dataclass(frozen=True)
@@ -117,3 +118,13 @@ class SeqNet(KinematicsNet):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.head_out(self.trunk(x))
+
+    def heads(self) -> list[tuple[nn.ModuleList, nn.Linear]]:
+        """The heads after the trunk, each its Dense ReLU layers and output layer: one here; a net
+        that carries a state has one per state (the streaming engine runs each, ctrkin.models.engine)."""
+        return [(self.head, self.out)]
+
+    def gate_layers(self) -> nn.ModuleList | None:
+        """The gate MLP of a net that carries a state: (trunk features, previous state) -> logit of
+        state 1; None here."""
+        return None

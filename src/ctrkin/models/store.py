@@ -14,7 +14,7 @@
     manifest.json       SHA-256 of every file above but the checkpoint: loading refuses files that
                         were not written together (ctrkin.util.folders)
 
-Training builds the folder aside and swaps it in whole (ctrkin.training.loop). weights.pt is
+Training builds the folder aside and swaps it in whole (ctrkin.training.engine). weights.pt is
 byte-identical for equal weights (the archive is written from memory, so it stores no file name).
 """
 
@@ -24,22 +24,22 @@ import io
 import json
 import pickle
 import zipfile
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import torch
 
-from ctrkin import __version__
 from ctrkin.errors import ModelError
 from ctrkin.models.base import KinematicsNet
 from ctrkin.models.features import FeatureLayout
 from ctrkin.models.frame import OuterFrame
 from ctrkin.models.normalize import MinMax
-from ctrkin.models.registry import build_model
 from ctrkin.robots.robot import Robot
 from ctrkin.util.files import atomic_write_bytes, atomic_write_text
 from ctrkin.util.folders import check_manifest, reading_folder, write_manifest
+from ctrkin.version import __version__
 
 CONFIG, FEATURES, NORMALIZATION, ROBOT, WEIGHTS = ("config.json", "features.json", "normalization.json",
                                                    "robot.json", "weights.pt")
@@ -108,6 +108,9 @@ class ModelConfig:
         return self.to_dict().get(key, default)
 
 
+NetBuilder = Callable[[ModelConfig, FeatureLayout], KinematicsNet]   # a fresh network by registry name
+
+
 @dataclass(eq=False)
 class ModelBundle:
     """A network with the layout, normalisation and robot it was trained for.
@@ -129,13 +132,12 @@ class ModelBundle:
     @classmethod
     def create(cls, config: ModelConfig | dict[str, Any], layout: FeatureLayout, x_norm: MinMax,
                y_norm: MinMax, robot: Robot, extra: dict[str, Any] | None = None,
-               frame: OuterFrame | None = None) -> ModelBundle:
-        """A fresh network (seed torch first) for this configuration (a dict: TrainConfig.to_dict())."""
+               frame: OuterFrame | None = None, *, build: NetBuilder) -> ModelBundle:
+        """A fresh network (seed torch first) for this configuration (a dict: TrainConfig.to_dict()),
+        made by `build` (the registry's, ctrkin.families.registry.build_net)."""
         if not isinstance(config, ModelConfig):
             config = ModelConfig.from_dict(config)
-        net = build_model(config.model, layout.n_inputs, layout.n_outputs, layout.ib,
-                          config.output_activation, config.options)
-        return cls(config, layout, x_norm, y_norm, robot, net, dict(extra or {}), frame)
+        return cls(config, layout, x_norm, y_norm, robot, build(config, layout), dict(extra or {}), frame)
 
     def save(self, folder: str | Path) -> Path:
         out = Path(folder)
@@ -154,12 +156,15 @@ class ModelBundle:
         return out
 
     @classmethod
-    def load(cls, folder: str | Path) -> ModelBundle:
-        with reading_folder(folder) as src:     # one version, never a mix (ctrkin.util.folders)
-            return cls._load(src)
+    def load(cls, folder: str | Path, build: NetBuilder) -> ModelBundle:
+        """The model folder `folder`, its network made by `build` (the registry's,
+        ctrkin.families.registry.build_net: open_bundle) and given the stored weights, read as one
+        version while another process may replace it (ctrkin.util.folders)."""
+        with reading_folder(folder) as src:     # one version, never a mix
+            return cls._load(src, build)
 
     @classmethod
-    def _load(cls, src: Path) -> ModelBundle:
+    def _load(cls, src: Path, build: NetBuilder) -> ModelBundle:
         missing = [f for f in REQUIRED if not (src / f).is_file()]
         if missing:
             raise ModelError(f"{src} is not a trained ctrkin model folder: missing {missing} "
@@ -186,7 +191,7 @@ class ModelBundle:
             if not (src / FRAME).is_file():
                 raise ModelError(f"{src} learned poses in the outer tube's frame but lacks {FRAME}")
             frame = OuterFrame.from_dict(read_json(src / FRAME))
-        bundle = cls.create(config, layout, x_norm, y_norm, robot, cfg_file, frame)
+        bundle = cls.create(config, layout, x_norm, y_norm, robot, cfg_file, frame, build=build)
         try:
             state = torch.load(src / WEIGHTS, map_location="cpu", weights_only=True)
             bundle.net.load_state_dict(state)

@@ -18,6 +18,10 @@ from ctrkin.errors import RobotDescriptionError
 OD_RANGE_MM = (1e-3, 100.0)
 MAX_LENGTH_MM = 10_000.0        # 10 m, per tube and per section
 MAX_CURVATURE_PER_MM = 10.0     # a 0.1 mm bending radius
+# precurvature strain |κ|·od/2 at the outer wall (|κ| = √(κx² + κy²) of a section): superelastic
+# nitinol recovers about 8-10 %, so a tube set beyond 20 % cannot exist (and coils that tight make
+# every solve spend its work bound)
+MAX_STRAIN = 0.2
 YOUNGS_RANGE_GPA = (1e-3, 1e3)
 # precurvature sections per tube: a measured profile at 0.1 mm over a 1 m tube; every section is a
 # stretch of the solver's grid, so this also bounds the work of one integration pass
@@ -189,6 +193,13 @@ class Tube:
         if self.length <= 0:
             raise RobotDescriptionError("Tube must have a positive total length "
                                         "(straight_length + curved_length > 0)")
+        kappa = max(math.hypot(s.curvature, s.curvature_y) for s in self.sections)   # |û| = √(κx² + κy²)
+        if kappa * self.od / 2 > MAX_STRAIN * (1 + 1e-9):      # at the bound itself, round-off passes
+            raise RobotDescriptionError(
+                f"Tube precurvature {kappa:g} 1/mm on an outer diameter of {self.od:g} mm strains its wall "
+                f"by {kappa * self.od / 2:.0%}; a nitinol tube recovers about 8-10 % and none holds more "
+                f"than {MAX_STRAIN:.0%} (curvature <= {2 * MAX_STRAIN / self.od:.3g} 1/mm for this "
+                "diameter): check the units (1/mm) and the diameter (mm)")
 
     @classmethod
     def from_sections(cls, od: float, id: float,

@@ -51,7 +51,7 @@ class TrainConfig:
     task: Task = field(default="fk", metadata=_help(
         "fk: forward kinematics (joints -> tip pose); ik: inverse (tip poses -> joints)."))
     model: str = field(default="lstm_mlp", metadata=_help(
-        "Registry name (ctrkin.models.MODELS; `ctrkin train --list-models`)."))
+        "Registry name (ctrkin.families.registry.MODELS; `ctrkin train --list-models`)."))
     options: dict[str, Any] = field(default_factory=dict, metadata=_help(
         "Model options, e.g. {'structure': 'S3'} (`ctrkin train --structure S3`, `--option KEY=VALUE`)."))
     ib: int = field(default=2, metadata=_help(
@@ -87,13 +87,12 @@ class TrainConfig:
     lr_schedule: LrSchedule = field(default="constant", metadata=_help(
         "constant (paper) or cosine decay to lr/50 over max_epochs."))
     gate_weight: float = field(default=0.1, metadata=_help(
-        "Branch models only (ctrkin.models.branch): weight of the gate's cross-entropy beside the MAE "
-        "loss."))
+        "Branch models only (ctrkin.families.snap_aware): weight of the gate's cross-entropy beside "
+        "the MAE loss."))
     unknown_prob: float = field(default=0.1, metadata=_help(
         "Branch models only: how often the previous branch state is hidden in training."))
     follow: bool = field(default=False, metadata=_help(
-        "The follow IK (ctrkin.models.follow, trained by ctrkin.training.follow); model follow_mlp sets "
-        "it."))
+        "The follow IK's feature layout (ctrkin.families.follow); model follow_mlp sets it."))
     loop: Loop = field(default="epoch", metadata=_help(
         "epoch: one gather of the shuffled training tensors per epoch, fused Adam (the per-batch work "
         "is the network alone); batch: the loop up to issue 11, index gathers and a plain Adam step per "
@@ -110,7 +109,7 @@ class TrainConfig:
     def __post_init__(self) -> None:
         # the registry (torch, the networks) and the feature layout are imported here, not with the
         # module: `ctrkin train --help` reads this class and should not wait for torch
-        from ctrkin.models.registry import get_entry, resolve_options
+        from ctrkin.families.registry import get_entry, resolve_options
 
         if self.task not in ("fk", "ik"):
             raise ModelError(f"task must be 'fk' or 'ik', got {self.task!r}")

@@ -110,7 +110,7 @@ KINDS: dict[str, Kind] = {k.name: k for k in [
 
 def write_marker(folder: Path, kind: str, **extra: object) -> None:
     """Mark `folder` as a ctrkin output of `kind` (extra: settings to keep with it)."""
-    from ctrkin import __version__
+    from ctrkin.version import __version__
 
     if kind not in KINDS:
         raise ValueError(f"unknown output kind {kind!r}")

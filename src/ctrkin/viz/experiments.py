@@ -24,33 +24,12 @@ def _save(fig: plt.Figure, path: str | Path) -> None:
     plt.close(fig)
 
 
-# readable names of the results' predictor keys (figures, report.md)
-LABELS = {
-    "lstm_mlp_paper": "LSTM-MLP (paper)",
-    "lstm_mlp_branch": "snap-aware LSTM-MLP",
-    "lstm_mlp_branch_tcm_gate": "snap-aware, TCM-gated",
-    "lstm_mlp_branch_learned_gate": "snap-aware, learned gate",
-    "lstm_mlp_no_delta": "LSTM-MLP without Δα0",
-    "lstm_mlp_refined": "LSTM-MLP IK refined on the FK",
-    "follow_mlp": "follow IK",
-    "mlp": "MLP", "lstm": "LSTM", "cnn": "CNN", "tcn": "TCN", "resnet": "ResNet",
-    "tcm": "TCM (point-wise)",
-    "tcm_continued": "TCM (continued)",
-    "tcm_calibrated": "calibrated TCM (point-wise)",
-    "tcm_calibrated_continued": "calibrated TCM with friction (continued)",
-}
-
-# T(L) curves of sweeps_figure, drawn in this order (the recommended model last, on top): panel key
-# -> (label, colour, kind, size). kind
-# "points": markers, filled forward and open backward; "line": solid forward, dashed backward.
-TURN_CURVES = {
-    "measured": ("measured", MEAS, "points", 2.5),
-    "tcm": (LABELS["tcm"], TCM, "points", 1.5),
-    "truth": ("truth", TRUE, "line", 1.2),
-    "tcm_continued": (LABELS["tcm_continued"], "tab:green", "line", 0.9),
-    "lstm_mlp_paper": (LABELS["lstm_mlp_paper"], "tab:orange", "line", 1.0),
-    "lstm_mlp_branch": (LABELS["lstm_mlp_branch"], MODEL, "line", 1.3),
-}  # the gate ablations of the snap-aware model are scored in report.md, not drawn (too many lines)
+# T(L) curves of sweeps_figure: panel key -> (label, colour, kind, size); kind "points": markers,
+# filled forward and open backward; "line": solid forward, dashed backward. The predictors' curves
+# come from the report's table (ctrkin.evaluation.table.Row.curve); these two are the data's.
+MEASURED_CURVE = ("measured", MEAS, "points", 2.5)
+TRUTH_CURVE = ("truth", TRUE, "line", 1.2)
+Curves = dict[str, tuple[str, str, str, float]]
 
 
 def _directions(a0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -70,7 +49,7 @@ def _stretch(y: np.ndarray, keep: np.ndarray, brk: np.ndarray) -> np.ndarray:
     return np.insert(out, starts[starts > 0], np.nan)
 
 
-def _turn_axes(ax: plt.Axes, p: dict) -> None:
+def _turn_axes(ax: plt.Axes, p: dict, curves: Curves) -> None:
     """One panel of sweeps_figure (see there)."""
     a0 = np.asarray(p["alpha0"], float)
     fw, brk = _directions(a0)
@@ -78,7 +57,7 @@ def _turn_axes(ax: plt.Axes, p: dict) -> None:
     # leave it a turn away; the curves keep their relative positions)
     ref = np.asarray(p.get("measured", p.get("truth", np.zeros(1))), float)
     shift = 360.0 * np.round(np.nanmedian(ref) / 360.0) if np.isfinite(ref).any() else 0.0
-    for key, (_label, colour, kind, size) in TURN_CURVES.items():
+    for key, (_label, colour, kind, size) in curves.items():
         if p.get(key) is None:
             continue
         y = np.asarray(p[key], float) - shift
@@ -97,12 +76,12 @@ def _turn_axes(ax: plt.Axes, p: dict) -> None:
     ax.grid(alpha=0.3)
 
 
-def _turn_legend(fig: plt.Figure, keys: set[str]) -> None:
+def _turn_legend(fig: plt.Figure, keys: set[str], curves: Curves) -> None:
     """One legend for all panels: every curve drawn, the two directions, and the snap marker."""
     from matplotlib.lines import Line2D
 
     handles = []
-    for key, (label, colour, kind, _size) in TURN_CURVES.items():
+    for key, (label, colour, kind, _size) in curves.items():
         if key in keys:
             handles.append(Line2D([], [], color=colour, marker="o" if kind == "points" else None,
                                   ls="none" if kind == "points" else "-", ms=5, lw=1.5, label=label))
@@ -113,21 +92,22 @@ def _turn_legend(fig: plt.Figure, keys: set[str]) -> None:
     fig.legend(handles=handles, loc="lower center", ncol=min(6, len(handles)), fontsize=7, frameon=False)
 
 
-def sweeps_figure(panels: Sequence[dict], path: str | Path) -> None:
+def sweeps_figure(panels: Sequence[dict], path: str | Path, curves: Curves) -> None:
     """Fig. 10a: T(L) against α0 for each relative translation (or each turn). panels: dicts with
-    `label`, `alpha0` (T,) deg, any of the TURN_CURVES keys as (T,) T(L) in deg, `snaps` (T,) bool.
+    `label`, `alpha0` (T,) deg, any of the keys of `curves` as (T,) T(L) in deg, `snaps` (T,) bool;
+    curves: key -> (label, colour, kind, size), drawn in this order (the last on top).
     The direction of rotation is read from α0: forward solid / filled, backward dashed / open."""
     n = len(panels)
     cols = min(n, 3)
     rows = -(-n // cols)
     fig, axes = plt.subplots(rows, cols, figsize=(4.6 * cols, 3.6 * rows + 1.0), squeeze=False)
     for ax, p in zip(axes.flat, panels, strict=False):
-        _turn_axes(ax, p)
+        _turn_axes(ax, p, curves)
     for ax in list(axes.flat)[n:]:
         ax.set_visible(False)
     for ax in axes[:, 0]:
         ax.set_ylabel("T(L) (deg)")
-    _turn_legend(fig, {k for p in panels for k in TURN_CURVES if p.get(k) is not None})
+    _turn_legend(fig, {k for p in panels for k in curves if p.get(k) is not None}, curves)
     fig.tight_layout(rect=(0, 0.1 if rows == 1 else 0.06, 1, 1))
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=110, format="png")
@@ -135,11 +115,11 @@ def sweeps_figure(panels: Sequence[dict], path: str | Path) -> None:
 
 
 def points_figure(measured: np.ndarray, model: np.ndarray, tcm: np.ndarray, path: str | Path,
-                  title: str = "Random points", model_label: str = LABELS["lstm_mlp_branch"]) -> None:
+                  title: str = "Random points", model_label: str = "model", tcm_label: str = "TCM") -> None:
     """Fig. 10b: target points (x–y and x–z views, numbered) and per-point position errors."""
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.8))
     for ax, (i, j, lab) in zip(axes[:2], [(0, 1, "x–y"), (0, 2, "x–z")], strict=True):
-        ax.plot(tcm[:, i], tcm[:, j], "s", color=TCM, mfc="none", label=LABELS["tcm"])
+        ax.plot(tcm[:, i], tcm[:, j], "s", color=TCM, mfc="none", label=tcm_label)
         ax.plot(measured[:, i], measured[:, j], "o", color=MEAS, label="measured")
         ax.plot(model[:, i], model[:, j], "+", color=MODEL, ms=9, label=model_label)
         for num, p in enumerate(measured, start=1):
@@ -151,7 +131,7 @@ def points_figure(measured: np.ndarray, model: np.ndarray, tcm: np.ndarray, path
     axes[0].legend(fontsize=7)
     k = np.arange(1, len(measured) + 1)
     axes[2].bar(k - 0.2, np.linalg.norm(tcm[:, :3] - measured[:, :3], axis=1), 0.4, color=TCM,
-                label=LABELS["tcm"])
+                label=tcm_label)
     axes[2].bar(k + 0.2, np.linalg.norm(model[:, :3] - measured[:, :3], axis=1), 0.4, color=MODEL,
                 label=model_label)
     axes[2].set_xlabel("point")
@@ -162,11 +142,11 @@ def points_figure(measured: np.ndarray, model: np.ndarray, tcm: np.ndarray, path
 
 
 def trajectory_figure(measured: np.ndarray, model: np.ndarray, tcm: np.ndarray, path: str | Path,
-                      model_label: str = LABELS["lstm_mlp_branch"]) -> None:
+                      model_label: str = "model", tcm_label: str = "TCM") -> None:
     """Fig. 10c: the arbitrary path (x–y and x–z) and the distribution of position errors."""
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.8))
     for ax, (i, j) in zip(axes[:2], [(0, 1), (0, 2)], strict=True):
-        ax.plot(tcm[:, i], tcm[:, j], "-", color=TCM, lw=1, label=LABELS["tcm"])
+        ax.plot(tcm[:, i], tcm[:, j], "-", color=TCM, lw=1, label=tcm_label)
         ax.plot(measured[:, i], measured[:, j], "-", color=MEAS, lw=2, label="measured")
         ax.plot(model[:, i], model[:, j], "-", color=MODEL, lw=1, label=model_label)
         ax.set_xlabel("xyz"[i] + " (mm)")
@@ -177,7 +157,7 @@ def trajectory_figure(measured: np.ndarray, model: np.ndarray, tcm: np.ndarray, 
     e_mod = np.linalg.norm(model[:, :3] - measured[:, :3], axis=1)
     top = float(np.nanmax(np.r_[e_tcm, e_mod, 1.0]))
     bins = np.linspace(0, top, 40)
-    axes[2].hist(e_tcm, bins, color=TCM, alpha=0.5, density=True, label=LABELS["tcm"])
+    axes[2].hist(e_tcm, bins, color=TCM, alpha=0.5, density=True, label=tcm_label)
     axes[2].hist(e_mod, bins, color=MODEL, alpha=0.6, density=True, label=model_label)
     axes[2].set_xlabel("position error (mm)")
     axes[2].set_ylabel("density")
@@ -246,14 +226,15 @@ def ik_path_figure(targets: np.ndarray, reached_fk: np.ndarray, reached_robot: n
 
 
 def grouped_bars(groups: Sequence[str], series: dict[str, Sequence[float]], ylabel: str,
-                 path: str | Path, title: str) -> None:
-    """Fig. 5: one bar per series in each group (e.g. models × relative translation levels)."""
+                 path: str | Path, title: str, colours: dict[str, str] | None = None) -> None:
+    """Fig. 5: one bar per series in each group (e.g. models × relative translation levels); series:
+    legend label -> values per group; colours: label -> colour where not the cycle's (the TCM's)."""
     fig, ax = plt.subplots(figsize=(min(11, max(6, 0.3 * len(groups) * max(1, len(series)))), 3.8))
     w = 0.8 / max(1, len(series))
     x = np.arange(len(groups))
     for k, (name, vals) in enumerate(series.items()):
-        ax.bar(x + (k - (len(series) - 1) / 2) * w, vals, w, label=LABELS.get(name, name),
-               color=TCM if name == "tcm" else f"C{k}")
+        ax.bar(x + (k - (len(series) - 1) / 2) * w, vals, w, label=name,
+               color=(colours or {}).get(name, f"C{k}"))
     ax.set_xticks(x, groups)
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=10)

@@ -1,0 +1,159 @@
+"""The follow IK's streaming step: the robot's joints and the previous target are its state; each
+target moves the joints by the network's joint change, through intermediate targets
+when it lies farther than the training steps (substeps).
+
+A sequence starts from joints the caller gives (where the robot is) or, without them, from the
+joints of the nearest training target; either way the network is applied `settle_iterations` times
+at the first target (its training from perturbed joints makes each application a correction).
+
+The outer tube lags its motor by λ(β) in the direction the motor last turned (ctrkin.models.outer_lag;
+stored as `outer_lag_deg` in the model's follow settings). The network learned from turns recorded
+after a forward outer step, so its joints are those of a tube lagging by +λ; the motor command it
+returns is the play's inverse for the tube angle the network means (Follower._backlash_inverse), and
+a start at rest is seen by the network with the tube's angle + λ.
+
+Both sides of the family run it (a policy's reset() / step()): its recipe rolls the network out along
+the training sequences and scores it (ctrkin.families.follow.recipe), and its predictor predicts with
+it (ctrkin.families.follow.predictor).
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+
+import numpy as np
+
+from ctrkin.errors import ModelError
+from ctrkin.families.follow.features import follow_features, substeps
+from ctrkin.models.engine import StreamingEngine
+from ctrkin.models.features import real_array
+from ctrkin.models.guards import check_joints
+from ctrkin.models.outer_lag import lag_one
+from ctrkin.models.seqnet import SeqNet
+from ctrkin.models.store import ModelBundle
+from ctrkin.models.workspace import Workspace
+
+HOLD_DEG = 0.5   # a reversal of the outer tube smaller than this keeps the motor (no trip through the play)
+
+
+class Follower:
+    """Step-by-step state of a follow IK model (bundle) with its training workspace."""
+
+    def __init__(self, bundle: ModelBundle, workspace: Workspace | None) -> None:
+        if bundle.frame is None or not isinstance(bundle.net, SeqNet):
+            raise ModelError("a follow IK needs its outer-tube frame (frame.json) and an MLP network")
+        self.n = bundle.layout.n_tubes
+        self.robot = bundle.robot
+        self.frame = bundle.frame
+        self.net = bundle.net
+        self.engine = StreamingEngine(bundle.net)
+        self.x_norm, self.y_norm = bundle.x_norm, bundle.y_norm
+        settings = bundle.extra.get("follow", {})
+        self.max_step_mm = float(settings.get("max_step_mm", 1.0))
+        self.settle = int(settings.get("settle_iterations", 5))
+        self.iterations = int(settings.get("iterations", 1))    # applications per (sub-)target
+        self.workspace = workspace
+        lag = settings.get("outer_lag_deg", (0.0, 0.0))
+        self.lag = (float(lag[0]), float(lag[1]))     # the outer tube's lag λ(β) (models.outer_lag)
+        self.joints: np.ndarray | None = None        # where the robot is, as the network sees it
+        self.target: np.ndarray | None = None        # the previous target of this sequence
+        self.hold_deg = HOLD_DEG
+        self.tube = np.nan                           # the outer tube's angle (deg), NaN: not known yet
+        self.motor = np.nan                          # the outer motor's last command (deg)
+
+    def reset(self, joints: np.ndarray | None = None) -> None:
+        """Start a sequence, at `joints` (2N,) (deg, mm) if the robot's joints are known."""
+        if joints is not None:
+            q = real_array(joints).reshape(-1)
+            if q.shape != (2 * self.n,) or not np.all(np.isfinite(q)):
+                raise ModelError(f"start joints must be {2 * self.n} finite numbers (α deg, β mm), got "
+                                 f"{np.asarray(joints).tolist()}")
+            joints = check_joints(self.robot, q)       # as every model input of joints
+        self.joints, self.target, self.tube, self.motor = None, None, np.nan, np.nan
+        if joints is not None:
+            self._at_rest(joints)
+
+    def twin(self) -> Follower:
+        """A follower of the same network and settings (as they are now: lag, hold, substeps) with a
+        state of its own, at a sequence start."""
+        twin = copy.copy(self)
+        twin.engine = StreamingEngine(self.net)
+        twin.reset()
+        return twin
+
+    def run(self, targets: np.ndarray, bounds: list[tuple[int, int]],
+            starts: Sequence[np.ndarray | None] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Follow each sequence [a, b) of `bounds` through targets (T, 6) (tracker frame), from its
+        start joints (2N,) (deg, mm; None: those of the nearest training target) -> joints (T, 2N)
+        and whether each had to be projected onto the robot's limits (T,); rows outside `bounds` are
+        NaN / False. The run steps a twin: this follower's own stream (reset / step) is untouched."""
+        joints = np.full((len(targets), 2 * self.n), np.nan)
+        projected = np.zeros(len(targets), bool)
+        runner = self.twin()
+        for (a, b), start in zip(bounds, [None] * len(bounds) if starts is None else starts, strict=True):
+            runner.reset(start)
+            for t in range(a, b):
+                joints[t], projected[t] = runner.step(targets[t])
+        return joints, projected
+
+    def _lag(self, q: np.ndarray) -> float:
+        return 0.0 if self.lag == (0.0, 0.0) else lag_one(self.robot, q, self.lag)
+
+    def _at_rest(self, q: np.ndarray) -> None:
+        """The robot stands at motor joints q, its outer tube at rest (m_N = 0: tube = motor). The
+        network learned from turns after a forward outer step, where the tube lags by λ, so it sees
+        the joints whose outer angle is the tube's + λ."""
+        self.tube = self.motor = float(q[self.n - 1])
+        self.joints = q.copy()
+        self.joints[self.n - 1] += self._lag(q)
+
+    def _backlash_inverse(self, q: np.ndarray) -> np.ndarray:
+        """Motor joints for the network's answer q: the tube is to stand at θ = q_N − λ(β); the motor
+        goes to θ + λ turning forward, θ − λ turning back, and stays where the tube does not move
+        (the inverse of the transmission's play, ctrkin.virtual.transmission)."""
+        out = q.copy()
+        if self.lag == (0.0, 0.0):
+            return out
+        lam = self._lag(q)
+        theta = float(q[self.n - 1]) - lam
+        if theta > self.tube + self.hold_deg or (theta > self.tube and self.motor - self.tube > 0):
+            out[self.n - 1] = theta + lam          # forward, or on along the side the play is taken up
+        elif theta < self.tube - self.hold_deg or (theta < self.tube and self.motor - self.tube < 0):
+            out[self.n - 1] = theta - lam
+        else:                                      # a reversal smaller than hold_deg: the tube stays
+            out[self.n - 1] = self.motor
+            return out
+        self.tube, self.motor = theta, float(out[self.n - 1])
+        return out
+
+    def step(self, target: np.ndarray) -> tuple[np.ndarray, bool]:
+        """target (6,) tracker-frame pose -> (joints (2N,) within the robot's limits, whether the
+        network's answer had to be projected onto them)."""
+        if self.target is None:
+            if self.joints is None:
+                if self.workspace is None:
+                    raise ModelError("a follow IK without its workspace needs start joints (reset(joints))")
+                self._at_rest(self.workspace.nearest_joints(target))
+            assert self.joints is not None
+            q, projected = self.joints, False
+            for _ in range(self.settle):
+                q, projected = self._apply(target, target, q)
+        else:
+            assert self.joints is not None
+            q, projected, previous = self.joints, False, self.target
+            for sub in substeps(previous, target, self.max_step_mm):
+                for _ in range(self.iterations):
+                    q, projected = self._apply(sub, previous, q)
+                    previous = sub
+        self.joints, self.target = q, np.array(target, dtype=np.float64)
+        motor = self._backlash_inverse(q)
+        valid = self.robot.project_joints(motor[None])[0]
+        return valid, projected or bool(np.any(np.abs(valid - motor) > 1e-9))
+
+    def _apply(self, target: np.ndarray, previous: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, bool]:
+        feat = follow_features(self.frame, self.n, target[None], previous[None], q[None])[0]
+        dq = self.y_norm.inverse(self.engine.step(self.x_norm.transform(feat)))
+        new = q + dq
+        valid = self.robot.project_joints(new[None])[0]
+        return valid, bool(np.any(np.abs(valid - new) > 1e-9))

@@ -1,0 +1,203 @@
+"""The fold gate: a snap-aware model's branch state from the robot's folds
+(docs/learned_kinematics.md: The fold gate).
+
+A learned gate (ctrkin.families.snap_aware.net) places each switch where its classifier boundary lies, a few
+degrees from the fold, and it has to learn from a few dozen snaps how the fold moves with the
+translations. The fold gate takes that dependence from the physics and the offsets from the data:
+
+    θ+ = φ+(β) + c − κ·m_N ,  θ− = φ−(β) − c − κ·m_N
+        φ±: folds of the nominal TCM (ctrkin.mechanics.folds), tabulated over the training translations
+        m_N ∈ {−1, 0, +1}: direction of the outer tube's last rotation (0: at rest since the run began)
+        c, κ: least-squares fit to the training snaps, each weighted by φ±² (near the critical overlap
+              the fold moves fast with the tube parameters, so there it says little about the offset)
+    a snap flagged at row t lies between rows t−1 and t: the fold is taken mid-way, for the table
+    (sweeps at 0.5°) and for the data alike.
+    s_t = 1 if φ_t > band, 0 if φ_t < −band          outside the bistable band one branch exists
+        = 1 if s_{t−1} = 0 and φ_t ≥ θ+              past the forward fold: snap to the upper branch
+        = 0 if s_{t−1} = 1 and φ_t < θ−              past the backward fold: snap to the lower branch
+        = s_{t−1} otherwise;  at a sequence start 1[φ > 0]
+    where the nominal pair does not snap (|φ±| < MIN_FOLD_DEG) θ± = ±band: the state changes only
+    outside the band, as the labels the heads learned from do (ctrkin.families.snap_aware.labels).
+
+with φ = α0 − 180° wrapped (ctrkin.families.snap_aware.labels, the labels the heads were trained on).
+Why m_N: the encoders read the motors, and a tube base lags its motor by up to half the transmission's
+dead band, on the side it last moved from (backlash and friction wind-up, a play operator). The inner
+tube's lag is set by the turn itself: it widens the band symmetrically, as does a fold of the real
+tubes wider than the nominal one (c). The outer tube's was set before the sequence (an unrecorded move
+to its angle, or rest) and shifts both folds the same way (κ). Forward and backward snaps separate the
+two even when every snap of the data has the same m_N. m_N is read from the joint path, carried across
+the sequences of one run (the `run` column, glitch rows skipped) and reset at rest; so is the
+branch state, which the unrecorded move between two sequences of a run does not reset either.
+θ+ ≥ θ− always (no chattering where the pair is not bistable and both are 0). The table is
+interpolated multilinearly in β and clamped at the edges of the trained range.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ctrkin.errors import ModelError
+from ctrkin.families.snap_aware.labels import BAND_DEG, phase_deg, snap_events
+from ctrkin.mechanics.folds import fold_angles
+from ctrkin.models.relay import (
+    MIN_FOLD_DEG,
+    GateTables,
+    gate_step,
+    interpolate_rows,
+    relay_scan,
+    threshold_rows,
+)
+from ctrkin.models.store import read_json, write_json
+from ctrkin.robots.robot import Robot
+
+FOLD_GATE_FILE = "fold_gate.json"
+MAX_GRID_POINTS = 400       # translations at which the folds are computed (≈ 0.07 s each, paper robot)
+FOLD_STEP_DEG = 0.5         # the table's sweep step
+
+
+@dataclass(frozen=True, eq=False)
+class FoldGate:
+    """axes: per tube, the grid of β (mm, increasing); forward, backward: fold tables φ± (deg) of
+    shape (len(axes[0]), …); widen_deg: c; outer_lag_deg: κ; band_deg: half-width of the band.
+    `tables` holds the same grid flattened for the relay's numba kernels (ctrkin.models.relay: the
+    batch scan, and `gate_step` in the fused FK step)."""
+
+    axes: tuple[np.ndarray, ...]
+    forward: np.ndarray
+    backward: np.ndarray
+    widen_deg: float = 0.0
+    outer_lag_deg: float = 0.0
+    band_deg: float = BAND_DEG
+    tables: GateTables = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "tables", GateTables.of(self))
+
+    def folds(self, betas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """betas (T, N) -> the nominal folds φ+ (T,), φ− (T,) in deg, interpolated."""
+        betas = np.atleast_2d(np.asarray(betas, float))
+        if betas.shape[1] != len(self.axes):
+            raise ModelError(f"the fold gate is for {len(self.axes)} tubes, got translations of shape "
+                             f"{betas.shape}")
+        tb = self.tables
+        x = np.ascontiguousarray(betas)
+        return (interpolate_rows(tb.axes, tb.start, tb.size, tb.forward, x),
+                interpolate_rows(tb.axes, tb.start, tb.size, tb.backward, x))
+
+    def thresholds(self, betas: np.ndarray, outer_motion: np.ndarray | float = 0.0
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """betas (T, N), outer_motion m_N (T,) or scalar -> switching phases θ+, θ− (T,) deg, θ+ ≥ θ−."""
+        fwd, bwd = self.folds(betas)
+        motion = np.ascontiguousarray(np.broadcast_to(np.asarray(outer_motion, float), fwd.shape))
+        return threshold_rows(fwd, bwd, motion, self.widen_deg, self.outer_lag_deg, self.band_deg)
+
+    def states(self, alpha0: np.ndarray, betas: np.ndarray, outer_motion: np.ndarray,
+               bounds: list[tuple[int, int]], continues: list[bool] | None = None) -> np.ndarray:
+        """(T,) int8 branch states along each sequence. alpha0 (T,) deg, betas (T, N) mm,
+        outer_motion (T,) m_N (ctrkin.models.motion.outer_motion); continues: per sequence, True
+        where it continues the previous one's run (the branch is kept across the unrecorded move)."""
+        phi = np.ascontiguousarray(phase_deg(alpha0), dtype=np.float64)
+        hi, lo = self.thresholds(betas, outer_motion)
+        keep = np.zeros(len(bounds), dtype=np.bool_) if continues is None else np.asarray(continues, np.bool_)
+        edges = np.asarray(bounds, dtype=np.int64).reshape(-1, 2)
+        return relay_scan(phi, hi, lo, edges, keep, self.band_deg)
+
+    def step(self, state: int, alpha0: float, betas: np.ndarray, outer_motion: int) -> int:
+        """The state after one step from `state` (−1: a sequence start)."""
+        tb = self.tables
+        return int(gate_step(state, float(alpha0), np.ascontiguousarray(betas, dtype=np.float64),
+                             float(outer_motion), tb.axes, tb.start, tb.size, tb.forward, tb.backward,
+                             self.widen_deg, self.outer_lag_deg, self.band_deg))
+
+    # --- files -----------------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, object]:
+        return {"axes_mm": [a.tolist() for a in self.axes], "forward_deg": self.forward.tolist(),
+                "backward_deg": self.backward.tolist(), "widen_deg": self.widen_deg,
+                "outer_lag_deg": self.outer_lag_deg, "band_deg": self.band_deg}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> FoldGate:
+        try:
+            axes = tuple(np.asarray(a, float) for a in d["axes_mm"])
+            shape = tuple(len(a) for a in axes)
+            fwd = np.asarray(d["forward_deg"], float).reshape(shape)
+            bwd = np.asarray(d["backward_deg"], float).reshape(shape)
+            widen = float(d["widen_deg"])
+            lag = float(d["outer_lag_deg"])
+            band = float(d["band_deg"])
+        except (KeyError, ValueError, TypeError, IndexError) as e:
+            raise ModelError(f"malformed fold gate ({type(e).__name__}: {e})") from None
+        if not all(np.all(np.diff(a) > 0) for a in axes) or not (
+                np.isfinite(fwd).all() and np.isfinite(bwd).all()
+                and math.isfinite(widen) and math.isfinite(lag)):
+            raise ModelError("malformed fold gate: axes must increase and tables be finite")
+        return cls(axes, fwd, bwd, widen, lag, band)
+
+    def save(self, folder: str | Path) -> None:
+        write_json(Path(folder) / FOLD_GATE_FILE, self.to_dict())
+
+    @classmethod
+    def load(cls, folder: str | Path) -> FoldGate:
+        return cls.from_dict(read_json(Path(folder) / FOLD_GATE_FILE))
+
+
+def build_fold_gate(robot: Robot, joints: np.ndarray, snap: np.ndarray, bounds: list[tuple[int, int]],
+                    motion: np.ndarray, spacing_mm: float = 1.0,
+                    progress: Callable[[int, int], None] | None = None) -> FoldGate:
+    """The fold gate of `robot` over the translations of `joints` (T, 2N) (the training rows), its
+    offsets fitted to the snaps flagged in `snap` (T,) within `bounds`; motion (T,): m_N of each row
+    (ctrkin.models.motion.outer_motion, computed on the whole dataset so that runs are followed
+    across the split).
+    spacing_mm: grid step, widened until the grid has at most MAX_GRID_POINTS points.
+    progress(done, total) after each grid point."""
+    joints = np.asarray(joints, float)
+    n = robot.n_tubes
+    betas = joints[:, n:]
+    lo, hi = betas.min(axis=0), betas.max(axis=0)
+    while True:
+        counts = np.maximum(np.ceil((hi - lo) / spacing_mm).astype(int) + 1, 1)
+        if np.prod(counts) <= MAX_GRID_POINTS:
+            break
+        spacing_mm *= 1.25
+    axes = tuple(np.linspace(a, b, k) if k > 1 else np.array([a])
+                 for a, b, k in zip(lo, hi, counts, strict=True))
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, n)
+    fwd, bwd = fold_angles(robot, grid, step_deg=FOLD_STEP_DEG, progress=None if progress is None else
+                           (lambda p: progress(p + 1, len(grid))))
+    shape = tuple(len(a) for a in axes)
+    half = 0.5 * FOLD_STEP_DEG                    # mid-way between the last row before and the snap
+    fwd, bwd = np.where(fwd > 0, fwd - half, 0.0), np.where(bwd < 0, bwd + half, 0.0)
+    table = FoldGate(axes, fwd.reshape(shape), bwd.reshape(shape))
+    widen, lag = _fit_offsets(table, joints, snap, bounds, np.asarray(motion), n)
+    return FoldGate(axes, table.forward, table.backward, widen, lag)
+
+
+def _fit_offsets(gate: FoldGate, joints: np.ndarray, snap: np.ndarray, bounds: list[tuple[int, int]],
+                 motion: np.ndarray, n: int) -> tuple[float, float]:
+    """c, κ: weighted least squares of the data's snaps, φ_e − φ±(β_e) = ±c − κ·m_N, weights
+    φ±(β_e)² (module docstring), φ_e mid-way between the snap row and the one before. κ is 0 where
+    the snaps cannot separate it from c (all of one direction and one m_N, or none with m_N ≠ 0)."""
+    alpha0 = joints[:, 0] - joints[:, n - 1]
+    phi = phase_deg(alpha0)
+    fwd, bwd = gate.folds(joints[:, n:])
+    rows: list[tuple[int, float, float, float]] = []      # direction, m_N, residual, weight
+    for a, b in bounds:
+        for t in snap_events(snap, a, b):
+            sign = int(np.sign(alpha0[t] - alpha0[t - 1]))
+            fold = fwd[t] if sign > 0 else bwd[t]
+            mid = phi[t] - 0.5 * (alpha0[t] - alpha0[t - 1])
+            if sign != 0 and abs(phi[t]) < gate.band_deg and abs(fold) >= MIN_FOLD_DEG:
+                rows.append((sign, float(motion[t]), float(mid - fold), float(fold) ** 2))
+    if not rows:
+        return 0.0, 0.0
+    d, m, r, w = (np.array(c, dtype=float) for c in zip(*rows, strict=True))
+    A = np.stack([d, -m], axis=1) * np.sqrt(w)[:, None]
+    if np.linalg.matrix_rank(A) < 2:
+        A = A[:, :1]
+    coef = np.linalg.lstsq(A, r * np.sqrt(w), rcond=None)[0]
+    return float(coef[0]), float(coef[1]) if len(coef) > 1 else 0.0

@@ -1,0 +1,116 @@
+"""A snap-aware LSTM-MLP: the paper's network with a learned hysteron
+(docs/learned_kinematics.md: Snap-aware FK).
+
+Why: near a fold the tip pose is a discontinuous function of the joints and of their history. A
+regression net trained with an MAE loss on the few samples at a jump learns a ramp across it, and its
+input buffer of IB steps cannot tell which of two stable branches the robot is on where the answer
+depends on older history (a reversal inside the bistable band). So the state is made explicit:
+
+    h_t   = trunk(window_t)                              LSTM -> flatten (paper eq. 3-5)
+    s_t   = 1[ gate(h_t, s_{t-1}) > 0 ]                  branch state, a learned relay (hysteron)
+    y_t   = head_{s_t}(h_t)                              Dense ReLU -> Dense (eq. 6-7), one per branch
+
+The gate is trained as a classification (binary cross-entropy) against branch labels derived from the
+data (ctrkin.families.snap_aware.labels), with the previous label as input (teacher forcing); each head is
+trained with the MAE loss on the samples of its branch only, so neither blends the two branches and
+the jump between them keeps its full size. At inference the state is carried from step to step,
+so a jump happens in one step, at the joint values where the gate switches: a snap is sharp by
+construction, and its timing is a classification boundary, not the midpoint of a ramp.
+
+At a sequence start the previous state is unknown and fed as 0.5; training feeds 0.5 at random
+(`unknown_prob`) so the gate also learns the history-free decision, and, where the label does not
+depend on history (outside the bistable band), a flipped previous state, so a wrong state recovers.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import nn
+
+from ctrkin.errors import ModelError
+from ctrkin.models.seqnet import UNKNOWN_STATE, SeqNet
+
+
+class BranchNet(SeqNet):
+    """SeqNet trunk, two heads (branch 0: `head`, `out`; branch 1: `head1`, `out1`) and a gate MLP.
+
+    x: (B, IB, F) normalised windows; states are floats in {0, 1} (0.5: unknown). gate_units: hidden
+    width of the gate."""
+
+    def __init__(self, n_inputs: int, n_outputs: int, ib: int, structure: str = "paper",
+                 output_activation: str = "linear", gate_units: int = 32) -> None:
+        super().__init__(n_inputs, n_outputs, ib, structure, "flatten", output_activation)
+        self.gate = nn.ModuleList([nn.Linear(self.trunk_width + 1, gate_units), nn.Linear(gate_units, 1)])
+        self.head1 = nn.ModuleList(nn.Linear(m.in_features, m.out_features)
+                                   for m in self.head if isinstance(m, nn.Linear))
+        self.out1 = nn.Linear(self.out.in_features, self.out.out_features)
+
+    def init_output_bias(self) -> None:
+        super().init_output_bias()
+        with torch.no_grad():
+            self.out1.bias.fill_(0.5)
+
+    def head_out(self, h: torch.Tensor, state: torch.Tensor | None = None) -> torch.Tensor:
+        """h: (B, W), state: (B,) in {0, 1} -> (B, O) from the head of each row's branch."""
+        if state is None:
+            raise ModelError("a BranchNet needs its branch state (BranchNet.decode)")
+        y0, y1 = self._branch_head(h, 0), self._branch_head(h, 1)
+        return torch.where(state.reshape(-1, 1) > 0.5, y1, y0)
+
+    def _branch_head(self, h: torch.Tensor, branch: int) -> torch.Tensor:
+        layers, out = (self.head, self.out) if branch == 0 else (self.head1, self.out1)
+        for layer in layers:
+            h = torch.relu(layer(h))                         # eq. (6)
+        return self.finish(out(h))                           # eq. (7)
+
+    def heads(self) -> list[tuple[nn.ModuleList, nn.Linear]]:
+        return [(self.head, self.out), (self.head1, self.out1)]
+
+    def gate_layers(self) -> nn.ModuleList | None:
+        return self.gate
+
+    def gate_logit(self, h: torch.Tensor, s_prev: torch.Tensor) -> torch.Tensor:
+        """h: (B, W) trunk features, s_prev: (B,) previous state -> (B,) logit of s_t = 1."""
+        z = torch.cat([h, s_prev.reshape(-1, 1).to(h.dtype)], dim=1)
+        return self.gate[1](torch.relu(self.gate[0](z)))[:, 0]
+
+    def forward_state(self, x: torch.Tensor, state: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """One step with the state carried outside (the ONNX graph, ctrkin.models.onnx_graph): x (B, IB,
+        F), state (B,) the previous state -> (outputs (B, O), the new state (B,))."""
+        h = self.trunk(x)
+        new_state = (self.gate_logit(h, state) > 0).to(h.dtype)
+        return self.head_out(h, new_state), new_state
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """History-free use (one window, unknown previous state): the gate decides the state."""
+        h = self.trunk(x)
+        s = (self.gate_logit(h, torch.full((len(h),), UNKNOWN_STATE)) > 0).to(h.dtype)
+        return self.head_out(h, s)
+
+    @torch.inference_mode()
+    def decode(self, h: torch.Tensor, bounds: list[tuple[int, int]]) -> tuple[np.ndarray, np.ndarray]:
+        """Carry the state through every sequence. h: (T, W) trunk features of consecutive rows;
+        bounds: [(start, stop)) of the sequences. Returns y (T, O) normalised outputs and s (T,) states.
+
+        The gate is evaluated for both previous states in one pass, then the relay is scanned."""
+        n = len(h)
+        logits = {v: self.gate_logit(h, torch.full((n,), v)).numpy() for v in (0.0, 1.0, UNKNOWN_STATE)}
+        s = relay_scan(logits[0.0] > 0, logits[1.0] > 0, logits[UNKNOWN_STATE] > 0, bounds)
+        y = self.head_out(h, torch.from_numpy(s.astype(np.float32))).numpy()
+        return y, s
+
+
+def relay_scan(from0: np.ndarray, from1: np.ndarray, first: np.ndarray,
+               bounds: list[tuple[int, int]]) -> np.ndarray:
+    """States (T,) in {0, 1}: s_t = from1[t] if s_{t-1} else from0[t], s at a sequence start = first."""
+    s = np.zeros(len(from0), dtype=np.int8)
+    for a, b in bounds:
+        if b <= a:
+            continue
+        cur = bool(first[a])
+        s[a] = cur
+        for t in range(a + 1, b):
+            cur = bool(from1[t]) if cur else bool(from0[t])
+            s[t] = cur
+    return s

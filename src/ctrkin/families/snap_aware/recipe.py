@@ -1,0 +1,131 @@
+"""How the snap-aware FK learns (docs/learned_kinematics.md: Snap-aware FK): the paper's windows and
+MAE (ctrkin.models.recipe.WindowRecipe), plus the branch labels from the dataset's snap flags
+(ctrkin.families.snap_aware.labels), the gate's cross-entropy beside the MAE of the true branch's
+head, and at the end the fold gate from the nominal robot's folds (ctrkin.families.snap_aware.fold_gate).
+
+The gate sees the previous label (teacher forcing), hidden as "unknown" with probability
+`unknown_prob` and flipped on rows whose label does not depend on history (so a wrong state
+recovers); its loss counts `boost` times within `width` rows of a change of branch, where the
+switching point is learned.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from ctrkin.data.schema import sequence_bounds
+from ctrkin.families.snap_aware.fold_gate import FoldGate, build_fold_gate
+from ctrkin.families.snap_aware.labels import branch_labels, previous_labels
+from ctrkin.families.snap_aware.net import BranchNet
+from ctrkin.models.motion import recorded_motion
+from ctrkin.models.recipe import Log, Prepared, TrainingData, WindowRecipe
+from ctrkin.models.seqnet import UNKNOWN_STATE
+from ctrkin.models.store import ModelBundle
+
+
+@dataclass(eq=False)
+class BranchBatch:
+    """Branch labels of the training rows (teacher forcing) and the augmentation of the gate input."""
+
+    state: torch.Tensor          # (M,) labels
+    state_prev: torch.Tensor     # (M,) previous labels, 0.5 at sequence starts
+    forced: torch.Tensor         # (M,) label independent of history
+    gate_rows: torch.Tensor      # (M,) per-row weight of the gate loss
+    unknown_prob: float
+    weight: float
+
+    def loss(self, net: BranchNet, x: torch.Tensor, y: torch.Tensor, idx: torch.Tensor,
+             gen: torch.Generator) -> torch.Tensor:
+        s, prev, forced = self.state[idx], self.state_prev[idx].clone(), self.forced[idx]
+        u = torch.rand((len(idx), 2), generator=gen)
+        flip = forced & (u[:, 0] < 0.5) & (prev != UNKNOWN_STATE)     # a wrong state must recover
+        prev = torch.where(flip, 1.0 - prev, prev)
+        prev = torch.where(u[:, 1] < self.unknown_prob, torch.full_like(prev, UNKNOWN_STATE), prev)
+        h = net.trunk(x)
+        pose_loss = torch.nn.functional.l1_loss(net.head_out(h, s), y)          # MAE (paper IV.A)
+        gate_loss = torch.nn.functional.binary_cross_entropy_with_logits(
+            net.gate_logit(h, prev), s, weight=self.gate_rows[idx])
+        return pose_loss + self.weight * gate_loss
+
+
+def near_switch(state: np.ndarray, bounds: list[tuple[int, int]], width: int = 5, boost: float = 10.0
+                ) -> np.ndarray:
+    """(T,) float32 gate-loss weights: `boost` within `width` rows of a change of branch (where the
+    switching point is learned; a few rows per sequence), 1 elsewhere."""
+    w = np.ones(len(state), dtype=np.float32)
+    for a, b in bounds:
+        for t in np.nonzero(np.diff(state[a:b]))[0] + a + 1:
+            w[max(a, t - width):min(b, t + width + 1)] = boost
+    return w
+
+
+def decode_rows(net: BranchNet, X: np.ndarray, rows: np.ndarray, bounds: list[tuple[int, int]]
+                ) -> np.ndarray:
+    """Normalised outputs (len(rows), O) of windows X[rows], the state carried through the whole
+    sequences (bounds) that hold `rows` (the state needs their history)."""
+    starts = np.array([a for a, _ in bounds])
+    seqs = np.unique(np.searchsorted(starts, rows, side="right") - 1)
+    idx = np.concatenate([np.arange(*bounds[k]) for k in seqs]) if len(seqs) else np.zeros(0, np.int64)
+    local, pos = [], 0
+    for k in seqs:
+        a, b = bounds[k]
+        local.append((pos, pos + b - a))
+        pos += b - a
+    net.eval()
+    with torch.inference_mode():
+        h = torch.cat([net.trunk(torch.from_numpy(X[idx[a:a + 8192]])) for a in range(0, len(idx), 8192)]) \
+            if len(idx) else torch.zeros((0, net.trunk_width))
+        y, _ = net.decode(h, local)
+    where = np.full(len(X), -1, dtype=np.int64)
+    where[idx] = np.arange(len(idx))
+    return y[where[rows]]
+
+
+class BranchRecipe(WindowRecipe):
+    """The snap-aware FK's training (module docstring)."""
+
+    def prepare(self, data: TrainingData) -> Prepared:
+        prepared = super().prepare(data)
+        ds, train = data.ds, self.rows["train"]
+        n = ds.n_tubes
+        joints = ds.joints()
+        self.state, forced = branch_labels(joints[:, 0] - joints[:, n - 1], ds.frame["snap"].to_numpy(),
+                                           self.bounds)
+        state_prev = previous_labels(self.state, self.bounds)
+        self.batch = BranchBatch(torch.from_numpy(self.state[train].astype(np.float32)),
+                                 torch.from_numpy(state_prev[train]), torch.from_numpy(forced[train]),
+                                 torch.from_numpy(near_switch(self.state, self.bounds)[train]),
+                                 self.cfg.unknown_prob, self.cfg.gate_weight)
+        return prepared
+
+    def loss(self, net: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, idx: torch.Tensor,
+             gen: torch.Generator) -> torch.Tensor:
+        assert isinstance(net, BranchNet)
+        return self.batch.loss(net, x, y, idx, gen)
+
+    def predict_rows(self, net: torch.nn.Module, rows: np.ndarray, X: np.ndarray | None = None
+                     ) -> np.ndarray:
+        assert isinstance(net, BranchNet)
+        return decode_rows(net, self.X if X is None else X, rows, self.bounds)
+
+    def finish(self, bundle: ModelBundle, folder: Path, log: Log) -> dict[str, Any]:
+        log("tabulating the nominal robot's folds for the fold gate")
+        fold_gate(self.data.ds, self.rows["train"]).save(folder)
+        return super().finish(bundle, folder, log)
+
+
+def fold_gate(ds: Any, rows: np.ndarray) -> FoldGate:
+    """The fold gate of a snap-aware model (ctrkin.families.snap_aware.fold_gate): folds of the
+    dataset's nominal robot over the translations of `rows` (the training rows, sorted), fitted to
+    their snaps; the outer tube's last rotation is followed over the whole dataset (runs cross the
+    split)."""
+    f = ds.frame
+    q = ds.joints()
+    motion, _ = recorded_motion(f, q, ds.sequence_bounds(), ds.n_tubes)
+    bounds = sequence_bounds(f["sequence_id"].to_numpy()[rows])
+    return build_fold_gate(ds.robot, q[rows], f["snap"].to_numpy()[rows], bounds, motion[rows])

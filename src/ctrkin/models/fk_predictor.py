@@ -1,0 +1,335 @@
+"""A learned FK model in use: batch prediction over sequences and streaming one step at a time, with
+the input guards, the outer-tube frame and the fused numba step (docs/learned_kinematics.md:
+Inference). The paper's sequence models predict through it as it is; the snap-aware FK
+(ctrkin.families.snap_aware) adds its branch state through the hooks marked below.
+
+Batch and streaming give the same numbers: both see windows of the IB latest steps of a sequence,
+padded at its start by repeating the first step. A SeqNet (LSTM-MLP, LSTM, MLP) runs by chains in
+batch (ctrkin.models.batch) and in the numba engine streaming (ctrkin.models.engine); other networks
+run torch on windows. An LSTM-MLP with one LSTM layer runs each whole step in one numba call
+(ctrkin.models.fused), bit for bit the reference path; `fused=False` keeps to the reference path.
+
+Streaming state: the previous joints as the network saw them, the sequence's whole-turn shift, the
+relay state of a model with a tabulated gate (−1 at a start), the direction m_N in which the outer
+motor last turned and its previous angle (ctrkin.models.motion), and the outer lag λ(β) of the last β.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ctrkin.data.dataset import Dataset
+from ctrkin.errors import ModelError
+from ctrkin.models.batch import padded_rows, seqnet_predict
+from ctrkin.models.features import (
+    by_name,
+    pair_features,
+    postprocess,
+    real_array,
+    sequence_features,
+    step_features,
+    window_index,
+)
+from ctrkin.models.frame import OuterFrame, local_tips_to_world
+from ctrkin.models.fused import DECLINED, Clip, FusedFK, Relay
+from ctrkin.models.guards import FKGuard
+from ctrkin.models.motion import outer_motion, recorded_motion
+from ctrkin.models.onnx_graph import write_onnx
+from ctrkin.models.outer_lag import lag_one
+from ctrkin.models.predictor_base import BasePredictor
+from ctrkin.models.seqnet import SeqNet
+from ctrkin.models.store import ModelBundle
+
+
+class FKPredictor(BasePredictor):
+    """An FK model (module docstring). seqnet: the bundle's network where it is a SeqNet (chains in
+    batch, the numba engine streaming), None: torch on windows."""
+
+    accepts: ClassVar[dict[str, frozenset[str]]] = {"predict": frozenset(),
+                                                     "reset": frozenset({"outer_motion", "continue_run"})}
+
+    def __init__(self, bundle: ModelBundle, seqnet: SeqNet | None, fused: bool = True) -> None:
+        super().__init__(bundle, None, seqnet)
+        self._frame = bundle.frame
+        self._prev: np.ndarray | None = None
+        self._fast = self.layout.angle_encoding in ("minmax", "phase")
+        # input checks and whole-turn α shifts, the same in predict and step (ctrkin.models.guards)
+        self._guard = FKGuard(self.robot, self.layout, bundle.x_norm)
+        self._shift: np.ndarray | None = None
+        self._gate_state, self._outer_motion, self._outer_prev = -1, 0, math.nan
+        self._lag_beta, self._lag = b"", 0.0      # the outer lag λ(β) of the last β (ctrkin.models.frame)
+        self._use_fused = fused
+        self._fused: FusedFK | None = None
+        self._rebuild_fused()
+
+    # --- hooks of a model with a branch state (ctrkin.families.snap_aware) -------------------------
+    def _batch_outputs(self, feats: np.ndarray, bounds: list[tuple[int, int]], data: Dataset | np.ndarray,
+                       raw: np.ndarray, options: dict[str, Any]) -> np.ndarray:
+        """(T, O) normalised outputs of normalised features (T, F) of the sequences `bounds`."""
+        if self._seqnet is not None:      # by chains: about half the work of windows at IB = 2
+            return seqnet_predict(self._seqnet, *padded_rows(feats, bounds, self.ib))
+        return self.predict_normalised(feats[window_index(bounds, self.ib)])
+
+    def _state_before(self, raw: np.ndarray, outer: float) -> float | None:
+        """The state the engine is to use at this step (None: its own gate, if any), and whatever
+        follows it updated; raw: the shifted joints, outer: αN as given."""
+        return None
+
+    def _probe_states(self, Q: np.ndarray, outer: np.ndarray) -> np.ndarray | None:
+        """The states (K,) the engine is to use for K candidate next joints (None: its own gate)."""
+        return None
+
+    @property
+    def _follows_motion(self) -> bool:
+        """Whether `_state_before` follows m_N (else step does, for a lagged frame)."""
+        return False
+
+    def _relay(self) -> Relay | None:
+        """The tabulated relay the fused step runs for the branch state (None: none)."""
+        return None
+
+    # --- frame and fused step --------------------------------------------------------------------
+    @property
+    def frame(self) -> OuterFrame | None:
+        """The outer-tube frame of a model that learned in it (ctrkin.models.frame)."""
+        return self._frame
+
+    @frame.setter
+    def frame(self, frame: OuterFrame | None) -> None:
+        self._frame = frame
+        self._rebuild_fused()                       # it holds the registration and the lag flag
+
+    def _rebuild_fused(self) -> None:
+        clip = Clip(self._dcols, self._dlo, self._dhi)
+        self._fused = (FusedFK.build(self.bundle, self._engine, self._guard, clip, self.frame, self._relay())
+                       if self._use_fused else None)
+
+    @property
+    def fused(self) -> bool:
+        """Whether steps run as one numba call where the model allows (ctrkin.models.fused); False:
+        the reference path."""
+        return self._fused is not None
+
+    def new_stream(self) -> None:
+        super().new_stream()
+        self._rebuild_fused()                       # it holds the engine
+        self.reset()
+
+    # --- batch -----------------------------------------------------------------------------------
+    def guarded(self, raw: np.ndarray, bounds: list[tuple[int, int]]
+                ) -> tuple[np.ndarray, list[tuple[int, int]]]:
+        """Joints checked and shifted by whole turns per sequence (ctrkin.models.guards)."""
+        return self._guard.prepare(raw, bounds), bounds
+
+    def network_inputs(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]]
+                       ) -> np.ndarray:
+        return self._network_joints(data, raw, bounds)[0]
+
+    def _network_joints(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]]
+                        ) -> tuple[np.ndarray, np.ndarray | None]:
+        """The inputs as the network sees them (OuterFrame.network_joints: αN less the outer lag where
+        it learned so) and the outer frame's angles (T,) (None without a frame)."""
+        if self.frame is None:
+            return raw, None
+        angles = self._frame_angles(data, raw, bounds)
+        return self.frame.network_joints(raw, angles), angles
+
+    def predict(self, data: Dataset | np.ndarray, sequence_id: np.ndarray | None = None,
+                strict: bool = False, **options: Any) -> np.ndarray:
+        """(T, 6) tip poses of every step of the sequences of `data` (Kinematics.predict)."""
+        raw, bounds = self.raw_inputs(data, sequence_id)
+        net_raw, angles = self._network_joints(data, raw, bounds)
+        feats = self._x_norm.transform(self.clip_deltas(sequence_features(self.layout, net_raw, bounds)))
+        yn = self._batch_outputs(feats, bounds, data, raw, options)
+        y = postprocess(self.layout, self._y_norm.inverse(yn))
+        return y if self.frame is None or angles is None else self.frame.to_world(y, angles)
+
+    def _recorded_motion(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]]
+                         ) -> tuple[np.ndarray, np.ndarray | None]:
+        """m_N (T,) from the joints as recorded (a Dataset: runs followed across sequences, glitch
+        rows skipped) and the runs (T,) (None for an array)."""
+        n = self.layout.n_tubes
+        if isinstance(data, Dataset):
+            return recorded_motion(data.frame, data.joints(), bounds, n)
+        return outer_motion(raw, bounds, n), None
+
+    def _frame_angles(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]]
+                      ) -> np.ndarray:
+        """(T,) the angle the outer frame turns with at each row (αN less the outer tube's lag)."""
+        assert self.frame is not None
+        motion = self._recorded_motion(data, raw, bounds)[0] if self.frame.has_lag else 0
+        return self.frame.outer_angle(self.robot, raw, motion)
+
+    def alpha_into_range(self, Q: np.ndarray) -> np.ndarray:
+        """Joints Q (K, 2N) with each α moved by whole turns (the same configuration) to the
+        representative nearest the middle of this model's trained α range."""
+        return self._guard.nearest_turns(np.atleast_2d(np.asarray(Q, float)))
+
+    # --- probing (the refined IK's inner loop) ---------------------------------------------------
+    @property
+    def probes(self) -> bool:
+        """Whether probe / probe_tips apply (a SeqNet model: the engine evaluates candidates)."""
+        return self._engine is not None
+
+    def _probe_outputs(self, Q: np.ndarray, what: str
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """The engine's answers for K candidate next steps Q (K, 2N), nothing advanced: (Q shifted by
+        the sequence's whole turns, de-normalised outputs (K, O), branch states (K,), the outer
+        frame's angles (K,) or None without a frame). m_N follows αN as given, as in `step`."""
+        if self._engine is None:
+            raise ModelError(f"{what}() needs an FK model of the LSTM-MLP family")
+        Q = np.atleast_2d(np.asarray(Q, float))
+        outer = Q[:, self.layout.n_tubes - 1].copy()
+        if len(Q):
+            Q = Q - (self._shift if self._shift is not None else self._guard.shift(Q[0]))
+        angles, net_q = None, Q
+        if self.frame is not None:
+            angles = self._probe_angles(Q, outer)
+            net_q = self.frame.network_joints(Q, angles)
+        prev = net_q if self._prev is None else np.broadcast_to(self._prev, Q.shape)
+        xn = self._x_norm.transform(self.clip_deltas(pair_features(self.layout, net_q, prev)))
+        yn, states = self._engine.probe(xn, self._probe_states(Q, outer))
+        return Q, self._y_norm.inverse(yn), states, angles
+
+    def probe_tips(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Tip positions (K, 3) and unit tangents (K, 3) in the tracker frame that `step` would give
+        for each of K candidate joints Q (K, 2N); nothing is advanced (`probe` without the quaternion
+        round trip)."""
+        Q, y, _, angles = self._probe_outputs(Q, "probe_tips")
+        if self.frame is not None and angles is not None:
+            reg = self.frame.registration
+            return local_tips_to_world(y, angles, reg.rotation, reg.translation)
+        return local_tips_to_world(y, np.zeros(len(Q)), np.eye(3), np.zeros(3))
+
+    def probe(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The poses (K, 6) and branch states (K,) that `step` would return for each of K candidate
+        joints Q (K, 2N) as the next step of the current sequence; nothing is advanced."""
+        Q, y, states, angles = self._probe_outputs(Q, "probe")
+        y = postprocess(self.layout, y)
+        if self.frame is not None and angles is not None:
+            y = self.frame.to_world(y, angles)
+        return y, states
+
+    def _probe_angles(self, Q: np.ndarray, outer: np.ndarray) -> np.ndarray:
+        """(K,) outer-frame angles of K candidate next joints Q (K, 2N), shifted by the sequence's
+        whole turns; outer (K,): their αN as given, whose m_N a step to each would leave."""
+        assert self.frame is not None
+        if not self.frame.has_lag:
+            return Q[:, self.layout.n_tubes - 1]
+        motion = np.array([self._motion_after(float(a)) for a in outer], float)
+        return self.frame.outer_angle(self.robot, Q, motion)
+
+    # --- streaming -------------------------------------------------------------------------------
+    def reset(self, outer_motion: int = 0, continue_run: bool = False) -> None:
+        """Start a new sequence. outer_motion: the direction the outer tube last turned before it (+1,
+        −1; 0: at rest since power-up), which shifts where a snap-aware model snaps and, for a frame
+        with an outer lag, where the outer tube points; continue_run=True: the robot moved on from the
+        previous sequence without a stop, so the branch and the outer tube's last rotation carry over."""
+        if outer_motion not in (-1, 0, 1):
+            raise ModelError(f"outer_motion must be -1, 0 or 1, got {outer_motion!r}")
+        if not continue_run:
+            self._gate_state, self._outer_motion, self._outer_prev = -1, int(outer_motion), math.nan
+        self._prev = None
+        self._shift = None
+        self.reset_stream()
+
+    def step(self, x: np.ndarray, check: bool = True, strict: bool = False) -> np.ndarray:
+        """One step: joints x (2N,) (deg, mm) -> the (6,) tip pose."""
+        if (self._fused is not None and type(x) is np.ndarray and x.dtype == np.float64
+                and x.shape == (self.layout.raw_width,) and x.flags.c_contiguous):
+            y = self._fused_step(x)
+            if y is not None:
+                return y
+        raw = real_array(by_name(x, self.layout.raw_names, "joints"))
+        if raw.shape != (self.layout.raw_width,):
+            raise ModelError(f"step() expects shape ({self.layout.raw_width},), got {raw.shape}")
+        outer = float(raw[self.layout.n_tubes - 1])     # as given: whole-turn shifts differ by sequence
+        raw, self._shift = self._guard.step(raw, self._shift if self._prev is not None else None)
+        angle = math.nan if self.frame is None else self._step_angle(raw, outer)
+        net_raw = raw
+        if self.frame is not None and self.frame.lags_inputs:      # the network sees the frame's angle
+            net_raw = raw.copy()
+            net_raw[self.layout.n_tubes - 1] = angle
+        feat = self._features(net_raw)
+        self._prev = net_raw
+        if len(self._dcols):
+            feat[self._dcols] = np.minimum(np.maximum(feat[self._dcols], self._dlo), self._dhi)
+        xn = self._x_norm.transform(feat)
+        yn = self.network_step(xn, self._state_before(raw, outer) if self._engine is not None else None)
+        y = self._y_norm.inverse(yn)
+        if self.frame is not None:
+            if self.frame.has_lag and not self._follows_motion:    # m_N followed here, else by the gate
+                self._outer_motion, self._outer_prev = self._motion_after(outer), outer
+            return self.frame.to_world_one(y, angle)
+        nq = math.sqrt(y[3] * y[3] + y[4] * y[4] + y[5] * y[5])
+        if nq > 1e-12:
+            y[3:6] /= nq
+        return y
+
+    def _features(self, net_raw: np.ndarray) -> np.ndarray:
+        """(F,) features of one step (step_features in scalar arithmetic where the encoding allows)."""
+        if not self._fast:
+            return step_features(self.layout, net_raw, self._prev)
+        n = self.layout.n_tubes
+        a0 = net_raw[0] - net_raw[n - 1]
+        feat = np.empty(self.layout.n_inputs)
+        feat[: 2 * n] = net_raw
+        feat[2 * n] = a0
+        k = 2 * n + 1
+        if self.layout.angle_encoding == "phase":
+            r = math.radians(a0)
+            feat[k], feat[k + 1] = math.sin(r), math.cos(r)
+            k += 2
+        if self.layout.delta:
+            feat[k] = 0.0 if self._prev is None else a0 - (self._prev[0] - self._prev[n - 1])
+        return feat
+
+    def _fused_step(self, raw: np.ndarray) -> np.ndarray | None:
+        """The step in one numba call (ctrkin.models.fused) on this object's streaming state; None
+        where it declines (the reference path then raises with its message)."""
+        assert self._fused is not None and self._engine is not None
+        shift = self._shift
+        if self._prev is None or shift is None:       # a sequence's first step fixes its whole turns
+            shift = self._guard.step(raw, None)[1]
+        lag = self._lag_at(raw) if self.frame is not None and self.frame.has_lag else 0.0
+        y, st = self._fused.step(raw, shift, self._prev, self._gate_state, self._outer_motion,
+                                 self._outer_prev, lag)
+        if st.gate_state == DECLINED:
+            return None
+        self._shift, self._prev = shift, self._fused.prev
+        self._gate_state, self._outer_motion, self._outer_prev = st.gate_state, st.outer_motion, st.outer_prev
+        self._engine._fresh, self._engine.state = False, st.branch
+        return y
+
+    def _motion_after(self, a_n: float) -> int:
+        """m_N after the outer motor reaches a_n (deg) as the next step."""
+        if not math.isnan(self._outer_prev) and abs(a_n - self._outer_prev) > 1e-9:
+            return 1 if a_n > self._outer_prev else -1
+        return self._outer_motion
+
+    def _step_angle(self, raw: np.ndarray, outer: float) -> float:
+        """The outer frame's angle for joints raw (2N,) as the next step: αN less the lag λ(β)·m_N
+        (λ cached per β), m_N as it will be once the motor reaches αN as given (outer); nothing
+        changed."""
+        assert self.frame is not None
+        a_n = float(raw[self.layout.n_tubes - 1])
+        if not self.frame.has_lag:
+            return a_n
+        return a_n - self._lag_at(raw) * self._motion_after(outer)
+
+    def _lag_at(self, raw: np.ndarray) -> float:
+        """λ(β) (deg) of the outer frame's lag at joints raw (2N,), cached for the last β."""
+        assert self.frame is not None
+        beta = raw[self.layout.n_tubes:].tobytes()
+        if self._lag_beta != beta:
+            self._lag_beta = beta
+            self._lag = lag_one(self.robot, raw, self.frame.lag)
+        return self._lag
+
+    # --- export ----------------------------------------------------------------------------------
+    def export_onnx(self, path: Path, opset: int) -> None:
+        write_onnx(self.bundle, self.net, path, opset, frame=self.frame)

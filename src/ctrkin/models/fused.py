@@ -1,0 +1,255 @@
+"""The FK streaming step in one numba call (issue 8, goal 4: an FK step ≤ 30 µs on one core).
+
+Why: an FK step on the reference path (FKPredictor.step) runs the input guards, the features, the engine's
+kernels (one call per layer), the fold gate and the frame rotation as a dozen Python-level calls.
+Each costs 0.5–5 µs of dispatch, attribute look-ups and small allocations; together they cost more
+than the network's arithmetic (profile, paper robot, one core: engine 19 µs of which the LSTM
+kernel 9 µs, to_world_one 4.6 µs, guards 3.8 µs, fold gate 1.4 µs). Here the whole step of an
+LSTM-MLP FK model (the paper's fk_lstm_mlp, the snap-aware fk_lstm_mlp_branch) is one compiled
+function that calls the same kernels in the same order on the same state:
+engine._lstm_rows, engine._push_history, engine._dense_rows, relay.gate_step, frame.pose_to_world.
+It therefore returns the reference path's numbers to the last bit (tests/models/test_fused.py).
+
+Scope: an FK model whose network is one LSTM layer followed by one or more Dense layers (the "Lh|Dk…"
+structures, the paper's L128|D64 included), minmax or phase angle encoding, with or without the
+outer-tube frame, a model with a branch state from a tabulated relay (the snap-aware model's fold
+gate, ctrkin.models.relay) or from its learned gate. Other models, and any step
+that the fast checks do not pass (a joint the robot cannot take, a rotation outside the trained
+range, NaN), go through the reference path, which raises with its message; a declined step has
+touched nothing.
+
+State: the streaming state stays where the reference path keeps it (FKPredictor: previous joints,
+whole-turn shift, relay state; StreamingEngine: the LSTM chains, their history and the branch state),
+so both paths can alternate within one sequence and `probe()` sees the same history.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from ctrkin.models.engine import StreamingEngine, _dense_rows, _lstm_rows, _push_history
+from ctrkin.models.frame import OuterFrame, pose_to_world
+from ctrkin.models.guards import MAX_ABS_ALPHA_DEG, FKGuard
+from ctrkin.models.relay import GateTables, gate_step
+from ctrkin.models.store import ModelBundle
+from ctrkin.robots.robot import JOINT_TOL
+
+GATE_NONE, GATE_FOLD, GATE_LEARNED = 0, 1, 2
+DECLINED = -2          # the step's status when the fast checks fail (nothing was changed)
+
+
+class Clip(NamedTuple):
+    """The step-change feature columns and their trained range (FKPredictor.clip_deltas)."""
+
+    columns: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+
+class Relay(NamedTuple):
+    """A tabulated relay for the branch state (ctrkin.models.relay): its grid and (c, κ, band) deg."""
+
+    tables: GateTables
+    widen_deg: float
+    outer_lag_deg: float
+    band_deg: float
+
+
+class StepState(NamedTuple):
+    """What one fused step returns besides the pose: the fold gate's state (−1 at a start, −2: the
+    step was declined), the outer tube's last rotation m_N, its angle, and the network's branch state."""
+
+    gate_state: int
+    outer_motion: int
+    outer_prev: float
+    branch: float
+
+
+@njit(cache=True)
+def _joints_ok(raw: np.ndarray, shift: np.ndarray, n: int, lengths: np.ndarray, alpha_lo: np.ndarray,
+               alpha_hi: np.ndarray) -> bool:
+    """FKGuard._fast_ok with Robot._valid_single: finite joints the robot can take (βN ≤ 0, tips
+    ahead of the plate, tubes nested), |α| ≤ 1e9 and α − shift within the trained range ± a turn."""
+    for v in raw:
+        if not math.isfinite(v):
+            return False
+    if raw[2 * n - 1] > JOINT_TOL or raw[2 * n - 1] + lengths[n - 1] < -JOINT_TOL:
+        return False
+    for i in range(n - 1):
+        if not (raw[n + i] <= raw[n + i + 1] + JOINT_TOL
+                and raw[n + i] + lengths[i] >= raw[n + i + 1] + lengths[i + 1] - JOINT_TOL):
+            return False
+    for i in range(n):
+        if abs(raw[i]) > MAX_ABS_ALPHA_DEG or not (alpha_lo[i] <= raw[i] - shift[i] <= alpha_hi[i]):
+            return False
+    return True
+
+
+@njit(cache=True)
+def _fk_step(raw, shift, prev, started, prev_out, cfg, guard, norm,
+             w_ih, w_hh, b, h, c, h2, c2, g, t, bits, hist, x, fresh, branch,
+             head_w, head_b, out_w, out_b, gate_w, gate_b, gate_state, motion, outer_prev,
+             tables, gate_consts, rot, trans, lag, y):
+    """One FK step: joints raw (2N,) (deg, mm, as given) -> y (6,) tracker-frame pose. Returns
+    (gate state, m_N, αN, branch state) or a gate state DECLINED (nothing changed).
+
+    shift (2N,): the sequence's whole turns; prev (2N,): the previous shifted joints (started);
+    prev_out (2N,): receives this step's (as the network sees them). cfg: (N, phase, delta, flatten,
+    relu output, gate kind, outer frame, its lag, its lagged inputs). guard: (lengths, α lo, α hi);
+    norm: (x lo, x span, clip lo, clip hi, y lo, y span).
+    The LSTM (w_ih, w_hh, b) and its chains h, c (scratch h2, c2, g, t, bits), history hist, input
+    row x (1, F) are the StreamingEngine's; fresh: the sequence's first step. head_w, head_b: per
+    Dense layer (B, out, in), (B, out) for B branches; out_w, out_b likewise; gate_w, gate_b: the
+    learned gate's two layers. tables, gate_consts: the fold gate's GateTables and (c, κ, band);
+    rot, trans: the outer frame's registration; lag: its outer lag λ(β) (deg) at these joints."""
+    n, phase, delta, flatten, relu_out, gate_kind, outer_frame, has_lag, lagged_inputs = cfg
+    if not _joints_ok(raw, shift, n, guard[0], guard[1], guard[2]):
+        return DECLINED, motion, outer_prev, branch
+    xlo, xspan, clip_lo, clip_hi, ylo, yspan = norm
+    q = raw - shift
+    a0_cmd = q[0] - q[n - 1]                    # the commanded α0: the fold gate's input
+    # m_N from αN as given (FKPredictor._motion_after), followed by the fold gate or the lagged frame
+    if gate_kind == GATE_FOLD or has_lag:
+        a_n = raw[n - 1]
+        if not math.isnan(outer_prev) and abs(a_n - outer_prev) > 1e-9:
+            motion = 1 if a_n > outer_prev else -1
+        outer_prev = a_n
+    outer = q[n - 1] - lag * motion if has_lag else q[n - 1]    # the frame's angle (FKPredictor._step_angle)
+    if lagged_inputs:                           # the network sees it as αN (OuterFrame.network_joints)
+        q[n - 1] = outer
+    # features (ctrkin.models.features: α, β, α0, [sin α0, cos α0], Δα0), clipped and normalised
+    a0 = q[0] - q[n - 1]                                             # eq. (1)
+    d_a0 = a0 - (prev[0] - prev[n - 1]) if started else 0.0          # eq. (2)
+    prev_out[:] = q
+    f = x[0]
+    f[: 2 * n] = q
+    f[2 * n] = a0
+    k = 2 * n + 1
+    if phase:
+        r = math.radians(a0)
+        f[k], f[k + 1] = math.sin(r), math.cos(r)
+        k += 2
+    if delta:
+        f[k] = d_a0
+    for j in range(f.size):
+        f[j] = (min(max(f[j], clip_lo[j]), clip_hi[j]) - xlo[j]) / xspan[j]
+    if gate_kind == GATE_FOLD:          # the relay on the shifted joints (SnapAwarePredictor._fold_step)
+        gate_state = gate_step(gate_state, a0_cmd, q[n:], float(motion), tables[0], tables[1], tables[2],
+                               tables[3], tables[4], gate_consts[0], gate_consts[1], gate_consts[2])
+        branch = 1.0 if gate_state > 0.5 else 0.0
+    # the engine (StreamingEngine.step, one LSTM layer): a fresh sequence feeds its first step IB times
+    ib = hist.shape[0]
+    for _ in range(ib if fresh else 1):
+        _lstm_rows(x, True, w_ih, w_hh, b, h, c, h2, c2, g, t, bits)
+        _push_history(hist, h, False)
+    window = hist[ib - 1]
+    z = window.reshape((1, window.size)) if flatten else window[ib - 1:]
+    if gate_kind == GATE_LEARNED:                                    # StreamingEngine._head
+        zs = np.empty((1, z.shape[1] + 1))
+        zs[0, :-1] = z[0]
+        zs[0, -1] = branch
+        g1 = np.empty((1, gate_w[0].shape[0]))
+        g2 = np.empty((1, 1))
+        _dense_rows(zs, gate_w[0], gate_b[0], g1, True)
+        _dense_rows(g1, gate_w[1], gate_b[1], g2, False)
+        branch = 1.0 if g2[0, 0] > 0 else 0.0
+    head = int(branch) if gate_kind != GATE_NONE else 0
+    for layer in range(len(head_w)):
+        buf = np.empty((1, head_w[layer].shape[1]))
+        _dense_rows(z, head_w[layer][head], head_b[layer][head], buf, True)
+        z = buf
+    yn = np.empty((1, out_w.shape[1]))
+    _dense_rows(z, out_w[head], out_b[head], yn, relu_out)
+    local = yn[0] * yspan + ylo
+    if outer_frame:                              # at αN less the lag (FKPredictor._step_angle)
+        pose_to_world(local, outer, rot, trans, y)
+    else:
+        y[:] = local
+        nq = math.sqrt(y[3] * y[3] + y[4] * y[4] + y[5] * y[5])
+        if nq > 1e-12:
+            y[3:6] /= nq
+    return gate_state, motion, outer_prev, branch
+
+
+class FusedFK:
+    """The constants of one FK model laid out for `_fk_step`, and its call. `build` returns None for a
+    model outside the scope of the module docstring."""
+
+    def __init__(self, bundle: ModelBundle, engine: StreamingEngine, guard: FKGuard, clip: Clip,
+                 frame: OuterFrame | None, relay: Relay | None) -> None:
+        layout = bundle.layout
+        n = layout.n_tubes
+        w_ih, w_hh, b = engine.seq[0][1]
+        self.engine = engine
+        lo = np.full(n, -np.inf) if guard.periodic_only else np.asarray(guard._lo, float)
+        hi = np.full(n, np.inf) if guard.periodic_only else np.asarray(guard._hi, float)
+        self.guard = (np.asarray(bundle.robot.lengths, float), lo, hi)
+        f = layout.n_inputs
+        clip_lo, clip_hi = np.full(f, -np.inf), np.full(f, np.inf)
+        clip_lo[clip.columns], clip_hi[clip.columns] = clip.lo, clip.hi
+        self.norm = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in (
+            bundle.x_norm.lo, bundle.x_norm.span, clip_lo, clip_hi, bundle.y_norm.lo, bundle.y_norm.span))
+        self.lstm = (w_ih, w_hh, b)
+        heads = engine.heads
+        n_layers = len(heads[0][0])
+        self.head_w = tuple(np.stack([hd[0][i][0] for hd in heads]) for i in range(n_layers))
+        self.head_b = tuple(np.stack([hd[0][i][1] for hd in heads]) for i in range(n_layers))
+        self.out_w = np.stack([hd[1][0] for hd in heads])
+        self.out_b = np.stack([hd[1][1] for hd in heads])
+        gate_kind = GATE_NONE
+        self.gate_w: tuple[np.ndarray, np.ndarray] = (np.zeros((1, 1)), np.zeros((1, 1)))
+        self.gate_b: tuple[np.ndarray, np.ndarray] = (np.zeros(1), np.zeros(1))
+        self.tables: tuple[np.ndarray, ...] = (np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64),
+                                               np.zeros(1), np.zeros(1))
+        self.gate_consts = (0.0, 0.0, 0.0)
+        if relay is not None:
+            gate_kind = GATE_FOLD
+            tb = relay.tables
+            self.tables = (tb.axes, tb.start, tb.size, tb.forward, tb.backward)
+            self.gate_consts = (float(relay.widen_deg), float(relay.outer_lag_deg), float(relay.band_deg))
+        elif engine.gate:
+            gate_kind = GATE_LEARNED
+            self.gate_w = (engine.gate[0][0], engine.gate[1][0])
+            self.gate_b = (engine.gate[0][1], engine.gate[1][1])
+        reg = frame.registration if frame is not None else None
+        self.rot = np.eye(3) if reg is None else np.ascontiguousarray(reg.rotation, dtype=np.float64)
+        self.trans = np.zeros(3) if reg is None else np.ascontiguousarray(reg.translation, dtype=np.float64)
+        self.cfg = (n, layout.angle_encoding == "phase", layout.delta, engine.pooling == "flatten",
+                    engine.relu_out, gate_kind, reg is not None, frame is not None and frame.has_lag,
+                    frame is not None and frame.lags_inputs)
+        self.prev = np.zeros(2 * n)        # the last step's shifted joints (FKPredictor._prev)
+        self._none = np.zeros(2 * n)
+
+    @classmethod
+    def build(cls, bundle: ModelBundle, engine: StreamingEngine | None, guard: FKGuard, clip: Clip,
+              frame: OuterFrame | None, relay: Relay | None = None) -> FusedFK | None:
+        """The fused step of an FK model (`bundle` with its streaming engine, input guard, step-change
+        clip and outer frame; the branch state from `relay` where given), or None where it does not
+        apply (module docstring)."""
+        eng = engine
+        if (eng is None or bundle.layout.angle_encoding not in ("minmax", "phase")
+                or len(eng.seq) != 1 or eng.seq[0][0] != "lstm" or not eng.heads[0][0]
+                or len(eng.heads) > 2):
+            return None
+        return cls(bundle, eng, guard, clip, frame, relay)
+
+    def step(self, raw: np.ndarray, shift: np.ndarray, prev: np.ndarray | None, gate_state: int,
+             outer_motion: int, outer_prev: float, lag: float = 0.0) -> tuple[np.ndarray, StepState]:
+        """One step: raw (2N,) joints as given, shift (2N,) the sequence's whole turns, prev the
+        previous shifted joints (None at a start), the fold gate's state and m_N, lag the outer frame's
+        λ(β) (deg) -> the (6,) pose and the new state (gate_state DECLINED: nothing changed, take the
+        reference path)."""
+        e = self.engine
+        y = np.empty(6)
+        w_ih, w_hh, b = self.lstm
+        res = _fk_step(raw, shift, self._none if prev is None else prev, prev is not None, self.prev,
+                       self.cfg, self.guard, self.norm, w_ih, w_hh, b, e._h[0], e._c[0], e._h2[0],
+                       e._c2[0], e._g[0], e._t[0], e._bits[0], e._hist, e._x, e._fresh, e.state,
+                       self.head_w, self.head_b, self.out_w, self.out_b, self.gate_w, self.gate_b,
+                       gate_state, outer_motion, outer_prev, self.tables, self.gate_consts, self.rot,
+                       self.trans, lag, y)
+        return y, StepState(*res)

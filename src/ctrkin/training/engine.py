@@ -1,0 +1,341 @@
+"""The generic training engine of paper IV.A: Adam, mini-batches, early stopping on the validation
+loss; seeded, checkpointed after every epoch and resumable. What a model learns from and its loss
+come from its family's recipe (ctrkin.models.recipe), found by the registry
+(ctrkin.families.registry); everything else is here, the same for every family.
+
+    from ctrkin.data import Dataset
+    from ctrkin.training import TrainConfig, train
+    result = train(Dataset.load("data/quick"), TrainConfig(task="fk"), "models/fk")
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import pickle
+import shutil
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import torch
+from tqdm.auto import tqdm
+
+from ctrkin.data.dataset import Dataset
+from ctrkin.data.splits import split_warnings
+from ctrkin.errors import ModelError
+from ctrkin.families.registry import build_net, recipe
+from ctrkin.models.recipe import Recipe, TrainingData
+from ctrkin.models.store import CONFIG, ModelBundle, read_json, write_json
+from ctrkin.training.config import TrainConfig
+from ctrkin.training.curves import plot_curves
+from ctrkin.training.data import data_signature, split_rows, split_signature
+from ctrkin.util.files import atomic_path, atomic_write_text
+from ctrkin.util.folders import folder_lock, swap_in, write_manifest
+from ctrkin.util.ownership import check_replaceable, write_marker
+from ctrkin.util.progress import progress_bar
+
+CHECKPOINT = "checkpoint.pt"
+SMOOTH_RTOL = 1e-3
+
+
+@dataclass
+class TrainResult:
+    out: Path
+    metrics: dict[str, Any]
+    history: list[dict[str, float]]
+
+
+Loss = Callable[[torch.nn.Module, torch.Tensor, torch.Tensor, torch.Tensor, torch.Generator], torch.Tensor]
+
+
+def _epoch(net: torch.nn.Module, opt: torch.optim.Optimizer, X: torch.Tensor, Y: torch.Tensor,
+           batch: int, gen: torch.Generator, loss_fn: Loss) -> float:
+    """One epoch of the loop up to issue 11 (TrainConfig.loop = "batch"): a gather per batch.
+    loss_fn(net, x, y, idx, gen): the recipe's loss of a batch (idx: its rows of X, Y)."""
+    net.train()
+    perm = torch.randperm(len(X), generator=gen)
+    total, count = 0.0, 0
+    for a in range(0, len(perm), batch):
+        idx = perm[a:a + batch]
+        loss = loss_fn(net, X[idx], Y[idx], idx, gen)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        total += loss.item() * len(idx)
+        count += len(idx)
+    return total / max(count, 1)
+
+
+def _epoch_gathered(net: torch.nn.Module, opt: torch.optim.Optimizer, X: torch.Tensor, Y: torch.Tensor,
+                    batch: int, gen: torch.Generator, loss_fn: Loss) -> float:
+    """One epoch with the training tensors shuffled by one gather (TrainConfig.loop = "epoch"):
+    batches are contiguous views, the loss is summed without a per-batch sync. The same permutation
+    and batches as `_epoch`, so both loops see the same data order for a seed."""
+    net.train()
+    perm = torch.randperm(len(X), generator=gen)
+    Xp, Yp = X[perm], Y[perm]
+    total = torch.zeros((), dtype=torch.float64)
+    for a in range(0, len(perm), batch):
+        x, y = Xp[a:a + batch], Yp[a:a + batch]
+        loss = loss_fn(net, x, y, perm[a:a + batch], gen)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        total += loss.detach() * len(x)
+    return float(total) / max(len(perm), 1)
+
+
+def _optimizer(net: torch.nn.Module, cfg: TrainConfig) -> torch.optim.Optimizer:
+    """Adam (paper IV.A): the fused CPU kernel (one call for all parameters, ~15-30 % of a small
+    batch's step saved; rounding differs) unless cfg.fused_adam is off or the loop is "batch"."""
+    if cfg.loop == "epoch" and cfg.fused_adam:
+        return torch.optim.Adam(net.parameters(), lr=cfg.lr, fused=True)
+    return torch.optim.Adam(net.parameters(), lr=cfg.lr)
+
+
+def _early_stopping(state: dict[str, Any], val_loss: float, cfg: TrainConfig) -> bool:
+    """Update the early-stopping counters of `state` with this epoch's val loss; True if it is the
+    best epoch so far (its weights are kept). With val_smoothing > 0 the patience counts epochs
+    without an improvement of the smoothed val loss (a noisy val loss at a large learning rate
+    would otherwise stop a run that is still improving); it must fall by SMOOTH_RTOL of itself to
+    count, since an average converging onto a plateau falls forever by ever smaller steps."""
+    best = val_loss < state["best_val"] - cfg.min_delta
+    if best:
+        state.update(best_val=val_loss, best_epoch=state["epoch"])
+    a = cfg.val_smoothing
+    if a == 0:
+        state["since_best"] = 0 if best else state["since_best"] + 1
+        return best
+    prev = state.get("smooth_val")
+    smooth = val_loss if prev is None else a * prev + (1.0 - a) * val_loss
+    state["smooth_val"] = smooth
+    best_smooth = state.get("best_smooth")
+    if best_smooth is None or smooth < best_smooth - max(cfg.min_delta, SMOOTH_RTOL * best_smooth):
+        state.update(best_smooth=smooth, since_best=0)
+    else:
+        state["since_best"] += 1
+    return best
+
+
+def _learning_rate(cfg: TrainConfig, epoch: int) -> float:
+    """The learning rate of epoch `epoch` (0-based): constant (paper) or cosine from lr to lr/50."""
+    if cfg.lr_schedule == "constant":
+        return cfg.lr
+    low = cfg.lr / 50.0
+    return low + (cfg.lr - low) * 0.5 * (1.0 + math.cos(math.pi * min(epoch / cfg.max_epochs, 1.0)))
+
+
+def setup_differences(saved_config: dict[str, Any], saved_data: str | None, saved_split: str | None,
+                      cfg: TrainConfig, signature: str, split_sig: str,
+                      ignore: tuple[str, ...] | None = None) -> list[str]:
+    """What differs between a saved run (its config dict, data and split signatures) and `cfg` on
+    this data and split (data_signature, split_signature); empty if it may be resumed or reused.
+    ignore: config keys that may differ (None: those a resume may change, TrainConfig.differences)."""
+    old = TrainConfig.from_dict(saved_config)
+    diffs = old.differences(cfg) if ignore is None else old.differences(cfg, ignore)
+    if saved_data != signature:
+        diffs.append("the dataset differs")
+    if saved_split != split_sig:
+        diffs.append("the train/val/test split differs")
+    return diffs
+
+
+def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = False, progress: bool = True,
+          log: Any = None) -> TrainResult:
+    """Train `cfg` on `ds`, writing the model folder `out` (ctrkin.models.store).
+
+    If `out` holds a checkpoint of the same configuration, data and split, training resumes from it (a
+    larger max_epochs continues a finished run); a different one is refused unless `overwrite`. A
+    recipe without checkpoints (Recipe.checkpoints) starts over, or reuses a finished folder of the
+    same setup. The folder is built aside (`.NAME.build`, which also keeps the checkpoints of an
+    unfinished run) and swapped in whole at the end, under a lock: a kill leaves the previous model
+    or the new one, never a mix, and a second training into the same `out` is refused while one runs.
+    """
+    out = Path(out)
+    with folder_lock(out, ModelError, "train"):        # also cleans what killed runs left
+        check_replaceable(out, "model", ModelError)     # only a model folder is ever replaced
+        return _train_locked(ds, cfg, out, overwrite, progress, log or (lambda _m: None))
+
+
+def _train_locked(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, progress: bool,
+                  say: Callable[[str], None]) -> TrainResult:
+    rec = recipe(cfg)
+    torch.set_num_threads(cfg.threads)
+    split, rows = split_rows(ds, cfg)
+    if split.kind == "sequence":
+        for w in split_warnings(split, split.fractions):
+            say(f"warning: {w}")
+    signature, split_sig = data_signature(ds), split_signature(rows)
+    if not rec.checkpoints:
+        reused = _reusable(out, cfg, signature, split_sig, overwrite)
+        if reused is not None:
+            say(f"{out} already holds this model; reusing it")
+            return reused
+    prepared = rec.prepare(TrainingData(ds, cfg, split, rows))
+    torch.manual_seed(cfg.seed)
+    bundle = ModelBundle.create(cfg.to_dict(), prepared.layout, prepared.x_norm, prepared.y_norm, ds.robot,
+                                {"data": {"signature": signature, "split_signature": split_sig,
+                                          "samples": len(ds.frame), "source": str(ds.meta.get("path", "")),
+                                          "protocol": ds.meta.get("protocol")}, **prepared.extra},
+                                frame=prepared.frame, build=build_net)
+    run = _Run(bundle, cfg, rec, out, signature, split_sig)
+    run.start(overwrite, say)
+    run.epochs(progress)
+    return run.finish(split, len(rows["train"]), say)
+
+
+class _Run:
+    """One training run's state: the network, Adam, the batch-order generator, the early-stopping
+    counters and history (`state`), the best weights, and the build folder with its checkpoint."""
+
+    def __init__(self, bundle: ModelBundle, cfg: TrainConfig, rec: Recipe, out: Path, signature: str,
+                 split_sig: str) -> None:
+        self.bundle, self.cfg, self.recipe, self.out = bundle, cfg, rec, out
+        self.signature, self.split_sig = signature, split_sig
+        self.net = bundle.net
+        self.opt = _optimizer(self.net, cfg)
+        self.gen = torch.Generator().manual_seed(cfg.seed)
+        self.state: dict[str, Any] = {"epoch": 0, "best_val": float("inf"), "best_epoch": 0, "since_best": 0,
+                                      "history": [], "seconds": 0.0, "done": False}
+        self.best_weights = {k: v.clone() for k, v in self.net.state_dict().items()}
+        self.build = out.with_name(f".{out.name}.build")
+        self.ckpt = self.build / CHECKPOINT
+        self.previous: list[Path] = []
+
+    def start(self, overwrite: bool, say: Callable[[str], None]) -> None:
+        """Resume from a checkpoint of the same setup in the build folder or `out` (refuse another
+        setup unless `overwrite`), and make the build folder."""
+        cfg, build = self.cfg, self.build
+        if build.exists() and (overwrite or not self.recipe.checkpoints):
+            shutil.rmtree(build)
+        if self.recipe.checkpoints:
+            self.previous = [p / CHECKPOINT for p in (build, self.out) if (p / CHECKPOINT).is_file()]
+        if self.previous and not overwrite:
+            saved = _load_checkpoint(self.previous[0])
+            diffs = setup_differences(saved["config"], saved["data_signature"], saved.get("split_signature"),
+                                      cfg, self.signature, self.split_sig)
+            if diffs:
+                raise ModelError(f"{self.out} holds a training run with a different setup "
+                                 f"({'; '.join(diffs)}); pass overwrite (--overwrite) or choose another "
+                                 "--out")
+            self.net.load_state_dict(saved["net"])
+            self.opt.load_state_dict(saved["opt"])
+            self.gen.set_state(saved["gen"])
+            self.best_weights = saved["best"]
+            self.state = state = saved["state"]
+            if (state["done"] and cfg.max_epochs > state["epoch"] and state["since_best"] < cfg.patience
+                    and not _out_of_time(state, cfg)):
+                state["done"] = False
+            say(f"resuming {self.out} after epoch {state['epoch']}")
+        if build.exists() and not (build / CHECKPOINT).is_file():
+            shutil.rmtree(build)             # a build killed before its first checkpoint: nothing to keep
+        build.mkdir(parents=True, exist_ok=True)
+
+    def epochs(self, progress: bool) -> None:
+        """Train until early stopping, max_epochs or max_seconds; a checkpoint after every epoch."""
+        cfg, state, net, rec = self.cfg, self.state, self.net, self.recipe
+        run_epoch = _epoch_gathered if cfg.loop == "epoch" else _epoch
+        bar = (progress_bar(total=cfg.max_epochs, desc=f"train {cfg.task} {cfg.model}",
+                            initial=state["epoch"]) if progress else tqdm(disable=True))
+        try:
+            while not state["done"] and state["epoch"] < cfg.max_epochs:
+                t0 = time.perf_counter()
+                for group in self.opt.param_groups:
+                    group["lr"] = _learning_rate(cfg, state["epoch"])
+                X, Y = rec.epoch_tensors(state["epoch"], self.bundle)
+                train_loss = run_epoch(net, self.opt, X, Y, cfg.batch_size, self.gen, rec.loss)
+                val_loss = rec.val_loss(net)
+                state["seconds"] += time.perf_counter() - t0
+                state["epoch"] += 1
+                state["history"].append({"epoch": state["epoch"], "train_loss": train_loss,
+                                         "val_loss": val_loss, "seconds": state["seconds"]})
+                if _early_stopping(state, val_loss, cfg):
+                    self.best_weights = {k: v.detach().clone() for k, v in net.state_dict().items()}
+                if (state["since_best"] >= cfg.patience or state["epoch"] >= cfg.max_epochs
+                        or _out_of_time(state, cfg)):
+                    state["done"] = True
+                if rec.checkpoints:
+                    self._checkpoint()
+                bar.update(1)
+                bar.set_postfix(train=f"{train_loss:.4g}", val=f"{val_loss:.4g}", best=state["best_epoch"])
+        finally:
+            bar.close()
+
+    def _checkpoint(self) -> None:
+        with atomic_path(self.ckpt) as tmp:
+            torch.save({"config": self.cfg.to_dict(), "data_signature": self.signature,
+                        "split_signature": self.split_sig, "net": self.net.state_dict(),
+                        "opt": self.opt.state_dict(), "gen": self.gen.get_state(), "best": self.best_weights,
+                        "state": self.state}, tmp)
+
+    def finish(self, split: Any, train_rows: int, say: Callable[[str], None]) -> TrainResult:
+        """The best epoch's weights, the model folder (the recipe's metrics and files, history, curves,
+        manifest) swapped in for `out`."""
+        cfg, state, net, build = self.cfg, self.state, self.net, self.build
+        if not state["history"]:
+            raise ModelError(f"no epoch was trained (max_epochs = {cfg.max_epochs})")
+        if self.recipe.checkpoints and not self.ckpt.is_file():   # resumed a finished run without training
+            shutil.copy2(self.previous[0], self.ckpt)
+        net.load_state_dict(self.best_weights)
+        net.eval()
+        self.bundle.save(build)
+        split.save(build / "split.json")
+        metrics = self.recipe.finish(self.bundle, build, say)
+        metrics["training"] = {"epochs": state["epoch"], "best_epoch": state["best_epoch"],
+                               "best_val_loss": state["best_val"], "seconds": state["seconds"],
+                               "early_stopped": state["since_best"] >= cfg.patience,
+                               "samples_per_s": train_rows * state["epoch"] / max(state["seconds"], 1e-9),
+                               "threads": cfg.threads, "parameters": sum(p.numel() for p in net.parameters())}
+        write_json(build / "metrics.json", metrics)
+        _write_history(build / "history.csv", state["history"])
+        plot_curves(state["history"], build / "curves.png",
+                    f"{cfg.task.upper()} {cfg.model} (IB = {cfg.ib}): training and validation loss")
+        write_marker(build, "model")
+        write_manifest(build, skip=(CHECKPOINT,))
+        swap_in(build, self.out, ModelError, "model")
+        return TrainResult(self.out, metrics, state["history"])
+
+
+def _reusable(out: Path, cfg: TrainConfig, signature: str, split_sig: str, overwrite: bool
+              ) -> TrainResult | None:
+    """For a recipe without checkpoints: the finished model in `out` if it was trained with `cfg` on
+    this data and split; None if there is none (or overwrite); ModelError if `out` holds another
+    model."""
+    if overwrite or not (out / CONFIG).is_file():
+        return None
+    saved = read_json(out / CONFIG)
+    data = saved.get("data", {})
+    diffs = setup_differences(saved["train"], data.get("signature"), data.get("split_signature"), cfg,
+                              signature, split_sig, ignore=("threads",))
+    if diffs:
+        raise ModelError(f"{out} holds a model with a different setup ({'; '.join(diffs)}); pass "
+                         f"overwrite (--overwrite) or choose another --out")
+    with open(out / "history.csv", newline="") as f:
+        history = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+    return TrainResult(out, read_json(out / "metrics.json"), history)
+
+
+def _out_of_time(state: dict[str, Any], cfg: TrainConfig) -> bool:
+    return cfg.max_seconds is not None and state["seconds"] >= cfg.max_seconds
+
+
+def _load_checkpoint(path: Path) -> dict[str, Any]:
+    try:
+        saved = torch.load(path, map_location="cpu", weights_only=True)
+    except (RuntimeError, OSError, EOFError, pickle.UnpicklingError) as e:
+        raise ModelError(f"{path} cannot be read ({e}); pass overwrite (--overwrite) to start over") from None
+    if not isinstance(saved, dict) or not {"config", "data_signature", "net", "state"} <= set(saved):
+        raise ModelError(f"{path} is not a ctrkin checkpoint; pass overwrite (--overwrite) to start over")
+    return saved
+
+
+def _write_history(path: Path, history: list[dict[str, float]]) -> None:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(history[0]))
+    w.writeheader()
+    w.writerows(history)
+    atomic_write_text(path, buf.getvalue())

@@ -1,0 +1,141 @@
+"""The follow IK (ctrkin.families.follow.features): it reaches targets the direct IK misses, batch equals
+streaming, start joints are honoured and checked, joints stay within limits or are flagged."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ctrkin.errors import JointError, ModelError
+from ctrkin.inference import Kinematics
+from ctrkin.mechanics import follow
+from ctrkin.robots import paper_robot
+from ctrkin.training import TrainConfig, train
+
+
+@pytest.fixture(scope="module")
+def follow_dir(sweeps, tmp_path_factory):
+    out = tmp_path_factory.mktemp("follow") / "ik_follow"
+    cfg = TrainConfig(task="ik", model="follow_mlp", max_epochs=25, patience=25, batch_size=128, lr=2e-3,
+                      lr_schedule="cosine", threads=1, options={"structure": "|D64,D64"})
+    train(sweeps, cfg, out, progress=False)
+    return out
+
+
+def _reached(joints: np.ndarray) -> np.ndarray:
+    """Tip positions (T, 3) the robot reaches along joints (continued from the first row)."""
+    return follow(paper_robot(), paper_robot().project_joints(joints)).tip_poses[:, :3]
+
+
+def test_follow_ik_reaches_targets_the_direct_ik_misses(follow_dir, model_dirs, sweeps):
+    seq = sweeps.sequence_bounds()[1]
+    targets = sweeps.poses(true=True)[seq[0]:seq[1]]
+    direct = Kinematics.load(model_dirs["ik"]).predict(targets)
+    res = Kinematics.load(follow_dir).predict(targets)
+    e_direct = np.linalg.norm(_reached(direct.joints) - targets[:, :3], axis=1)
+    e_follow = np.linalg.norm(_reached(res.joints) - targets[:, :3], axis=1)
+    print(f"reached tip error: direct {e_direct.mean():.2f} mm, follow {e_follow.mean():.2f} mm")
+    assert e_follow.mean() < 0.5 * e_direct.mean()
+    assert np.isnan(res.residual_mm).all() and not res.jump.any()
+
+
+def test_follow_ik_batch_equals_streaming_and_uses_start_joints(follow_dir, sweeps):
+    a, b = sweeps.sequence_bounds()[2]
+    targets, joints = sweeps.poses(true=True)[a:b], sweeps.joints()[a:b]
+    kin = Kinematics.load(follow_dir)
+    batch = kin.predict(targets, start_joints=joints[0]).joints
+    kin.reset(joints[0])
+    stream = np.array([kin.step(t).joints for t in targets])
+    np.testing.assert_allclose(stream, batch, atol=1e-9)
+    # the answers continue from the start joints: a start a whole turn further gives the same
+    # configurations a turn further (not the representative the training data used)
+    turned = kin.predict(targets, start_joints=joints[0] + np.r_[360.0, 360.0, 0.0, 0.0]).joints
+    np.testing.assert_allclose(turned[:, :2] - 360.0, batch[:, :2], atol=1e-6)
+    np.testing.assert_allclose(turned[:, 2:], batch[:, 2:], atol=1e-9)
+
+
+def test_follow_ik_refuses_bad_start_joints_and_other_models(follow_dir, model_dirs, sweeps):
+    kin = Kinematics.load(follow_dir)
+    targets = sweeps.poses(true=True)[:5]
+    with pytest.raises(ModelError, match="start_joints must have shape"):
+        kin.predict(targets, start_joints=np.zeros((2, 4)))
+    with pytest.raises(JointError):
+        kin.reset(np.array([0.0, 0.0, 5.0, 0.0]))          # β1 > 0: not a configuration
+    with pytest.raises(ModelError, match="follow IK"):
+        Kinematics.load(model_dirs["ik"]).predict(targets, start_joints=np.zeros(4))
+
+
+def test_follow_ik_joints_within_limits_or_flagged(follow_dir, sweeps):
+    robot = paper_robot()
+    targets = sweeps.poses(true=True)
+    targets = targets + np.r_[0.0, 0.0, 4.0, 0.0, 0.0, 0.0]      # pushed beyond the deepest insertion
+    res = Kinematics.load(follow_dir).predict(targets, sequence_id=sweeps.frame["sequence_id"].to_numpy())
+    np.testing.assert_allclose(robot.project_joints(res.joints), res.joints, atol=1e-9)
+    assert res.projected.any() and not res.in_workspace.all()
+
+
+def test_far_targets_are_followed_through_substeps(follow_dir, sweeps):
+    """Every 10th target of a path: the follower interpolates the gaps and ends about as close to
+    those targets as when it is given the whole path."""
+    a, b = sweeps.sequence_bounds()[1]
+    targets = sweeps.poses(true=True)[a:b]
+    kin = Kinematics.load(follow_dir)
+    fine = kin.predict(targets).joints[::10]
+    coarse = kin.predict(targets[::10]).joints
+    e_fine = np.linalg.norm(_reached(fine) - targets[::10, :3], axis=1)
+    e_coarse = np.linalg.norm(_reached(coarse) - targets[::10, :3], axis=1)
+    print(f"mean reached error: whole path {e_fine.mean():.2f} mm, every 10th {e_coarse.mean():.2f} mm")
+    assert e_coarse.mean() < 1.5 * e_fine.mean() + 0.2
+
+
+def test_follow_ik_refuses_onnx_export(follow_dir, tmp_path):
+    from ctrkin.inference.onnx_export import export_onnx
+
+    with pytest.raises(ModelError, match="cannot be exported"):
+        export_onnx(Kinematics.load(follow_dir), tmp_path / "follow.onnx")
+    assert not (tmp_path / "follow.onnx").exists()
+
+
+def test_follower_inverts_the_outer_tubes_play(follow_dir):
+    """With an outer lag λ the follower's motor commands, put through the transmission's play
+    operator (width 2λ, from rest), leave the outer tube exactly where the network meant it:
+    θ = network αN − λ. A start at rest is seen by the network with the tube's angle + λ."""
+    from ctrkin.virtual.transmission import play
+
+    kin = Kinematics.load(follow_dir)
+    f = kin.predictor.follower
+    f.lag, f.hold_deg = (2.0, 0.0), 0.0                  # λ = 2° whatever the translations; exact
+    q0 = np.array([10.0, 30.0, -20.0, 0.0])
+    f.reset(q0)
+    assert f.joints[1] == pytest.approx(32.0) and f.tube == f.motor == 30.0
+    theta = np.r_[30.0, 31.0, 33.0, 33.0, 32.5, 29.0, 29.0, 29.5, 35.0]   # forward, still, back, forward
+    motors = []
+    for th in theta:
+        q = q0.copy()
+        q[1] = th + 2.0
+        motors.append(f._backlash_inverse(q)[1])
+    tube = np.empty((len(theta), 1))
+    play(np.array(motors)[:, None], np.full((len(theta), 1), 4.0), np.array([30.0]), tube)
+    np.testing.assert_allclose(tube[:, 0], theta, atol=1e-12)
+    assert motors[3] == motors[2] and motors[4] == pytest.approx(30.5)   # still: no move; back: θ − λ
+
+
+def test_follower_holds_the_motor_through_small_reversals(follow_dir):
+    """A reversal of the outer tube smaller than hold_deg keeps the motor (the tube stays, within
+    hold_deg of the network's angle) instead of a trip of 2λ through the play."""
+    kin = Kinematics.load(follow_dir)
+    f = kin.predictor.follower
+    f.lag, f.hold_deg = (2.0, 0.0), 0.5
+    q0 = np.array([10.0, 30.0, -20.0, 0.0])
+    f.reset(q0)
+
+    def motor(theta):
+        q = q0.copy()
+        q[1] = theta + 2.0
+        return f._backlash_inverse(q)[1]
+
+    assert motor(30.2) == 30.0                     # at rest, less than hold_deg: nothing moves
+    assert motor(31.0) == pytest.approx(33.0)      # forward: θ + λ
+    assert motor(31.1) == pytest.approx(33.1)      # on along the taken-up side, however small
+    assert motor(30.8) == pytest.approx(33.1) and f.tube == pytest.approx(31.1)   # small reversal: held
+    assert motor(30.0) == pytest.approx(28.0)      # a reversal beyond hold_deg: θ − λ

@@ -1,0 +1,63 @@
+"""Branch labels (the relay the snap-aware model learns) and the BranchNet's state decoding."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from ctrkin.families.snap_aware.labels import branch_labels, phase_deg, previous_labels
+from ctrkin.families.snap_aware.net import UNKNOWN_STATE, BranchNet, relay_scan
+
+
+def _turn() -> np.ndarray:
+    """α0 0 → 360 → 0° in 1° steps (721 rows)."""
+    return np.r_[np.arange(0, 361, 1.0), np.arange(359, -1, -1.0)]
+
+
+def test_labels_switch_at_the_snaps_and_hold_between_them() -> None:
+    a0 = _turn()
+    snap = np.zeros(len(a0), bool)
+    fwd, back = 205, 361 + (360 - 150)          # forward snap at α0 = 205°, back at 150°
+    snap[[fwd, back]] = True
+    labels, forced = branch_labels(a0, snap, [(0, len(a0))])
+    assert (labels[:fwd] == 0).all() and labels[fwd] == 1          # lower branch until the snap
+    held = np.arange(fwd, back)
+    held = held[a0[held] < 360]                   # α0 = 360° is α0 = 0°: the phase wraps (forced, 0)
+    assert (labels[held] == 1).all() and (labels[back:] == 0).all()   # held until the snap back
+    assert labels[360] == 0 and forced[360]
+    phi = phase_deg(a0)
+    assert forced[np.abs(phi) > 90].all()                           # outside the band: no choice
+    assert not forced[(np.abs(phi) < 90) & (np.arange(len(a0)) < fwd)].any()   # bistable before it
+    assert forced[fwd + 1: fwd + 5].all()         # past the fold the old branch no longer exists
+
+
+def test_no_snap_means_the_state_follows_the_phase() -> None:
+    a0 = _turn()
+    labels, _ = branch_labels(a0, np.zeros(len(a0), bool), [(0, len(a0))])
+    assert labels[0] == 0 and labels[300] == 1    # outside the band on each side (φ = α0 − 180°)
+    assert labels[360] == 0                       # periodic: 360° is 0°
+
+
+def test_previous_labels_are_unknown_at_sequence_starts() -> None:
+    prev = previous_labels(np.array([1, 0, 1, 1], np.int8), [(0, 2), (2, 4)])
+    np.testing.assert_array_equal(prev, [0.5, 1.0, 0.5, 1.0])
+
+
+def test_relay_scan_holds_its_state() -> None:
+    from0 = np.array([0, 0, 1, 0, 0], bool)       # from state 0: switch to 1 at row 2
+    from1 = np.array([1, 1, 1, 0, 1], bool)       # from state 1: back to 0 at row 3
+    s = relay_scan(from0, from1, np.zeros(5, bool), [(0, 5)])
+    np.testing.assert_array_equal(s, [0, 0, 1, 0, 0])
+
+
+def test_decode_uses_the_head_of_each_rows_state() -> None:
+    torch.manual_seed(0)
+    net = BranchNet(5, 4, 2, structure="L8|D8", gate_units=4).eval()
+    h = torch.randn(12, net.trunk_width)
+    y, s = net.decode(h, [(0, 6), (6, 12)])
+    with torch.no_grad():
+        y0 = net.head_out(h, torch.zeros(12)).numpy()
+        y1 = net.head_out(h, torch.ones(12)).numpy()
+        start = (net.gate_logit(h, torch.full((12,), UNKNOWN_STATE)) > 0).numpy()
+    np.testing.assert_allclose(y, np.where(s[:, None] == 1, y1, y0), atol=1e-6)
+    assert s[0] == start[0] and s[6] == start[6]
