@@ -6,11 +6,13 @@
 Prints wall time, samples/s and peak memory: the resident set of this process and the largest of its
 worker processes (ru_maxrss, RUSAGE_SELF and RUSAGE_CHILDREN), plus the sum as an upper bound of the
 machine-wide peak. The kernels are compiled (or loaded from the numba cache) before the clock starts.
+Ends with one JSON line of the figures.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import resource
 import sys
@@ -70,6 +72,10 @@ def main() -> int:
     ok_mem = own + child * workers <= LIMIT_MB
     print(f"target (full scale): <= {LIMIT_S:.0f} s: {'ok' if ok_time else 'MISSED'}; "
           f"<= {LIMIT_MB:.0f} MB: {'ok' if ok_mem else 'MISSED'}")
+    print(json.dumps({"scale": args.scale, "workers": workers, "samples": n, "wall_s": round(wall, 2),
+                      "samples_per_s": round(n / wall, 1), "ms_per_step": round(1e3 * wall / plan.n_steps, 4),
+                      "peak_mb_sum": round(own + child * workers),
+                      "snap_samples": int(ds.frame["snap"].sum())}))
     return 0 if np.isfinite(wall) else 1
 
 

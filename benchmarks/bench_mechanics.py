@@ -12,13 +12,16 @@ and translates at once (a new grid every step; keys paper_warm_simultaneous_*), 
 deviation from a tight-tolerance reference integration (scipy DOP853, rtol 1e-12; goal ≤ 1e-3 mm).
 The default step is chosen from SolverSettings.tip_tol = 1e-3 mm; the TIMClab robot is run again at
 the fixed 3 mm step of earlier versions (tip_tol=None, step=3, angle_step=0.15; keys
-timclab_3mm_*). Runs on one core. Ends with one JSON line of the headline figures
-(medians in µs, errors in mm).
+timclab_3mm_*). The friction step (issue 20: ≤ 5× the frictionless one): the paper robot's sweeps
+followed with μ = FRICTION_MU and without, alternately, ROUNDS times in one process, so the ratio
+(median of the rounds' ratios of median step times) holds under load (keys paper_friction_*).
+Runs on one core. Ends with one JSON line of the headline figures (medians in µs, errors in mm).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import sys
@@ -163,6 +166,37 @@ def bench_warm(robot: Robot, sweeps: list[np.ndarray], labels: list[str],
     return st, wt
 
 
+FRICTION_MU = 0.2   # the virtual robot's default (docs/virtual_robot.md)
+ROUNDS = 5
+
+
+def _step_times(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings) -> np.ndarray:
+    times: list[float] = []
+    for Qs in sweeps:
+        stamps: list[float] = []
+        follow(robot, Qs, settings=settings, progress=lambda _t, s=stamps: s.append(time.perf_counter()))
+        times.extend(np.diff(stamps))
+    return np.array(times)
+
+
+def bench_friction(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Warm steps with and without friction, alternated ROUNDS times: (frictionless medians,
+    friction medians, ratios) per round, and the passes per friction step."""
+    rough = dataclasses.replace(robot, friction=FRICTION_MU)
+    follow(rough, sweeps[0][::20], settings=settings)  # compile the friction kernels
+    free, fric = [], []
+    for _ in range(ROUNDS):
+        free.append(np.median(_step_times(robot, sweeps, settings)))
+        fric.append(np.median(_step_times(rough, sweeps, settings)))
+    f0, f1 = np.array(free), np.array(fric)
+    ratio = f1 / f0
+    print(f"  friction μ = {FRICTION_MU}, warm step inside follow ({ROUNDS} rounds alternating): "
+          f"frictionless {np.median(f0) * 1e6:.1f} µs, friction {np.median(f1) * 1e6:.1f} µs, "
+          f"ratio median {np.median(ratio):.2f} (rounds {', '.join(f'{v:.2f}' for v in ratio)})")
+    return f0, f1, ratio
+
+
 def bench_accuracy(robot: Robot, Q: np.ndarray, settings: SolverSettings) -> np.ndarray:
     errs = []
     for q in Q:
@@ -203,6 +237,12 @@ def main() -> None:
     step_sim, _ = bench_warm(robot, sim, ["d 20 → 2 mm", "d 2 → 20 mm"], settings, n_warm=0)
     passes_sim = passes_per_step(robot, sim, settings)
     err = bench_accuracy(robot, random_configs(args.n_ref, seed=1), settings)
+    f0, f1, ratio = bench_friction(robot, sweeps, settings)
+    passes_f = passes_per_step(dataclasses.replace(robot, friction=FRICTION_MU), sweeps, settings)
+    out |= {"paper_friction_free_warm_us": np.median(f0) * 1e6,
+            "paper_friction_warm_us": np.median(f1) * 1e6,
+            "paper_friction_ratio": np.median(ratio), "paper_friction_ratio_max": ratio.max(),
+            "paper_friction_passes_mean": passes_f.mean()}
     out |= {"paper_cold_us": np.median(cold) * 1e6, "paper_warm_us": np.median(step) * 1e6,
             "paper_warm_solve_us": np.median(warm) * 1e6,
             "paper_warm_passes_median": np.median(passes), "paper_warm_passes_mean": passes.mean(),

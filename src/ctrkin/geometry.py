@@ -417,3 +417,13 @@ def sensor_view(poses: np.ndarray, transform: RigidTransform, offset_mm: float) 
     """The noise-free tracker view of tip poses: `sensor_poses` as 5-DOF poses, (T, 6) → (T, 6)."""
     p, axis = sensor_poses(poses, transform, offset_mm)
     return np.concatenate([p, quat_from_tangent(axis)], axis=1)
+
+
+def wave_warp(points: np.ndarray, amplitude: np.ndarray, wave: np.ndarray, phase: np.ndarray,
+              centre: np.ndarray) -> np.ndarray:
+    """Displacement (T, 3) mm of a smooth warp of space made of M plane waves at points (T, 3) mm:
+    d(p) = Σ_m amplitude_m sin(wave_m · (p − centre) + phase_m); amplitude (M, 3) mm, wave (M, 3)
+    1/mm, phase (M,) rad, centre (3,) mm. The virtual tracker's field distortion (ctrkin.virtual.field)
+    and the recorded tracker view of its datasets (ctrkin.data.tracker_view) share it."""
+    arg = (np.asarray(points, dtype=float) - centre) @ np.asarray(wave).T + phase    # (T, M)
+    return np.sin(arg) @ np.asarray(amplitude)

@@ -55,10 +55,13 @@ def test_snaps_at_highest_overlap_only(quick):
 
 
 def test_forward_backward_gap_grows_with_overlap(quick):
+    """T(L)'s loop widens with the curved overlap. The tip's loop in mm need not: the friction
+    between the tubes also acts where the outer tube's curvature meets the inner's straight part,
+    and at d = 4 mm the lagging inner tube swings its whole exposed curved part (issue 20)."""
     h = sweep_hysteresis(quick)
     assert list(h["relative_translation_mm"]) == [4.0, 12.0, 20.0]
     mean, gap = h["hysteresis_mean_mm"].to_numpy(), h["azimuth_gap_max_deg"].to_numpy()
-    assert mean[0] < mean[1] < mean[2]
+    assert (mean > 0.2).all()
     assert gap[0] < gap[1] < gap[2]
     assert gap[2] > 10.0  # a snap: T(L) jumps by more than the paper's 10 deg
     assert h["hysteresis_max_mm"].iloc[0] > 0.02  # backlash gives hysteresis even without overlap

@@ -29,6 +29,7 @@ def test_recorded_view_equals_the_rebuilt_virtual_tracker(arbitrary, tmp_path) -
     np.testing.assert_array_equal(recorded_tracker_view(Dataset.load(tmp_path / "ds")), expected)
     # it is the truth seen through the registration error, not the truth itself
     assert np.abs(expected - arbitrary.poses(true=True)).max() > 1e-3
+    assert arbitrary.meta["virtual_robot"]["tracker"]["field_warp"] is not None   # the warp is in it
 
 
 def test_no_view_without_a_recorded_tracker(arbitrary, robot) -> None:
@@ -39,3 +40,8 @@ def test_no_view_without_a_recorded_tracker(arbitrary, robot) -> None:
                      meta={**arbitrary.meta, "virtual_robot": incomplete})
     with pytest.raises(DatasetError, match="record the dataset again"):
         recorded_tracker_view(broken)
+    bad_warp = {**arbitrary.meta["virtual_robot"]["tracker"], "field_warp": {"amplitude_mm": [[1.0]]}}
+    warped = Dataset(frame=arbitrary.frame, robot=arbitrary.robot,
+                     meta={**arbitrary.meta, "virtual_robot": {"tracker": bad_warp}})
+    with pytest.raises(DatasetError, match="field warp"):
+        recorded_tracker_view(warped)

@@ -45,6 +45,9 @@ def test_results_json_is_the_results_and_every_headline_figure_is_finite(tiny_ru
     assert ReproResults.from_dict(on_disk) == results               # the nested tree reads back whole
     flat = results.flat()
     assert list(on_disk)[-len(flat):] == list(flat)                # the flat copies come last, in order
+    for row in ("tcm_calibrated", "tcm_calibrated_continued"):     # the calibrated physics baseline
+        assert f"fk.{row}.position_rmse_mm" in flat, row
+    assert flat["timing.tcm_calibrated_continued_us_mean"] is not None
     for key, value in flat.items():
         assert on_disk[key] == value, key                          # for tools that read dotted keys
     for task, folder in (("fk", results.recommended.fk), ("ik", results.recommended.ik)):

@@ -64,8 +64,8 @@ def test_straight_stretch_in_one_step_is_exact(rng) -> None:
     curved stretch would be changes nothing (residual, Jacobian, det H, tip) beyond round-off."""
     for robot, q in ((PAPER, paper_q(rng)), (TIMCLAB, timclab_q(rng))):
         pb = prepare(robot, q, SolverSettings())
-        bounds, kap, present, nsteps, nsample = pb.grid
-        straight = ~(kap != 0.0).any(axis=1)
+        bounds, kap, kapy, present, nsteps, nsample = pb.grid
+        straight = ~((kap != 0.0) | (kapy != 0.0)).any(axis=1)
         assert straight.any() and (nsteps[straight] == 1).all()
         assert (nsteps[~straight] == nsample[~straight]).all()
         x = solve(robot, q).x + 1e-3 / robot.lengths.max()
@@ -75,11 +75,11 @@ def test_straight_stretch_in_one_step_is_exact(rng) -> None:
         for steps in (nsteps, nsample):
             r, jac = np.empty(n), np.empty((n, n))
             det_h = kernels.shoot(x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, bounds, kap,
-                                  present, steps, nsample, r, jac, True)
+                                  kapy, present, steps, nsample, r, jac, True)
             body = np.empty(7)
             rec = (np.empty(1), np.empty((1, 3)), np.empty((1, n)), np.empty((1, n)))
             kernels.integrate_full(x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, bounds,
-                                   kap, present, steps, nsample, False, *rec, body)
+                                   kap, kapy, present, steps, nsample, False, *rec, body)
             out.append((r, jac, det_h, body))
         for u, v in zip(*out, strict=True):
             np.testing.assert_allclose(u, v, rtol=1e-10, atol=1e-12)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -76,3 +77,17 @@ def test_follow_rows_and_bad_spacing() -> None:
             dense_backbone(traj.equilibria[0], bad)
     section = bb.section(*bb.extent(0))
     assert section.shape[1] == 3 and len(section) >= 2
+
+
+def test_friction_and_clearance_rows_keep_their_torques_and_tilt() -> None:
+    """A row of a friction sweep (stuck twist, clearance tilt): the dense backbone applies the
+    same friction torques and tilt as the solve, so it ends at the row's tip; the frictionless
+    equilibrium at the same joints ends elsewhere (the check can fail)."""
+    rough = dataclasses.replace(paper_robot(), friction=0.2, clearance=1.0)
+    a = np.arange(0, 100, 10.0)
+    traj = follow(rough, np.c_[a, 0 * a, np.full(len(a), -8.0), 0 * a])
+    eq = traj.equilibria[-1]
+    bb = dense_backbone(eq, 0.5)
+    np.testing.assert_allclose(bb.points[-1], eq.tip_position, atol=TIP_TOL_MM)
+    free = solve(paper_robot(), eq.q)
+    assert np.linalg.norm(free.tip_position - eq.tip_position) > 10 * TIP_TOL_MM

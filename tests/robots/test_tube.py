@@ -58,9 +58,19 @@ def test_piecewise_sections() -> None:
                 sections=t.sections) == t
 
 
+def test_out_of_plane_section_round_trips() -> None:
+    """A section [length, κx, κy] is precurvature leaving the tube's plane (issue 20); it survives
+    the robot file and a planar section keeps its two-number form."""
+    t = Tube.from_sections(0.4, 0.2, [[20.0, 0.0], [10.0, 0.03, 0.002], [5.0, 0.03]])
+    assert t.sections[1].curvature_y == 0.002 and t.sections[1].curved
+    assert t.to_dict()["sections"] == [[20.0, 0.0], [10.0, 0.03, 0.002], [5.0, 0.03]]
+    assert Tube.from_sections(0.4, 0.2, t.to_dict()["sections"]) == t
+
+
 @pytest.mark.parametrize(("sections", "message"), [
     ([[10.0]], r"sections\[0\] must be a pair"),
-    ([[10.0, 0.1, 3.0]], r"sections\[0\] must be a pair"),
+    ([[10.0, 0.1, 3.0, 1.0]], r"sections\[0\] must be a pair"),
+    ([[10.0, 0.1, 20.0]], r"curvature_y must be within ±10 1/mm"),
     ([["a", 0.1]], r"sections\[0\]\.length must be a finite number"),
     ([[1e9 * 1e9, 0.0]], r"must be <= 10000 mm"),
     ([[10.0, -1e3]], r"curvature must be .*10 1/mm"),
@@ -96,3 +106,14 @@ def test_a_precurvature_no_tube_can_hold_is_refused() -> None:
         Tube(od=0.6822, id=0.41, straight_length=26.0, curved_length=111.0, curvature=1.978)
     with pytest.raises(RobotDescriptionError, match="strains its wall"):
         Tube.from_sections(od=1.0, id=0.8, sections=[(10.0, 0.0), (5.0, -0.5)])
+
+
+def test_the_strain_bound_reads_the_whole_precurvature_magnitude() -> None:
+    """A section's precurvature is û = (κx, κy, 0): its wall strain is √(κx² + κy²)·od/2. Two
+    components each within the bound (0.3 /mm on 1 mm: 15 %) make 0.424 /mm, 21 %: refused; the same
+    magnitude in one component is refused alike, and 0.28 + 0.28 (0.396 /mm, 19.8 %) passes."""
+    Tube.from_sections(od=1.0, id=0.8, sections=[(10.0, 0.0), (5.0, 0.28, 0.28)])
+    with pytest.raises(RobotDescriptionError, match="strains its wall by 21%"):
+        Tube.from_sections(od=1.0, id=0.8, sections=[(10.0, 0.0), (5.0, 0.3, 0.3)])
+    with pytest.raises(RobotDescriptionError, match="strains its wall by 21%"):
+        Tube.from_sections(od=1.0, id=0.8, sections=[(10.0, 0.0), (5.0, 0.0, -0.4243)])

@@ -11,7 +11,9 @@ from ctrkin.virtual.transmission import clip_to_valid, dead_band, play
 
 
 def test_dead_band_grows_with_overlap(robot):
-    c = VirtualConfig()
+    """The lumped overlap-dependent wind-up, an option since friction between the tubes models it
+    (its default is 0): set explicitly here."""
+    c = VirtualConfig(friction_deg_per_mm=0.8)
     q = config(2, 0.0, 0.0, 0.0, np.array([4.0, 12.0, 20.0]))
     w = dead_band(robot, c, q)
     base = c.gear_backlash_deg + c.friction_deg

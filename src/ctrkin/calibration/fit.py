@@ -15,6 +15,9 @@ parameter (8–15 times faster on the comet-lab sets; `analytic=False` keeps for
 With the prior (params.py), residuals (x − x_nominal) / σ_prior · PRIOR_SCALE_MM are appended:
 a maximum a posteriori fit for a position error of about PRIOR_SCALE_MM per coordinate.
 
+Friction (group "friction"): a point-wise solve carries no friction load, so μ is fitted after the
+other groups on the calibrated robot followed along whole training sequences (friction.py).
+
 Uncertainties: standard errors from the Gauss-Newton covariance σ² (JᵀJ)⁻¹ (prior rows included),
 σ² = SSR / (m − p) of the position residuals, at the solution; parameters on a bound are reported
 with it. Leave-one-sequence-out (LOSO): each sequence in turn is predicted by a calibration fitted
@@ -29,8 +32,9 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
+from ctrkin.calibration.friction import MAX_SAMPLES, fit_friction, sequences
 from ctrkin.calibration.model import CalibratedTCM
-from ctrkin.calibration.params import GROUPS, ParameterSet
+from ctrkin.calibration.params import FRICTION, GROUPS, ParameterSet, default_groups
 from ctrkin.calibration.sensitivity import tip_jacobian
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import CtrkinError
@@ -47,7 +51,8 @@ PROJECTION_STEP_MM = 1e-6  # step through the piecewise-linear mechanical stops 
 class CalibrationResult:
     """params: the fitted set; x (P,) values, std (P,) standard errors, at_bound (P,) flags;
     model: the calibrated predictor; rms_mm / mean_mm: fit error on all samples; nominal_mean_mm:
-    the nominal robot with a fitted registration; loso: per-sequence held-out errors (mm)."""
+    the nominal robot with a fitted registration; loso: per-sequence held-out errors (mm);
+    friction: the μ fit on the continued TCM (friction.fit_friction), empty without the group."""
 
     params: ParameterSet
     x: np.ndarray
@@ -60,6 +65,7 @@ class CalibrationResult:
     n_samples: int
     nfev: int
     loso: dict[str, Any] = field(default_factory=dict)
+    friction: dict[str, Any] = field(default_factory=dict)
 
     def table(self) -> list[dict[str, Any]]:
         return [{"name": name, "unit": unit, "nominal": nom, "value": float(v), "std": float(s),
@@ -71,8 +77,10 @@ class CalibrationResult:
         return {"parameters": self.table(), "rms_mm": self.rms_mm, "mean_mm": self.mean_mm,
                 "nominal_mean_mm": self.nominal_mean_mm, "n_samples": self.n_samples,
                 "evaluations": self.nfev, "groups": list(self.params.groups), "loso": self.loso,
+                "friction": self.friction,
                 "method": "scipy least_squares (trf), analytic Jacobian (TCM tip sensitivities), "
-                          "positions only"}
+                          "positions only" + ("; μ by a bounded scalar search on the continued TCM"
+                                              if self.friction else "")}
 
 
 def _positions(ds: Dataset, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -92,7 +100,10 @@ class _Jacobian:
     def __init__(self, ps: ParameterSet, joints: np.ndarray, measured: np.ndarray,
                  registration: Registration, analytic: bool = True, step: float = 1e-4) -> None:
         self.ps, self.joints, self.measured, self.reg = ps, joints, measured, registration
-        self.analytic, self.step = analytic, step
+        # the exact tangent (sensitivity.py) is that of the planar TCM without the clearance tilt;
+        # a point-wise solve has no friction history, so friction does not enter it
+        planar = all(not s.curvature_y for t in ps.robot.tubes for s in t.sections)
+        self.analytic, self.step = analytic and planar and not ps.robot.clearance, step
         self.lo, self.hi = ps.bounds()
         self._key: bytes | None = None
         self.x_nominal = ps.nominal()
@@ -213,18 +224,23 @@ def _fit(ps: ParameterSet, joints: np.ndarray, measured: np.ndarray, max_nfev: i
     return sol.x, sol
 
 
-def calibrate(ds: Dataset, robot: Robot | None = None, groups: tuple[str, ...] = GROUPS,
-              rows: np.ndarray | None = None, max_nfev: int = 60, prior: bool = True) -> CalibrationResult:
-    """Fit `groups` (params.py) of `robot` (default: the dataset's) to the dataset's positions;
-    prior: the Gaussian prior about the nominal values (params.py)."""
+def calibrate(ds: Dataset, robot: Robot | None = None, groups: tuple[str, ...] | None = None,
+              rows: np.ndarray | None = None, max_nfev: int = 60, prior: bool = True,
+              friction_samples: int = MAX_SAMPLES) -> CalibrationResult:
+    """Fit `groups` (params.py; default: params.default_groups, μ included when the nominal robot
+    has friction) of `robot` (default: the dataset's) to the dataset's positions; rows: the samples
+    to fit (default all; μ is fitted on the whole sequences holding them, up to friction_samples
+    samples); prior: the Gaussian prior about the nominal values (params.py)."""
     robot = robot or ds.robot
+    groups = default_groups(robot) if groups is None else tuple(groups)
     if robot.n_tubes != ds.n_tubes:
         raise CtrkinError(f"robot has {robot.n_tubes} tubes but the dataset {ds.n_tubes}")
     joints, measured = _positions(ds, rows)
     if len(joints) < 10:
         raise CtrkinError(f"calibration needs at least 10 samples, got {len(joints)}")
     ps = ParameterSet(robot, tuple(groups), prior=prior)
-    x, sol = _fit(ps, joints, measured, max_nfev)
+    pw = ps.point_wise()
+    x, sol = _fit(pw, joints, measured, max_nfev)
     m, p = 3 * len(joints), x.size
     ssr = float(sol.fun[:m] @ sol.fun[:m])
     try:
@@ -232,22 +248,31 @@ def calibrate(ds: Dataset, robot: Robot | None = None, groups: tuple[str, ...] =
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     except np.linalg.LinAlgError:
         std = np.full(p, np.nan)
+    model = pw.model(x)
+    err = np.linalg.norm(model.predict(joints)[:, :3] - measured, axis=1)
+    friction: dict[str, Any] = {}
+    if FRICTION in ps.groups:
+        mu, friction = fit_friction(model, ds.joints(), ds.poses(),
+                                    sequences(ds.sequence_bounds(), rows,
+                                              max_samples=friction_samples))
+        x, std = np.r_[x, mu], np.r_[std, friction["std"]]
+        model = ps.model(x, model.registration)
     lo, hi = ps.bounds()
     at_bound = ((np.abs(x - lo) < 1e-6 * np.maximum(1, np.abs(lo)))
                 | (np.abs(x - hi) < 1e-6 * np.maximum(1, np.abs(hi))))
-    model = ps.model(x)
-    err = np.linalg.norm(model.predict(joints)[:, :3] - measured, axis=1)
     nominal = ParameterSet(robot, ("registration",))
     xn, _ = _fit(nominal, joints, measured, max_nfev)
     err_n = np.linalg.norm(nominal.model(xn).predict(joints)[:, :3] - measured, axis=1)
     return CalibrationResult(ps, x, std, at_bound, model, float(np.sqrt(np.nanmean(err**2))),
-                             float(np.nanmean(err)), float(np.nanmean(err_n)), len(joints), int(sol.nfev))
+                             float(np.nanmean(err)), float(np.nanmean(err_n)), len(joints), int(sol.nfev),
+                             friction=friction)
 
 
 def leave_one_sequence_out(ds: Dataset, robot: Robot | None = None, groups: tuple[str, ...] = GROUPS,
                            max_nfev: int = 60, prior: bool = True,
                            prior_scales: tuple[float, ...] = (1.0,)) -> dict[str, Any]:
-    """Per sequence: fit `groups` on the other sequences, report the mean tip distance (mm) on it.
+    """Per sequence: fit `groups` on the other sequences, report the mean tip distance (mm) on it
+    (the point-wise groups: μ, which only the continued TCM sees, is left out of the folds).
 
     prior_scales: candidate prior strengths (ParameterSet.prior_scale); with more than one, each
     outer fold picks its own by an inner leave-one-sequence-out on its training sequences only
@@ -271,7 +296,7 @@ def leave_one_sequence_out(ds: Dataset, robot: Robot | None = None, groups: tupl
         if len(prior_scales) > 1:
             scale = min(prior_scales, key=lambda c: _inner_loso(robot, groups, joints, measured, sid, train,
                                                                 max_nfev, c))
-        ps = ParameterSet(robot, tuple(groups), prior=prior, prior_scale=scale)
+        ps = ParameterSet(robot, tuple(groups), prior=prior, prior_scale=scale).point_wise()
         x, _ = _fit(ps, joints[train], measured[train], max_nfev)
         e = np.linalg.norm(ps.model(x).predict(joints[test])[:, :3] - measured[test], axis=1)
         name = str(labels[int(k)]) if int(k) < len(labels) else str(k)
@@ -285,7 +310,7 @@ def leave_one_sequence_out(ds: Dataset, robot: Robot | None = None, groups: tupl
 def _inner_loso(robot: Robot, groups: tuple[str, ...], joints: np.ndarray, measured: np.ndarray,
                 sid: np.ndarray, rows: np.ndarray, max_nfev: int, scale: float) -> float:
     """Sample-weighted mean tip distance (mm) of a leave-one-sequence-out within `rows`."""
-    ps = ParameterSet(robot, tuple(groups), prior_scale=scale)
+    ps = ParameterSet(robot, tuple(groups), prior_scale=scale).point_wise()
     errs = []
     for k in np.unique(sid[rows]):
         train, test = rows[sid[rows] != k], rows[sid[rows] == k]

@@ -7,6 +7,8 @@ joint offsets, tip-marker offset and tracker registration.
 
 A calibrated robot file (`ctrkin calibrate --out`) is a normal robot file: its `[calibration]` table
 (offsets, marker offset, registration, uncertainties, errors) is read here and ignored elsewhere.
+`predict` solves point-wise (no history: no friction load); `predict_continued` follows each
+sequence by continuation, carrying the branch and, with Robot.friction > 0, the friction state.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import numpy as np
 
 from ctrkin.errors import CtrkinError
 from ctrkin.geometry import Registration, quat_from_tangent
+from ctrkin.mechanics.continuation import follow
 from ctrkin.mechanics.pointwise import Equilibrium, prepare, solve_prepared
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS
 from ctrkin.robots.robot import Robot
@@ -69,6 +72,25 @@ class CalibratedTCM:
         """(T, 2N) logged joints (deg, mm) -> (T, 6) tip poses (x, y, z mm, q0, qx, qy) in the
         tracker frame."""
         pos, tan = self.robot_frame(joints)
+        safe = np.where(np.isfinite(tan), tan, [0.0, 0.0, 1.0])
+        poses = self.registration.apply(np.column_stack([pos, quat_from_tangent(safe)]))
+        poses[~np.isfinite(pos).all(axis=1)] = np.nan
+        return poses
+
+    def predict_continued(self, joints: np.ndarray, bounds: list[tuple[int, int]]) -> np.ndarray:
+        """(T, 2N) logged joints, sequences `bounds` [(start, stop), ...] -> (T, 6) tracker-frame
+        poses of the calibrated robot followed along each sequence from a point-wise solve at its
+        first row (mechanics.follow: branch and friction state carried; NaN where a step did not
+        converge)."""
+        Q = self.model_joints(joints)
+        pos = np.full((len(Q), 3), np.nan)
+        tan = np.full((len(Q), 3), np.nan)
+        for a, b in bounds:
+            tr = follow(self.robot, Q[a:b])
+            for t, eq in enumerate(tr.equilibria):
+                if eq.converged:
+                    pos[a + t] = eq.tip_position + self.marker_mm * eq.tip_tangent
+                    tan[a + t] = eq.tip_tangent
         safe = np.where(np.isfinite(tan), tan, [0.0, 0.0, 1.0])
         poses = self.registration.apply(np.column_stack([pos, quat_from_tangent(safe)]))
         poses[~np.isfinite(pos).all(axis=1)] = np.nan

@@ -4,7 +4,9 @@ CalibratedTCM.
 Groups (`--fit`): registration (rotation vector rad, translation mm: 6), precurvature (per tube, a
 scale of the nominal curvature), stiffness_ratio (per tube EI/GJ = 1 + ν, bounded by ν ∈ [0, 0.49]),
 alpha_offset and beta_offset (all tubes but the outermost: a common rotation or translation of all
-tubes is the registration's), transmission_length (per tube, mm), marker (tip-marker distance, mm).
+tubes is the registration's), transmission_length (per tube, mm), marker (tip-marker distance, mm),
+friction (μ between the tubes: fitted on the continued TCM, calibration/friction.py, after the
+other groups; in the default groups when the nominal robot has friction, `default_groups`).
 Not fitted unless asked (`--fit ...,bending_stiffness`): bending_stiffness, per tube but the
 outermost a scale of E (so of E·I and G·J together; the unloaded TCM depends on the tubes'
 stiffnesses only through their ratios, so the outermost tube's E is the reference), for tubes of
@@ -36,10 +38,17 @@ PRIOR_SIGMA = {"curvature_scale": 0.15, "stiffness_ratio": 0.2, "alpha_offset": 
                "transmission_length": 100.0, "marker_mm": 10.0, "bending_scale": 0.3}
 GROUPS = ("registration", "precurvature", "stiffness_ratio", "alpha_offset", "beta_offset",
           "transmission_length", "marker")
-OPTIONAL_GROUPS = ("bending_stiffness",)      # fitted only when named (--fit)
+FRICTION = "friction"        # μ: not a point-wise parameter (calibration/friction.py)
+OPTIONAL_GROUPS = ("bending_stiffness", FRICTION)   # fitted only when named (--fit; μ: default_groups)
 ALL_GROUPS = GROUPS + OPTIONAL_GROUPS
 PHYSICAL = GROUPS[1:]
 BENDING_SCALE_BOUNDS = (0.3, 3.0)
+MAX_FRICTION = 1.0
+
+
+def default_groups(robot: Robot) -> tuple[str, ...]:
+    """GROUPS, and μ when the nominal robot has friction between its tubes."""
+    return (*GROUPS, FRICTION) if robot.friction > 0 else GROUPS
 
 
 @dataclass(frozen=True)
@@ -92,7 +101,13 @@ class ParameterSet:
                     for i in range(n)]
         if "marker" in self.groups:
             out.append(("marker_mm", "mm", 0.0, -self.max_marker_mm, self.max_marker_mm))
+        if FRICTION in self.groups:
+            out.append(("friction_mu", "-", self.robot.friction, 0.0, MAX_FRICTION))
         return out
+
+    def point_wise(self) -> ParameterSet:
+        """The same set without μ: the parameters a point-wise solve depends on."""
+        return dataclasses.replace(self, groups=tuple(g for g in self.groups if g != FRICTION))
 
     @property
     def names(self) -> list[str]:
@@ -125,7 +140,7 @@ class ParameterSet:
         for i, t in enumerate(self.robot.tubes):
             scale = v.get(f"curvature_scale_{i + 1}", 1.0)
             ratio = v.get(f"stiffness_ratio_{i + 1}", 1.0 + t.poisson_ratio)
-            secs = tuple(Section(s.length, s.curvature * scale) for s in t.sections)
+            secs = tuple(Section(s.length, s.curvature * scale, s.curvature_y * scale) for s in t.sections)
             tubes.append(dataclasses.replace(t, curvature=t.curvature * scale, sections=secs,
                                              poisson_ratio=float(np.clip(ratio - 1.0, 0.0, 0.499)),
                                              youngs_modulus=t.youngs_modulus * v.get(f"bending_scale_{i + 1}",
@@ -133,7 +148,8 @@ class ParameterSet:
         tl = tuple(v.get(f"transmission_length_{i + 1}", (self.robot.transmission_length or (0.0,) * n)[i])
                    for i in range(n))
         robot = dataclasses.replace(self.robot, tubes=tuple(tubes),
-                                    transmission_length=tl if any(tl) else ())
+                                    transmission_length=tl if any(tl) else (),
+                                    friction=float(v.get("friction_mu", self.robot.friction)))
         offsets = np.zeros(2 * n)
         for i in range(n - 1):
             offsets[i] = v.get(f"alpha_offset_{i + 1}", 0.0)

@@ -213,7 +213,7 @@ def tip_jacobian(pb: Problem, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     beta = pb.q[n:]
     _, dr, tip, dtip, tan, dtan = tangent_shoot(
         np.asarray(x, float), pb.alpha, beta, a.extra, pb.tips, a.rigid, a.k, a.k / a.gj,
-        pb.grid[0], grid_owners(pb), pb.grid[1], pb.grid[2], pb.grid[3])
+        pb.grid[0], grid_owners(pb), pb.grid[1], pb.grid[3], pb.grid[4])
     dx = -np.linalg.solve(dr[:, :n], dr[:, n:])          # implicit function theorem on r = 0
     jp = dtip[:, n:] + dtip[:, :n] @ dx
     jt = dtan[:, n:] + dtan[:, :n] @ dx

@@ -16,7 +16,7 @@ import click
 import tomli_w
 
 from ctrkin.calibration import calibrate, leave_one_sequence_out
-from ctrkin.calibration.params import GROUPS
+from ctrkin.calibration.params import ALL_GROUPS, default_groups
 from ctrkin.cli.common import InputPath, emit_json, output_file, output_options, say
 from ctrkin.data.dataset import Dataset
 from ctrkin.robots import load_robot
@@ -34,9 +34,11 @@ Examples:
               help="Nominal robot (name or TOML file); default: the dataset's robot.")
 @click.option("--out", "out_file", required=True, type=click.Path(),
               help="Calibrated robot file to write (a normal robot file plus a [calibration] table).")
-@click.option("--fit", "fit", default=",".join(GROUPS), show_default=True,
-              help="Parameter groups to fit, comma-separated; also bending_stiffness (per tube a scale "
-              "of E, relative to the outermost tube: tubes whose E differs), not fitted by default.")
+@click.option("--fit", "fit", default=None,
+              help=f"Parameter groups to fit, comma-separated, from {','.join(ALL_GROUPS)}; default: all "
+              "but bending_stiffness (per tube a scale of E, relative to the outermost tube: tubes whose "
+              "E differs) and friction (μ between the tubes, fitted on the continued TCM), friction "
+              "included when the robot file has friction > 0.")
 @click.option("--loso", is_flag=True, help="Also report leave-one-sequence-out error (one refit per "
               "sequence).")
 @click.option("--max-evaluations", default=60, show_default=True, type=click.IntRange(1, 100_000),
@@ -48,12 +50,12 @@ Examples:
               "with several, each fold picks one by a nested leave-one-sequence-out on its training "
               "sequences (needs >= 3 sequences).")
 @output_options
-def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str, loso: bool,
+def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str | None, loso: bool,
                   max_evaluations: int, no_prior: bool, prior_scales: str, overwrite: bool,
                   as_json: bool) -> None:
     """Fit registration and TCM parameters (precurvature, stiffness ratio, α/β offsets, transmission
-    length, marker offset) by bounded least squares; print them with standard errors."""
-    groups = tuple(g.strip() for g in fit.split(",") if g.strip())
+    length, marker offset, and μ between the tubes) by bounded least squares; print them with
+    standard errors."""
     try:
         scales = tuple(float(v) for v in prior_scales.split(",") if v.strip())
     except ValueError:
@@ -65,6 +67,8 @@ def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str
     output_file(out_file, "robot description", overwrite, inputs=[data_dir, robot_spec])
     ds = Dataset.load(data_dir)
     robot = load_robot(robot_spec) if robot_spec else ds.robot
+    groups = (default_groups(robot) if fit is None
+              else tuple(g.strip() for g in fit.split(",") if g.strip()))
     res = calibrate(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior)
     if loso:
         res.loso = leave_one_sequence_out(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior,
@@ -83,6 +87,11 @@ def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str
             f"{row['std']:9.2g}{flag}")
     say(f"samples {res.n_samples}: nominal TCM (fitted registration) {res.nominal_mean_mm:.3f} mm, "
         f"calibrated {res.mean_mm:.3f} mm mean tip distance (in-sample)")
+    if res.friction:
+        fr = res.friction
+        say(f"friction μ = {fr['friction_mu']:.3f} ± {fr['std']:.2g} on the continued TCM "
+            f"({fr['samples']} samples of whole sequences): RMS {fr['rms_mm']:.3f} mm, "
+            f"{fr['rms_frictionless_mm']:.3f} mm with μ = 0")
     if loso:
         per = ", ".join(f"{k} {v:.3f}" for k, v in res.loso["per_sequence"].items())
         say(f"leave-one-sequence-out: {res.loso['mean_mm']:.3f} mm ({per})")
@@ -93,7 +102,8 @@ def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str
     if as_json:
         emit_json({"out": out_file, "robot": robot.name, "samples": res.n_samples,
                    "nominal_mean_mm": res.nominal_mean_mm, "calibrated_mean_mm": res.mean_mm,
-                   "parameters": res.table(), **({"loso": res.loso} if loso else {})})
+                   "parameters": res.table(), "friction": res.friction,
+                   **({"loso": res.loso} if loso else {})})
 
 
 def _drop_none(d: object) -> object:

@@ -32,8 +32,8 @@ from ctrkin.version import __version__
 COMMANDS: dict[str, tuple[str, str, str]] = {
     "calibrate": ("ctrkin.cli.calibrate", "calibrate_cmd",
                   "Fit registration and TCM parameters (precurvature, stiffness ratio, α/β offsets, "
-                  "transmission length, marker offset) by bounded least squares; print them with "
-                  "standard errors."),
+                  "transmission length, marker offset, and μ between the tubes) by bounded least "
+                  "squares; print them with standard errors."),
     "collect": ("ctrkin.cli.collect", "collect_cmd",
                 "Record a protocol on the virtual robot or on a rig (or write square/triangle IK "
                 "targets)."),

@@ -2,10 +2,12 @@
 
     ctrkin solve --robot paper --q 0,0,-15,-5 --json
     ctrkin sweep --robot paper --translations 4,8,12,16,20 --out out/sweep
+    ctrkin sweep --robot paper --friction 0.2 --clearance 1 --out out/sweep-friction
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from dataclasses import dataclass, field
 from typing import Any
@@ -56,6 +58,13 @@ class SweepConfig:
     outer_alpha: float = field(default=0.0, metadata=_help("α of the other tubes (deg)."))
     step_deg: float = field(default=1.0, metadata={RANGE: (MIN_STEP_DEG, 360.0),
                                                    **_help("Rotation step (deg).")})
+    friction: float | None = field(default=None, metadata={RANGE: (0.0, 2.0), **_help(
+        "Coulomb coefficient μ between the tubes (docs/mechanics.md: Friction and clearance); default: "
+        "the robot file's (0 for the built-in robots). With μ > 0 the plot also marks the frictionless "
+        "folds (circles).")})
+    clearance: float | None = field(default=None, metadata={RANGE: (0.0, 10.0), **_help(
+        "Share of the tubes' radial gap the inner tube may tilt in at an outer tube's tip (1: all of "
+        "it); default: the robot file's (0).")})
 
     def __post_init__(self) -> None:
         if not self.translations:
@@ -118,7 +127,8 @@ def backbone_dict(eq: Equilibrium) -> dict[str, object]:
 Examples:
   ctrkin sweep --out out/sweep
   ctrkin sweep --translations 4,20 --step 2 --out out/sweep-coarse
-  ctrkin sweep --translations 8,16 --step 5 --out out/sweep-json --json > sweep.json""")
+  ctrkin sweep --translations 8,16 --step 5 --out out/sweep-json --json > sweep.json
+  ctrkin sweep --friction 0.2 --clearance 1 --out out/sweep-friction""")
 @config_options(SweepConfig, aliases={"step_deg": ("--step",)})
 @click.option("--out", "out_dir", default="out/sweep", show_default=True,
               type=click.Path(), help="Output folder for sweep.csv and sweep.png.")
@@ -133,6 +143,9 @@ def sweep_cmd(out_dir: str, overwrite: bool, as_json: bool, **settings: Any) -> 
     levels = list(cfg.translations)
     out = output_folder(out_dir, "sweep", overwrite, inputs=[cfg.robot])
     robot = load_robot(cfg.robot)
+    robot = dataclasses.replace(robot, friction=robot.friction if cfg.friction is None else cfg.friction,
+                                clearance=robot.clearance if cfg.clearance is None else cfg.clearance)
+    free = dataclasses.replace(robot, friction=0.0) if robot.friction > 0 else None
     n = robot.n_tubes
     frames, curves = [], []
     paths = [rotation_sweep(n, d, outer_beta, outer_alpha, step_deg) for d in levels]
@@ -140,6 +153,7 @@ def sweep_cmd(out_dir: str, overwrite: bool, as_json: bool, **settings: Any) -> 
         for d, Q in zip(levels, paths, strict=True):
             robot.check_joints(Q)
             tr = follow(robot, Q, progress=lambda _t: bar.update(1))
+            ref = follow(free, Q).snaps if free is not None else np.zeros(len(Q), bool)
             half = (len(Q) - 1) // 2
             forward = np.arange(len(Q)) <= half
             alpha0 = Q[:, 0] - Q[:, n - 1]
@@ -148,20 +162,33 @@ def sweep_cmd(out_dir: str, overwrite: bool, as_json: bool, **settings: Any) -> 
                 **{c: Q[:, k] for k, c in enumerate(robot.joint_names())},
                 "alpha0": alpha0, "forward": forward,
                 **{c: tr.tip_poses[:, k] for k, c in enumerate(POSE_COLUMNS)},
-                "T_L": tr.azimuth, "snap": tr.snaps, "stable": tr.stable}))
+                "T_L": tr.azimuth, "snap": tr.snaps, "stable": tr.stable,
+                **({"snap_frictionless": ref} if free is not None else {})}))
             curves.append({"label": f"d = {d:g} mm", "alpha0": alpha0, "azimuth": tr.azimuth,
-                           "snaps": tr.snaps, "forward": forward})
+                           "snaps": tr.snaps, "forward": forward,
+                           **({"folds_frictionless": ref} if free is not None else {})})
     table = pd.concat(frames, ignore_index=True)
+    extra = f", μ = {robot.friction:g}" if robot.friction else ""
+    extra += f", clearance {robot.clearance:g}" if robot.clearance else ""
     with build_folder(out, "sweep", CtrkinError, "sweep") as build:     # written as one unit
         table.to_csv(build / "sweep.csv", index=False)
-        plot_sweeps(curves, build / "sweep.png", title=f"{robot.name}: T(L) over full inner rotations")
+        plot_sweeps(curves, build / "sweep.png",
+                    title=f"{robot.name}{extra}: T(L) over full inner rotations")
     summary = []
     for d, f in zip(levels, frames, strict=True):
         snaps = f.loc[f["snap"], "alpha_1"].tolist()
-        say(f"d = {d:5.1f} mm: snaps at α1 = {snaps if snaps else 'none'}")
-        summary.append({"relative_translation_mm": d, "steps": len(f), "snaps": len(snaps),
-                        "snap_alpha_1_deg": snaps, "T_L_range_deg": [f["T_L"].min(), f["T_L"].max()]})
+        row: dict[str, object] = {"relative_translation_mm": d, "steps": len(f), "snaps": len(snaps),
+                                  "snap_alpha_1_deg": snaps,
+                                  "T_L_range_deg": [f["T_L"].min(), f["T_L"].max()]}
+        note = ""
+        if free is not None:
+            ref_snaps = f.loc[f["snap_frictionless"], "alpha_1"].tolist()
+            row["snap_alpha_1_deg_frictionless"] = ref_snaps
+            note = f" (frictionless: {ref_snaps if ref_snaps else 'none'})"
+        say(f"d = {d:5.1f} mm: snaps at α1 = {snaps if snaps else 'none'}{note}")
+        summary.append(row)
     say(f"wrote {out / 'sweep.csv'} and {out / 'sweep.png'}")
     if as_json:
-        emit_json({"robot": robot.name, "step_deg": step_deg, "levels": summary,
+        emit_json({"robot": robot.name, "friction": robot.friction, "clearance": robot.clearance,
+                   "step_deg": step_deg, "levels": summary,
                    "files": {"table": out / "sweep.csv", "plot": out / "sweep.png"}})

@@ -3,12 +3,14 @@ the scale and cached predictions."""
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ctrkin.calibration.model import CalibratedTCM
 from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.datasets import ReproData, registered_truth
 from ctrkin.evaluation.scales import ReproScale
@@ -21,12 +23,19 @@ if TYPE_CHECKING:
 
 @dataclass(eq=False)
 class Context:
+    """tcm: the paper's TCM baseline (nominal robot, fitted registration); tcm_cal: the TCM
+    calibrated on the training rows (ctrkin.calibration, μ between the tubes included);
+    seconds_per_step: the calibrated TCM rows' seconds per point or step, per call (results'
+    timing)."""
+
     data: ReproData
     models: dict[str, Kinematics]
     tcm: TCMBaseline
     figures: Path
     scale: ReproScale
+    tcm_cal: CalibratedTCM
     _cache: dict[tuple[str, int], np.ndarray] = field(default_factory=dict)
+    seconds_per_step: dict[str, list[float]] = field(default_factory=dict)
 
     def truth(self, ds: Dataset) -> np.ndarray:
         """(T, 6) noise-free tracker view of the true poses of ds."""
@@ -66,6 +75,27 @@ class Context:
         """TCM predictions (len(rows), 6) in the tracker frame and per-point times (s)."""
         pred = self.tcm.predict(ds.joints()[rows], desc=desc)
         return pred, self.tcm.last_times.copy()
+
+    def calibrated_point(self, ds: Dataset, rows: np.ndarray) -> np.ndarray:
+        """(len(rows), 6) the calibrated TCM solved point-wise (no history) at `rows` of ds (tracker
+        frame); its time per point goes to seconds_per_step["tcm_calibrated"]."""
+        t0 = time.perf_counter()
+        point = self.tcm_cal.predict(ds.joints()[rows])
+        self.seconds_per_step.setdefault("tcm_calibrated", []).append(
+            (time.perf_counter() - t0) / max(len(rows), 1))
+        return point
+
+    def calibrated_continued(self, ds: Dataset) -> np.ndarray:
+        """(T, 6) the calibrated TCM followed along every sequence of ds (tracker frame), the branch
+        and the friction state carried; its time per step goes to
+        seconds_per_step["tcm_calibrated_continued"]."""
+        key = ("tcm_calibrated_continued", id(ds))
+        if key not in self._cache:
+            t0 = time.perf_counter()
+            self._cache[key] = self.tcm_cal.predict_continued(ds.joints(), ds.sequence_bounds())
+            self.seconds_per_step.setdefault("tcm_calibrated_continued", []).append(
+                (time.perf_counter() - t0) / max(len(ds.frame), 1))
+        return self._cache[key]
 
 
 def valid_rows(ds: Dataset, rows: np.ndarray | None = None) -> np.ndarray:

@@ -2,7 +2,9 @@
 rotation sweeps with hysteresis and snaps (Fig. 10a), full turns at full overlap off the training
 grid (snap turns), 20 random points (Fig. 10b) and the arbitrary trajectory (Fig. 10c). Each
 compares the TCM, the learned models (the paper's LSTM-MLP and the snap-aware model) and the
-measurement (and truth)."""
+measurement (and truth); the TCM calibrated on the training rows (μ between the tubes included) is
+a row beside them, point-wise (`tcm_calibrated`) and continued along each sequence
+(`tcm_calibrated_continued`)."""
 
 from __future__ import annotations
 
@@ -29,6 +31,7 @@ from ctrkin.evaluation.table import (
     FK_PAPER_ROW,
     HEADLINE,
     RECOMMENDED,
+    TCM_CALIBRATED_ROWS,
     TCM_COLOUR,
     TCM_CONTINUED_ROW,
     TCM_ROW,
@@ -297,14 +300,15 @@ def arbitrary(ctx: Context, rows_: tuple[Row, ...]) -> dict[str, Any]:
     return out
 
 
-TURN_ROWS = (*FK_LEARNED, TCM_ROW, TCM_CONTINUED_ROW)
+TURN_ROWS = (*FK_LEARNED, TCM_ROW, TCM_CONTINUED_ROW, *TCM_CALIBRATED_ROWS)
+POINT_ROWS = (*FK_LEARNED, TCM_ROW, *TCM_CALIBRATED_ROWS)
 FK_COMPARISON = Experiment("fk", "FK: model comparison on held-out sequences (Fig. 5)", fk_comparison,
-                           (*FK_LEARNED, *BASELINE_ROWS, ABLATION_ROW, TCM_ROW), (FIG5A, FIG5B),
-                           top_level=True)
+                           (*FK_LEARNED, *BASELINE_ROWS, ABLATION_ROW, TCM_ROW, *TCM_CALIBRATED_ROWS),
+                           (FIG5A, FIG5B), top_level=True)
 SWEEPS = Experiment("sweeps", "FK experiment: sweeps (Fig. 10)", sweeps, TURN_ROWS, (FIG10A,), section="fk")
 RANDOM_POINTS = Experiment("random_points", "FK experiment: random_points (Fig. 10)", random_points,
-                           (*FK_LEARNED, TCM_ROW), (FIG10B,), section="fk")
-ARBITRARY = Experiment("arbitrary", "FK experiment: arbitrary (Fig. 10)", arbitrary, (*FK_LEARNED, TCM_ROW),
+                           POINT_ROWS, (FIG10B,), section="fk")
+ARBITRARY = Experiment("arbitrary", "FK experiment: arbitrary (Fig. 10)", arbitrary, POINT_ROWS,
                        (FIG10C,), section="fk")
 SNAP_TURNS = Experiment("snap_turns", "FK experiment: snap_turns (Fig. 10)", snap_turns, TURN_ROWS,
                         (FIG_SNAP_TURNS,), section="fk")

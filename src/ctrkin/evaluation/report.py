@@ -19,12 +19,15 @@ from ctrkin.evaluation.table import (
     HEADLINE,
     IK_FOLLOW_ROW,
     IK_ROWS,
+    TCM_CALIBRATED_CONTINUED_ROW,
+    TCM_CALIBRATED_ROW,
     TCM_ROW,
     labels,
 )
 from ctrkin.models.seqnet import STRUCTURES
 from ctrkin.util.files import atomic_write_text
 
+CAL_CONT = TCM_CALIBRATED_CONTINUED_ROW.name   # the calibrated TCM continued: headline and Fig. 10 column
 IK_REPORT_ROWS = tuple(r.name for r in IK_ROWS)     # the columns of the IK experiments' table
 
 
@@ -113,6 +116,9 @@ def _headline(r: ReproResults) -> list[str]:
           _f(head["orientation_rmse_deg"]), _f(head["orientation_rmse_true_deg"])],
          ["TCM (point-wise) position RMSE (mm)", "8.55 (random points), 10.94 (path)",
           _f(tcm["position_rmse_mm"]), _f(tcm["position_rmse_true_mm"])],
+         *([[f"calibrated TCM with friction, continued, position RMSE (mm; μ = "
+             f"{_f(_mu(fk), 3)})", "–", _f(fk[CAL_CONT]["position_rmse_mm"]),
+             _f(fk[CAL_CONT]["position_rmse_true_mm"])]] if CAL_CONT in fk else []),
          ["snap prediction precision / recall (sweeps)", "– (shown in Fig. 10a, not scored)",
           f"{_f(snap_meas.get('precision'))} / {_f(snap_meas.get('recall'))}",
           f"{_f(snap.precision)} / {_f(snap.recall)}"]]))
@@ -136,8 +142,18 @@ def _headline(r: ReproResults) -> list[str]:
           "recommended IK, streaming: one step a call"],
          ["TCM time per point (ms)", f"{P.TCM_MS['mean']:.0f} ± {P.TCM_MS['std']:.0f}",
           f"{_f(tm.tcm_ms_mean, 3)} ± {_f(tm.tcm_ms_std, 3)}",
-          "point-wise solve on the test rows (compiled shooting)"]]))
+          "point-wise solve on the test rows (compiled shooting)"],
+         *([["calibrated TCM with friction, continued, time per step (ms)", "–",
+             _f(tm.tcm_calibrated_continued_us_mean / 1e3, 3),
+             "mean over whole sequences, the friction state carried"]]
+           if tm.tcm_calibrated_continued_us_mean is not None else [])]))
     return lines
+
+
+def _mu(fk: dict[str, Any]) -> float | None:
+    """μ of the calibrated TCM (its calibration table), None without one."""
+    rows = fk.get(TCM_CALIBRATED_ROW.name, {}).get("calibration", {}).get("parameters", [])
+    return next((r["value"] for r in rows if r["name"] == "friction_mu"), None)
 
 
 def _fk_comparison(r: ReproResults) -> list[str]:
@@ -171,12 +187,14 @@ def _fk_experiments(r: ReproResults) -> list[str]:
     rows = []
     for name in (e.name for e in EXPERIMENTS if e.section == "fk"):
         e, pp = ex[name], P.EXPERIMENTS.get(name, {})
-        rows.append([name, _pair(pp.get("tcm")), _err(e[TCM_ROW.name]), _pair(pp.get("lstm_mlp")),
-                     _err(e[FK_PAPER_ROW.name]), _err(e[FK_BRANCH_ROW.name])])
+        cal = e.get(CAL_CONT)
+        rows.append([name, _pair(pp.get("tcm")), _err(e[TCM_ROW.name]), _err(cal) if cal else "–",
+                     _pair(pp.get("lstm_mlp")), _err(e[FK_PAPER_ROW.name]), _err(e[FK_BRANCH_ROW.name])])
     lines = ["## Experiments (Fig. 10, 11, 12)", "",
              "Position RMSE (mm) / orientation RMSE (deg) against the measurement.", "",
-             _table(["experiment", "TCM, paper", "TCM, ours", "LSTM-MLP, paper", "LSTM-MLP (paper's), ours",
-                     "snap-aware LSTM-MLP, ours"], rows)]
+             _table(["experiment", "TCM, paper", "TCM, ours", "calibrated TCM with friction (continued), "
+                     "ours", "LSTM-MLP, paper", "LSTM-MLP (paper's), ours", "snap-aware LSTM-MLP, ours"],
+                    rows)]
     sw = ex[SWEEPS.name].get("snapping_levels")
     for m in SNAPPING_ROWS if sw else ():
         lines += ["", f"Snapping sweeps, {labels()[m]}: away from the snap {_err(sw[m + '_away_from_snap'])}"

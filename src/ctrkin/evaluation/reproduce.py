@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from ctrkin.calibration.fit import CalibrationResult, calibrate
+from ctrkin.calibration.params import FRICTION, GROUPS
 from ctrkin.errors import OutputError
 from ctrkin.evaluation.context import Context
 from ctrkin.evaluation.datasets import ReproData, collect
@@ -30,7 +32,7 @@ from ctrkin.evaluation.results import (
     write_results,
 )
 from ctrkin.evaluation.scales import ReproScale
-from ctrkin.evaluation.table import RECOMMENDED, TCM_ROW
+from ctrkin.evaluation.table import RECOMMENDED, TCM_CALIBRATED_ROW, TCM_ROW
 from ctrkin.evaluation.tcm_baseline import TCMBaseline
 from ctrkin.evaluation.training_runs import train_all
 from ctrkin.inference import Kinematics
@@ -45,6 +47,9 @@ NOTES = [
     "70:15:15 split, where neighbouring samples of a test point are in the training set.",
     "The TCM baseline is the point-wise solve from the default guess (no history) of the nominal "
     "robot, mapped to the tracker frame by a rigid registration fitted on training rows.",
+    "The calibrated TCM (rows tcm_calibrated, point-wise, and tcm_calibrated_continued, followed "
+    "along each sequence with the friction state) is `ctrkin calibrate` on training rows: every "
+    "parameter group and μ between the tubes (fitted on the continued TCM).",
     "IK joints are checked through the learned FK model (as in the paper) and by driving the virtual "
     "robot to them; targets the IK model flags as outside its trained workspace are counted.",
     "Fig. 5 and Table II/III report test-set errors in mm and deg (and the normalised test loss), "
@@ -108,15 +113,18 @@ def _reproduce(robot: Robot, scale: ReproScale, out: Path, robot_seed: int, work
                            executor=executor)
     with st.stage("fit the TCM baseline's registration on training rows"):
         tcm = _tcm_baseline(robot, data, scale)
-    ctx = Context(data=data, models=models, tcm=tcm, figures=figures, scale=scale)
+    with st.stage("calibrate the TCM on training rows (friction included)"):
+        cal = _tcm_calibrated(robot, data, scale)
+    ctx = Context(data=data, models=models, tcm=tcm, figures=figures, scale=scale, tcm_cal=cal.model)
     top: dict[str, Any] = {}
     experiments: dict[str, Any] = {}
     for exp in EXPERIMENTS:            # the typed table, in run order (ctrkin.evaluation.experiments)
         with st.stage(exp.stage):
             (top if exp.top_level else experiments)[exp.name] = exp.run(ctx, exp.rows)
     seconds, memory = st.total(), peak_rss_mb(workers if executor == "local" else 0)
+    top["fk"][TCM_CALIBRATED_ROW.name]["calibration"] = cal.to_dict()
     results = _results(robot, scale, robot_seed, tcm, data, models, top["fk"], top["ik"], experiments,
-                       top["grids"], top["timing"], seconds, memory)
+                       top["grids"], top["timing"], seconds, memory, ctx.seconds_per_step)
     written = write_results(results, out / "results.json")
     write_report(written, out / "report.md")
     log(f"wrote {out / 'report.md'} and {out / 'results.json'} ({written.seconds['total']:.0f} s)")
@@ -135,12 +143,28 @@ def _tcm_baseline(robot: Robot, data: ReproData, scale: ReproScale) -> TCMBaseli
     return tcm
 
 
+# rows of the point-wise fit and least-squares evaluations per scale (default: the full scale's)
+CALIBRATION_BUDGET = {"tiny": (200, 8, 2_000), "quick": (1000, 30, 10_000)}
+
+
+def _tcm_calibrated(robot: Robot, data: ReproData, scale: ReproScale) -> CalibrationResult:
+    """`ctrkin calibrate` on (a seeded subsample of) the training rows: every group and μ."""
+    rows_n, nfev, samples = CALIBRATION_BUDGET.get(scale.name, (2000, 60, 20_000))
+    train = data.paper.get_split().train
+    rows = np.sort(np.random.default_rng(0).choice(train, min(rows_n, len(train)), replace=False))
+    return calibrate(data.paper, robot, (*GROUPS, FRICTION), rows=rows, max_nfev=nfev,
+                     friction_samples=samples)
+
+
 def _results(robot: Robot, scale: ReproScale, robot_seed: int, tcm: TCMBaseline, data: ReproData,
              models: dict[str, Kinematics], fk: dict[str, Any], ik: dict[str, Any],
              experiments: dict[str, Any], grid: dict[str, Any], lat: dict[str, Any],
-             seconds: dict[str, float], memory: Memory) -> ReproResults:
-    """The results of every stage, as results.json holds them."""
+             seconds: dict[str, float], memory: Memory,
+             per_step: dict[str, list[float]]) -> ReproResults:
+    """The results of every stage, as results.json holds them; per_step: seconds per prediction
+    of the calibrated TCM's rows (Context.seconds_per_step)."""
     tcm_t = fk[TCM_ROW.name]["timing"]
+    cal_us = {k: 1e6 * float(np.mean(v)) for k, v in per_step.items()}
     f = data.paper.frame
     return ReproResults(
         scale=scale,
@@ -175,6 +199,8 @@ def _results(robot: Robot, scale: ReproScale, robot_seed: int, tcm: TCMBaseline,
             tcm_ms_mean=tcm_t["ms_mean"],
             tcm_ms_std=tcm_t["ms_std"],
             tcm_us_median=tcm_t["us_median"],
+            tcm_calibrated_us_mean=cal_us.get("tcm_calibrated"),
+            tcm_calibrated_continued_us_mean=cal_us.get("tcm_calibrated_continued"),
         ),
         training={name: m.metrics.get("training", {}) for name, m in models.items()},
         notes=NOTES,

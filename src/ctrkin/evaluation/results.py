@@ -103,6 +103,8 @@ class Timing:
     tcm_ms_mean: float
     tcm_ms_std: float
     tcm_us_median: float
+    tcm_calibrated_us_mean: float | None = None            # point-wise, per point
+    tcm_calibrated_continued_us_mean: float | None = None  # followed, per step
 
 
 @dataclass(frozen=True)
@@ -164,7 +166,7 @@ class ReproResults:
         """The headline figures under flat dotted names, in results.json's order."""
         out: dict[str, Any] = {}
         ex = self.experiments
-        out |= {f"fk.{m}.{k}": self.fk[m][k] for m in flat_rows("fk") for k in FLAT_FK}
+        out |= {f"fk.{m}.{k}": self.fk[m][k] for m in flat_rows("fk") if m in self.fk for k in FLAT_FK}
         out |= {f"ik.{m}.{k}": self.ik[m][k] for m in flat_rows("ik") for k in FLAT_IK}
         out |= {f"snapping.{m}.{k}": self.snapping.per_model[m][k] for m in flat_rows("snapping")
                 for k in FLAT_SNAP}
@@ -177,6 +179,7 @@ class ReproResults:
         out |= {"snapping.precision": self.snapping.precision, "snapping.recall": self.snapping.recall,
                 "timing.fk_ms_mean": t.fk_ms_mean, "timing.fk_ms_std": t.fk_ms_std,
                 "timing.ik_ms_mean": t.ik_ms_mean, "timing.tcm_ms_mean": t.tcm_ms_mean,
+                "timing.tcm_calibrated_continued_us_mean": t.tcm_calibrated_continued_us_mean,
                 "dataset.samples": d.samples, "dataset.sequences": d.sequences, "dataset.snaps": d.snaps}
         return out
 

@@ -6,7 +6,7 @@ key, its stage, the rows it compares and its figures with their captions.
     Experiment       one of the paper's experiments (or ours): the experiments modules declare theirs
                      beside their code, ctrkin.evaluation.experiments lists them in run order
 
-Adding a predictor is a Row here (a calibrated TCM: kind "tcm" with its own `predict`); adding an
+Adding a predictor is a Row here (the calibrated TCM: kind "tcm" with its own `predict_at`); adding an
 experiment is an Experiment beside its function in an experiments module, plus its figure in
 ctrkin.viz.experiments. The results keep their keys: a row's `name` is its key in results.json.
 """
@@ -51,7 +51,9 @@ class Row:
     task: "fk" or "ik"; kind: "model" (a trained folder, models/<folder>), "tcm" (the point-wise
     TCM, evaluated on the experiment's rows only and timed) or "tcm_continued" (the TCM followed
     along each sequence); predict: an FK row's predictions (T, 6) over a dataset from the context,
-    where it is not a plain model folder (the gate ablations; another TCM); curve: drawn in the turn
+    where it is not a plain model folder (the gate ablations; the calibrated TCM continued); predict_at:
+    a point-wise row's predictions (len(at), 6) at rows `at` of a dataset only (the calibrated TCM, as
+    the "tcm" kind solves only the experiment's rows); curve: drawn in the turn
     figures (None: scored only); bars: in Fig. 5a's bars; heldout_sequences: an IK row evaluated on
     the first k held-out sequences only (a step-by-step solver); from_robot_start: an IK row also
     started from the robot's joints (the follow IK); flat: the results.json sections whose flat keys
@@ -63,6 +65,7 @@ class Row:
     kind: Literal["model", "tcm", "tcm_continued"] = "model"
     folder: str | None = None
     predict: Callable[[Context, Dataset], np.ndarray] | None = None
+    predict_at: Callable[[Context, Dataset, np.ndarray], np.ndarray] | None = None
     curve: Curve | None = None
     bars: bool = False
     heldout_sequences: int | None = None
@@ -76,6 +79,14 @@ def _learned_gate(ctx: Context, ds: Dataset) -> np.ndarray:
 
 def _tcm_gated(ctx: Context, ds: Dataset) -> np.ndarray:
     return ctx.fk_tcm_gated(FK_BRANCH, ds)
+
+
+def _calibrated_point(ctx: Context, ds: Dataset, at: np.ndarray) -> np.ndarray:
+    return ctx.calibrated_point(ds, at)
+
+
+def _calibrated_continued(ctx: Context, ds: Dataset) -> np.ndarray:
+    return ctx.calibrated_continued(ds)
 
 
 # --- the predictors -------------------------------------------------------------------------------
@@ -95,13 +106,20 @@ TCM_ROW = Row("tcm", "TCM (point-wise)", "fk", kind="tcm", curve=Curve(TCM_COLOU
               flat=("fk", "snapping"))
 TCM_CONTINUED_ROW = Row("tcm_continued", "TCM (continued)", "fk", kind="tcm_continued",
                         curve=Curve("tab:green", "line", 0.9), flat=("snapping",))
+# the TCM calibrated on the training rows (every group and μ between the tubes, ctrkin.calibration):
+# point-wise (no history), and followed along each sequence with the branch and the friction state
+TCM_CALIBRATED_ROW = Row("tcm_calibrated", "calibrated TCM (point-wise)", "fk", kind="tcm",
+                         predict_at=_calibrated_point, flat=("fk",))
+TCM_CALIBRATED_CONTINUED_ROW = Row("tcm_calibrated_continued", "calibrated TCM with friction (continued)",
+                                   "fk", kind="tcm_continued", predict=_calibrated_continued, flat=("fk",))
+TCM_CALIBRATED_ROWS = (TCM_CALIBRATED_ROW, TCM_CALIBRATED_CONTINUED_ROW)
 IK_PAPER_ROW = Row("lstm_mlp_paper", "LSTM-MLP (paper's network)", "ik", folder=IK_PAPER, flat=("ik",))
 IK_REFINED_ROW = Row("lstm_mlp_refined", "LSTM-MLP IK refined on the FK", "ik", folder=IK_REFINED,
                      heldout_sequences=2, flat=("ik",))
 IK_FOLLOW_ROW = Row("follow_mlp", "follow IK", "ik", folder=IK_FOLLOW, from_robot_start=True, flat=("ik",))
 
 ROWS: tuple[Row, ...] = (FK_PAPER_ROW, FK_BRANCH_ROW, TCM_GATED_ROW, LEARNED_GATE_ROW, *BASELINE_ROWS,
-                         ABLATION_ROW, TCM_ROW, TCM_CONTINUED_ROW,
+                         ABLATION_ROW, TCM_ROW, TCM_CONTINUED_ROW, *TCM_CALIBRATED_ROWS,
                          IK_PAPER_ROW, IK_REFINED_ROW, IK_FOLLOW_ROW)
 # the recommended models: the snap-aware FK and the follow IK (it reaches the targets the direct
 # networks miss by millimetres, docs/reproduction.md); their figures also stand under HEADLINE
@@ -128,11 +146,14 @@ def fk_predictions(ctx: Context, rows: Sequence[Row], ds: Dataset, at: np.ndarra
                    ) -> tuple[dict[str, np.ndarray], np.ndarray | None]:
     """(len(at), 6) predictions of each FK row at rows `at` of ds, in the rows' order, and the
     point-wise TCM's time per point (s; None without a TCM row). The learned and continued rows
-    predict whole sequences (with history); the point-wise TCM solves only `at` (desc: its progress)."""
+    predict whole sequences (with history); the point-wise TCMs solve only `at` (desc: the nominal
+    one's progress)."""
     out: dict[str, np.ndarray] = {}
     times = None
     for r in rows:
-        if r.kind == "tcm":
+        if r.predict_at is not None:
+            out[r.name] = r.predict_at(ctx, ds, at)
+        elif r.kind == "tcm":
             out[r.name], times = ctx.tcm_rows(ds, at, desc)
         elif r.predict is not None:
             out[r.name] = r.predict(ctx, ds)[at]

@@ -1,4 +1,5 @@
-"""Kernel-ready view of a Robot (stiffnesses and precurvature sections as flat arrays)."""
+"""Kernel-ready view of a Robot (stiffnesses, precurvature sections and contact geometry as flat
+arrays)."""
 
 from __future__ import annotations
 
@@ -13,23 +14,44 @@ from ctrkin.robots.robot import Robot
 @dataclass(frozen=True, eq=False)
 class RobotArrays:
     """k, gj: (N,) bending and torsional stiffness (N·mm²); lengths (N,) mm;
-    sec_len, sec_kap: (N, S) sections base to tip (mm, 1/mm); n_sec (N,); rigid transmission flag;
-    extra (N,) mm: Robot.transmission_length; kappa_scale: κ* (1/mm), the fastest rate at which the
-    state turns along s: the largest precurvature, times √(1 + ν) for the torsion, whose rate on a
-    shared curved stretch is √c = √((1 + ν) κi κj) (ψ'' = c sin ψ, docs/mechanics.md). The RK4 step
-    is at most SolverSettings.angle_step / κ*. curved_length: ℓc, the precurved length of all
-    tubes (mm), the most arc length over which the state turns (step from SolverSettings.tip_tol)."""
+    sec_len, sec_kap, sec_kapy: (N, S) sections base to tip (mm, precurvature κx and κy in 1/mm);
+    n_sec (N,); rigid transmission flag; extra (N,) mm: Robot.transmission_length;
+    kappa_scale: κ* (1/mm), the fastest rate at which the state turns along s: the largest
+    precurvature, times √(1 + ν) for the torsion, whose rate on a shared curved stretch is
+    √c = √((1 + ν) κi κj) (ψ'' = c sin ψ, docs/mechanics.md). The RK4 step is at most
+    SolverSettings.angle_step / κ*. curved_length: ℓc, the precurved length of all tubes (mm), the
+    most arc length over which the state turns (step from SolverSettings.tip_tol).
+    Contact (mechanics.contact), per pair p of neighbouring tubes (p, p + 1), (N − 1,): gap, the
+    radial clearance (ID_{p+1} − OD_p) / 2 (mm); rc, the contact radius (OD_p + ID_{p+1}) / 4 (mm);
+    lmin, the shortest force couple, OD_p (mm). friction: μ; clearance: Robot.clearance;
+    contact: whether the contact model acts at all (μ > 0 or clearance > 0)."""
 
     k: np.ndarray
     gj: np.ndarray
     lengths: np.ndarray
     sec_len: np.ndarray
     sec_kap: np.ndarray
+    sec_kapy: np.ndarray
     n_sec: np.ndarray
     rigid: bool
     extra: np.ndarray
     kappa_scale: float
     curved_length: float
+    gap: np.ndarray
+    rc: np.ndarray
+    lmin: np.ndarray
+    friction: float
+    clearance: float
+
+    @property
+    def contact(self) -> bool:
+        return self.k.shape[0] > 1 and (self.friction > 0.0 or self.clearance > 0.0)
+
+    @property
+    def slots(self) -> int:
+        """Friction-state slots per pair: one per tube boundary and the front plate
+        (grid.build_grid's codes)."""
+        return self.k.shape[0] * (self.sec_len.shape[1] + 1) + 1
 
 
 @functools.lru_cache(maxsize=64)
@@ -38,21 +60,29 @@ def robot_arrays(robot: Robot) -> RobotArrays:
     s_max = max(len(t.sections) for t in robot.tubes) or 1
     sec_len = np.zeros((n, s_max))
     sec_kap = np.zeros((n, s_max))
+    sec_kapy = np.zeros((n, s_max))
     n_sec = np.zeros(n, dtype=np.int64)
     for i, t in enumerate(robot.tubes):
         n_sec[i] = len(t.sections)
         for j, s in enumerate(t.sections):
             sec_len[i, j] = s.length
             sec_kap[i, j] = s.curvature
+            sec_kapy[i, j] = s.curvature_y
+    kmag = np.hypot(sec_kap, sec_kapy)
+    tubes = robot.tubes
     arrs = RobotArrays(
-        k=np.array([t.bending_stiffness for t in robot.tubes]),
-        gj=np.array([t.torsional_stiffness for t in robot.tubes]),
-        lengths=robot.lengths, sec_len=sec_len, sec_kap=sec_kap, n_sec=n_sec,
+        k=np.array([t.bending_stiffness for t in tubes]),
+        gj=np.array([t.torsional_stiffness for t in tubes]),
+        lengths=robot.lengths, sec_len=sec_len, sec_kap=sec_kap, sec_kapy=sec_kapy, n_sec=n_sec,
         rigid=robot.transmission == "rigid",
         extra=np.array(robot.transmission_length or [0.0] * n, dtype=float),
-        kappa_scale=float(np.abs(sec_kap).max(initial=0.0)
-                          * np.sqrt(1.0 + max(t.poisson_ratio for t in robot.tubes))),
-        curved_length=float(sec_len[sec_kap != 0.0].sum()))
-    for a in (arrs.k, arrs.gj, arrs.lengths, arrs.sec_len, arrs.sec_kap, arrs.n_sec, arrs.extra):
+        kappa_scale=float(kmag.max(initial=0.0) * np.sqrt(1.0 + max(t.poisson_ratio for t in tubes))),
+        curved_length=float(sec_len[kmag != 0.0].sum()),
+        gap=np.array([max(0.5 * (tubes[p + 1].id - tubes[p].od), 0.0) for p in range(n - 1)]),
+        rc=np.array([0.25 * (tubes[p].od + tubes[p + 1].id) for p in range(n - 1)]),
+        lmin=np.array([tubes[p].od for p in range(n - 1)]),
+        friction=robot.friction, clearance=robot.clearance)
+    for a in (arrs.k, arrs.gj, arrs.lengths, arrs.sec_len, arrs.sec_kap, arrs.sec_kapy, arrs.n_sec,
+              arrs.extra, arrs.gap, arrs.rc, arrs.lmin):
         a.setflags(write=False)
     return arrs

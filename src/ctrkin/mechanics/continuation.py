@@ -7,6 +7,18 @@ measure that changed continuously; otherwise the joint increment is halved. When
 sub-step has no stable continuation, the branch has ended at a fold: the robot snaps to another
 stable equilibrium, found by a multi-start search around the last state and taken as the nearest
 stable one (the basin the released twist falls into).
+
+With friction (Robot.friction > 0) each (sub)step is one step of the rate-independent friction law
+from the state of the last accepted one (mechanics.friction): the stuck offsets move only where an
+element slips, so the path's history is carried in the state as well as in the branch. An element
+switching between stick and slip changes the stiffness of the problem, so det J may jump there
+without the branch having ended: its continuity is checked only while the stick/slip pattern holds.
+Nor is it checked on a translating (sub)step while an element slips: the element's torsional
+tangent in combined slip, T_max r_c² Δd² / (ε (r_c² Δφ² + Δd²)^{3/2}) (contact C4), depends on the
+sub-step's own axial slip Δd, so det J changes with the sub-step's length (on the default virtual
+robot's arbitrary path by 3× between a sub-step and one twice as long, every element slipping)
+and halving the step can never make two of them agree. Such a (sub)step is judged by its
+stability (det J > 0, det H > 0) and the twist jump alone.
 """
 
 from __future__ import annotations
@@ -21,17 +33,21 @@ import numpy as np
 from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 from ctrkin.geometry import tip_azimuth, tip_pose
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
+from ctrkin.mechanics.friction import SLIP, FrictionState
 from ctrkin.mechanics.pointwise import (
     Equilibrium,
     NewtonResult,
+    Problem,
     cold_solution,
     equilibrium,
+    friction_after,
     newton,
     prepare,
     search,
     solve,
     twisted_guesses,
     with_alpha,
+    with_state,
 )
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS, SolverSettings
 from ctrkin.robots.robot import Robot
@@ -128,8 +144,11 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     arr = prev.problem.arrays
     x = prev.x
     det = prev.stability
+    state = prev.friction_state      # friction state of the last accepted (sub)step
+    modes = b"" if prev.contact is None else prev.contact.modes
     n = arr.lengths.shape[0]
     turn = float(np.abs(q_to[:n] - q_from[:n]).max())
+    translating = bool(np.any(q_to[n:] != q_from[n:]))
     most = 1.0 if turn <= MAX_TURN_DEG else MAX_TURN_DEG / turn    # largest sub-step fraction
     t = 0.0
     dt = most
@@ -140,22 +159,26 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
         t_try = min(1.0, t + dt)
         q_try = q_to if t_try == 1.0 else q_from + (q_to - q_from) * t_try
         if same_grid:
-            pb = with_alpha(prev.problem, q_try)
+            pb = with_alpha(prev.problem, q_try, state)
         else:
             pb = prepare(robot, q_try, settings, checked=True, arr=arr)
+            if state is not None:
+                pb = with_state(pb, state)
         if path is None:
             guess = x
         else:  # x moved along the predicted branch (at the start of the step x = path.at(0))
             guess = path.at(t_try) if t == 0.0 else x + path.at(t_try) - path.at(t)
         sol = newton(pb, guess, settings, work)
         if (sol.stable and _distance(sol.x, x, pb.arrays.lengths) <= JUMP_RAD
-                and abs(sol.det_j - det) <= DET_SLACK + DET_RATE * det):
+                and (abs(sol.det_j - det) <= DET_SLACK + DET_RATE * det
+                     or not _det_comparable(modes, sol.modes, translating))):
             x, det, t, last = sol.x, sol.det_j, t_try, (pb, sol)
+            state, modes = _after(pb, sol, state)
             dt = min(2.0 * dt, most)
             continue
         if work[0] > settings.max_search_steps:
             # continuation too costly (an extreme robot): give up this step, reported not converged
-            pb = prepare(robot, q_to, settings, checked=True, arr=arr)
+            pb = with_state(prepare(robot, q_to, settings, checked=True, arr=arr), state)
             last = (pb, NewtonResult.failed(x, det))
             break
         if path is not None:  # retry from the plain warm start before sub-stepping
@@ -174,9 +197,28 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
         # a fold was crossed: that is a snap unless the search only re-found the same branch
         snapped = snapped or _distance(sol.x, x, pb.arrays.lengths) > SAME_BRANCH_RAD
         x, det, t, last = sol.x, sol.det_j, t_try, (pb, sol)
+        state, modes = _after(pb, sol, state)
         dt = min(1.0 - t, most)
     assert last is not None
-    return equilibrium(*last), snapped
+    return equilibrium(*last, state), snapped
+
+
+def _det_comparable(before: bytes, after: bytes, translating: bool) -> bool:
+    """Whether det J of two successive (sub)steps measures the same branch: the stick/slip pattern
+    (contact modes, bytes of float64; empty without friction) held, and, on a translating step, no
+    element slipped (its tangent depends on the sub-step's axial slip, module docstring)."""
+    if before != after:
+        return False
+    return not (translating and bool((np.frombuffer(after, dtype=np.float64) == SLIP).any()))
+
+
+def _after(pb: Problem, sol: NewtonResult, state: FrictionState | None
+           ) -> tuple[FrictionState | None, bytes]:
+    """The friction state and stick/slip pattern after an accepted (sub)step (unchanged without
+    friction, or where the step did not converge)."""
+    if pb.stations is None or sol.stations is None or not sol.converged:
+        return state, sol.modes
+    return friction_after(pb, sol), sol.modes
 
 
 def _check_start(robot: Robot, start: Equilibrium) -> None:
@@ -199,9 +241,10 @@ def _check_start(robot: Robot, start: Equilibrium) -> None:
 
 
 def _same_arrays(a: RobotArrays, b: RobotArrays) -> bool:
-    return bool(a.rigid == b.rigid and all(
-        np.array_equal(u, v) for u, v in ((a.k, b.k), (a.gj, b.gj), (a.lengths, b.lengths),
-                                          (a.sec_len, b.sec_len), (a.sec_kap, b.sec_kap))))
+    return bool(a.rigid == b.rigid and a.friction == b.friction and a.clearance == b.clearance
+                and all(np.array_equal(u, v) for u, v in (
+                    (a.k, b.k), (a.gj, b.gj), (a.lengths, b.lengths), (a.sec_len, b.sec_len),
+                    (a.sec_kap, b.sec_kap), (a.sec_kapy, b.sec_kapy))))
 
 
 def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,

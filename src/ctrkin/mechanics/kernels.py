@@ -4,12 +4,14 @@ State along the arc length s ≥ 0, in a non-twisting (Bishop) backbone frame:
     y = (ψ1..ψN, u1z..uNz)     material angle and torsional curvature of each tube
     Φ = ∂y/∂x                  variational matrix (2N, N), x = uz(0) the shooting unknowns
 Equations (eq. M1–M4 below are cited in the code):
-    (M1) u_xy = Σ_{i∈P} ki κi (cos ψi, sin ψi) / Σ_{i∈P} ki          backbone bending
-    (M2) ψi' = uiz,   uiz' = (ki / GJi) κi (sin ψi ux − cos ψi uy)     torsion (= ki/GJi (uix ûiy − uiy ûix))
+    (M1) u_xy = Σ_{i∈P} ki vi / Σ_{i∈P} ki,  vi = Rz(ψi) ûi           backbone bending
+    (M2) ψi' = uiz,   uiz' = (ki / GJi)(ux viy − uy vix)               torsion (= ki/GJi (uix ûiy − uiy ûix))
     (M3) p' = R e3,   R' = R [ux, uy, 0]^                              backbone
     (M4) ψi(0) = αi − βi uiz(0) (compliant) or αi (rigid);  uiz(βi + Li) = 0
 The RK4 map is differentiated stage by stage, so the Jacobian is exact for the discrete residual
-(no finite differences). All angles here are radians.
+(no finite differences). All angles here are radians. ûi = (κx, κy) is the precurvature of tube i
+in its material frame on the stretch (planar tubes: κy = 0, vi = κi (cos ψi, sin ψi)). The contact
+stations (friction and clearance, mechanics.contact) act at the grid's breakpoints.
 """
 
 from __future__ import annotations
@@ -19,93 +21,18 @@ import math
 import numpy as np
 from numba import njit
 
+from ctrkin.mechanics.contact import apply_stations, contact_work
+from ctrkin.mechanics.grid import S_TOL, build_grid, prepare
 from ctrkin.mechanics.rk4 import rk4_stepper, rk4_work
 
-S_TOL = 1e-9  # mm: two breakpoints closer than this are the same point
-
-
-@njit(cache=True)
-def build_grid(beta, tube_len, sec_len, sec_kap, n_sec, h_max):
-    """Split [0, s_end] at every tube tip and precurvature change.
-
-    beta (N,) mm; tube_len (N,) mm; sec_len, sec_kap (N, S) section lengths (mm) and curvatures
-    (1/mm) from base to tip, n_sec (N,) sections used; h_max: largest RK4 step (mm).
-    Returns bounds (M+1,), kap (M, N), present (M, N) as 0/1, nsteps (M,) and nsample (M,).
-    A stretch where every present tube is straight has u_xy = 0 (M1): ψ is linear, uz, R and the
-    variation's uz rows constant, so one RK4 step is exact there (nsteps = 1). nsample is the
-    number of points at spacing ≤ h_max where the conjugate-point test samples det H (shoot).
-    """
-    n = beta.shape[0]
-    tips = beta + tube_len
-    s_end = max(tips.max(), 0.0)
-    pts = np.empty(2 + n * (sec_len.shape[1] + 1))
-    cnt = 1
-    pts[0] = 0.0
-    for i in range(n):
-        b = beta[i]
-        for j in range(n_sec[i]):
-            b += sec_len[i, j]
-            if S_TOL < b < s_end - S_TOL:
-                pts[cnt] = b
-                cnt += 1
-    if s_end > S_TOL:
-        pts[cnt] = s_end
-        cnt += 1
-    srt = np.sort(pts[:cnt])
-    bounds = np.empty(cnt)
-    nb = 0
-    for v in srt:
-        if nb == 0 or v - bounds[nb - 1] > S_TOL:
-            bounds[nb] = v
-            nb += 1
-    bounds = bounds[:nb].copy()
-    m = max(nb - 1, 0)
-    kap = np.zeros((m, n))
-    present = np.zeros((m, n))
-    nsteps = np.ones(m, dtype=np.int64)
-    nsample = np.ones(m, dtype=np.int64)
-    # per tube, the section holding the stretch midpoint and the cumulative length to its end: the
-    # midpoints increase with k, so each cursor only moves forward (O(M + S), not O(M S))
-    sec = np.zeros(n, dtype=np.int64)
-    cum = np.zeros(n)
-    for i in range(n):
-        if n_sec[i] > 0:
-            cum[i] = sec_len[i, 0]
-    for k in range(m):
-        a, b = bounds[k], bounds[k + 1]
-        mid = 0.5 * (a + b)
-        nsample[k] = max(1, math.ceil((b - a) / h_max - 1e-12))
-        curved = False
-        for i in range(n):
-            if tips[i] > mid:
-                present[k, i] = 1.0
-                sigma = mid - beta[i]  # position along tube i from its base
-                while sec[i] < n_sec[i] and not sigma < cum[i]:
-                    sec[i] += 1
-                    if sec[i] < n_sec[i]:
-                        cum[i] += sec_len[i, sec[i]]
-                if sec[i] < n_sec[i]:
-                    kap[k, i] = sec_kap[i, sec[i]]
-                curved = curved or kap[k, i] != 0.0
-        nsteps[k] = nsample[k] if curved else 1
-    return bounds, kap, present, nsteps, nsample
-
-
-@njit(cache=True)
-def prepare(q, tube_len, extra, sec_len, sec_kap, n_sec, h_max):
-    """Kernel inputs at joints q (2N,) (deg, mm): α (N,) rad, the transmission's twisting length
-    as β − extra (N,) mm (M4), tips β + L (N,) mm, and the grid of build_grid."""
-    n = tube_len.shape[0]
-    beta = q[n:].copy()
-    alpha = np.radians(q[:n])
-    grid = build_grid(beta, tube_len, sec_len, sec_kap, n_sec, h_max)
-    return alpha, beta - extra, beta + tube_len, grid
+__all__ = ["S_TOL", "build_grid", "integrate_full", "newton", "prepare", "sane", "shoot"]
 
 
 @njit(cache=True, inline="always")
-def _bending(psi, kap, pres, k, cs, sn):
+def _bending(psi, kap, kapy, pres, k, vx, vy):
     """(M1): backbone curvature (ux, uy) 1/mm and the bending stiffness sum of present tubes.
-    Also writes cs, sn = cos ψi, sin ψi of present tubes (reused by the callers)."""
+    Also writes vx, vy = Rz(ψi) ûi, each present tube's precurvature in the backbone frame
+    (ûi = (κx, κy): (κ cos ψ, κ sin ψ) for planar precurvature), reused by the callers."""
     ksum = 0.0
     ux = 0.0
     uy = 0.0
@@ -113,11 +40,13 @@ def _bending(psi, kap, pres, k, cs, sn):
         if pres[i] > 0.0:
             c = math.cos(psi[i])
             s = math.sin(psi[i])
-            cs[i] = c
-            sn[i] = s
+            ax = kap[i] * c - kapy[i] * s
+            ay = kap[i] * s + kapy[i] * c
+            vx[i] = ax
+            vy[i] = ay
             ksum += k[i]
-            ux += k[i] * kap[i] * c
-            uy += k[i] * kap[i] * s
+            ux += k[i] * ax
+            uy += k[i] * ay
     if ksum > 0.0:
         ux /= ksum
         uy /= ksum
@@ -125,17 +54,18 @@ def _bending(psi, kap, pres, k, cs, sn):
 
 
 @njit(cache=True, inline="always")
-def _deriv(y, phi, kap, pres, k, gj, dy, dphi, with_var, cs, sn):
+def _deriv(y, phi, kap, kapy, pres, k, gj, dy, dphi, with_var, vx, vy):
     """(M2) and its variation dΦ = A(y) Φ; writes into dy (2N,) and dphi (2N, N); returns the
     backbone curvature (ux, uy) of (M1).
 
-    ∂uiz'/∂ψj = ai [δij (cos ψi ux + sin ψi uy) − kj κj cos(ψi − ψj) / Σk],  ai = ki κi / GJi."""
+    uiz' = (ki/GJi)(ux viy − uy vix) with vi = Rz(ψi) ûi;
+    ∂uiz'/∂ψj = (ki/GJi) [δij (u · vi) − kj (vi · vj) / Σk]."""
     n = k.shape[0]
-    ux, uy, ksum = _bending(y, kap, pres, k, cs, sn)
+    ux, uy, ksum = _bending(y, kap, kapy, pres, k, vx, vy)
     for i in range(n):
         if pres[i] > 0.0:
             dy[i] = y[n + i]
-            dy[n + i] = k[i] / gj[i] * kap[i] * (sn[i] * ux - cs[i] * uy)
+            dy[n + i] = k[i] / gj[i] * (ux * vy[i] - uy * vx[i])
         else:
             dy[i] = 0.0
             dy[n + i] = 0.0
@@ -146,16 +76,16 @@ def _deriv(y, phi, kap, pres, k, gj, dy, dphi, with_var, cs, sn):
         if pres[i] > 0.0:
             for c in range(nc):
                 dphi[i, c] = phi[n + i, c]
-            a = k[i] / gj[i] * kap[i]
             for c in range(nc):
                 dphi[n + i, c] = 0.0
-            if a == 0.0:
+            if kap[i] == 0.0 and kapy[i] == 0.0:
                 continue
+            a = k[i] / gj[i]
             for j in range(n):  # row i of ∂uz'/∂ψ, one entry at a time, times row j of Φ
-                if pres[j] > 0.0 and kap[j] != 0.0:
-                    m = -a * k[j] * kap[j] * (cs[i] * cs[j] + sn[i] * sn[j]) / ksum  # cos(ψi − ψj)
+                if pres[j] > 0.0 and (kap[j] != 0.0 or kapy[j] != 0.0):
+                    m = -a * k[j] * (vx[i] * vx[j] + vy[i] * vy[j]) / ksum
                     if i == j:
-                        m += a * (cs[i] * ux + sn[i] * uy)
+                        m += a * (ux * vx[i] + uy * vy[i])
                     for c in range(nc):
                         dphi[n + i, c] += m * phi[j, c]
         else:
@@ -263,9 +193,9 @@ def _init_state(x, alpha, beta, rigid, k, gj, y, phi, zb):
 
 
 @njit(cache=True, inline="always")
-def _body_deriv(zb, ux, uy, y, kap, pres, k, gj, cs, sn, dzb):
+def _body_deriv(zb, ux, uy, y, pres, k, gj, vx, vy, dzb):
     """(M3) and the elastic energy density Σ ½ ki |u − Rz(ψi) ûi|² + ½ GJi uiz², at backbone
-    curvature (ux, uy) and cs, sn = cos ψ, sin ψ (from _deriv at the same state y).
+    curvature (ux, uy) and vx, vy = Rz(ψ) û (from _deriv at the same state y).
     zb: p (3), R row-major (9), energy; R' = R [u]^ with u = (ux, uy, 0): columns c0' = −uy c2,
     c1' = ux c2, c2' = uy c0 − ux c1; p' = c2."""
     n = k.shape[0]
@@ -280,8 +210,8 @@ def _body_deriv(zb, ux, uy, y, kap, pres, k, gj, cs, sn, dzb):
     e = 0.0
     for i in range(n):
         if pres[i] > 0.0:
-            bx = ux - kap[i] * cs[i]
-            by = uy - kap[i] * sn[i]
+            bx = ux - vx[i]
+            by = uy - vy[i]
             e += 0.5 * k[i] * (bx * bx + by * by) + 0.5 * gj[i] * y[n + i] * y[n + i]
     dzb[12] = e
 
@@ -289,12 +219,12 @@ def _body_deriv(zb, ux, uy, y, kap, pres, k, gj, cs, sn, dzb):
 @njit(cache=True, inline="always")
 def _rhs(y, phi, zb, p, with_var, with_body, dy, dphi, dzb):
     """The TCM as an RK4 system (mechanics.rk4): (M2) and its variation always, (M3) and the energy
-    if with_body. p = (κ (N,), present (N,), k, gj, cs, sn): the stretch's precurvature and tubes,
-    the stiffnesses and two (N,) scratch arrays for cos ψ, sin ψ."""
-    kp, pr, k, gj, cs, sn = p
-    ux, uy = _deriv(y, phi, kp, pr, k, gj, dy, dphi, with_var, cs, sn)
+    if with_body. p = (κx (N,), κy (N,), present (N,), k, gj, vx, vy): the stretch's precurvature
+    and tubes, the stiffnesses and two (N,) scratch arrays for Rz(ψ) û."""
+    kp, kpy, pr, k, gj, vx, vy = p
+    ux, uy = _deriv(y, phi, kp, kpy, pr, k, gj, dy, dphi, with_var, vx, vy)
     if with_body:
-        _body_deriv(zb, ux, uy, y, kp, pr, k, gj, cs, sn, dzb)
+        _body_deriv(zb, ux, uy, y, pr, k, gj, vx, vy, dzb)
 
 
 _rk4_step = rk4_stepper(_rhs)
@@ -302,7 +232,7 @@ _rk4_step = rk4_stepper(_rhs)
 
 @njit(cache=True)
 def _work(n):
-    """Work arrays of _integrate: those of the RK4 step (rk4_work), cs, sn (N,) and a (2N, N)
+    """Work arrays of _integrate: those of the RK4 step (rk4_work), vx, vy (N,) and a (2N, N)
     copy of Φ at the start of a stretch."""
     return rk4_work(2 * n, n, NB), np.empty(n), np.empty(n), np.empty((2 * n, n))
 
@@ -347,25 +277,34 @@ def _straight_min_det(phi_a, phi_b, gj, m, p_int):
 
 
 @njit(cache=True)
-def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample,
+def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
                with_var, with_body, y, phi, zb, w, r, jac,
-               record, s_rec, p_rec, psi_rec, uz_rec):
+               record, s_rec, p_rec, psi_rec, uz_rec, cst, cpr, cvar, cprm, cout):
     """One integration pass from s = 0 with uz(0) = x: (M2) always, writing the residuals
     r_i = uiz(tip_i) (M4); the variation and jac = ∂r/∂x (N, N) if with_var; (M3) and the energy
-    into zb if with_body; the grid records (see integrate_full) if record.
+    into zb if with_body; the grid records (see integrate_full) if record; the contact stations
+    (mechanics.contact.apply_stations: friction jumps of uz, clearance tilt) at the breakpoints if
+    cst is not None (cst, cpr, cvar, cprm, cout: the contact arrays, None without contact
+    effects).
 
     Returns min over s ∈ (0, min tip] of det H (_relative_det; +inf for one tube or without the
     variation). On a straight stretch taken in one exact step, Φ is affine in s, so det H is
     sampled at the nsample points of spacing ≤ h_max as if the stretch had been stepped.
     """
     n = k.shape[0]
+    nb = bounds.shape[0]
     _init_state(x, alpha, beta, rigid, k, gj, y, phi, zb)
-    rk, cs, sn, phi_a = w
+    rk, vx, vy, phi_a = w
     p_int = rk[13]  # a stage state of Φ, free between stretches
     done = np.zeros(n, dtype=np.bool_)
     min_tip = tips.min()
     min_det = np.inf
     check = with_var and n > 1
+    js = 0
+    if cst is not None:
+        cw = contact_work(n)
+        js = apply_stations(cst, cpr, cvar, cprm, cout, 0, js, y, phi, zb, with_var, with_body, k,
+                            gj, kap, kapy, present, nb, cw)
     if record:
         s_rec[0] = 0.0
         p_rec[0, :] = 0.0
@@ -381,7 +320,7 @@ def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
             if with_var:
                 for c in range(n):
                     jac[i, c] = phi[n + i, c]
-    for seg in range(bounds.shape[0] - 1):
+    for seg in range(nb - 1):
         a, b = bounds[seg], bounds[seg + 1]
         ns = nsteps[seg]
         h = (b - a) / ns
@@ -389,7 +328,8 @@ def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
         if sampled:
             phi_a[:, :] = phi
         for st in range(ns):
-            _rk4_step(y, phi, zb, h, (kap[seg], present[seg], k, gj, cs, sn), with_var, with_body, rk)
+            _rk4_step(y, phi, zb, h, (kap[seg], kapy[seg], present[seg], k, gj, vx, vy), with_var,
+                      with_body, rk)
             if check and a + (st + 1) * h <= min_tip + S_TOL:
                 d = _relative_det(phi, gj)
                 if d < min_det:
@@ -407,6 +347,9 @@ def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
             d = _straight_min_det(phi_a, phi, gj, nsample[seg], p_int)
             if d < min_det:
                 min_det = d
+        if cst is not None:   # friction torques at the breakpoint, before the tips' residuals
+            js = apply_stations(cst, cpr, cvar, cprm, cout, seg + 1, js, y, phi, zb, with_var,
+                                with_body, k, gj, kap, kapy, present, nb, cw)
         for i in range(n):
             if not done[i] and tips[i] <= b + S_TOL:
                 done[i] = True
@@ -418,19 +361,20 @@ def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
 
 
 @njit(cache=True)
-def shoot(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample, r, jac,
-          with_var):
+def shoot(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample, r, jac,
+          with_var, cst=None, cpr=None, cvar=None, cprm=None, cout=None):
     """Integrate (M2) from s = 0 with uz(0) = x; write residuals r_i = uiz(tip_i) (M4) and, if
-    with_var, their exact Jacobian jac = ∂r/∂x (N, N).
+    with_var, their exact Jacobian jac = ∂r/∂x (N, N); cst, cpr, cvar, cprm, cout: the contact
+    arrays (mechanics.contact.apply_stations), None without contact effects.
 
     x, alpha (rad), beta (mm), tips (mm): (N,). Returns min over s ∈ (0, min tip] of det H
     (see _relative_det; +inf for one tube or without the variation).
     """
     n = k.shape[0]
-    return _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample,
-                      with_var, False, np.empty(2 * n), np.empty((2 * n, n)), np.empty(NB),
-                      _work(n), r, jac, False, np.empty(1), np.empty((1, 3)), np.empty((1, 1)),
-                      np.empty((1, 1)))
+    return _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
+                      nsample, with_var, False, np.empty(2 * n), np.empty((2 * n, n)),
+                      np.empty(NB), _work(n), r, jac, False, np.empty(1), np.empty((1, 3)),
+                      np.empty((1, 1)), np.empty((1, 1)), cst, cpr, cvar, cprm, cout)
 
 
 @njit(cache=True)
@@ -453,8 +397,9 @@ C0 = 1e3
 
 
 @njit(cache=True)
-def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample,
-           tol, max_iter, max_step, x_out, body_out):
+def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
+           tol, max_iter, max_step, x_out, body_out, cst=None, cpr=None, cvar=None, cprm=None,
+           cout=None):
     """Damped Newton on the shooting residual from x0 (rad/mm).
 
     Writes the root to x_out and, if converged, body_out (7,) = tip position (3,) mm, unit tip
@@ -468,7 +413,10 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, ns
     energy instead of the variation; J and det H are then those of the previous iterate, |Δx| ≤
     |r| / |J| away (≤ 1e-7 relative for tol 1e-10), which no stability decision can resolve. A
     wrong prediction costs that pass and Newton carries on. max_step bounds |Δx|∞ per iteration
-    (rad/mm).
+    (rad/mm). cst, cpr, cvar, cprm, cout: the contact arrays (mechanics.contact.apply_stations)
+    or None; the outputs cout are those of the last pass, at the root when converged. The friction
+    elements make the residual piecewise smooth (stick and slip): Newton on it is semismooth, its
+    Jacobian that of the active branch of each element.
     """
     n = x0.shape[0]
     x_out[:] = x0
@@ -487,8 +435,9 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, ns
     zb = np.empty(NB)
     w = _work(n)
     rs, ps, qs, us = np.empty(1), np.empty((1, 3)), np.empty((1, 1)), np.empty((1, 1))
-    mdet = _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample,
-                      True, False, y, phi, zb, w, r, jac, False, rs, ps, qs, us)
+    mdet = _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
+                      nsample, True, False, y, phi, zb, w, r, jac, False, rs, ps, qs, us,
+                      cst, cpr, cvar, cprm, cout)
     rn = np.abs(r).max()
     it = 0
     shoots = 1
@@ -510,8 +459,9 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, ns
             for i in range(n):
                 xt[i] = x[i] + t * dx[i]
             if final:
-                _integrate(xt, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
-                           nsample, False, True, y, phi, zb, w, rt, jt, False, rs, ps, qs, us)
+                _integrate(xt, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
+                           nsample, False, True, y, phi, zb, w, rt, jt, False, rs, ps, qs, us,
+                           cst, cpr, cvar, cprm, cout)
                 shoots += 1
                 final = False
                 rnt = np.abs(rt).max()
@@ -519,8 +469,9 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, ns
                     have_body = True
                     accepted = True
                     break
-            md = _integrate(xt, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps,
-                            nsample, True, False, y, phi, zb, w, rt, jt, False, rs, ps, qs, us)
+            md = _integrate(xt, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
+                            nsample, True, False, y, phi, zb, w, rt, jt, False, rs, ps, qs, us,
+                            cst, cpr, cvar, cprm, cout)
             shoots += 1
             rnt = np.abs(rt).max()
             if rnt < (1.0 - 1e-4 * t) * rn or rnt < tol:
@@ -543,8 +494,9 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, ns
         mdet = md
         converged = rn < tol
     if converged and not have_body:
-        _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample,
-                   False, True, y, phi, zb, w, rt, jt, False, rs, ps, qs, us)
+        _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
+                   False, True, y, phi, zb, w, rt, jt, False, rs, ps, qs, us, cst, cpr, cvar, cprm,
+                   cout)
         shoots += 1
     if converged:
         _tip(zb, body_out)
@@ -572,17 +524,20 @@ def sane(x, body, tips):
 
 
 @njit(cache=True)
-def integrate_full(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample,
-                   record, s_rec, p_rec, psi_rec, uz_rec, body_out):
+def integrate_full(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
+                   record, s_rec, p_rec, psi_rec, uz_rec, body_out, cst=None, cpr=None, cvar=None,
+                   cprm=None, cout=None):
     """Integrate (M2), (M3) and the elastic energy at the solution x into body_out (7,) (_tip).
 
     If record, every grid point is written to s_rec (K,), p_rec (K, 3) mm, psi_rec (K, N) rad and
     uz_rec (K, N) rad/mm, K = 1 + Σ nsteps; tubes not present there are NaN. Energy = Σ ∫ ½ ki
-    |u − Rz(ψi) ûi|² + ½ GJi uiz² ds, plus ½ GJi xi² (−βi) stored in the compliant transmission.
+    |u − Rz(ψi) ûi|² + ½ GJi uiz² ds, plus ½ GJi xi² (−βi) stored in the compliant transmission
+    and the friction elements' potential (the contact arrays, mechanics.contact.apply_stations).
     """
     n = k.shape[0]
     zb = np.empty(NB)
-    _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, present, nsteps, nsample,
+    _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
                False, True, np.empty(2 * n), np.empty((2 * n, n)), zb, _work(n), np.empty(n),
-               np.empty((n, n)), record, s_rec, p_rec, psi_rec, uz_rec)
+               np.empty((n, n)), record, s_rec, p_rec, psi_rec, uz_rec, cst, cpr, cvar, cprm,
+               cout)
     _tip(zb, body_out)

@@ -7,7 +7,9 @@ equilibria the robot is in) is the job of `follow` (mechanics.continuation), whi
 pieces here: `prepare` (joints to a `Problem`: grid and kernel inputs; `with_alpha`: new α at the
 same β, same grid), `newton` (one damped Newton solve, a `NewtonResult`), `search` and
 `twisted_guesses` (multi-start), `cold_solution` and `equilibrium` (a NewtonResult as an
-`Equilibrium`).
+`Equilibrium`). With friction (Robot.friction > 0) a configuration is solved for a friction state
+(`with_state`: the stuck offsets of the contacts, mechanics.friction); without one every contact is
+fresh and carries no friction torque, so `solve` with no state is the frictionless equilibrium.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from ctrkin.errors import ConvergenceError
 from ctrkin.geometry import quat_from_tangent
 from ctrkin.mechanics import kernels
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
+from ctrkin.mechanics.friction import N_OUT, ContactReport, FrictionState, Stations
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS, SolverSettings
 from ctrkin.robots.robot import Robot
 
@@ -39,7 +42,9 @@ class Equilibrium:
     stability: det of the shooting Jacobian ∂uz(tips)/∂uz(0) (1 for a straight robot, 0 at a fold);
     conjugate: min over the coupled length of det H (see kernels._relative_det);
     stable: converged and both are > 0; energy: elastic energy (N·mm); problem: the prepared
-    configuration it was solved on (grid and kernel inputs, `prepare`).
+    configuration it was solved on (grid and kernel inputs, `prepare`); contact: the contacts'
+    forces, friction torques and the friction state after this equilibrium (mechanics.friction;
+    None without friction and clearance, or if not converged).
     """
 
     q: np.ndarray
@@ -53,6 +58,7 @@ class Equilibrium:
     residual: float
     iterations: int
     problem: Problem = field(repr=False)
+    contact: ContactReport | None = field(default=None, repr=False)
 
     @functools.cached_property
     def _records(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -88,6 +94,12 @@ class Equilibrium:
         return np.concatenate([self.tip_position, quat_from_tangent(self.tip_tangent)])
 
     @property
+    def friction_state(self) -> FrictionState | None:
+        """The friction state after this equilibrium (to continue from with `solve(..., state=)`),
+        None for a robot without contact effects or a failed solve."""
+        return None if self.contact is None else self.contact.state
+
+    @property
     def base_twist(self) -> np.ndarray:
         """(N,) deg: twist stored in each tube's transmission, ψi(0) − αi = −βi uiz(0) (M4)."""
         n = self.x.shape[0]
@@ -109,15 +121,22 @@ class Equilibrium:
 @dataclass(frozen=True, eq=False)
 class Problem:
     """A joint configuration prepared for the kernels (`prepare`): arrays of the robot, q (2N,),
-    α (N,) rad, β − transmission length (N,) mm, tips (N,) mm and the grid of kernels.build_grid."""
+    α (N,) rad, β − transmission length (N,) mm, tips (N,) mm, the grid of grid.build_grid
+    (bounds, κx, κy, present, nsteps, nsample) and, with contact effects, its friction stations and
+    the friction state they are solved for (`with_state`), as the kernels' cvar (K + P,): the
+    stations' stuck offsets and the pairs' translations since the state
+    (mechanics.contact.apply_stations)."""
 
     arrays: RobotArrays
     q: np.ndarray
     alpha: np.ndarray  # rad
     beta: np.ndarray   # mm, for the kernels' transmission: βi − extra transmission length
     tips: np.ndarray
-    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
-    n_rk4: int         # RK4 steps of one integration pass (grid[3] summed once, not per solve)
+    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+    n_rk4: int         # RK4 steps of one integration pass (grid[4] summed once, not per solve)
+    stations: Stations | None = None
+    cvar: np.ndarray | None = None
+    state: FrictionState | None = None   # the state cvar was gathered from
 
     @property
     def length(self) -> float:
@@ -136,25 +155,44 @@ def prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: bool
     n = arr.lengths.shape[0]
     qk = qa.copy()
     qk[:n] = whole_turns_removed(qa[:n])
-    alpha, beta, tips, grid = kernels.prepare(qk, arr.lengths, arr.extra, arr.sec_len,
-                                              arr.sec_kap, arr.n_sec, h)
-    n_rk4 = int(grid[4].sum())  # the steps the stretches would take if none were straight
+    alpha, beta, tips, grid, code = kernels.prepare(qk, arr.lengths, arr.extra, arr.sec_len,
+                                                    arr.sec_kap, arr.sec_kapy, arr.n_sec, h)
+    n_rk4 = int(grid[5].sum())  # the steps the stretches would take if none were straight
     if n_rk4 > settings.max_rk4_steps:
         raise ConvergenceError(
             f"the TCM grid at q = {qa.tolist()} needs {n_rk4} RK4 steps (> SolverSettings."
             f"max_rk4_steps = {settings.max_rk4_steps}): tube lengths {arr.lengths.tolist()} mm at "
             f"a step of {h:.3g} mm; check the robot's lengths (mm) and "
             "curvatures (1/mm) or raise max_rk4_steps")
+    stations = None
+    if arr.contact:
+        stations = Stations.build(arr, grid[0], grid[3], code, tips, settings)
     # the kernels read β only as the twisting length −β of the compliant transmission (M4)
-    return Problem(arr, qa, alpha, beta, tips, grid, int(grid[3].sum()))
+    pb = Problem(arr, qa, alpha, beta, tips, grid, int(grid[4].sum()), stations)
+    return with_state(pb, None)
 
 
-def with_alpha(pb: Problem, q: np.ndarray) -> Problem:
-    """The problem at valid joints q (2N,) whose translations β are those of pb.q: the grid, tips
-    and transmission lengths depend on β alone (kernels.prepare), so only α is new (a rotation
-    step of a continuation needs no new grid)."""
-    return Problem(pb.arrays, q, np.radians(whole_turns_removed(q[:pb.alpha.shape[0]])), pb.beta, pb.tips,
-                   pb.grid, pb.n_rk4)
+_KEEP = object()
+
+
+def with_alpha(pb: Problem, q: np.ndarray, state: FrictionState | object | None = _KEEP) -> Problem:
+    """The problem at valid joints q (2N,) whose translations β are those of pb.q: the grid, tips,
+    transmission lengths and friction stations depend on β alone (kernels.prepare), so only α is
+    new (a rotation step of a continuation needs no new grid). state: the friction state to solve
+    for (default: pb's)."""
+    out = Problem(pb.arrays, q, np.radians(whole_turns_removed(q[:pb.alpha.shape[0]])), pb.beta,
+                  pb.tips, pb.grid, pb.n_rk4, pb.stations, pb.cvar, pb.state)
+    return out if state is _KEEP else with_state(out, state)  # type: ignore[arg-type]
+
+
+def with_state(pb: Problem, state: FrictionState | None) -> Problem:
+    """The problem solved for friction state `state` (None: every contact fresh, no friction
+    torque): the stations' stuck offsets and each pair's relative translation since the state."""
+    st = pb.stations
+    if st is None:
+        return pb
+    cvar = st.relaxed if state is None else state.gather(st, pb.q)
+    return Problem(pb.arrays, pb.q, pb.alpha, pb.beta, pb.tips, pb.grid, pb.n_rk4, st, cvar, state)
 
 
 def whole_turns_removed(alpha_deg: np.ndarray) -> np.ndarray:
@@ -192,7 +230,8 @@ class NewtonResult(NamedTuple):
     numerics broke down); converged: residual below tol and the sanity checks of kernels.sane passed;
     iterations; residual |r|∞ (rad/mm); det_j: det ∂r/∂x, the stability measure; det_h: min det H,
     the conjugate-point test; body (7,): tip (3,) mm, unit tangent (3,), elastic energy (N·mm) from
-    the final pass, NaN if not converged."""
+    the final pass, NaN if not converged; stations (K, 8): the friction stations' outputs at x
+    (contact.station), None without contact effects."""
 
     x: np.ndarray
     converged: bool
@@ -201,6 +240,12 @@ class NewtonResult(NamedTuple):
     det_j: float
     det_h: float
     body: np.ndarray
+    stations: np.ndarray | None = None
+
+    @property
+    def modes(self) -> bytes:
+        """The stick/slip pattern of the friction elements (empty without friction)."""
+        return b"" if self.stations is None else self.stations[:, 3].tobytes()
 
     @property
     def stable(self) -> bool:
@@ -224,15 +269,29 @@ def newton(pb: Problem, x0: np.ndarray, settings: SolverSettings, work: list[int
     x0 = np.asarray(x0, dtype=float)
     x = np.empty(x0.shape[0])
     body = np.empty(7)
+    ct = contact_arrays(pb)
     try:  # converged: |r| < tol and kernels.sane (a finite root and body), checked in the kernel
         conv, it, rn, det_j, det_h, shoots = kernels.newton(
             x0, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,
-            settings.tol, settings.max_iter, settings.max_step, x, body)
+            settings.tol, settings.max_iter, settings.max_step, x, body, *ct)
     except (np.linalg.LinAlgError, ZeroDivisionError, OverflowError, FloatingPointError):
         return NewtonResult.failed(x0.copy())  # numerics broke down
     if work is not None:
         work[0] += shoots * pb.n_rk4
-    return NewtonResult(x, conv, it, rn, det_j, det_h, body if conv else _NO_BODY)
+    return NewtonResult(x, conv, it, rn, det_j, det_h, body if conv else _NO_BODY, ct[4])
+
+
+_NO_CONTACT = (None, None, None, None, None)
+
+
+def contact_arrays(pb: Problem) -> tuple[np.ndarray | None, ...]:
+    """The kernels' contact arrays of pb (cst, cpr, cvar, cprm, cout:
+    mechanics.contact.apply_stations), with a fresh output array; five None without contact
+    effects."""
+    st = pb.stations
+    if st is None or pb.cvar is None:
+        return _NO_CONTACT
+    return st.table, st.pairs, pb.cvar, st.prm, np.empty((st.count, N_OUT))
 
 
 def _integrate(pb: Problem, x: np.ndarray, record: bool
@@ -248,12 +307,13 @@ def _integrate(pb: Problem, x: np.ndarray, record: bool
         recs = (np.empty(1), np.empty((1, 3)), np.empty((1, n)), np.empty((1, n)))
     body = np.empty(7)
     kernels.integrate_full(x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid, record,
-                           *recs, body)
+                           *recs, body, *contact_arrays(pb))
     return body[:3], body[3:6], float(body[6]), recs
 
 
-def equilibrium(pb: Problem, sol: NewtonResult) -> Equilibrium:
-    """The Equilibrium of a Newton result on problem pb."""
+def equilibrium(pb: Problem, sol: NewtonResult, state: FrictionState | None = None) -> Equilibrium:
+    """The Equilibrium of a Newton result on problem pb; state: the friction state after it, if
+    the caller has it already (friction_after)."""
     x = sol.x
     if sol.converged:  # the final Newton pass integrated the backbone and energy (kernels.sane passed)
         tip, tan, energy = sol.body[:3], sol.body[3:6], sol.energy
@@ -263,9 +323,19 @@ def equilibrium(pb: Problem, sol: NewtonResult) -> Equilibrium:
         except (ZeroDivisionError, OverflowError, FloatingPointError):
             energy = math.nan
         tip, tan = np.full(3, np.nan), np.full(3, np.nan)
+    contact = None
+    if sol.converged and pb.stations is not None and sol.stations is not None:
+        contact = ContactReport(pb.stations, sol.stations, state or friction_after(pb, sol))
     return Equilibrium(q=pb.q, x=x, tip_position=tip, tip_tangent=tan, converged=sol.converged,
                        stability=sol.det_j, conjugate=sol.det_h, energy=energy,
-                       residual=sol.residual, iterations=sol.iterations, problem=pb)
+                       residual=sol.residual, iterations=sol.iterations, problem=pb, contact=contact)
+
+
+def friction_after(pb: Problem, sol: NewtonResult) -> FrictionState:
+    """The friction state after a converged solve of pb (FrictionState.after)."""
+    assert pb.stations is not None and sol.stations is not None
+    return FrictionState.after(pb.stations, sol.stations, pb.q,
+                               max(pb.alpha.shape[0] - 1, 0) * pb.arrays.slots)
 
 
 def twisted_guesses(pb: Problem, around: np.ndarray) -> list[np.ndarray]:
@@ -306,16 +376,21 @@ def search(pb: Problem, guesses: list[np.ndarray], settings: SolverSettings,
 
 
 def solve(robot: Robot, q: np.ndarray, guess: Equilibrium | np.ndarray | None = None,
-          settings: SolverSettings = DEFAULT_SETTINGS, strict: bool = False) -> Equilibrium:
+          settings: SolverSettings = DEFAULT_SETTINGS, strict: bool = False,
+          state: FrictionState | None = None) -> Equilibrium:
     """Equilibrium of the TCM at joints q (2N,) = (α deg, β mm).
 
     guess: an Equilibrium (or its x, (N,) rad/mm) to warm-start from; Newton then stays on that
     branch if it can and the result says whether it is stable. Without a guess, the lowest-energy
     stable equilibrium found from untwisted and twisted starts is returned.
+    state: the friction state to solve for (an earlier equilibrium's `friction_state`; one step of
+    the rate-independent friction law from there to q, docs/mechanics.md: Friction and clearance);
+    None: every contact fresh, so a robot with friction gives its frictionless equilibrium (there is
+    no history to carry). The result's `friction_state` continues the path.
     Invalid joints raise JointError. A failed solve returns converged=False with a NaN pose, or
     raises ConvergenceError if strict.
     """
-    pb = prepare(robot, q, settings)
+    pb = with_state(prepare(robot, q, settings), state)
     eq = solve_prepared(pb, guess, settings)
     if strict and not eq.converged:
         raise ConvergenceError(f"no TCM equilibrium found at q = {pb.q.tolist()} "

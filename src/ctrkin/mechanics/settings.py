@@ -34,6 +34,13 @@ class SolverSettings:
     one continuation step of follow is given up (reported not converged)
     (5e5 RK4 steps: about 0.5 s on one core for three tubes; a paper-robot solve needs < 1e4,
     a continuation step of a paper-robot sweep, folds included, < 3e4).
+    Friction (Robot.friction > 0; docs/mechanics.md: Friction and clearance): stick_mm (mm): the
+    elastic slip of a friction element at the contact surface, within which it sticks (a play
+    element's half width, the same in torsion, stick_mm / r_c rad, and axially: Coulomb's law is
+    isotropic at the surface; the rigid-plastic limit as it goes to 0; default 2e-4 mm, 0.9e-3 rad
+    on the paper robot's contact radius 0.22 mm); distributed_friction: add the distributed contact
+    force |M''| of the curved stretches to the breakpoints' elements (False: only the concentrated
+    contacts of Lock & Dupont 2011).
 
     RK4's error falls as step⁴ (tests/mechanics/test_numerics.py); benchmarks/bench_mechanics.py
     measures the tip error against the reference. The estimate e(h) is 2-8× above the measured
@@ -47,6 +54,8 @@ class SolverSettings:
     angle_step: float = 0.3
     max_rk4_steps: int = 200_000
     max_search_steps: int = 500_000
+    stick_mm: float = 2e-4
+    distributed_friction: bool = True
 
     def __post_init__(self) -> None:
         if self.tip_tol is not None and not self.tip_tol > 0:
@@ -63,6 +72,8 @@ class SolverSettings:
             raise CtrkinError(f"SolverSettings.angle_step must be > 0 rad, got {self.angle_step}")
         if self.max_search_steps < 0:
             raise CtrkinError(f"SolverSettings.max_search_steps must be >= 0, got {self.max_search_steps}")
+        if not self.stick_mm > 0:
+            raise CtrkinError(f"SolverSettings.stick_mm must be > 0 mm, got {self.stick_mm}")
         if self.max_rk4_steps < 1:
             raise CtrkinError(f"SolverSettings.max_rk4_steps must be >= 1, got {self.max_rk4_steps}")
 

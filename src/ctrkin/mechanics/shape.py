@@ -84,12 +84,15 @@ def dense_backbone(eq: Equilibrium, spacing: float = 0.5) -> Backbone:
         raise ValueError(f"spacing must be a positive number of mm, got {spacing}")
     pb = eq.problem
     arr = pb.arrays
-    bounds, kap, _present, nsteps, _nsample = pb.grid
-    curved = (kap != 0.0).any(axis=1)
+    bounds, kap, kapy, _present, nsteps, _nsample = pb.grid
+    curved = ((kap != 0.0) | (kapy != 0.0)).any(axis=1)
     solve_step = float((np.diff(bounds)[curved] / nsteps[curved]).max(initial=spacing))
-    alpha, beta, tips, grid = kernels.prepare(pb.q, arr.lengths, arr.extra, arr.sec_len, arr.sec_kap,
-                                              arr.n_sec, min(spacing, solve_step))
-    fine = Problem(arr, pb.q, alpha, beta, tips, grid, int(grid[3].sum()))
+    _, _, tips, grid, _ = kernels.prepare(pb.q, arr.lengths, arr.extra, arr.sec_len, arr.sec_kap,
+                                          arr.sec_kapy, arr.n_sec, min(spacing, solve_step))
+    # the step bounds only the RK4 steps: the breakpoints, and with them the friction stations and
+    # their state (the equilibrium's, mechanics.friction), are the solve's; α as the solve saw it
+    fine = Problem(arr, pb.q, pb.alpha, pb.beta, pb.tips, grid, int(grid[4].sum()), pb.stations,
+                   pb.cvar, pb.state)
     s, points, psi, _uz = _integrate(fine, eq.x, record=True)[3]
     s_dense, rows = _densify(s, spacing)
     return Backbone(s=s_dense, points=_lerp(points, rows), twist=np.degrees(_lerp(psi, rows)),

@@ -31,7 +31,7 @@ def curved_sections(robot: Robot) -> list[tuple[int, float, float]]:
     for i, t in enumerate(robot.tubes):
         cum = 0.0
         for s in t.sections:
-            if s.curvature != 0.0 and s.length > 0:
+            if s.curved and s.length > 0:
                 out.append((i, cum, s.length))
             cum += s.length
     return out

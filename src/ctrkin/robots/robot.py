@@ -90,6 +90,13 @@ class Robot:
     transmission_length : tuple of float, optional
         (N,) mm of extra twisting length between each tube's actuator and its carriage, beyond the
         −βi inside the actuation unit (a calibrated parameter; empty: zeros).
+    friction : float
+        Coulomb coefficient μ between neighbouring tubes (0, the default: the frictionless TCM;
+        docs/mechanics.md: Friction and clearance).
+    clearance : float
+        How much of the radial gap between neighbouring tubes (from their diameters) lets a tube
+        tilt where it leaves the next one's tip (0, the default: concentric centrelines, the
+        standard TCM; 1: the whole gap).
 
     Examples
     --------
@@ -103,6 +110,8 @@ class Robot:
     transmission: Transmission = "compliant"
     name: str = "robot"
     transmission_length: tuple[float, ...] = ()
+    friction: float = 0.0
+    clearance: float = 0.0
 
     def __post_init__(self) -> None:
         try:
@@ -113,6 +122,12 @@ class Robot:
         object.__setattr__(self, "tubes", tubes)
         tl = _lengths_mm(self.transmission_length, len(tubes))
         object.__setattr__(self, "transmission_length", tl)
+        for name, upper in (("friction", 2.0), ("clearance", 10.0)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= upper:
+                raise RobotDescriptionError(
+                    f"Robot.{name} must be a number in [0, {upper:g}] (0 switches it off), got {v!r}")
+            object.__setattr__(self, name, float(v))
         if len(tubes) < 1:
             raise RobotDescriptionError("Robot needs at least one tube")
         for k, t in enumerate(tubes):
@@ -267,6 +282,9 @@ class Robot:
         d: dict[str, object] = {"name": self.name, "transmission": self.transmission}
         if any(self.transmission_length):
             d["transmission_length"] = list(self.transmission_length)
+        for name in ("friction", "clearance"):
+            if getattr(self, name):
+                d[name] = getattr(self, name)
         d["tubes"] = [t.to_dict() for t in self.tubes]
         return d
 
@@ -327,8 +345,9 @@ class Robot:
         name = d.get("name", "robot")
         if not isinstance(name, str):
             raise RobotDescriptionError(f"{source}: 'name' must be a string, got {name!r}")
+        contact = {key: d[key] for key in ("friction", "clearance") if key in d}
         return cls(tubes=tuple(tubes), transmission=d.get("transmission", "compliant"),  # type: ignore[arg-type]
-                   name=name, transmission_length=tuple(tl))
+                   name=name, transmission_length=tuple(tl), **contact)  # type: ignore[arg-type]
 
     def to_toml(self, path: str | Path) -> None:
         """Write the description as a TOML file (atomically)."""

@@ -2,6 +2,8 @@
 
 Units at this boundary (fixed convention): mm, 1/mm, GPa. A tube's precurvature lies in its own
 material frame as û = (κ, 0, 0); the tube is described from its base (at the carriage) to its tip.
+A section may also give the precurvature a component out of that plane, û = (κx, κy, 0) (a tube
+whose shape-set curve is not quite planar, e.g. the virtual robot's true tubes).
 """
 
 from __future__ import annotations
@@ -16,8 +18,9 @@ from ctrkin.errors import RobotDescriptionError
 OD_RANGE_MM = (1e-3, 100.0)
 MAX_LENGTH_MM = 10_000.0        # 10 m, per tube and per section
 MAX_CURVATURE_PER_MM = 10.0     # a 0.1 mm bending radius
-# precurvature strain κ·od/2 at the outer wall: superelastic nitinol recovers about 8-10 %, so a
-# tube set beyond 20 % cannot exist (and coils that tight make every solve spend its work bound)
+# precurvature strain |κ|·od/2 at the outer wall (|κ| = √(κx² + κy²) of a section): superelastic
+# nitinol recovers about 8-10 %, so a tube set beyond 20 % cannot exist (and coils that tight make
+# every solve spend its work bound)
 MAX_STRAIN = 0.2
 YOUNGS_RANGE_GPA = (1e-3, 1e3)
 # precurvature sections per tube: a measured profile at 0.1 mm over a 1 m tube; every section is a
@@ -34,12 +37,23 @@ class Section:
     length : float
         Length (mm).
     curvature : float
-        Precurvature κ (1/mm), 0 on a straight stretch; it lies in the tube's material frame as
-        û = (κ, 0, 0).
+        Precurvature κx (1/mm), 0 on a straight stretch, in the tube's precurvature plane: it lies
+        in the tube's material frame as û = (κx, κy, 0).
+    curvature_y : float
+        Precurvature κy (1/mm) out of that plane (default 0: a planar tube).
     """
 
     length: float
     curvature: float
+    curvature_y: float = 0.0
+
+    @property
+    def curved(self) -> bool:
+        return self.curvature != 0.0 or self.curvature_y != 0.0
+
+    def as_list(self) -> list[float]:
+        """[length, κx] or, out of plane, [length, κx, κy] (the robot file's form)."""
+        return [self.length, self.curvature] + ([self.curvature_y] if self.curvature_y else [])
 
 
 def _require_finite(owner: str, name: str, value: float) -> None:
@@ -53,15 +67,17 @@ def _require_finite(owner: str, name: str, value: float) -> None:
 
 
 def _section(k: int, s: object) -> Section:
-    """A Section from a Section or a (length mm, curvature 1/mm) pair, else a clear error."""
+    """A Section from a Section, a (length mm, curvature 1/mm) pair or a (length, κx, κy) triple,
+    else a clear error."""
     if isinstance(s, Section):
         return s
-    if not isinstance(s, (tuple, list)) or len(s) != 2:
+    if not isinstance(s, (tuple, list)) or len(s) not in (2, 3):
         raise RobotDescriptionError(
-            f"Tube.sections[{k}] must be a pair [length mm, curvature 1/mm], got {s!r}")
-    for name, v in zip(("length", "curvature"), s, strict=True):
+            f"Tube.sections[{k}] must be a pair [length mm, curvature 1/mm] or a triple [length mm, "
+            f"curvature 1/mm, out-of-plane curvature 1/mm], got {s!r}")
+    for name, v in zip(("length", "curvature", "curvature_y"), s, strict=False):
         _require_finite("Tube", f"sections[{k}].{name}", v)
-    return Section(float(s[0]), float(s[1]))
+    return Section(float(s[0]), float(s[1]), float(s[2]) if len(s) == 3 else 0.0)
 
 
 def _check_count(sections: object) -> None:
@@ -158,14 +174,16 @@ class Tube:
             for k, s in enumerate(secs):
                 _require_finite(owner, f"sections[{k}].length", s.length)
                 _require_finite(owner, f"sections[{k}].curvature", s.curvature)
+                _require_finite(owner, f"sections[{k}].curvature_y", s.curvature_y)
                 if not 0 <= s.length <= MAX_LENGTH_MM:
                     raise RobotDescriptionError(
                         f"Tube.sections[{k}].length must be between 0 and {MAX_LENGTH_MM:g} mm, "
                         f"got {s.length}")
-                if abs(s.curvature) > MAX_CURVATURE_PER_MM:
-                    raise RobotDescriptionError(
-                        f"Tube.sections[{k}].curvature must be within ±{MAX_CURVATURE_PER_MM:g} "
-                        f"1/mm, got {s.curvature}")
+                for name in ("curvature", "curvature_y"):
+                    if abs(getattr(s, name)) > MAX_CURVATURE_PER_MM:
+                        raise RobotDescriptionError(
+                            f"Tube.sections[{k}].{name} must be within ±{MAX_CURVATURE_PER_MM:g} "
+                            f"1/mm, got {getattr(s, name)}")
             object.__setattr__(self, "sections", secs)
             total = sum(s.length for s in secs)
             if abs(total - (self.straight_length + self.curved_length)) > 1e-9 * max(1.0, total):
@@ -175,7 +193,7 @@ class Tube:
         if self.length <= 0:
             raise RobotDescriptionError("Tube must have a positive total length "
                                         "(straight_length + curved_length > 0)")
-        kappa = max(abs(s.curvature) for s in self.sections)
+        kappa = max(math.hypot(s.curvature, s.curvature_y) for s in self.sections)   # |û| = √(κx² + κy²)
         if kappa * self.od / 2 > MAX_STRAIN * (1 + 1e-9):      # at the bound itself, round-off passes
             raise RobotDescriptionError(
                 f"Tube precurvature {kappa:g} 1/mm on an outer diameter of {self.od:g} mm strains its wall "
@@ -184,7 +202,8 @@ class Tube:
                 "diameter): check the units (1/mm) and the diameter (mm)")
 
     @classmethod
-    def from_sections(cls, od: float, id: float, sections: list[tuple[float, float]],
+    def from_sections(cls, od: float, id: float,
+                      sections: list[tuple[float, float]] | list[tuple[float, float, float]],
                       youngs_modulus: float = 58.0, poisson_ratio: float = 0.33) -> Tube:
         """A tube with general piecewise-constant precurvature.
 
@@ -192,8 +211,9 @@ class Tube:
         ----------
         od, id : float
             Outer and inner diameter (mm).
-        sections : list of (float, float)
-            (length mm, curvature 1/mm) pairs from base to tip.
+        sections : list of (float, float) or (float, float, float)
+            (length mm, curvature 1/mm) pairs from base to tip, or (length, κx, κy) triples for
+            precurvature out of the tube's plane.
         youngs_modulus : float
             E (GPa).
         poisson_ratio : float
@@ -203,7 +223,7 @@ class Tube:
         -------
         Tube
             With straight_length the leading straight stretch, curved_length the rest and curvature
-            the first non-zero one.
+            the first non-zero |κx|.
         """
         if not isinstance(sections, (list, tuple)):
             raise RobotDescriptionError(
@@ -212,7 +232,7 @@ class Tube:
         secs = tuple(_section(k, s) for k, s in enumerate(sections))
         straight = 0.0
         for s in secs:
-            if s.curvature != 0.0:
+            if s.curved:
                 break
             straight += s.length
         total = sum(s.length for s in secs)
@@ -251,5 +271,5 @@ class Tube:
         default = Tube(self.od, self.id, self.straight_length, self.curved_length,
                        self.curvature, self.youngs_modulus, self.poisson_ratio)
         if default.sections != self.sections:
-            d["sections"] = [[s.length, s.curvature] for s in self.sections]
+            d["sections"] = [s.as_list() for s in self.sections]
         return d

@@ -7,11 +7,14 @@ config plus a robot seed is one reproducible "piece of hardware".
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
 from ctrkin.errors import CtrkinError
+
+SHAPES = ("em_distortion_length_mm",)   # fields that shape an effect but switch nothing
 
 
 class VirtualConfigError(CtrkinError, ValueError):
@@ -39,19 +42,37 @@ class VirtualConfig:
     alpha_zero_error_deg : float
         Std (deg) of the offset between a rotation encoder's zero and the tube's precurvature plane
         (a tube clamped into its gear by hand).
+    precurvature_variation : float
+        Relative std of the precurvature's variation along each curved section (a smooth profile of
+        zero mean, on top of precurvature_error).
+    precurvature_plane_deg : float
+        Std (deg) of the turn of the precurvature plane along each curved section (the shape-set
+        curve leaves its plane: û = (κx, κy)).
+    tube_friction : float
+        Coulomb coefficient μ between neighbouring tubes of the true robot (contact forces from the
+        bending moments they exchange, concentrated at curvature changes and tube ends;
+        docs/mechanics.md: Friction and clearance).
+    clearance : float
+        The share of the tubes' radial gap (from their diameters) the inner tube may tilt in where it
+        leaves an outer tube's tip (1: all of it).
     gear_backlash_deg : float
         Full width (deg) of the gear backlash of each rotation stage.
     friction_deg : float
-        Full width (deg) of the torsional-friction wind-up with no curved overlap.
+        Full width (deg) of the torsional-friction wind-up of a tube in its bearings.
     friction_deg_per_mm : float
-        Extra wind-up width (deg) per mm of curved overlap of two or more tubes (the contact force
-        between curved tubes, and so the friction, grows with the overlap).
+        Extra wind-up width (deg) per mm of curved overlap of two or more tubes, a lumped stand-in
+        for the friction between the tubes (default 0: tube_friction models it).
     leadscrew_backlash_mm : float
         Full width (mm) of the lead-screw backlash of each translation stage.
     registration_mm : float
         Std (mm, per axis) of the tracker's residual rigid registration error.
     registration_deg : float
         Std (deg) of its rotation.
+    em_distortion_mm : float
+        RMS (mm) over the robot's workspace of the part of a smooth warp of the tracker's space
+        (field distortion by metal and motors) that no rigid registration removes.
+    em_distortion_length_mm : float
+        The warp's length scale (mm).
     sensor_offset_mm : float
         Distance (mm) of the sensor coil's centre beyond the tube tip, along the tip tangent (the
         sensor sits in a fixture on the tip; the nominal model predicts the tube tip).
@@ -73,12 +94,18 @@ class VirtualConfig:
     stiffness_error: float = 0.08
     residual_curvature: float = 1e-3
     alpha_zero_error_deg: float = 4.0
+    precurvature_variation: float = 0.05
+    precurvature_plane_deg: float = 3.0
+    tube_friction: float = 0.2
+    clearance: float = 1.0
     gear_backlash_deg: float = 1.0
     friction_deg: float = 0.5
-    friction_deg_per_mm: float = 0.8
+    friction_deg_per_mm: float = 0.0
     leadscrew_backlash_mm: float = 0.05
     registration_mm: float = 1.0
     registration_deg: float = 1.0
+    em_distortion_mm: float = 1.0
+    em_distortion_length_mm: float = 10.0
     sensor_offset_mm: float = 4.0
     noise_mm: float = 0.25
     noise_deg: float = 0.2
@@ -93,12 +120,18 @@ class VirtualConfig:
             "stiffness_error": (0.5, "a relative std; 0.08 is 8 %"),
             "residual_curvature": (0.01, "1/mm; 0.01 is a 100 mm radius, no longer 'straight'"),
             "alpha_zero_error_deg": (45.0, "deg"),
+            "precurvature_variation": (0.5, "a relative std; 0.05 is 5 %"),
+            "precurvature_plane_deg": (45.0, "deg"),
+            "tube_friction": (1.0, "a friction coefficient; nitinol pairs are 0.1-0.7"),
+            "clearance": (10.0, "a multiple of the tubes' radial gap; 1 is the whole gap"),
             "gear_backlash_deg": (30.0, "deg"),
             "friction_deg": (30.0, "deg"),
             "friction_deg_per_mm": (5.0, "deg per mm of curved overlap"),
             "leadscrew_backlash_mm": (2.0, "mm"),
             "registration_mm": (20.0, "mm"),
             "registration_deg": (20.0, "deg"),
+            "em_distortion_mm": (20.0, "mm RMS over the workspace, after a rigid fit"),
+            "em_distortion_length_mm": (10000.0, "mm"),
             "sensor_offset_mm": (50.0, "mm"),
             "noise_mm": (10.0, "mm"),
             "noise_deg": (10.0, "deg"),
@@ -116,6 +149,10 @@ class VirtualConfig:
             if v > upper:
                 raise VirtualConfigError(
                     f"VirtualConfig.{name} = {v} is implausibly large ({unit}); use a value <= {upper}")
+        if self.em_distortion_mm > 0 and not self.em_distortion_length_mm >= 1.0:
+            raise VirtualConfigError(
+                "VirtualConfig.em_distortion_length_mm must be >= 1 mm when em_distortion_mm > 0 "
+                f"(the warp's length scale), got {self.em_distortion_length_mm}")
         n = self.readings_per_sample
         if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 1000:
             raise VirtualConfigError(
@@ -142,7 +179,9 @@ class VirtualConfig:
         return cls(**d)
 
     def ideal(self) -> VirtualConfig:
-        """All effects off: the virtual robot is then the nominal TCM with perfect sensing."""
-        off: dict[str, Any] = {f.name: 0.0 for f in fields(self)}
+        """All effects off: the virtual robot is then the nominal TCM with perfect sensing. The
+        warp's length scale, a shape and no effect, keeps its value (so one field, em_distortion_mm,
+        switches the warp back on)."""
+        off: dict[str, Any] = {f.name: 0.0 for f in fields(self) if f.name not in SHAPES}
         off["readings_per_sample"] = 1
-        return VirtualConfig(**off)
+        return dataclasses.replace(self, **off)

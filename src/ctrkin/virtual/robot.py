@@ -6,9 +6,10 @@ Data flow of one motion (joints are motor-side encoder values, the fixed joint c
       -> play operator per joint (backlash + friction dead band, transmission.py)
       -> + encoder zero offset of each rotation (tube clamped into its gear by hand)
       -> clipped to the stages' travel                       = tube base joints b (T, 2N)
-      -> TCM continuation on the true tubes (mechanics.follow: history, snaps)
+      -> TCM continuation on the true tubes (mechanics.follow: history, snaps, the friction
+         between the tubes and its state, the clearance tilt)
       -> true tip pose (robot base frame)                    = true_* columns
-      -> tracker: sensor offset, registration error, noise, mean of 5 readings
+      -> tracker: sensor offset, registration error, field warp, noise, mean of 5 readings
                                                              = measured x..qy columns
     encoder readings = m, with rare glitches (outlier = True)
 
@@ -19,19 +20,38 @@ per recording, so protocols decide how to seed (and parallelise) it.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from ctrkin.mechanics import Equilibrium, follow, solve
+from ctrkin.mechanics import Equilibrium, follow, solve, solve_many
 from ctrkin.robots.robot import Robot
 from ctrkin.virtual.config import VirtualConfig
 from ctrkin.virtual.encoder import glitch
+from ctrkin.virtual.field import FieldWarp
 from ctrkin.virtual.hardware import perturb_robot
 from ctrkin.virtual.tracker import Tracker
 from ctrkin.virtual.transmission import clip_to_valid, curved_overlap, dead_band, play
+
+WORKSPACE_POINTS = 64
+
+
+def workspace(robot: Robot, rng: np.random.Generator, n: int = WORKSPACE_POINTS) -> np.ndarray:
+    """(n, 3) mm: tips of the nominal robot at random valid joints (any rotation, translations
+    across their travel), a sample of where the tracker will see the robot."""
+    nt = robot.n_tubes
+    q = np.zeros((n, 2 * nt))
+    q[:, :nt] = rng.uniform(0.0, 360.0, (n, nt))
+    # translations: the outer tube out by at least three quarters of its length, each inner one
+    # anywhere between fully retracted into the next and flush with it
+    lengths = robot.lengths
+    q[:, 2 * nt - 1] = -rng.uniform(0.0, 0.25, n) * lengths[-1]
+    for i in range(nt - 2, -1, -1):
+        q[:, nt + i] = q[:, nt + i + 1] - rng.uniform(0.0, 1.0, n) * (lengths[i] - lengths[i + 1])
+    return np.array([e.tip_position for e in solve_many(robot, robot.project_joints(q))])
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,11 +94,18 @@ class VirtualRobot:
         self.config = config if config is not None else VirtualConfig()
         self.seed = int(seed)
         rng = np.random.default_rng(np.random.SeedSequence([self.seed, 0x5EED]))
-        self.true_robot, self.tube_errors = perturb_robot(nominal, self.config, rng)
+        shape_rng, field_rng = (np.random.default_rng(np.random.SeedSequence([self.seed, 0x5EED, k]))
+                                for k in (1, 2))   # streams of their own: rng's draws stay put
+        self.true_robot, self.tube_errors = perturb_robot(nominal, self.config, rng, shape_rng)
         self.alpha_offset = self.config.alpha_zero_error_deg * rng.standard_normal(nominal.n_tubes)
         c = self.config
-        self.tracker = Tracker.draw(rng, c.registration_mm, c.registration_deg, c.sensor_offset_mm,
-                                    c.noise_mm, c.noise_deg, c.readings_per_sample)
+        tracker = Tracker.draw(rng, c.registration_mm, c.registration_deg, c.sensor_offset_mm,
+                               c.noise_mm, c.noise_deg, c.readings_per_sample)
+        if c.em_distortion_mm > 0:
+            warp = FieldWarp.draw(field_rng, c.em_distortion_mm, c.em_distortion_length_mm,
+                                  workspace(nominal, field_rng))
+            tracker = dataclasses.replace(tracker, warp=warp)
+        self.tracker = tracker
 
     # --- actuation ------------------------------------------------------------------------------
     def base_joints(self, play_out: np.ndarray) -> np.ndarray:

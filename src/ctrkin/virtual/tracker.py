@@ -5,7 +5,9 @@ never perfect: a fixed rigid error (R_e, t_e) remains, drawn once per robot seed
 in a fixture on the tip, its centre `offset` mm beyond the tube tip along the tip tangent. Each sample is the
 mean of n readings (the paper averaged five, Sec. II.B); a reading adds isotropic position noise and
 turns the tangent by a small random angle. The 5-DOF sensor measures no roll, so the orientation is
-rebuilt from the averaged tangent with qz = 0 (geometry.quat_from_tangent).
+rebuilt from the averaged tangent with qz = 0 (geometry.quat_from_tangent). A distorted field
+(virtual.field) warps the registered sensor pose before the noise: a static error of the tracker
+that the noise-free view (`registered`) includes, as it includes the registration error.
 """
 
 from __future__ import annotations
@@ -15,7 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from ctrkin.geometry import RigidTransform, quat_from_tangent, sensor_poses, sensor_view
+from ctrkin.geometry import RigidTransform, quat_from_tangent, sensor_poses
+from ctrkin.virtual.field import FieldWarp
 
 
 @dataclass(frozen=True, eq=False)
@@ -23,13 +26,14 @@ class Tracker:
     """registration: the residual registration error, measured = R_e p + t_e (rotation (3, 3),
     translation (3,) mm). offset: mm of the sensor centre beyond the tube tip along the tangent.
     noise_mm: position std per axis of one reading; noise_deg: tangent std of one reading (deg);
-    readings: readings averaged per sample."""
+    readings: readings averaged per sample; warp: the field distortion (None: an undistorted field)."""
 
     registration: RigidTransform
     offset: float
     noise_mm: float
     noise_deg: float
     readings: int
+    warp: FieldWarp | None = None
 
     @classmethod
     def draw(cls, rng: np.random.Generator, registration_mm: float, registration_deg: float,
@@ -51,12 +55,14 @@ class Tracker:
         return self.registration.translation
 
     def _sensor(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Sensor centre (T, 3) and axis (T, 3) seen through the registration."""
-        return sensor_poses(poses, self.registration, self.offset)
+        """Sensor centre (T, 3) and axis (T, 3) seen through the registration and the warp."""
+        p, axis = sensor_poses(poses, self.registration, self.offset)
+        return (p, axis) if self.warp is None else self.warp.apply(p, axis)
 
     def registered(self, poses: np.ndarray) -> np.ndarray:
         """Noise-free tracker view of true poses (T, 6) in the robot base frame -> (T, 6)."""
-        return sensor_view(np.atleast_2d(np.asarray(poses, dtype=float)), self.registration, self.offset)
+        p, axis = self._sensor(np.atleast_2d(np.asarray(poses, dtype=float)))
+        return np.concatenate([p, quat_from_tangent(axis)], axis=1)
 
     def measure(self, poses: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Measured poses (T, 6): registered, each the mean of `readings` noisy readings."""
@@ -77,4 +83,5 @@ class Tracker:
                 "registration_rotation_deg": float(np.degrees(np.linalg.norm(rv))),
                 "registration_translation_mm": self.translation.tolist(),
                 "sensor_offset_mm": self.offset,
-                "noise_mm": self.noise_mm, "noise_deg": self.noise_deg, "readings": self.readings}
+                "noise_mm": self.noise_mm, "noise_deg": self.noise_deg, "readings": self.readings,
+                "field_warp": None if self.warp is None else self.warp.to_dict()}

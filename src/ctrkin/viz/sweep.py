@@ -15,7 +15,9 @@ from ctrkin.util.files import atomic_path
 
 def plot_sweeps(curves: list[dict], path: str | Path, title: str = "Rotation sweeps") -> None:
     """curves: dicts with `label`, `alpha0` (T,) deg, `azimuth` (T,) deg, `snaps` (T,) bool and
-    `forward` (T,) bool (rotation direction). Snaps are marked with a cross."""
+    `forward` (T,) bool (rotation direction), optionally `folds_frictionless` (T,) bool: where the
+    same robot without friction snaps. Snaps are marked with a cross, frictionless folds with a
+    circle on the curve."""
     fig, ax = plt.subplots(figsize=(8, 5.5))
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for k, c in enumerate(curves):
@@ -28,7 +30,12 @@ def plot_sweeps(curves: list[dict], path: str | Path, title: str = "Rotation swe
         sn = np.asarray(c["snaps"], bool)
         if sn.any():
             ax.plot(a0[sn], az[sn], "x", color="k", ms=9, mew=2)
+        ref = np.asarray(c.get("folds_frictionless", np.zeros_like(sn)), bool)
+        if ref.any():
+            ax.plot(a0[ref], az[ref], "o", mfc="none", mec="k", ms=9, mew=1.5)
     ax.plot([], [], "x", color="k", ms=9, mew=2, label="snap (fold)")
+    if any(np.asarray(c.get("folds_frictionless", []), bool).any() for c in curves):
+        ax.plot([], [], "o", mfc="none", mec="k", ms=9, mew=1.5, label="frictionless fold")
     ax.set_xlabel("relative rotation α0 = α1 − αN (deg)")
     ax.set_ylabel("T(L): tip azimuth from outer tube base (deg)")
     ax.set_title(title)
