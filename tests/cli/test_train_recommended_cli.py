@@ -28,6 +28,9 @@ def _train(data, out, *words):
     r = CliRunner().invoke(cli, ["train", "--data", str(data), "--out", str(out), "--epochs", "1",
                                  "--threads", "1", *words], env=ENV)
     assert r.exit_code == 0, r.output
+    # one epoch is its budget while the validation loss still improves: said, not silent (issue 22)
+    assert "warning: training stopped at its budget (max_epochs, 1 epochs)" in r.output
+    assert "stopped by max_epochs" in r.output and "fit: still improving" in r.output
     return json.loads((out / "config.json").read_text())["train"]
 
 
