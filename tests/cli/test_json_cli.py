@@ -50,7 +50,8 @@ def test_sweep_json(tmp_path) -> None:
 
 
 def test_train_json(data, tmp_path) -> None:
-    out = run_json(["train", "--task", "fk", "--data", str(data / "data"), "--out", str(tmp_path / "fk"),
+    out = run_json(["train", "--task", "fk", "--model", "lstm_mlp",
+                    "--data", str(data / "data"), "--out", str(tmp_path / "fk"),
                     "--epochs", "1", "--structure", "L8|D8", "--threads", "1", "--split", "random", "--json"])
     assert out["out"] == str(tmp_path / "fk") and out["task"] == "fk"
     assert out["training"]["epochs"] == 1

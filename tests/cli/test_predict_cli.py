@@ -22,7 +22,8 @@ def fk_model(tmp_path_factory):
     r = runner.invoke(cli, ["collect", "--protocol", "arbitrary", "--workers", "1",
                             "--out", str(root / "data")], env=ENV)
     assert r.exit_code == 0, r.output
-    r = runner.invoke(cli, ["train", "--task", "fk", "--data", str(root / "data"), "--out", str(root / "fk"),
+    r = runner.invoke(cli, ["train", "--task", "fk", "--model", "lstm_mlp",
+                            "--data", str(root / "data"), "--out", str(root / "fk"),
                             "--epochs", "1", "--structure", "L8|D8", "--threads", "1", "--split", "random"],
                       env=ENV)
     assert r.exit_code == 0, r.output

@@ -11,7 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from ctrkin.cli.main import cli
-from ctrkin.cli.train import ALIASES, REQUIRED, train_cmd
+from ctrkin.cli.train import ALIASES, DEFAULTS, REQUIRED, train_cmd
 from ctrkin.training import TrainConfig
 
 # every option `ctrkin train` had before its options were generated, with the field it sets
@@ -37,8 +37,9 @@ def _other_value(option: click.Option, default: Any) -> tuple[list[str], Any]:
     if isinstance(option.type, click.Choice):
         value = next(c for c in option.type.choices if c != default)
         return [option.opts[0], str(value)], value
-    if option.type is click.INT:
-        return [option.opts[0], str(default + 1)], default + 1
+    if option.type is click.INT:           # an optional int (max_epochs: None, the adaptive budget) too
+        value = 7 if default is None else default + 1
+        return [option.opts[0], str(value)], value
     if option.type is click.FLOAT:
         value = 0.25 if default is None else default + 0.25
         return [option.opts[0], str(value)], value
@@ -66,6 +67,8 @@ def test_defaults_are_the_dataclass_defaults_but_for_the_stated_overrides() -> N
             continue                                  # --data, --out, --structure, ...
         if name in REQUIRED:
             assert option.required, name
+        elif name in DEFAULTS:                        # --model: the task's recommended model (issue 23)
+            assert option.default == DEFAULTS[name] and not option.required, name
         else:
             assert option.default == defaults[name] and not option.required, name
         assert option.help, name
@@ -107,8 +110,10 @@ def ran(monkeypatch, tmp_path) -> dict[str, Any]:
 
 
 def test_the_earlier_command_line_gives_the_same_config(ran) -> None:
+    # --model named: without it `ctrkin train` now trains the task's recommended model (issue 23)
     res = CliRunner().invoke(cli, [
-        "train", "--task", "fk", "--data", ran["data"], "--out", ran["out"], "--epochs", "3", "--no-delta",
+        "train", "--task", "fk", "--model", "lstm_mlp", "--data", ran["data"], "--out", ran["out"],
+        "--epochs", "3", "--no-delta",
         "--angles", "sincos", "--pose", "true", "--structure", "L8|D8", "--threads", "1", "--seed", "4",
         "--max-seconds", "60", "--lr", "2e-3"], env={"CTRKIN_NO_PROGRESS": "1"})
     assert res.exit_code == 0, res.output

@@ -45,7 +45,8 @@ def data(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def model(data: Path) -> Path:
     out = data.parent / "fk"
-    r = CliRunner().invoke(cli, ["train", "--task", "fk", "--data", str(data), "--out", str(out),
+    r = CliRunner().invoke(cli, ["train", "--task", "fk", "--model", "lstm_mlp",
+                                 "--data", str(data), "--out", str(out),
                                  "--epochs", "3", "--threads", "1", "--angles", "sincos"])
     assert r.exit_code == 0, r.output
     return out

@@ -17,7 +17,8 @@ def test_train_export_predict(sweeps, tmp_path):
     data = sweeps.save(tmp_path / "data")
     runner = CliRunner()
     out = tmp_path / "ik"
-    r = runner.invoke(cli, ["train", "--task", "ik", "--data", str(data), "--out", str(out), "--epochs", "1",
+    r = runner.invoke(cli, ["train", "--task", "ik", "--model", "lstm_mlp",
+                            "--data", str(data), "--out", str(out), "--epochs", "1",
                             "--structure", "L8|D8", "--threads", "1"], env={"CTRKIN_NO_PROGRESS": "1"})
     assert r.exit_code == 0, r.output
     assert json.loads((out / "config.json").read_text())["train"]["options"] == {"structure": "L8|D8"}

@@ -118,7 +118,7 @@ def test_onnx_branch_model_carries_its_state(model_dirs, sweeps, tmp_path):
     frame is in the graph; the fold gate is not in the graph)."""
     kin = Kinematics.load(model_dirs["fk_branch"])
     assert kin.frame is not None
-    path = export_onnx(kin, tmp_path / "b.onnx")
+    path = export_onnx(kin, tmp_path / "b.onnx", allow_downgrade=True)   # the learned gate, knowingly
     sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     windows = kin.feature_windows(sweeps).astype(np.float32)
     ref = kin.predict(sweeps, gate="learned")
@@ -268,7 +268,7 @@ def test_onnx_takes_the_outer_lag(model_dirs, sweeps, tmp_path, inputs):
     from ctrkin.models.outer_lag import lag_deg
 
     kin = _lagged(model_dirs, inputs=inputs)
-    path = export_onnx(kin, tmp_path / "lag.onnx")
+    path = export_onnx(kin, tmp_path / "lag.onnx", allow_downgrade=True)   # the graph's lag input is tested
     sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     meta = {p.key: p.value for p in __import__("onnx").load(str(path)).metadata_props}
     assert json.loads(meta["ctrkin.outer_lag_deg"]) == [0.8, 0.4]

@@ -107,5 +107,6 @@ def test_config_validation_messages():
     with pytest.raises(ModelError, match="unknown model"):
         TrainConfig(model="gpt")
     cfg = TrainConfig()
-    assert (cfg.lr, cfg.batch_size, cfg.max_epochs, cfg.ib) == (1e-3, 32, 500, 2)   # paper IV.A, III.C
+    # paper IV.A, III.C; max_epochs not given: the paper's 500 on a large set (issue 22: more on a small one)
+    assert (cfg.lr, cfg.batch_size, cfg.epoch_budget(10**6), cfg.ib) == (1e-3, 32, 500, 2)
     assert TrainConfig.from_dict(cfg.to_dict()) == cfg

@@ -248,7 +248,8 @@ def test_kill_during_train_overwrite_leaves_old_or_new_model(tmp_path):
     _timed(_cli, _collect_args(4, data))
 
     def train_args(ib: int, out: Path, overwrite: bool) -> list[str]:
-        return ["train", "--task", "fk", "--data", str(data), "--out", str(out), "--structure", "L8|D8",
+        return ["train", "--task", "fk", "--model", "lstm_mlp",
+                "--data", str(data), "--out", str(out), "--structure", "L8|D8",
                 "--epochs", "2", "--threads", "1", "--split", "random", "--ib", str(ib),
                 *(["--overwrite"] if overwrite else [])]
 

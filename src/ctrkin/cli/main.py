@@ -47,8 +47,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "export": ("ctrkin.cli.export", "export_cmd",
                "Export MODEL_DIR (from `ctrkin train`) to an ONNX file (written atomically)."),
     "predict": ("ctrkin.cli.predict", "predict_cmd",
-                "Predict every sample of a dataset (--data), or solve IK for a file of target poses "
-                "(--poses), with MODEL_DIR."),
+                "Predict every sample of a dataset (--data), the tips of a file of joints (--joints, FK), "
+                "or solve IK for a file of target poses (--poses), with MODEL_DIR."),
     "reproduce": ("ctrkin.cli.reproduce", "reproduce_cmd",
                   "Collect data, train the models, run every experiment of the paper, write the report."),
     "robot": ("ctrkin.cli.robot", "robot_group", "Robot description files: a documented template."),
@@ -61,7 +61,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
               "Full inner-tube rotation forward and back at several relative translations (paper Fig. "
               "2b), solved by continuation: writes sweep.csv and a plot of T(L) against α0."),
     "train": ("ctrkin.cli.train", "train_cmd",
-              "Train a history-aware kinematics model (paper LSTM-MLP by default) and save it to --out."),
+              "Train a history-aware kinematics model (the task's recommended model by default) and save it "
+              "to --out."),
 }
 
 

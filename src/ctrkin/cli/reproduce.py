@@ -32,20 +32,31 @@ def reproduce_cmd(overwrite: bool, **settings: Any) -> None:
     """Collect data, train the models, run every experiment of the paper, write the report."""
     from ctrkin.evaluation.reproduce import reproduce
     from ctrkin.evaluation.scales import get_scale
-    from ctrkin.evaluation.table import HEADLINE, TCM_ROW
     from ctrkin.robots import load_robot
 
     cfg = ReproduceConfig(**settings)
     output_folder(cfg.out, "reproduction", overwrite, inputs=[cfg.robot], reuse=True)
     results = reproduce(load_robot(cfg.robot), get_scale(cfg.scale), cfg.out, robot_seed=cfg.robot_seed,
                         workers=cfg.workers, log=say, executor=cfg.executor, overwrite=overwrite)
-    fk, ik = results.fk, results.ik[HEADLINE]
-    say(
-        f"FK LSTM-MLP: {fk[HEADLINE]['position_rmse_mm']:.3f} mm / "
-        f"{fk[HEADLINE]['orientation_rmse_deg']:.3f} deg (paper 0.69 mm / 0.16 deg); "
-        f"TCM: {fk[TCM_ROW.name]['position_rmse_mm']:.2f} mm"
-    )
-    say(
-        f"IK LSTM-MLP: {ik['joint_rmse_mm']:.3f} mm / {ik['joint_rmse_deg']:.3f} deg "
-        f"(paper 1.22 mm / 2.46 deg); tip reached {ik['tip_error_mm']:.3f} mm"
-    )
+    for line in headlines(results.fk, results.ik):
+        say(line)
+
+
+def headlines(fk: dict[str, Any], ik: dict[str, Any]) -> tuple[str, str]:
+    """The two lines `reproduce` ends with: the recommended FK and IK models' held-out figures (the
+    HEADLINE entries of results.json), each named by its family's label and registry name, beside the
+    paper's LSTM-MLP; joint errors with their own units (β in mm, α in deg)."""
+    from ctrkin.evaluation.table import HEADLINE, RECOMMENDED, ROWS, TCM_ROW
+
+    def name(entry: dict[str, Any], task: str) -> str:
+        model = entry.get("model", RECOMMENDED[task].name)
+        label = next((r.label for r in ROWS if r.task == task and r.name == model), model)
+        return f"{label} ({model})"
+
+    f, i = fk[HEADLINE], ik[HEADLINE]
+    return (f"FK, {name(f, 'fk')}: position {f['position_rmse_mm']:.3f} mm, orientation "
+            f"{f['orientation_rmse_deg']:.3f} deg RMSE (the paper's LSTM-MLP: 0.69 mm, 0.16 deg); point-wise "
+            f"TCM {fk[TCM_ROW.name]['position_rmse_mm']:.2f} mm",
+            f"IK, {name(i, 'ik')}: tip reached {i['tip_error_mm']:.3f} mm; joint RMSE β "
+            f"{i['joint_rmse_mm']:.3f} mm, α {i['joint_rmse_deg']:.1f} deg (the paper's LSTM-MLP: β 1.22 mm, "
+            "α 2.46 deg; α differs where the IK reaches the tip with another of the robot's solutions)")

@@ -1,7 +1,8 @@
 """`ctrkin train`: learn forward (joints -> tip pose) or inverse (tip poses -> joints) kinematics.
 
-    ctrkin train --task fk --data data/paper_full --out models/fk              # paper default model
-    ctrkin train --task ik --data data/paper_full --out models/ik
+    ctrkin train --task fk --data data/paper --out models/fk       # the recommended FK (lstm_mlp_branch)
+    ctrkin train --task ik --data data/paper --out models/ik       # the recommended IK (follow_mlp)
+    ctrkin train --task fk --model lstm_mlp --data data/paper --out models/fk_paper   # the paper's model
     ctrkin train --task fk --model mlp --ib 3 --data data/quick --out models/fk_mlp
     ctrkin train --task fk --model lstm_mlp --structure S3 --ib 3 --data data/quick --out models/s3
     ctrkin train --task fk --model lstm_mlp_no_delta --data data/quick --out models/no_delta   # Fig. 5b
@@ -9,6 +10,10 @@
         --lr 2e-3 --lr-schedule cosine --data data/quick --out models/fk_branch   # snap-aware FK
     ctrkin train --task fk --batch-size 1024 --lr 5.66e-3 --val-smoothing 0.5 --threads 1 \
         --data data/quick --out models/fk_fast     # ~5x the samples/s of batch 32 (lr: sqrt rule)
+
+Without --model, the recommended model of the task is trained with its settings (batch size,
+learning rate and schedule, epochs, patience: ctrkin.training.config.RECOMMENDED, those of `ctrkin
+reproduce --scale quick`); any of them given on the command line wins.
 
 Running the same command again resumes from the last checkpoint in --out (or raise --max-epochs to
 continue a finished run); --overwrite starts over. Models: see `ctrkin train --list-models`. Every
@@ -26,7 +31,7 @@ import click
 from ctrkin.cli.common import InputPath, emit_json, json_option, log_line, output_folder, say
 from ctrkin.cli.from_config import config_options, parse_key_values
 from ctrkin.data import Dataset
-from ctrkin.training.config import TrainConfig
+from ctrkin.training.config import RECOMMENDED, TrainConfig
 
 
 def _list_models(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
@@ -45,12 +50,14 @@ def _list_models(ctx: click.Context, _param: click.Parameter, value: bool) -> No
 # `options` is set by --structure and --option.
 ALIASES = {"max_epochs": ("--epochs",), "angle_encoding": ("--angles",), "pose_source": ("--pose",)}
 REQUIRED = ("task",)
+DEFAULTS = {"model": "recommended"}     # the task's recommended model and settings (RECOMMENDED)
 
 
 @click.command("train", epilog="""\b
 Examples:
   ctrkin train --task fk --data data/paper --out models/fk
-  ctrkin train --task ik --model follow_mlp --data data/paper --out models/ik_follow
+  ctrkin train --task ik --data data/paper --out models/ik
+  ctrkin train --task fk --model lstm_mlp --data data/paper --out models/fk_paper
   ctrkin train --list-models
   ctrkin train --task fk --data data/paper --out models/fk --json > fk_metrics.json""")
 @click.option("--list-models", is_flag=True, expose_value=False, is_eager=True, callback=_list_models,
@@ -58,7 +65,7 @@ Examples:
 @click.option("--data", "data_dir", required=True, type=InputPath(file_okay=False),
               help="Dataset folder (data.parquet + meta.json).")
 @click.option("--out", "out_dir", required=True, type=click.Path(), help="Model folder.")
-@config_options(TrainConfig, aliases=ALIASES, required=REQUIRED, exclude=("options",))
+@config_options(TrainConfig, aliases=ALIASES, required=REQUIRED, exclude=("options",), defaults=DEFAULTS)
 @click.option("--structure", default=None, help="LSTM-MLP/LSTM/MLP structure: paper, S1..S5 or 'L128|D64'.")
 @click.option("--option", "model_options", multiple=True, metavar="KEY=VALUE",
               help="Other model options, e.g. channels=32 (cnn/tcn), width=64 (resnet).")
@@ -67,9 +74,12 @@ Examples:
 @json_option
 def train_cmd(data_dir: str, out_dir: str, structure: str | None, model_options: tuple[str, ...],
               overwrite: bool, as_json: bool, **settings: Any) -> None:
-    """Train a history-aware kinematics model (paper LSTM-MLP by default) and save it to --out."""
+    """Train a history-aware kinematics model (the task's recommended model by default) and save it
+    to --out."""
     from ctrkin.training import train
 
+    if settings["model"] == DEFAULTS["model"]:
+        settings = recommended(settings, click.get_current_context())
     opts = parse_key_values(model_options, "--option")
     if structure is not None:
         opts["structure"] = structure
@@ -80,9 +90,20 @@ def train_cmd(data_dir: str, out_dir: str, structure: str | None, model_options:
     ds.meta.setdefault("path", data_dir)
     res = train(ds, cfg, out_dir, overwrite=overwrite, log=log_line)
     tr = res.metrics["training"]
-    say(f"trained {tr['epochs']} epochs (best {tr['best_epoch']}, val loss {tr['best_val_loss']:.4g}) "
+    ended = (f"; stopped by {tr['stopped_by']}, {tr['steps']} optimiser steps; fit: {tr['fit']['verdict']}"
+             if "fit" in tr else "")          # a reused folder of an earlier version has no fit summary
+    say(f"trained {tr['epochs']} epochs (best {tr['best_epoch']}, val loss {tr['best_val_loss']:.4g}{ended}) "
         f"in {tr['seconds']:.1f} s; model in {res.out}")
     if as_json:
         emit_json({"out": res.out, "task": settings["task"], "model": settings["model"], **res.metrics})
     else:
         say(json.dumps({k: v for k, v in res.metrics.items() if k in ("val", "test")}, indent=2))
+
+
+def recommended(settings: dict[str, Any], ctx: click.Context) -> dict[str, Any]:
+    """`settings` with the recommended model of their task and its settings (RECOMMENDED) in place of
+    every option the command line left at its default."""
+    given = {name for name in settings
+             if ctx.get_parameter_source(name) not in (click.core.ParameterSource.DEFAULT, None)}
+    preset = RECOMMENDED[settings["task"]]
+    return {**settings, **{k: v for k, v in preset.items() if k not in given or k == "model"}}

@@ -74,6 +74,11 @@ class Predictor(Protocol):
         """Write the network as an ONNX graph (ctrkin.models.onnx_graph), or raise ModelError."""
         ...
 
+    def export_downgrade(self) -> str | None:
+        """What the ONNX graph of export_onnx would lose against predict/step (the fold gate, a
+        refinement outside the network), in words; None if it computes what they compute."""
+        ...
+
     def describe(self) -> str:
         """What this predictor adds to the face's repr (", fold_gate"), or ""."""
         ...

@@ -95,6 +95,9 @@ class BasePredictor:
     def export_onnx(self, path: Path, opset: int) -> None:
         raise ModelError(f"model {self.config.model!r} has no ONNX export")
 
+    def export_downgrade(self) -> str | None:
+        return None
+
     def raw_inputs(self, data: Dataset | np.ndarray, sequence_id: np.ndarray | None
                    ) -> tuple[np.ndarray, list[tuple[int, int]]]:
         """The raw inputs (T, 2N | 6) of `data` and its sequences [(start, stop)); a Dataset must come

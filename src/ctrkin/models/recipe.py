@@ -73,7 +73,7 @@ class TrainSettings(Protocol):
         ...
 
     @property
-    def max_epochs(self) -> int:
+    def max_epochs(self) -> int | None:      # the engine hands recipes a resolved budget (an int)
         ...
 
     @property
@@ -251,8 +251,9 @@ class WindowRecipe:
         return metrics
 
     def evaluate(self, bundle: ModelBundle) -> dict[str, Any]:
-        """Loss (normalised MAE) and physical errors on the validation and test rows, with the inputs
-        the trained model gets in use: step-change features clipped to their training range, as
+        """Loss (normalised MAE) and physical errors on the training, validation and test rows (the
+        training figures feed the engine's fit summary, ctrkin.training.fit), with the inputs the
+        trained model gets in use: step-change features clipped to their training range, as
         `Kinematics.predict` clips them. Without it, a held-out file with larger steps than training's
         (random configurations against sweeps) was reported on extrapolated inputs, and `ctrkin
         evaluate` gave another figure for the same rows."""
@@ -265,7 +266,7 @@ class WindowRecipe:
         if len(dcols):                  # normalised on the training rows: their range is [0, 1]
             X = X.copy()
             X[..., dcols] = np.clip(X[..., dcols], 0.0, 1.0)
-        for part in ("val", "test"):
+        for part in ("train", "val", "test"):
             rows = self.rows[part]
             if len(rows) == 0:
                 continue

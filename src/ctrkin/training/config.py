@@ -28,7 +28,22 @@ SPLITS: tuple[str, ...] = get_args(Split)
 POSE_SOURCES: tuple[str, ...] = get_args(PoseSource)
 LR_SCHEDULES: tuple[str, ...] = get_args(LrSchedule)
 LOOPS: tuple[str, ...] = get_args(Loop)
-PAPER_BATCH, PAPER_LR = 32, 1e-3
+PAPER_BATCH, PAPER_LR, PAPER_EPOCHS = 32, 1e-3, 500
+MIN_STEPS = 10_000         # the default budget's least optimiser steps (issue 22: 63 NDI samples)
+PATIENCE_STEPS = 1_000     # early stopping's least optimiser steps without an improvement
+
+
+# What `ctrkin train` trains for a task when --model is not given: the recommended models (the
+# snap-aware FK and the follow IK, docs/reproduction.md) with the settings `reproduce --scale quick`
+# trains them with (ctrkin.evaluation.scales, tested equal); a setting given on the command line wins.
+# The follow IK's budget is in epochs (min_steps 0): it draws its perturbations anew every epoch and
+# rolls itself out at fixed fractions of them.
+RECOMMENDED: dict[str, dict[str, Any]] = {
+    "fk": {"model": "lstm_mlp_branch", "batch_size": 256, "lr": 2e-3, "lr_schedule": "cosine",
+           "base_epochs": 80, "patience": 80},
+    "ik": {"model": "follow_mlp", "batch_size": 512, "lr": 2e-3, "lr_schedule": "cosine",
+           "base_epochs": 40, "patience": 40, "min_steps": 0},
+}
 
 
 def scaled_lr(batch_size: int, base_lr: float = PAPER_LR, base_batch: int = PAPER_BATCH) -> float:
@@ -51,7 +66,10 @@ class TrainConfig:
     task: Task = field(default="fk", metadata=_help(
         "fk: forward kinematics (joints -> tip pose); ik: inverse (tip poses -> joints)."))
     model: str = field(default="lstm_mlp", metadata=_help(
-        "Registry name (ctrkin.families.registry.MODELS; `ctrkin train --list-models`)."))
+        "Registry name (ctrkin.families.registry.MODELS; `ctrkin train --list-models`). `ctrkin train` "
+        "without --model trains the recommended model of its task with its settings (RECOMMENDED: "
+        "lstm_mlp_branch for fk, follow_mlp for ik; options given still apply); the library's "
+        "TrainConfig default is the paper's lstm_mlp."))
     options: dict[str, Any] = field(default_factory=dict, metadata=_help(
         "Model options, e.g. {'structure': 'S3'} (`ctrkin train --structure S3`, `--option KEY=VALUE`)."))
     ib: int = field(default=2, metadata=_help(
@@ -72,9 +90,19 @@ class TrainConfig:
     split_seed: int = field(default=0, metadata=_help("Seed of a sequence or random split."))
     lr: float = field(default=1e-3, metadata=_help("Adam learning rate (paper 1e-3)."))
     batch_size: int = field(default=32, metadata=_help("Batch size (paper 32)."))
-    max_epochs: int = field(default=500, metadata=_help("Maximum epochs (paper 500)."))
+    max_epochs: int | None = field(default=None, metadata=_help(
+        "Maximum epochs (default: base_epochs, raised for a small set so that training gets at least "
+        "min_steps optimiser steps: 44 training rows at batch 32 are 2 steps an epoch)."))
+    base_epochs: int = field(default=PAPER_EPOCHS, metadata=_help(
+        "The default budget's epochs on a large set (paper 500), when max_epochs is not given."))
     patience: int = field(default=20, metadata=_help(
-        "Early stopping: epochs without a val-loss improvement of min_delta."))
+        "Early stopping: epochs without a val-loss improvement of min_delta (at least patience_steps "
+        "optimiser steps' worth of epochs)."))
+    min_steps: int = field(default=MIN_STEPS, metadata=_help(
+        "Optimiser steps the default budget (max_epochs not given) allows at least."))
+    patience_steps: int = field(default=PATIENCE_STEPS, metadata=_help(
+        "Early stopping waits at least this many optimiser steps without an improvement (on a small "
+        "set 20 epochs are a few dozen steps, and a noisy val loss stopped training still under-fitting)."))
     min_delta: float = field(default=0.0, metadata=_help(
         "Smallest val-loss decrease that counts as an improvement for early stopping."))
     seed: int = field(default=0, metadata=_help("Seed of the initial weights and the batch order."))
@@ -125,8 +153,12 @@ class TrainConfig:
             raise ModelError(f"pose_source must be one of {POSE_SOURCES}, got {self.pose_source!r}")
         if self.split not in SPLITS:
             raise ModelError(f"split must be one of {SPLITS}, got {self.split!r}")
-        for name, lo in (("batch_size", 1), ("max_epochs", 1), ("patience", 1), ("threads", 1)):
+        for name, lo in (("batch_size", 1), ("max_epochs", 1), ("base_epochs", 1), ("patience", 1),
+                         ("threads", 1),
+                         ("min_steps", 0), ("patience_steps", 0)):
             v = getattr(self, name)
+            if name == "max_epochs" and v is None:
+                continue
             if not isinstance(v, int) or v < lo:
                 raise ModelError(f"{name} must be an integer >= {lo}, got {v!r}")
         if not self.lr > 0:
@@ -152,6 +184,21 @@ class TrainConfig:
             raise ModelError(f"min_delta must be >= 0, got {self.min_delta}")
         self.layout(2)   # validates ib and angle_encoding
 
+    def steps_per_epoch(self, train_rows: int) -> int:
+        """Optimiser steps of one epoch over `train_rows` training rows (the last batch may be short)."""
+        return max(1, math.ceil(train_rows / self.batch_size))
+
+    def epoch_budget(self, train_rows: int) -> int:
+        """max_epochs, or when it is not given base_epochs raised to min_steps optimiser steps."""
+        if self.max_epochs is not None:
+            return self.max_epochs
+        return max(self.base_epochs, math.ceil(self.min_steps / self.steps_per_epoch(train_rows)))
+
+    def patience_epochs(self, train_rows: int) -> int:
+        """Early stopping's patience in epochs: `patience`, or patience_steps optimiser steps if that
+        is more epochs (a small set's epoch is a few steps)."""
+        return max(self.patience, math.ceil(self.patience_steps / self.steps_per_epoch(train_rows)))
+
     def layout(self, n_tubes: int) -> FeatureLayout:
         from ctrkin.models.features import FeatureLayout
 
@@ -170,7 +217,8 @@ class TrainConfig:
         return cls(**d)
 
     def differences(self, other: TrainConfig,
-                    ignore: tuple[str, ...] = ("max_epochs", "threads", "max_seconds", "loop",
+                    ignore: tuple[str, ...] = ("max_epochs", "base_epochs", "min_steps", "threads",
+                                               "max_seconds", "loop",
                                                "fused_adam")) -> list[str]:
         """What differs, as 'key: a vs b' (keys that may change on resume are ignored: how, not what,
         is trained)."""

@@ -1,5 +1,6 @@
 """The generic training engine of paper IV.A: Adam, mini-batches, early stopping on the validation
-loss; seeded, checkpointed after every epoch and resumable. What a model learns from and its loss
+loss; seeded, checkpointed (after an epoch, at most every CHECKPOINT_EVERY_S seconds, and at the end:
+a small set's epochs take milliseconds) and resumable. What a model learns from and its loss
 come from its family's recipe (ctrkin.models.recipe), found by the registry
 (ctrkin.families.registry); everything else is here, the same for every family.
 
@@ -17,7 +18,7 @@ import pickle
 import shutil
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -33,12 +34,14 @@ from ctrkin.models.store import CONFIG, ModelBundle, read_json, write_json
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.curves import plot_curves
 from ctrkin.training.data import data_signature, split_rows, split_signature
+from ctrkin.training.fit import diagnose
 from ctrkin.util.files import atomic_path, atomic_write_text
 from ctrkin.util.folders import folder_lock, swap_in, write_manifest
 from ctrkin.util.ownership import check_replaceable, write_marker
 from ctrkin.util.progress import progress_bar
 
 CHECKPOINT = "checkpoint.pt"
+CHECKPOINT_EVERY_S = 5.0     # at most one checkpoint per this many seconds of training, and the last
 SMOOTH_RTOL = 1e-3
 
 
@@ -121,12 +124,13 @@ def _early_stopping(state: dict[str, Any], val_loss: float, cfg: TrainConfig) ->
     return best
 
 
-def _learning_rate(cfg: TrainConfig, epoch: int) -> float:
-    """The learning rate of epoch `epoch` (0-based): constant (paper) or cosine from lr to lr/50."""
+def _learning_rate(cfg: TrainConfig, epoch: int, max_epochs: int) -> float:
+    """The learning rate of epoch `epoch` (0-based) of `max_epochs` (the run's resolved budget):
+    constant (paper) or cosine from lr to lr/50."""
     if cfg.lr_schedule == "constant":
         return cfg.lr
     low = cfg.lr / 50.0
-    return low + (cfg.lr - low) * 0.5 * (1.0 + math.cos(math.pi * min(epoch / cfg.max_epochs, 1.0)))
+    return low + (cfg.lr - low) * 0.5 * (1.0 + math.cos(math.pi * min(epoch / max_epochs, 1.0)))
 
 
 def setup_differences(saved_config: dict[str, Any], saved_data: str | None, saved_split: str | None,
@@ -163,9 +167,11 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
 
 def _train_locked(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, progress: bool,
                   say: Callable[[str], None]) -> TrainResult:
-    rec = recipe(cfg)
     torch.set_num_threads(cfg.threads)
     split, rows = split_rows(ds, cfg)
+    train_rows = len(rows["train"])
+    cfg = replace(cfg, max_epochs=cfg.epoch_budget(train_rows))   # the budget of this set (config.json)
+    rec = recipe(cfg)
     if split.kind == "sequence":
         for w in split_warnings(split, split.fractions):
             say(f"warning: {w}")
@@ -182,19 +188,24 @@ def _train_locked(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, pro
                                           "samples": len(ds.frame), "source": str(ds.meta.get("path", "")),
                                           "protocol": ds.meta.get("protocol")}, **prepared.extra},
                                 frame=prepared.frame, build=build_net)
-    run = _Run(bundle, cfg, rec, out, signature, split_sig)
+    run = _Run(bundle, cfg, rec, out, signature, split_sig, train_rows)
     run.start(overwrite, say)
     run.epochs(progress)
-    return run.finish(split, len(rows["train"]), say)
+    return run.finish(split, say)
 
 
 class _Run:
     """One training run's state: the network, Adam, the batch-order generator, the early-stopping
-    counters and history (`state`), the best weights, and the build folder with its checkpoint."""
+    counters and history (`state`), the best weights, and the build folder with its checkpoint.
+    cfg.max_epochs is resolved (TrainConfig.epoch_budget); the patience counts at least
+    cfg.patience_steps optimiser steps (TrainConfig.patience_epochs)."""
 
     def __init__(self, bundle: ModelBundle, cfg: TrainConfig, rec: Recipe, out: Path, signature: str,
-                 split_sig: str) -> None:
+                 split_sig: str, train_rows: int) -> None:
+        assert cfg.max_epochs is not None
         self.bundle, self.cfg, self.recipe, self.out = bundle, cfg, rec, out
+        self.max_epochs, self.train_rows = cfg.max_epochs, train_rows
+        self.patience = cfg.patience_epochs(train_rows)
         self.signature, self.split_sig = signature, split_sig
         self.net = bundle.net
         self.opt = _optimizer(self.net, cfg)
@@ -227,7 +238,7 @@ class _Run:
             self.gen.set_state(saved["gen"])
             self.best_weights = saved["best"]
             self.state = state = saved["state"]
-            if (state["done"] and cfg.max_epochs > state["epoch"] and state["since_best"] < cfg.patience
+            if (state["done"] and self.max_epochs > state["epoch"] and state["since_best"] < self.patience
                     and not _out_of_time(state, cfg)):
                 state["done"] = False
             say(f"resuming {self.out} after epoch {state['epoch']}")
@@ -236,16 +247,18 @@ class _Run:
         build.mkdir(parents=True, exist_ok=True)
 
     def epochs(self, progress: bool) -> None:
-        """Train until early stopping, max_epochs or max_seconds; a checkpoint after every epoch."""
+        """Train until early stopping, max_epochs or max_seconds; a checkpoint after an epoch at most
+        every CHECKPOINT_EVERY_S seconds, and after the last."""
         cfg, state, net, rec = self.cfg, self.state, self.net, self.recipe
+        saved_at = time.perf_counter()
         run_epoch = _epoch_gathered if cfg.loop == "epoch" else _epoch
-        bar = (progress_bar(total=cfg.max_epochs, desc=f"train {cfg.task} {cfg.model}",
+        bar = (progress_bar(total=self.max_epochs, desc=f"train {cfg.task} {cfg.model}",
                             initial=state["epoch"]) if progress else tqdm(disable=True))
         try:
-            while not state["done"] and state["epoch"] < cfg.max_epochs:
+            while not state["done"] and state["epoch"] < self.max_epochs:
                 t0 = time.perf_counter()
                 for group in self.opt.param_groups:
-                    group["lr"] = _learning_rate(cfg, state["epoch"])
+                    group["lr"] = _learning_rate(cfg, state["epoch"], self.max_epochs)
                 X, Y = rec.epoch_tensors(state["epoch"], self.bundle)
                 train_loss = run_epoch(net, self.opt, X, Y, cfg.batch_size, self.gen, rec.loss)
                 val_loss = rec.val_loss(net)
@@ -255,11 +268,13 @@ class _Run:
                                          "val_loss": val_loss, "seconds": state["seconds"]})
                 if _early_stopping(state, val_loss, cfg):
                     self.best_weights = {k: v.detach().clone() for k, v in net.state_dict().items()}
-                if (state["since_best"] >= cfg.patience or state["epoch"] >= cfg.max_epochs
+                if (state["since_best"] >= self.patience or state["epoch"] >= self.max_epochs
                         or _out_of_time(state, cfg)):
                     state["done"] = True
-                if rec.checkpoints:
+                due = time.perf_counter() - saved_at >= CHECKPOINT_EVERY_S
+                if rec.checkpoints and (state["done"] or due):
                     self._checkpoint()
+                    saved_at = time.perf_counter()
                 bar.update(1)
                 bar.set_postfix(train=f"{train_loss:.4g}", val=f"{val_loss:.4g}", best=state["best_epoch"])
         finally:
@@ -272,7 +287,7 @@ class _Run:
                         "opt": self.opt.state_dict(), "gen": self.gen.get_state(), "best": self.best_weights,
                         "state": self.state}, tmp)
 
-    def finish(self, split: Any, train_rows: int, say: Callable[[str], None]) -> TrainResult:
+    def finish(self, split: Any, say: Callable[[str], None]) -> TrainResult:
         """The best epoch's weights, the model folder (the recipe's metrics and files, history, curves,
         manifest) swapped in for `out`."""
         cfg, state, net, build = self.cfg, self.state, self.net, self.build
@@ -285,10 +300,20 @@ class _Run:
         self.bundle.save(build)
         split.save(build / "split.json")
         metrics = self.recipe.finish(self.bundle, build, say)
+        steps = cfg.steps_per_epoch(self.train_rows)
+        stopped_by = ("patience" if state["since_best"] >= self.patience else
+                      "max_epochs" if state["epoch"] >= self.max_epochs else "max_seconds")
+        fit = diagnose(state["history"], state["best_epoch"], self.patience, stopped_by,
+                       *self._fit_losses(metrics))
+        for w in fit["warnings"]:
+            say(f"warning: {w}")
         metrics["training"] = {"epochs": state["epoch"], "best_epoch": state["best_epoch"],
                                "best_val_loss": state["best_val"], "seconds": state["seconds"],
-                               "early_stopped": state["since_best"] >= cfg.patience,
-                               "samples_per_s": train_rows * state["epoch"] / max(state["seconds"], 1e-9),
+                               "early_stopped": stopped_by == "patience", "stopped_by": stopped_by,
+                               "max_epochs": self.max_epochs, "patience_epochs": self.patience,
+                               "steps_per_epoch": steps, "steps": steps * state["epoch"], "fit": fit,
+                               "samples_per_s": self.train_rows * state["epoch"]
+                               / max(state["seconds"], 1e-9),
                                "threads": cfg.threads, "parameters": sum(p.numel() for p in net.parameters())}
         write_json(build / "metrics.json", metrics)
         _write_history(build / "history.csv", state["history"])
@@ -298,6 +323,16 @@ class _Run:
         write_manifest(build, skip=(CHECKPOINT,))
         swap_in(build, self.out, ModelError, "model")
         return TrainResult(self.out, metrics, state["history"])
+
+    def _fit_losses(self, metrics: dict[str, Any]) -> tuple[float, float]:
+        """(training, validation) loss of the kept weights: the recipe's own evaluation of its
+        training and validation rows where it reports both, else the history's best epoch (whose
+        training loss is the epoch's running mean)."""
+        tr, va = metrics.get("train", {}), metrics.get("val", {})
+        if "loss" in tr and "loss" in va:
+            return float(tr["loss"]), float(va["loss"])
+        best = self.state["history"][max(self.state["best_epoch"], 1) - 1]
+        return float(best["train_loss"]), float(best["val_loss"])
 
 
 def _reusable(out: Path, cfg: TrainConfig, signature: str, split_sig: str, overwrite: bool

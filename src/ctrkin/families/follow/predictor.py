@@ -74,5 +74,8 @@ class FollowPredictor(BasePredictor):
         return self._flags.answer(raw, q, ok, reason, projected, math.nan)
 
     def export_onnx(self, path: Path, opset: int) -> None:
-        raise ModelError("a follow IK (follow_mlp) cannot be exported: its state (the robot's joints) "
-                         "and sub-steps loop outside the network; use Kinematics.step")
+        raise ModelError("a follow IK (follow_mlp) cannot be exported to ONNX: its state (the robot's "
+                         "joints), sub-steps and outer-lag inversion loop outside the network, and its "
+                         "network alone answers joint steps, not joints; run it with Kinematics.step "
+                         "(Python), or export "
+                         "the paper's IK (ctrkin train --task ik --model lstm_mlp) instead")

@@ -76,7 +76,8 @@ class FollowRecipe:
         moved = steps[steps > 0]
         follow = {"max_step_mm": float(np.quantile(moved, STEP_QUANTILE)) if len(moved) else 1.0,
                   "settle_iterations": SETTLE_ITERATIONS, "outer_lag_deg": list(lagged.lag)}
-        self.rollouts = {int(cfg.max_epochs * f) for f in ROLLOUT_AT} - {0}
+        epochs = cfg.max_epochs or 0       # the engine hands a recipe its resolved budget
+        self.rollouts = {int(epochs * f) for f in ROLLOUT_AT} - {0}
         return Prepared(cfg.layout(self.n), self.x_norm, self.y_norm, self.frame, {"follow": follow})
 
     def _draw(self, r: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

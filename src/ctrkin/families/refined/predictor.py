@@ -47,6 +47,11 @@ class RefinedPredictor(BasePredictor):
     def describe(self) -> str:
         return self.direct.describe() + ", refined"
 
+    def export_downgrade(self) -> str | None:
+        return ("the refinement on the FK model (a solve per step with FK probes, "
+                "docs/learned_kinematics.md) runs outside the network: the ONNX graph would be the "
+                "direct IK network alone")
+
     def export_onnx(self, path: Path, opset: int) -> None:
         """The direct IK's network (the refinement runs outside it)."""
         self.direct.export_onnx(path, opset)

@@ -133,3 +133,10 @@ class SnapAwarePredictor(FKPredictor):
 
     def export_onnx(self, path: Path, opset: int) -> None:
         write_onnx(self.bundle, self.net, path, opset, frame=self.frame, stateful=True)
+
+    def export_downgrade(self) -> str | None:
+        if self._fold_gate is None:
+            return None
+        return ("the fold gate (the nominal robot's folds, which predict and step use to switch branches) is "
+                "not in the ONNX graph: it would switch branches by the network's learned gate instead, "
+                "which finds snaps less reliably")
