@@ -3,7 +3,7 @@
     ctrkin reproduce --scale quick --out out/reproduce      # minutes on two cores (README main job)
     ctrkin reproduce --scale full --out out/full            # the paper's data size and training
     RAY_ADDRESS=auto ctrkin reproduce --scale full --executor ray --out /shared/full   # on a cluster
-    ctrkin reproduce --robot my_robot.toml --robot-seed 3 --set tube_friction=0.4 --out out/mine
+    ctrkin reproduce --robot my_robot.toml --robot-seed 3 --set gear_backlash_deg=2 --out out/mine
 
 Any robot: the protocols' translations are the paper robot's carried over to the robot's geometry
 (docs/protocols.md: Other robots); --set KEY=VALUE sets the virtual robot's effects as in
