@@ -46,7 +46,7 @@ def test_a_three_tube_robot_reproduces_end_to_end_with_set(tmp_path) -> None:
     assert meta["protocol_params"]["levels_mm"] == list(ranges.levels((4.0, 20.0)))
     assert meta["virtual_robot"]["config"]["noise_mm"] == 0.1
     for key in ("fk.lstm_mlp.position_rmse_mm", "ik.lstm_mlp.tip_error_mm", "snapping.precision",
-                "experiments.sweeps.position_rmse_mm", "experiments.square.position_rmse_mm"):
+                "experiments.sweeps.position_rmse_mm", "experiments.ik_square.position_rmse_mm"):
         assert isinstance(results[key], float) and math.isfinite(results[key]), key
     for folder in (results["recommended.fk"], results["recommended.ik"]):
         assert Kinematics.load(out / folder).layout.n_tubes == 3

@@ -75,7 +75,8 @@ class CollectConfig:
         "10, as in the paper; at least 4 for a square, 3 for a triangle).")})
     levels: tuple[float, ...] | None = field(default=None, metadata=_help(
         "paper/sweeps: relative translations d = beta_N - beta_1 (mm), comma-separated (default: the "
-        "protocol's; needed for robots that cannot reach d = 20 mm)."))
+        "protocol's, the paper robot's carried over to the robot's curved overlap and reach; "
+        "docs/protocols.md: Other robots)."))
     workers: int | None = field(default=None, metadata=_help("Processes (default: all cores)."))
 
     def __post_init__(self) -> None:
