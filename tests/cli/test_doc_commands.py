@@ -57,6 +57,9 @@ SKIP: dict[str, str] = {
     "ctrkin reproduce --scale tiny": "90 s (warm numba cache) to 147 s (cold) on the two-core dev "
     "machine, this test's whole budget; the same tiny pipeline runs in tests/evaluation/"
     "test_reproduce.py, the command's arguments in tests/cli/test_reproduce_cli.py",
+    "ctrkin reproduce --robot my_robot.toml": "a quick reproduction on the user's robot, ~12 minutes; "
+    "a three-tube robot file with --set runs through the same command at tiny scale in "
+    "tests/evaluation/test_reproduce_other_robots.py",
     "ctrkin collect --rig examples/rigs/paper.toml": "drives the paper's EPOS4 motors and reads its "
     "Aurora; its dry run (paper_dry_run.toml, the same drives simulated) runs instead",
 }

@@ -104,3 +104,17 @@ def test_figures_missing_on_disk_are_not_linked(results, tmp_path) -> None:
     text = _report(results, tmp_path, ("fig7_input_buffer",))
     assert "figures/fig7_input_buffer.png" in text
     assert "figures/fig8_structures.png" not in text
+
+
+def test_the_report_names_the_robot_and_paper_table_i_only_for_the_paper_robot(results, tmp_path) -> None:
+    from ctrkin.robots import load_robot
+
+    results["robot"] = load_robot("paper").to_dict()
+    (tmp_path / "a").mkdir()
+    assert "Robot: paper (paper Table I), virtual robot seed" in _report(results, tmp_path / "a")
+    results["robot"] = load_robot("timclab").to_dict()
+    results["virtual_settings"] = {"noise_mm": 0.1}
+    (tmp_path / "b").mkdir()
+    text = _report(results, tmp_path / "b")
+    assert "Robot: timclab, virtual robot seed 0 with noise_mm = 0.1." in text
+    assert "Table I)" not in text

@@ -5,6 +5,9 @@ for the paper's two-tube robot: tube 1 (inner) and tube N (outer) move; on a rob
 the middle tubes move with the outer tube. d = βN − β1 ≥ 0 is the relative translation (how far the
 inner tube's base is behind the outer tube's): on the paper robot the curved sections overlap for
 d > 5.5 mm and fully at d = 20 mm (d ≤ 20.5 mm keeps the inner tip in front of the outer tip).
+The millimetres below are the paper robot's; on another robot each protocol's relative and outer
+translations are carried to the same places of its geometry (its onset and full curved overlap, its
+reach and outer curved length: ctrkin.acquisition.ranges), the paper robot keeping the paper's.
 
 Protocols (each returns a `Plan`; every random draw comes from `seed`):
   paper          training data, Sec. III.A: per relative translation level, the outer tube steps
@@ -40,6 +43,7 @@ from typing import Any, Literal
 import numpy as np
 
 from ctrkin.acquisition.plan import Plan, Run, Segment, move, transition
+from ctrkin.acquisition.ranges import ProtocolRanges
 from ctrkin.acquisition.trajectories import PAPER_LEVELS_MM
 from ctrkin.errors import JointError
 from ctrkin.robots.robot import Robot
@@ -119,12 +123,12 @@ def _check_scale(scale: str) -> None:
 
 
 def _check_levels(robot: Robot, levels: tuple[float, ...], outer_betas: tuple[float, ...]) -> None:
-    reach = float(robot.lengths[0] - robot.lengths[-1])
+    reach = float(robot.lengths[0] - robot.lengths[min(1, robot.n_tubes - 1)])
     for d in levels:
         if not 0 <= d <= reach:
             raise JointError(f"relative translation level d = {d} mm is outside 0..{reach:g} mm for "
-                             f"robot {robot.name!r} (d <= L1 - LN keeps the inner tip in front); "
-                             "pass levels the robot can reach")
+                             f"robot {robot.name!r} (d <= L1 - L2 keeps the inner tip in front, the "
+                             "middle tubes moving with the outer one); pass levels the robot can reach")
     for b in outer_betas:
         if not -float(robot.lengths[-1]) <= b <= 0:
             raise JointError(f"outer translation {b} mm is outside -{robot.lengths[-1]:g}..0 mm for "
@@ -161,7 +165,8 @@ def paper(robot: Robot, scale: Scale = "full", seed: int = 0,
         Unused (the protocol is deterministic; the recorder seeds the noise), kept so that every
         protocol has the same signature.
     levels : tuple of float, optional
-        Relative translations d (mm) instead of the scale's.
+        Relative translations d (mm) instead of the scale's (which are the paper robot's carried
+        over to `robot`, ctrkin.acquisition.ranges).
     step_deg : float
         The inner tube's increment (deg).
     outer_step_deg : float, optional
@@ -174,18 +179,20 @@ def paper(robot: Robot, scale: Scale = "full", seed: int = 0,
     _check_scale(scale)
     n = robot.n_tubes
     size = PAPER_SIZES[scale]
-    lv = tuple(float(v) for v in (levels if levels is not None else size.levels_mm))
+    ranges = ProtocolRanges.of(robot)
+    lv = tuple(float(v) for v in (levels if levels is not None else ranges.levels(size.levels_mm)))
+    outer_betas = tuple(ranges.beta_outer(b) for b in PAPER_OUTER_BETAS_MM)
     outer = outer_step_deg if outer_step_deg is not None else size.outer_step_deg
     if not 0 < outer <= 360:
         raise ValueError(f"outer_step_deg must be in (0, 360], got {outer}")
     angles = tuple(float(a) for a in np.arange(0.0, 360.0 - 1e-9, outer))
-    _check_levels(robot, lv, PAPER_OUTER_BETAS_MM)
+    _check_levels(robot, lv, outer_betas)
     runs = []
     for li, d in enumerate(lv):
         segs: list[Segment] = []
         prev = None
         for k, ao in enumerate(angles):
-            bo = PAPER_OUTER_BETAS_MM[k % len(PAPER_OUTER_BETAS_MM)]
+            bo = outer_betas[k % len(outer_betas)]
             q = inner_turn(n, ao, bo, d, step_deg)
             if prev is not None:
                 segs.append(transition(prev, q[0], n))
@@ -193,7 +200,7 @@ def paper(robot: Robot, scale: Scale = "full", seed: int = 0,
             prev = q[-1]
         runs.append(Run(tuple(segs)))
     params = {"scale": scale, "levels_mm": list(lv), "outer_angles_deg": list(angles),
-              "outer_betas_mm": list(PAPER_OUTER_BETAS_MM), "inner_step_deg": step_deg,
+              "outer_betas_mm": list(outer_betas), "inner_step_deg": step_deg,
               "transition_step": {"deg": 1.0, "mm": 0.1}}
     return Plan("paper", tuple(runs), tuple({"relative_translation_mm": d} for d in lv), params)
 
@@ -212,7 +219,8 @@ def sweeps(robot: Robot, scale: Scale = "full", seed: int = 0,
     seed : int
         Unused (deterministic).
     levels : tuple of float, optional
-        Relative translations d (mm); default d = 4, 8, 12, 16, 20 (the paper's β12 = 15..55).
+        Relative translations d (mm); default d = 4, 8, 12, 16, 20 (the paper's β12 = 15..55) on
+        the paper robot, carried over to `robot` (ctrkin.acquisition.ranges).
     step_deg : float
         The inner tube's increment (deg).
 
@@ -222,7 +230,8 @@ def sweeps(robot: Robot, scale: Scale = "full", seed: int = 0,
     """
     _check_scale(scale)
     n = robot.n_tubes
-    lv = tuple(float(v) for v in (levels if levels is not None else PAPER_LEVELS_MM))
+    lv = tuple(float(v) for v in (levels if levels is not None
+                                  else ProtocolRanges.of(robot).levels(PAPER_LEVELS_MM)))
     _check_levels(robot, lv, (0.0,))
     segs: list[Segment] = []
     prev = None
@@ -249,7 +258,8 @@ def random_points(robot: Robot, scale: Scale = "full", seed: int = 0, n_points: 
     scale : {"full", "quick", "tiny"}
         Unused.
     seed : int
-        Draws the configurations (α uniform in [0, 360)°, d in [4, 20] mm, βN in [−5, 0] mm).
+        Draws the configurations (α uniform in [0, 360)°, d in [4, 20] mm, βN in [−5, 0] mm on
+        the paper robot, carried over to `robot`: ctrkin.acquisition.ranges).
     n_points : int
         N.
 
@@ -261,14 +271,18 @@ def random_points(robot: Robot, scale: Scale = "full", seed: int = 0, n_points: 
     if n_points < 1:
         raise ValueError(f"n_points must be >= 1, got {n_points}")
     n = robot.n_tubes
-    _check_levels(robot, RANDOM_D_RANGE_MM, RANDOM_OUTER_BETA_RANGE_MM)
+    ranges = ProtocolRanges.of(robot)
+    d_range = (ranges.d(RANDOM_D_RANGE_MM[0]), ranges.d(RANDOM_D_RANGE_MM[1]))
+    beta_range = (ranges.beta_outer(RANDOM_OUTER_BETA_RANGE_MM[0]),
+                  ranges.beta_outer(RANDOM_OUTER_BETA_RANGE_MM[1]))
+    _check_levels(robot, d_range, beta_range)
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xF1]))
     ai = rng.uniform(0.0, 360.0, n_points)
     ao = rng.uniform(0.0, 360.0, n_points)
-    dd = rng.uniform(*RANDOM_D_RANGE_MM, n_points)
-    bo = rng.uniform(*RANDOM_OUTER_BETA_RANGE_MM, n_points)
+    dd = rng.uniform(*d_range, n_points)
+    bo = rng.uniform(*beta_range, n_points)
     targets = config(n, ai, ao, bo, dd)
-    home = config(n, 0.0, 0.0, 0.0, RANDOM_D_RANGE_MM[0])
+    home = config(n, 0.0, 0.0, 0.0, d_range[0])
     segs = [Segment(home[None, :], record=False)]
     prev = home
     for t in targets:
@@ -281,14 +295,15 @@ def random_points(robot: Robot, scale: Scale = "full", seed: int = 0, n_points: 
         prev = t
     return Plan("random-points", (Run(tuple(segs)),), (),
                 {"scale": scale, "n_points": n_points, "seed": seed, "targets": targets.tolist(),
-                 "d_range_mm": list(RANDOM_D_RANGE_MM),
-                 "outer_beta_range_mm": list(RANDOM_OUTER_BETA_RANGE_MM), "home": home.tolist()})
+                 "d_range_mm": list(d_range),
+                 "outer_beta_range_mm": list(beta_range), "home": home.tolist()})
 
 
 def arbitrary(robot: Robot, scale: Scale = "full", seed: int = 0, samples: int = 361) -> Plan:
     """The paper's simultaneous trajectory (Fig. 10c) in ctrkin's convention.
 
-    βN 0 → −5 mm, β1 −20 → −10 mm, αN 0 → 360°, α1 360 → 0°, linear.
+    βN 0 → −5 mm, β1 −20 → −10 mm, αN 0 → 360°, α1 360 → 0°, linear (d 20 → 5 mm; on another robot
+    d and βN carried over, ctrkin.acquisition.ranges).
 
     Parameters
     ----------
@@ -308,7 +323,8 @@ def arbitrary(robot: Robot, scale: Scale = "full", seed: int = 0, samples: int =
     if samples < 2:
         raise ValueError(f"samples must be >= 2, got {samples}")
     n = robot.n_tubes
-    s, e = ARBITRARY_START, ARBITRARY_END
+    s, e = (_carried(ARBITRARY_START, ProtocolRanges.of(robot)),
+            _carried(ARBITRARY_END, ProtocolRanges.of(robot)))
     f = np.linspace(0.0, 1.0, samples)
 
     def lerp(key: str) -> np.ndarray:
@@ -323,11 +339,18 @@ def arbitrary(robot: Robot, scale: Scale = "full", seed: int = 0, samples: int =
                           "alpha1 360 -> 0 deg (paper encoder units)"})
 
 
+def _carried(point: dict[str, float], ranges: ProtocolRanges) -> dict[str, float]:
+    """A point of the arbitrary path with its d = βN − β1 and βN carried over to the robot."""
+    beta_outer = ranges.beta_outer(point["beta_outer"])
+    d = ranges.d(point["beta_outer"] - point["beta_inner"])
+    return {**point, "beta_inner": beta_outer - d, "beta_outer": beta_outer}
+
+
 SNAP_TURN_OUTER_ANGLES_DEG = (10.0, 70.0, 130.0, 190.0, 250.0, 310.0)
 SNAP_TURN_OUTER_BETAS_MM = (-1.25, -3.75)
 
 
-def snap_turns(robot: Robot, scale: Scale = "full", seed: int = 0, d: float = 20.0,
+def snap_turns(robot: Robot, scale: Scale = "full", seed: int = 0, d: float | None = None,
                step_deg: float = 1.0) -> Plan:
     """Full inner turns at outer angles and translations the paper protocol never records.
 
@@ -338,8 +361,9 @@ def snap_turns(robot: Robot, scale: Scale = "full", seed: int = 0, d: float = 20
         Unused.
     seed : int
         Unused.
-    d : float
-        Relative translation (mm); default 20, full curved overlap on the paper robot.
+    d : float, optional
+        Relative translation (mm); default the robot's full curved overlap (20 mm on the paper
+        robot; ctrkin.acquisition.ranges). The outer translations are carried over likewise.
     step_deg : float
         The inner tube's increment (deg).
 
@@ -350,13 +374,16 @@ def snap_turns(robot: Robot, scale: Scale = "full", seed: int = 0, d: float = 20
     """
     _check_scale(scale)
     n = robot.n_tubes
-    _check_levels(robot, (d,), SNAP_TURN_OUTER_BETAS_MM)
+    ranges = ProtocolRanges.of(robot)
+    d = ranges.d(PAPER_FULL_LEVELS_MM[-1]) if d is None else float(d)
+    betas = tuple(ranges.beta_outer(b) for b in SNAP_TURN_OUTER_BETAS_MM)
+    _check_levels(robot, (d,), betas)
     runs = tuple(
-        Run((Segment(inner_turn(n, ao, SNAP_TURN_OUTER_BETAS_MM[k % 2], d, step_deg), level=0),))
+        Run((Segment(inner_turn(n, ao, betas[k % 2], d, step_deg), level=0),))
         for k, ao in enumerate(SNAP_TURN_OUTER_ANGLES_DEG))
     return Plan("snap-turns", runs, ({"relative_translation_mm": d},),
                 {"scale": scale, "d_mm": d, "outer_angles_deg": list(SNAP_TURN_OUTER_ANGLES_DEG),
-                 "outer_betas_mm": list(SNAP_TURN_OUTER_BETAS_MM), "inner_step_deg": step_deg})
+                 "outer_betas_mm": list(betas), "inner_step_deg": step_deg})
 
 
 PROTOCOLS: dict[str, Any] = {"paper": paper, "sweeps": sweeps, "random-points": random_points,

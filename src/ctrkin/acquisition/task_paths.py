@@ -25,10 +25,12 @@ import pandas as pd
 from scipy.spatial.transform import Rotation
 
 from ctrkin.acquisition.protocols import config
+from ctrkin.acquisition.ranges import ProtocolRanges
 from ctrkin.data import schema
 from ctrkin.errors import DatasetError
 from ctrkin.geometry import pose_rotation, quat_from_tangent
 from ctrkin.mechanics import solve
+from ctrkin.robots.robot import Robot
 from ctrkin.util.folders import build_folder, reading_folder
 from ctrkin.version import __version__
 from ctrkin.virtual.robot import VirtualRobot
@@ -37,8 +39,16 @@ SHAPES = {"square": 4, "triangle": 3}
 TARGETS_FILE = "targets.csv"
 META_FILE = "meta.json"
 # corner configuration: inner tube 90° ahead of the outer one at d = 10 mm (a smooth, single-branch
-# region), outer tube 2 mm back: well inside the workspace of the paper protocol
+# region), outer tube 2 mm back: well inside the workspace of the paper protocol (on the paper robot;
+# another robot's d and βN are these carried over, `corner_of`)
 CORNER = {"relative_rotation_deg": 90.0, "relative_translation_mm": 10.0, "beta_outer_mm": -2.0}
+
+
+def corner_of(robot: Robot) -> dict[str, float]:
+    """`CORNER` at the same place of `robot`'s geometry (ctrkin.acquisition.ranges)."""
+    ranges = ProtocolRanges.of(robot)
+    return {**CORNER, "relative_translation_mm": ranges.d(CORNER["relative_translation_mm"]),
+            "beta_outer_mm": ranges.beta_outer(CORNER["beta_outer_mm"])}
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,7 +102,8 @@ def task_path(virtual: VirtualRobot, shape: str, n_points: int = 10, seed: int =
         Turns the whole polygon about the insertion axis by a seeded angle (different seeds give
         different, equally reachable paths).
     corner : dict, optional
-        The corner configuration (default `CORNER`: relative rotation, relative translation, βN).
+        The corner configuration (default `corner_of(robot)`: relative rotation, relative
+        translation, βN).
 
     Returns
     -------
@@ -102,7 +113,7 @@ def task_path(virtual: VirtualRobot, shape: str, n_points: int = 10, seed: int =
         raise DatasetError(f"shape must be one of {sorted(SHAPES)}, got {shape!r}")
     if n_points < SHAPES[shape]:
         raise DatasetError(f"a {shape} needs n_points >= {SHAPES[shape]}, got {n_points}")
-    c = {**CORNER, **(corner or {})}
+    c = {**corner_of(virtual.nominal), **(corner or {})}
     n = virtual.nominal.n_tubes
     k = SHAPES[shape]
     turn = float(np.random.default_rng(np.random.SeedSequence([int(seed), 0x7A5C])).uniform(0, 360))

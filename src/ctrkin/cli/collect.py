@@ -34,21 +34,21 @@ from ctrkin.acquisition.plan import Plan
 from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.acquisition.task_paths import SHAPES, task_path
-from ctrkin.cli.common import emit_json, output_folder, output_options, say
-from ctrkin.cli.from_config import RANGE, config_options, parse_key_values
+from ctrkin.cli.common import (
+    emit_json,
+    output_folder,
+    output_options,
+    say,
+    virtual_config,
+    virtual_settings_option,
+)
+from ctrkin.cli.from_config import RANGE, config_options
 from ctrkin.evaluation.scales import Scale
 from ctrkin.robots import Robot, load_robot
-from ctrkin.virtual import VirtualConfig, VirtualConfigError, VirtualRobot
+from ctrkin.virtual import VirtualRobot
 
 CHOICES = [*protocols.PROTOCOLS, *SHAPES]
 MAX_POINTS = 100_000      # random points or path points: far beyond any protocol, within memory
-
-
-def _config(settings: tuple[str, ...]) -> VirtualConfig:
-    try:
-        return VirtualConfig(**parse_key_values(settings, "--set", VirtualConfig))
-    except VirtualConfigError as e:
-        raise click.BadParameter(str(e), param_hint="--set") from None
 
 
 def _help(text: str) -> dict[str, str]:
@@ -75,7 +75,8 @@ class CollectConfig:
         "10, as in the paper; at least 4 for a square, 3 for a triangle).")})
     levels: tuple[float, ...] | None = field(default=None, metadata=_help(
         "paper/sweeps: relative translations d = beta_N - beta_1 (mm), comma-separated (default: the "
-        "protocol's; needed for robots that cannot reach d = 20 mm)."))
+        "protocol's, the paper robot's carried over to the robot's curved overlap and reach; "
+        "docs/protocols.md: Other robots)."))
     workers: int | None = field(default=None, metadata=_help("Processes (default: all cores)."))
 
     def __post_init__(self) -> None:
@@ -117,8 +118,7 @@ Examples:
               help="Run the protocol on the rig this TOML file describes (docs/hardware.md) instead of "
               "the virtual robot; the robot is the rig's. Running the same command again resumes an "
               "interrupted collection; --overwrite starts over.")
-@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE",
-              help="Override a virtual robot effect magnitude (repeatable).")
+@virtual_settings_option
 @click.option("--out", "out_dir", required=True, type=click.Path(),
               help="Output folder (written as a whole: a failure leaves the previous one; a second "
               "collect into it is refused while one runs).")
@@ -126,7 +126,7 @@ Examples:
 def collect_cmd(settings: tuple[str, ...], out_dir: str, overwrite: bool, as_json: bool,
                 rig_file: str | None, **options: Any) -> None:
     """Record a protocol on the virtual robot or on a rig (or write square/triangle IK targets)."""
-    config = _config(settings)
+    config = virtual_config(settings)
     cfg = CollectConfig(**options)
     protocol, scale, seed, n_points = cfg.protocol, cfg.scale, cfg.seed, cfg.n_points
     if rig_file is not None:

@@ -3,6 +3,11 @@
     ctrkin reproduce --scale quick --out out/reproduce      # minutes on two cores (README main job)
     ctrkin reproduce --scale full --out out/full            # the paper's data size and training
     RAY_ADDRESS=auto ctrkin reproduce --scale full --executor ray --out /shared/full   # on a cluster
+    ctrkin reproduce --robot my_robot.toml --robot-seed 3 --set gear_backlash_deg=2 --out out/mine
+
+Any robot: the protocols' translations are the paper robot's carried over to the robot's geometry
+(docs/protocols.md: Other robots); --set KEY=VALUE sets the virtual robot's effects as in
+`ctrkin collect` (docs/virtual_robot.md).
 
 Writes OUT/report.md (tables with the paper's numbers beside ours, figures), OUT/results.json, and
 keeps the data (OUT/data) and models (OUT/models) so that a rerun reuses them.
@@ -14,7 +19,7 @@ from typing import Any
 
 import click
 
-from ctrkin.cli.common import output_folder, overwrite_option, say
+from ctrkin.cli.common import output_folder, overwrite_option, say, virtual_config, virtual_settings_option
 from ctrkin.cli.from_config import config_options
 from ctrkin.evaluation.scales import ReproduceConfig
 
@@ -22,22 +27,25 @@ from ctrkin.evaluation.scales import ReproduceConfig
 @click.command("reproduce", epilog="""\b
 Examples:
   ctrkin reproduce --scale tiny --out out/tiny
-  ctrkin reproduce --scale quick --out out/reproduce""")
-@config_options(ReproduceConfig, exclude=("out",))
+  ctrkin reproduce --scale quick --out out/reproduce
+  ctrkin reproduce --scale tiny --set noise_mm=0.1 --out out/tiny-noisy""")
+@config_options(ReproduceConfig, exclude=("out", "virtual"))
+@virtual_settings_option
 @click.option("--out", "out", default="out/reproduce", show_default=True, type=click.Path(),
               help=ReproduceConfig.__dataclass_fields__["out"].metadata["help"])
 @overwrite_option(help="Replace --out if it holds a reproduction of other settings (only a ctrkin "
                   "reproduction folder holding nothing else is ever replaced).")
-def reproduce_cmd(overwrite: bool, **settings: Any) -> None:
+def reproduce_cmd(overwrite: bool, settings: tuple[str, ...], **options: Any) -> None:
     """Collect data, train the models, run every experiment of the paper, write the report."""
     from ctrkin.evaluation.reproduce import reproduce
     from ctrkin.evaluation.scales import get_scale
     from ctrkin.robots import load_robot
 
-    cfg = ReproduceConfig(**settings)
+    cfg = ReproduceConfig(**options, virtual=virtual_config(settings))
     output_folder(cfg.out, "reproduction", overwrite, inputs=[cfg.robot], reuse=True)
     results = reproduce(load_robot(cfg.robot), get_scale(cfg.scale), cfg.out, robot_seed=cfg.robot_seed,
-                        workers=cfg.workers, log=say, executor=cfg.executor, overwrite=overwrite)
+                        workers=cfg.workers, log=say, executor=cfg.executor, overwrite=overwrite,
+                        virtual=cfg.virtual)
     for line in headlines(results.fk, results.ik):
         say(line)
 

@@ -5,10 +5,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ctrkin.acquisition import protocols
+from ctrkin.acquisition.ranges import ProtocolRanges
 from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.task_paths import task_path
 from ctrkin.data.dataset import Dataset
@@ -54,13 +56,16 @@ def collect(
     robot_seed: int = 0,
     workers: int | None = None,
     progress: bool = True,
+    config: VirtualConfig | None = None,
 ) -> ReproData:
-    """Record every dataset of a reproduction into out/<name> (reused when already there)."""
-    virtual = VirtualRobot(robot, VirtualConfig(), seed=robot_seed)
+    """Record every dataset of a reproduction into out/<name> (reused when already there, recorded
+    with the same settings); config: the virtual robot's effects (default VirtualConfig())."""
+    config = VirtualConfig() if config is None else config
+    virtual = VirtualRobot(robot, config, seed=robot_seed)
 
     def get(name: str, **kw: object) -> Dataset:
         folder = out / name
-        key = _key(name, scale, robot_seed, kw)
+        key = _key(name, scale, robot_seed, kw, config)
         if (folder / "meta.json").is_file():
             ds = Dataset.load(folder, robot=robot)
             if ds.meta.get("reproduce_key") == key:
@@ -83,7 +88,7 @@ def collect(
         ds.save(folder)
         return Dataset.load(folder, robot=robot)
 
-    paper = get("paper", **_paper_kw(scale))
+    paper = get("paper", **_paper_kw(scale, robot))
     shapes = {
         s: virtual.tracker.registered(task_path(virtual, s, n_points=10, seed=SEEDS[s]).poses)
         for s in ("square", "triangle")
@@ -100,19 +105,36 @@ def collect(
     )
 
 
-def _key(name: str, scale: ReproScale, robot_seed: int, kw: dict[str, object]) -> str:
-    return f"{name}|{scale.protocol_scale}|{robot_seed}|{sorted((k, str(v)) for k, v in kw.items())}"
+def virtual_overrides(config: VirtualConfig | None) -> dict[str, Any]:
+    """The effect magnitudes of `config` that differ from VirtualConfig()'s: {} for the default (what
+    `--set` changed, whatever way it was spelled)."""
+    if config is None:
+        return {}
+    default = VirtualConfig().to_dict()
+    return {k: v for k, v in config.to_dict().items() if default.get(k) != v}
 
 
-def _paper_kw(scale: ReproScale) -> dict[str, object]:
+def _key(name: str, scale: ReproScale, robot_seed: int, kw: dict[str, object],
+         config: VirtualConfig | None = None) -> str:
+    """The settings a dataset of a reproduction is recorded with (its meta's reproduce_key); the
+    virtual robot's effects only where they are not the default (the key of earlier reproductions)."""
+    key = f"{name}|{scale.protocol_scale}|{robot_seed}|{sorted((k, str(v)) for k, v in kw.items())}"
+    changed = virtual_overrides(config)
+    return key + (f"|{sorted((k, str(v)) for k, v in changed.items())}" if changed else "")
+
+
+def _paper_kw(scale: ReproScale, robot: Robot) -> dict[str, object]:
+    """The paper protocol's options at `scale`: its levels (the paper robot's, carried over to
+    `robot`, ctrkin.acquisition.ranges) and outer step."""
     kw: dict[str, object] = {}
     if scale.paper_levels is not None:
-        kw["levels"] = scale.paper_levels
+        kw["levels"] = ProtocolRanges.of(robot).levels(scale.paper_levels)
     if scale.paper_outer_step_deg is not None:
         kw["outer_step_deg"] = scale.paper_outer_step_deg
     return kw
 
 
-def paper_key(scale: ReproScale, robot_seed: int) -> str:
+def paper_key(scale: ReproScale, robot_seed: int, robot: Robot,
+              config: VirtualConfig | None = None) -> str:
     """The key the paper dataset of a reproduction at `scale` is recorded with (its meta.json)."""
-    return _key("paper", scale, robot_seed, _paper_kw(scale))
+    return _key("paper", scale, robot_seed, _paper_kw(scale, robot), config)

@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from ctrkin.errors import CtrkinError
 from ctrkin.evaluation import paper_numbers as P
 from ctrkin.evaluation.experiments import EXPERIMENTS, FIGURES
 from ctrkin.evaluation.experiments_fk import SNAPPING_ROWS, SWEEPS
@@ -25,6 +26,8 @@ from ctrkin.evaluation.table import (
     labels,
 )
 from ctrkin.models.seqnet import STRUCTURES
+from ctrkin.robots.builtin import paper_robot
+from ctrkin.robots.robot import Robot
 from ctrkin.util.files import atomic_write_text
 
 CAL_CONT = TCM_CALIBRATED_CONTINUED_ROW.name   # the calibrated TCM continued: headline and Fig. 10 column
@@ -70,7 +73,7 @@ def _setup(r: ReproResults) -> list[str]:
     """What ran: robot, data, split, what "measured" and "truth" mean, and the training budgets."""
     d = r.dataset
     return [
-        f"Robot: {r.robot['name']} (paper Table I), virtual robot seed {r.virtual_robot_seed}. "
+        f"Robot: {robot_title(r.robot)}, virtual robot seed {r.virtual_robot_seed}{_effects(r)}. "
         f"Training data: the paper protocol, {d.samples} samples in {d.sequences} sequences "
         f"({d.snaps} snap samples), split by sequence 70:15:15; errors are on held-out sequences "
         f"unless stated. Wall time {r.seconds['total']:.0f} s. \"Measured\" is the virtual tracker "
@@ -79,6 +82,23 @@ def _setup(r: ReproResults) -> list[str]:
         "",
         _budgets(r.scale),
     ]
+
+
+def robot_title(robot: dict[str, Any]) -> str:
+    """The robot's name from its description, with "(paper Table I)" only where its tubes are the
+    paper robot's."""
+    try:
+        same = Robot.from_dict(robot).fingerprint() == paper_robot().fingerprint()
+    except CtrkinError:                 # a trimmed description (a name only): not known to be it
+        same = False
+    return f"{robot['name']}{' (paper Table I)' if same else ''}"
+
+
+def _effects(r: ReproResults) -> str:
+    """The virtual robot's effects where `--set` changed them ("" for the default)."""
+    if not r.virtual_settings:
+        return ""
+    return " with " + ", ".join(f"{k} = {v}" for k, v in r.virtual_settings.items())
 
 
 def _budgets(scale: ReproScale) -> str:

@@ -4,6 +4,7 @@ results.json. Each stage reuses what an earlier run of the same scale left in th
 
 from __future__ import annotations
 
+import dataclasses
 import resource
 import time
 from collections.abc import Callable, Iterator
@@ -17,7 +18,7 @@ from ctrkin.calibration.fit import CalibrationResult, calibrate
 from ctrkin.calibration.params import FRICTION, GROUPS
 from ctrkin.errors import OutputError
 from ctrkin.evaluation.context import Context
-from ctrkin.evaluation.datasets import ReproData, collect
+from ctrkin.evaluation.datasets import ReproData, collect, virtual_overrides
 from ctrkin.evaluation.experiments import EXPERIMENTS
 from ctrkin.evaluation.experiments_fk import SNAP_TURNS, SWEEPS
 from ctrkin.evaluation.report import write_report
@@ -39,6 +40,7 @@ from ctrkin.inference import Kinematics
 from ctrkin.robots.robot import Robot
 from ctrkin.util.folders import folder_lock
 from ctrkin.version import __version__
+from ctrkin.virtual.config import VirtualConfig
 
 NOTES = [
     "The robot is the virtual robot (the TCM with perturbed tubes, backlash, friction, tracker noise, "
@@ -87,26 +89,30 @@ def reproduce(
     log: Callable[[str], None] = print,
     executor: str = "local",
     overwrite: bool = False,
+    virtual: VirtualConfig | None = None,
 ) -> ReproResults:
     """Run the whole reproduction into `out`; workers: trainings run in parallel (one thread each);
     executor: where they run, "local" processes or "ray" tasks (ctrkin.evaluation.executors).
     Stages: collect data, train, fit the TCM baseline, FK experiments, IK experiments, grids,
     timing; then results.json and report.md. Returns the results as written to results.json.
     `out` may hold a reproduction of the same settings (reused); one of other settings is refused
-    unless `overwrite`, which replaces it (ctrkin.evaluation.repro_folder)."""
+    unless `overwrite`, which replaces it (ctrkin.evaluation.repro_folder). virtual: the virtual
+    robot's effect magnitudes (default VirtualConfig(); `ctrkin reproduce --set`). Any robot: the
+    protocols carry the paper robot's translations over to its geometry (ctrkin.acquisition.ranges)."""
     out = Path(out)
+    virtual = VirtualConfig() if virtual is None else virtual
     with folder_lock(out, OutputError, "reproduce"):
-        claim(out, robot, scale, robot_seed, overwrite)
-        return _reproduce(robot, scale, out, robot_seed, workers, log, executor)
+        claim(out, robot, scale, robot_seed, overwrite, virtual)
+        return _reproduce(robot, scale, out, robot_seed, workers, log, executor, virtual)
 
 
 def _reproduce(robot: Robot, scale: ReproScale, out: Path, robot_seed: int, workers: int,
-               log: Callable[[str], None], executor: str) -> ReproResults:
+               log: Callable[[str], None], executor: str, virtual: VirtualConfig) -> ReproResults:
     figures = out / "figures"
     figures.mkdir(parents=True, exist_ok=True)
     st = _Stages(log)
     with st.stage("collect data on the virtual robot"):
-        data = collect(robot, scale, out / "data", robot_seed=robot_seed)
+        data = collect(robot, scale, out / "data", robot_seed=robot_seed, config=virtual)
         data.paper.save_split(out / "data" / "paper", data.paper.get_split(seed=0))
     with st.stage("train models"):
         models = train_all(out / "data" / "paper", scale, out / "models", workers=workers, log=log,
@@ -125,6 +131,7 @@ def _reproduce(robot: Robot, scale: ReproScale, out: Path, robot_seed: int, work
     top["fk"][TCM_CALIBRATED_ROW.name]["calibration"] = cal.to_dict()
     results = _results(robot, scale, robot_seed, tcm, data, models, top["fk"], top["ik"], experiments,
                        top["grids"], top["timing"], seconds, memory, ctx.seconds_per_step)
+    results = dataclasses.replace(results, virtual_settings=virtual_overrides(virtual))
     written = write_results(results, out / "results.json")
     write_report(written, out / "report.md")
     log(f"wrote {out / 'report.md'} and {out / 'results.json'} ({written.seconds['total']:.0f} s)")

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -120,7 +120,9 @@ class Memory:
 @dataclass(frozen=True)
 class ReproResults:
     """Everything a reproduction measured (fields in results.json's order). seconds: wall time per
-    stage and "total"; the per-model tables are described in docs/reproduction.md."""
+    stage and "total"; the per-model tables are described in docs/reproduction.md. virtual_settings:
+    the virtual robot's effect magnitudes that differ from the default (`--set`), in results.json
+    after virtual_robot_seed only where there are any."""
 
     scale: ReproScale
     robot: dict[str, Any]
@@ -139,6 +141,7 @@ class ReproResults:
     notes: list[str]
     seconds: dict[str, float]
     memory: Memory
+    virtual_settings: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """The nested tree of results.json (without the flat keys)."""
@@ -146,6 +149,7 @@ class ReproResults:
             "scale": self.scale.to_dict(),
             "robot": self.robot,
             "virtual_robot_seed": self.virtual_robot_seed,
+            **({"virtual_settings": self.virtual_settings} if self.virtual_settings else {}),
             "ctrkin_version": self.ctrkin_version,
             "registration": self.registration,
             "grids": self.grids,
@@ -205,6 +209,7 @@ class ReproResults:
             notes=d["notes"],
             seconds=d["seconds"],
             memory=Memory(**d["memory"]),
+            virtual_settings=d.get("virtual_settings", {}),
         )
 
 

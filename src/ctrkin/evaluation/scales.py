@@ -10,6 +10,7 @@ from typing import Any, Literal, get_args
 from ctrkin.acquisition.protocols import PAPER_SIZES
 from ctrkin.errors import CtrkinError
 from ctrkin.training.config import LrSchedule, scaled_lr
+from ctrkin.virtual.config import VirtualConfig
 
 
 @dataclass(frozen=True)
@@ -146,6 +147,8 @@ class ReproduceConfig:
     out: str = field(default="out/reproduce", metadata=_help(
         "Output folder. A rerun with the same settings reuses its data and models; one with other "
         "settings is refused unless --overwrite."))
+    virtual: VirtualConfig = field(default_factory=VirtualConfig, metadata=_help(
+        "The virtual robot's effect magnitudes (`--set KEY=VALUE`, as `ctrkin collect --set`)."))
 
     def __post_init__(self) -> None:
         get_scale(self.scale)
@@ -153,3 +156,5 @@ class ReproduceConfig:
             raise CtrkinError(f"executor must be one of {get_args(Executor)}, got {self.executor!r}")
         if not isinstance(self.workers, int) or self.workers < 1:
             raise CtrkinError(f"workers must be an integer >= 1, got {self.workers!r}")
+        if not isinstance(self.virtual, VirtualConfig):
+            raise CtrkinError(f"virtual must be a VirtualConfig, got {type(self.virtual).__name__}")
