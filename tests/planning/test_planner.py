@@ -93,3 +93,18 @@ def test_bad_inputs_are_refused() -> None:
         PlanConfig(min_margin=1.5)
     with pytest.raises(CtrkinError, match="limits"):
         plan_path(ROBOT, np.array([800.0, 0.0, -10.0, 0.0]), np.array([[0.0, 0.0, 50.0]]))
+
+
+def test_a_start_below_the_margin_may_lead_out_but_not_further_in() -> None:
+    """A robot that starts nearer a fold than min_margin still gets a plan, whose margin never falls
+    below where it started (found on the benchmark: the planner went nowhere from such a start)."""
+    start = solve(ROBOT, [0.0, 0.0, *FULL])
+    for a in range(10, 201, 10):
+        start = solve(ROBOT, [float(a), 0.0, *FULL], guess=start)
+    m0 = stability_margin(ROBOT, start)
+    assert m0 < 0.25
+    targets = _tips([120.0, 60.0])
+    plan = plan_path(ROBOT, start, targets)
+    assert plan.n_reached == 2 and not plan.snap.any()
+    assert plan.margin.min() >= m0 - 1e-9
+    assert plan.margin[-1] > 0.25

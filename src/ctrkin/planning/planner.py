@@ -8,7 +8,9 @@ For each target in turn, from the equilibrium the robot is in (its joints and it
    every tube together turns the robot rigidly, on the same branch).
 2. Routes to the IK's joints (planning.paths): direct, the other way round, detours through low curved
    overlap; each followed on the mechanics from the current equilibrium. A route is safe when it
-   crosses no fold, keeps the margin ≥ PlanConfig.min_margin at every step and ends within
+   crosses no fold, keeps the margin ≥ PlanConfig.min_margin at every step (≥ the margin of the
+   robot's state before the move, where that is lower: a plan may lead out of a low margin, never
+   further in) and ends within
    PlanConfig.tol_mm of the target; the safe route of least joint motion is taken.
 3. If none is safe: the target is reported unreachable on the current branch, the robot stays, and a
    deliberate snap is offered (SnapOffer: turning the inner tube at the current translations until
@@ -151,19 +153,19 @@ def _seeds(robot: Robot, cur: Equilibrium, target: np.ndarray, limits: Limits) -
     return out
 
 
-def _safe(c: Checked, target: np.ndarray, cfg: PlanConfig) -> bool:
-    return bool(not c.snaps.any() and c.margin.min() >= cfg.min_margin
+def _safe(c: Checked, target: np.ndarray, cfg: PlanConfig, floor: float) -> bool:
+    return bool(not c.snaps.any() and c.margin.min() >= floor
                 and np.linalg.norm(c.tips[-1] - target) <= cfg.tol_mm)
 
 
 def _best_route(robot: Robot, cur: Equilibrium, sol: BranchSolution, target: np.ndarray,
-                cfg: PlanConfig, limits: Limits) -> Checked | None:
+                cfg: PlanConfig, limits: Limits, floor: float) -> Checked | None:
     """The safe route of least joint motion to sol.q, None if none is safe."""
     cands = routes(robot, cur.q, sol.q, limits)
     cands.sort(key=lambda r: _motion([cur.q, *r[1]], robot.n_tubes))
     for name, waypoints in cands:       # sorted by motion: the first safe one is the best
         c = check(robot, cur, name, waypoints)
-        if _safe(c, target, cfg):
+        if _safe(c, target, cfg, floor):
             return c
     return None
 
@@ -237,11 +239,13 @@ def plan_path(robot: Robot, start: np.ndarray | Equilibrium, targets: np.ndarray
         tan = None if tangents is None else tangents[k]
         best: Checked | None = None
         closest = math.inf
+        # a start below the threshold may not get worse, so that the plan can lead out of it
+        floor = min(cfg.min_margin, rows_m[-1])
         for seed in _seeds(robot, cur, target, limits):
-            sol = branch_ik(robot, seed, target, limits, tan, cfg.min_margin, max_iter=cfg.ik_iterations)
+            sol = branch_ik(robot, seed, target, limits, tan, floor, max_iter=cfg.ik_iterations)
             closest = min(closest, sol.error_mm)
             if sol.error_mm <= cfg.tol_mm:
-                best = _best_route(robot, cur, sol, target, cfg, limits)
+                best = _best_route(robot, cur, sol, target, cfg, limits, floor)
                 if best is not None:
                     break
         offer = None
