@@ -34,7 +34,8 @@ def test_plan_writes_table_summary_and_figure(tmp_path) -> None:
     assert sorted(table.loc[table["target"] >= 0, "target"]) == [0, 1, 2, 3, 4, 5]
     assert not table["snap"].any() and table["margin"].min() >= 0.25
     assert (out / "plan.png").stat().st_size > 10_000
-    assert json.loads((out / "plan.json").read_text())["per_target"][0]["reached"]
+    saved = json.loads((out / "plan.json").read_text(), parse_constant=lambda c: 1 / 0)  # no NaN, inf
+    assert saved["per_target"][0]["reached"] and saved["config"]["beta_limits_mm"] == [None, 0.0]
     again = CliRunner().invoke(cli, ["plan", "--targets", _targets(tmp_path), "--start-joints",
                                      "150,0,-20,0", "--out", str(out), "--no-naive"])
     assert again.exit_code == 1 and "overwrite" in again.output       # an existing plan is kept

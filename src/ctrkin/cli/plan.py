@@ -15,7 +15,7 @@ from typing import Any
 import click
 import numpy as np
 
-from ctrkin.cli.common import emit_json, output_folder, output_options, say
+from ctrkin.cli.common import emit_json, jsonable, output_folder, output_options, say
 from ctrkin.cli.from_config import RANGE, config_options
 from ctrkin.errors import CtrkinError
 from ctrkin.util.folders import build_folder
@@ -101,7 +101,7 @@ def plan_cmd(out_dir: str, overwrite: bool, as_json: bool, **settings: Any) -> N
                "config": asdict(pcfg), "per_target": reports}
     with build_folder(out, "plan", CtrkinError, "plan") as build:      # written as one unit
         plan_table(plan, robot.n_tubes).to_csv(build / "plan.csv", index=False)
-        (build / "plan.json").write_text(json.dumps(summary, indent=2, default=float), encoding="utf-8")
+        (build / "plan.json").write_text(json.dumps(jsonable(summary), indent=2), encoding="utf-8")
         plot_plan(plan.tips, plan.margin, targets, np.array([t.reached for t in plan.targets]),
                   build / "plan.png", naive_tips, naive_snaps, title=f"{robot.name}: snap-safe plan")
     for t in plan.targets:
