@@ -5,7 +5,9 @@ For each target in turn, from the equilibrium the robot is in (its joints and it
 1. IK on the current branch (planning.ik): damped least squares on the mechanics, Newton warm-started
    along the branch, candidates below the stability margin rejected; seeds: the current joints, and
    the current joints turned as a whole so that the tip's azimuth about z faces the target (turning
-   every tube together turns the robot rigidly, on the same branch).
+   every tube together turns the robot rigidly, on the same branch). If neither leads to a safe
+   route, the joints of the history-free IK (planning.naive's, on least-energy equilibria) are
+   tried as a goal too: the routes to them are checked on the robot's branch like any other.
 2. Routes to the IK's joints (planning.paths): direct, the other way round, detours through low curved
    overlap; each followed on the mechanics from the current equilibrium. A route is safe when it
    crosses no fold, keeps the margin ≥ PlanConfig.min_margin at every step (≥ the margin of the
@@ -248,6 +250,11 @@ def plan_path(robot: Robot, start: np.ndarray | Equilibrium, targets: np.ndarray
                 best = _best_route(robot, cur, sol, target, cfg, limits, floor)
                 if best is not None:
                     break
+        if best is None:    # the history-free IK's joints, reached by a route checked on the branch
+            sol = branch_ik(robot, solve(robot, cur.q), target, limits, tan, 0.0,
+                            max_iter=cfg.ik_iterations, history=False)
+            if sol.error_mm <= cfg.tol_mm:
+                best = _best_route(robot, cur, sol, target, cfg, limits, floor)
         offer = None
         snapped = False
         if best is None:
