@@ -22,15 +22,19 @@ MODULE_PATH = re.compile(r"ctrkin(\.\w+)+")
 FORBIDDEN = {
     # hardware sits between the virtual robot and acquisition: it may drive the virtual robot, and
     # only acquisition (and what sits above it) runs protocols on it
-    "robots": {"hardware", "virtual", "acquisition"},
-    "mechanics": {"hardware", "virtual", "acquisition"},
-    "virtual": {"hardware", "acquisition"},
+    "robots": {"hardware", "virtual", "acquisition", "planning"},
+    "mechanics": {"hardware", "virtual", "acquisition", "planning"},
+    "virtual": {"hardware", "acquisition", "planning"},
     "hardware": {"acquisition", "data", "calibration", "models", "families", "training", "inference",
+                 "evaluation", "cli", "planning"},
+    "models": {"families", "training", "inference", "evaluation", "cli", "virtual", "hardware", "planning"},
+    "families": {"training", "inference", "evaluation", "cli", "virtual", "hardware", "planning"},
+    "training": {"inference", "evaluation", "cli", "virtual", "hardware", "planning"},
+    "inference": {"training", "evaluation", "cli", "virtual", "hardware", "planning"},
+    # planning works on a robot's mechanics (nominal or calibrated), later on learned models through
+    # inference; it runs nothing on a robot (hardware, virtual, acquisition) and trains nothing
+    "planning": {"hardware", "virtual", "acquisition", "data", "calibration", "families", "training",
                  "evaluation", "cli"},
-    "models": {"families", "training", "inference", "evaluation", "cli", "virtual", "hardware"},
-    "families": {"training", "inference", "evaluation", "cli", "virtual", "hardware"},
-    "training": {"inference", "evaluation", "cli", "virtual", "hardware"},
-    "inference": {"training", "evaluation", "cli", "virtual", "hardware"},
 }
 REGISTRY = "ctrkin.families.registry"
 ABOVE_ALL = {"cli": {"cli"}, "evaluation": {"cli", "evaluation"}}   # imported only by these

@@ -137,8 +137,17 @@ def _mkdir(p: Path) -> Path:
     return p
 
 
+def plan_targets(root: Path) -> None:
+    """The targets.csv that docs/planning.md plans through (tips of the paper robot's point-wise
+    solves at full curved overlap, β = −20, 0 mm, with α1 = 160..260° in steps of 20°, α2 = 0)."""
+    robot = paper_robot()
+    tips = np.array([solve(robot, [a, 0.0, -20.0, 0.0]).tip_position for a in range(160, 261, 20)])
+    pd.DataFrame(tips, columns=["x", "y", "z"]).to_csv(root / "targets.csv", index=False)
+
+
 FIXTURES: dict[str, list[Callable[[Path], None]]] = {
     "data.md": [user_log, lab_logs],
+    "planning.md": [plan_targets],
     "real_robot.md": [comet_logs],
     "tutorial.md": [comet_logs],
 }

@@ -41,7 +41,7 @@ def _examples(help_text: str) -> list[list[str]]:
 def test_every_help_ends_with_examples_that_use_existing_options() -> None:
     runner = CliRunner()
     commands = _commands(cli)
-    assert len(commands) == 17     # ctrkin, 11 commands, dataset and its 3, robot and its template
+    assert len(commands) == 18     # ctrkin, 12 commands, dataset and its 3, robot and its template
     for path, _cmd in commands:
         res = runner.invoke(cli, [*path, "--help"])
         assert res.exit_code == 0, path

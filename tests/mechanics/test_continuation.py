@@ -266,3 +266,19 @@ def test_a_step_of_a_whole_turn_or_more_flags_the_snaps_it_crosses() -> None:
         fine_path = np.linspace(path[0], path[1], int(turn) + 1)
         end = follow(robot, fine_path).tip_poses[-1]
         np.testing.assert_allclose(tr.tip_poses[-1], end, atol=1e-6)   # the same branch at the end
+
+
+def test_solve_from_the_previous_equilibrium_recovers_after_a_snap() -> None:
+    """Issue 24: `prev = solve(q, guess=prev)` through a full inner turn at full curved overlap
+    snaps where `follow` does and stays converged and stable after it (before: Newton from the
+    state past the fold failed, and every later step started from that failure)."""
+    Q = rotation_sweep(2, relative_translation=20.0, step_deg=4.0)[:91]   # 0 → 360°, one snap
+    traj = follow(ROBOT, Q)
+    assert traj.n_snaps == 1
+    prev = solve(ROBOT, Q[0])
+    tips = []
+    for q in Q:
+        prev = solve(ROBOT, q, guess=prev)
+        assert prev.converged and prev.stable
+        tips.append(prev.tip_position)
+    np.testing.assert_allclose(np.array(tips), traj.tip_positions, atol=1e-6)

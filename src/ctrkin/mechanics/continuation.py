@@ -38,14 +38,13 @@ from ctrkin.mechanics.pointwise import (
     Equilibrium,
     NewtonResult,
     Problem,
-    cold_solution,
     equilibrium,
     friction_after,
     newton,
     prepare,
-    search,
+    recover,
     solve,
-    twisted_guesses,
+    twist_distance,
     with_alpha,
     with_state,
 )
@@ -122,15 +121,6 @@ def _repeats(dq: np.ndarray) -> np.ndarray:
     return (np.abs(dq[1:] - dq[:-1]) <= 1e-6 * scale).all(axis=1)
 
 
-def _distance(a: np.ndarray, b: np.ndarray, lengths: np.ndarray) -> float:
-    """Largest change of twist (rad) a change of base torsion a − b (rad/mm) makes over a tube.
-    A scalar loop: N ≤ a handful, and numpy's reductions cost 3× more on so few (every step)."""
-    out = 0.0
-    for i in range(a.shape[0]):
-        out = max(out, abs((a[i] - b[i]) * lengths[i]))
-    return float(out)
-
-
 def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: SolverSettings,
              path: Predictor | None = None, same_grid: bool = False) -> tuple[Equilibrium, bool]:
     """Continue from equilibrium `prev` to joints q_to. Returns (equilibrium, snapped).
@@ -169,7 +159,7 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
         else:  # x moved along the predicted branch (at the start of the step x = path.at(0))
             guess = path.at(t_try) if t == 0.0 else x + path.at(t_try) - path.at(t)
         sol = newton(pb, guess, settings, work)
-        if (sol.stable and _distance(sol.x, x, pb.arrays.lengths) <= JUMP_RAD
+        if (sol.stable and twist_distance(sol.x, x, pb.arrays.lengths) <= JUMP_RAD
                 and (abs(sol.det_j - det) <= DET_SLACK + DET_RATE * det
                      or not _det_comparable(modes, sol.modes, translating))):
             x, det, t, last = sol.x, sol.det_j, t_try, (pb, sol)
@@ -188,14 +178,9 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
             dt *= 0.5
             continue
         # fold: no stable equilibrium near the current one, however small the step
-        guesses = [x, *twisted_guesses(pb, x), *twisted_guesses(pb, np.zeros_like(x))]
-        found = [c for c in search(pb, guesses, settings, work) if c.stable]
-        if found:
-            sol = min(found, key=lambda c: _distance(c.x, x, pb.arrays.lengths))
-        else:
-            sol = cold_solution(pb, settings, work)
+        sol = recover(pb, x, settings, work)
         # a fold was crossed: that is a snap unless the search only re-found the same branch
-        snapped = snapped or _distance(sol.x, x, pb.arrays.lengths) > SAME_BRANCH_RAD
+        snapped = snapped or twist_distance(sol.x, x, pb.arrays.lengths) > SAME_BRANCH_RAD
         x, det, t, last = sol.x, sol.det_j, t_try, (pb, sol)
         state, modes = _after(pb, sol, state)
         dt = min(1.0 - t, most)

@@ -380,9 +380,14 @@ def solve(robot: Robot, q: np.ndarray, guess: Equilibrium | np.ndarray | None = 
           state: FrictionState | None = None) -> Equilibrium:
     """Equilibrium of the TCM at joints q (2N,) = (α deg, β mm).
 
-    guess: an Equilibrium (or its x, (N,) rad/mm) to warm-start from; Newton then stays on that
-    branch if it can and the result says whether it is stable. Without a guess, the lowest-energy
-    stable equilibrium found from untwisted and twisted starts is returned.
+    guess: an Equilibrium the robot was in (the previous step of a loop), or a raw Newton start x
+    (N,) rad/mm. Newton starts from it and stays on that branch if it can. From an Equilibrium, a
+    start that gives no stable equilibrium means the branch has ended at a fold: the robot snapped,
+    and, as in `follow`, the result is the stable equilibrium nearest the guess (`recover`), so a
+    loop `prev = solve(robot, q, guess=prev)` stays converged through a snap. A raw x is a plain
+    Newton start (the result may be unstable: that is how an unstable branch is reached on purpose).
+    Without a guess, the lowest-energy stable equilibrium found from untwisted and twisted starts is
+    returned.
     state: the friction state to solve for (an earlier equilibrium's `friction_state`; one step of
     the rate-independent friction law from there to q, docs/mechanics.md: Friction and clearance);
     None: every contact fresh, so a robot with friction gives its frictionless equilibrium (there is
@@ -406,8 +411,34 @@ def solve_prepared(pb: Problem, guess: Equilibrium | np.ndarray | None,
         x0 = guess.x if isinstance(guess, Equilibrium) else np.asarray(guess, float)
         if x0.shape != (n,):
             raise ValueError(f"guess must have shape ({n},) (uz(0) per tube, rad/mm)")
-        return equilibrium(pb, newton(pb, x0, settings))
+        sol = newton(pb, x0, settings)
+        if isinstance(guess, Equilibrium) and not sol.stable:
+            sol = recover(pb, x0, settings)  # the branch of the guess ended: a snap (issue 24)
+        return equilibrium(pb, sol)
     return equilibrium(pb, cold_solution(pb, settings))
+
+
+def recover(pb: Problem, x: np.ndarray, settings: SolverSettings, work: list[int] | None = None
+            ) -> NewtonResult:
+    """Where the robot goes when its branch, last at state x (N,) rad/mm, has no stable equilibrium
+    at pb: the stable equilibrium nearest x in twist (the basin the released twist falls into),
+    found from x and twisted starts around x and around zero; the cold solution if none is stable.
+    The snap of a continuation (`follow`) and of `solve` from a previous equilibrium."""
+    work = [0] if work is None else work
+    guesses = [x, *twisted_guesses(pb, x), *twisted_guesses(pb, np.zeros_like(x))]
+    found = [c for c in search(pb, guesses, settings, work) if c.stable]
+    if found:
+        return min(found, key=lambda c: twist_distance(c.x, x, pb.arrays.lengths))
+    return cold_solution(pb, settings, work)
+
+
+def twist_distance(a: np.ndarray, b: np.ndarray, lengths: np.ndarray) -> float:
+    """Largest change of twist (rad) a change of base torsion a − b (rad/mm) makes over a tube.
+    A scalar loop: N ≤ a handful, and numpy's reductions cost 3× more on so few (every step)."""
+    out = 0.0
+    for i in range(a.shape[0]):
+        out = max(out, abs((a[i] - b[i]) * lengths[i]))
+    return float(out)
 
 
 def cold_solution(pb: Problem, settings: SolverSettings, work: list[int] | None = None

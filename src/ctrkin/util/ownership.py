@@ -101,6 +101,7 @@ KINDS: dict[str, Kind] = {k.name: k for k in [
                    "frame.json", "fold_gate.json", "checkpoint.pt", "manifest.json", "refine.json", "fk"),
          _is_model, _model_names),
     Kind("sweep", ("sweep.csv", "sweep.png"), lambda f: _has(f, "sweep.csv")),
+    Kind("plan", ("plan.csv", "plan.json", "plan.png"), lambda f: _has(f, "plan.csv", "plan.json")),
     Kind("reproduction", ("report.md", "results.json", "data", "models", "figures"),
          lambda f: _has(f, "results.json", "report.md") or (f / "data" / "paper").is_dir()),
     Kind("evaluation", (*_EVAL_FILES, r"\d+"),

@@ -1,0 +1,117 @@
+"""`ctrkin plan`: a snap-safe joint trajectory through tip targets, on the mechanics.
+
+    ctrkin plan --targets targets.csv --start-joints 0,0,-20,0 --out out/plan
+    ctrkin plan --robot calibrated.toml --targets targets.csv --start-joints 0,0,-20,0 \
+        --min-margin 0.3 --out out/plan
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import click
+import numpy as np
+
+from ctrkin.cli.common import emit_json, jsonable, output_folder, output_options, say
+from ctrkin.cli.from_config import RANGE, config_options
+from ctrkin.errors import CtrkinError
+from ctrkin.util.folders import build_folder
+
+ROBOT_HELP = "Built-in robot name (paper, timclab) or path to a robot TOML file (nominal or calibrated)."
+
+
+def _help(text: str) -> dict[str, str]:
+    return {"help": text}
+
+
+@dataclass(frozen=True)
+class PlanCommandConfig:
+    """A plan through a file of tip targets (`ctrkin plan`, one option per field)."""
+
+    robot: str = field(default="paper", metadata=_help(ROBOT_HELP))
+    targets: str = field(default="", metadata=_help(
+        "CSV of tip targets: columns x, y, z (mm, robot base frame) and optionally q0, qx, qy (the tip "
+        "orientation, 5-DOF quaternion), one row per target, in order."))
+    start_joints: tuple[float, ...] = field(default=(), metadata=_help(
+        "The robot's current joints α1..αN (deg), β1..βN (mm), comma-separated; its branch is the "
+        "point-wise (least-energy) equilibrium there."))
+    tol_mm: float = field(default=1.0, metadata={RANGE: (1e-6, None), **_help(
+        "A target counts as reached within this tip distance (mm).")})
+    min_margin: float = field(default=0.25, metadata={RANGE: (0.0, 0.99), **_help(
+        "Least stability margin allowed at any step (1: tubes aligned, 0: a fold, where the robot snaps).")})
+    alpha_limits: tuple[float, ...] = field(default=(-720.0, 720.0), metadata=_help(
+        "lo,hi of every α (deg)."))
+    beta_limits: tuple[float, ...] = field(default=(-math.inf, 0.0), metadata=_help(
+        "lo,hi of every β (mm), within the robot's own valid translations."))
+    allow_snaps: bool = field(default=False, metadata=_help(
+        "Take the offered deliberate snap where a target is not reachable on the current branch."))
+    naive: bool = field(default=True, metadata=_help(
+        "Also execute the naive plan (point-wise IK, straight joint lines) and mark its snaps in the "
+        "figure."))
+
+    def __post_init__(self) -> None:
+        if not self.targets:
+            raise click.BadParameter("give a CSV of targets", param_hint="--targets")
+        for name in ("alpha_limits", "beta_limits"):
+            if len(getattr(self, name)) != 2:
+                raise click.BadParameter("give two values lo,hi", param_hint="--" + name.replace("_", "-"))
+
+
+@click.command("plan", epilog="""\b
+Examples:
+  ctrkin plan --targets targets.csv --start-joints 0,0,-20,0 --out out/plan
+  ctrkin plan --targets targets.csv --start-joints 150,0,-20,0 --min-margin 0.3 --out out/plan --json""")
+@config_options(PlanCommandConfig, required=("targets", "start_joints"))
+@click.option("--out", "out_dir", default="out/plan", show_default=True, type=click.Path(),
+              help="Output folder for plan.csv, plan.json and plan.png.")
+@output_options
+def plan_cmd(out_dir: str, overwrite: bool, as_json: bool, **settings: Any) -> None:
+    """Plan a snap-safe joint trajectory through tip targets on the mechanics: writes plan.csv
+    (joints, predicted tip, margin per step, flags), plan.json (per target) and plan.png."""
+    cfg = PlanCommandConfig(**settings)
+    from ctrkin.planning.naive import naive_path
+    from ctrkin.planning.planner import PlanConfig, plan_path
+    from ctrkin.planning.table import plan_table, read_targets
+    from ctrkin.robots import load_robot
+    from ctrkin.viz.plan import plot_plan
+
+    out = output_folder(out_dir, "plan", overwrite, inputs=[cfg.robot, cfg.targets])
+    robot = load_robot(cfg.robot)
+    targets, tangents = read_targets(cfg.targets)
+    pcfg = PlanConfig(tol_mm=cfg.tol_mm, min_margin=cfg.min_margin,
+                      alpha_limits_deg=(cfg.alpha_limits[0], cfg.alpha_limits[1]),
+                      beta_limits_mm=(cfg.beta_limits[0], cfg.beta_limits[1]),
+                      allow_snaps=cfg.allow_snaps)
+    start = np.array(cfg.start_joints, dtype=float)
+    plan = plan_path(robot, start, targets, tangents, pcfg)
+    naive_tips = naive_snaps = None
+    if cfg.naive:
+        legs = naive_path(robot, start, targets, tangents, pcfg)
+        naive_tips = np.concatenate([leg.tips for leg in legs])
+        naive_snaps = np.concatenate([leg.snaps for leg in legs])
+    reports = [{**{k: v for k, v in asdict(t).items() if k != "offer"},
+                "offer": None if t.offer is None else t.offer.describe()} for t in plan.targets]
+    summary = {"robot": robot.name, "targets": len(targets), "reached": plan.n_reached,
+               "steps": len(plan.q), "planned_snaps": int(plan.snap.sum()),
+               "min_margin": float(plan.margin.min()),
+               "naive_snaps": None if naive_snaps is None else int(naive_snaps.sum()),
+               "config": asdict(pcfg), "per_target": reports}
+    with build_folder(out, "plan", CtrkinError, "plan") as build:      # written as one unit
+        plan_table(plan, robot.n_tubes).to_csv(build / "plan.csv", index=False)
+        (build / "plan.json").write_text(json.dumps(jsonable(summary), indent=2), encoding="utf-8")
+        plot_plan(plan.tips, plan.margin, targets, np.array([t.reached for t in plan.targets]),
+                  build / "plan.png", naive_tips, naive_snaps, title=f"{robot.name}: snap-safe plan")
+    for t in plan.targets:
+        line = (f"target {t.index}: reached ({t.error_mm:.3f} mm, {t.route}, margin ≥ {t.min_margin:.2f})"
+                if t.reached else f"target {t.index}: not reachable on the current branch "
+                f"(closest {t.error_mm:.2f} mm)")
+        say(line + (f"; offer: {t.offer.describe()}" if t.offer is not None and not t.reached else ""))
+    say(f"{plan.n_reached} of {len(targets)} targets reached, {int(plan.snap.sum())} planned snaps"
+        + ("" if naive_snaps is None else f" (the naive plan snaps {int(naive_snaps.sum())} times)"))
+    say(f"wrote {out / 'plan.csv'}, {out / 'plan.json'} and {out / 'plan.png'}")
+    if as_json:
+        emit_json({**summary, "files": {"table": out / "plan.csv", "summary": out / "plan.json",
+                                        "figure": out / "plan.png"}})
