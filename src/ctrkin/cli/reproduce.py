@@ -34,11 +34,14 @@ def reproduce_cmd(overwrite: bool, **settings: Any) -> None:
     from ctrkin.evaluation.scales import get_scale
     from ctrkin.evaluation.table import HEADLINE, TCM_ROW
     from ctrkin.robots import load_robot
+    from ctrkin.training.device import resolve_device
 
     cfg = ReproduceConfig(**settings)
+    resolve_device(cfg.device)            # cuda without one: refused before the folder is touched
     output_folder(cfg.out, "reproduction", overwrite, inputs=[cfg.robot], reuse=True)
     results = reproduce(load_robot(cfg.robot), get_scale(cfg.scale), cfg.out, robot_seed=cfg.robot_seed,
-                        workers=cfg.workers, log=say, executor=cfg.executor, overwrite=overwrite)
+                        workers=cfg.workers, log=say, executor=cfg.executor, overwrite=overwrite,
+                        device=cfg.device)
     fk, ik = results.fk, results.ik[HEADLINE]
     say(
         f"FK LSTM-MLP: {fk[HEADLINE]['position_rmse_mm']:.3f} mm / "
