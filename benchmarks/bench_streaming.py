@@ -16,11 +16,13 @@ so that load falls on both alike; each figure is the median over rounds of the r
 torch and one ONNX Runtime thread.
 
 Figures: `fk_step_us` (Kinematics.step, one sequence of test joints), `fk_floor_us` (float64 chain;
-float32 beside it), `onnx_step_us` (the exported graph on one window), predictions/s of `predict` on
-one sequence of B rows for B = 1, 32, 1024, 65,536, and ONNX Runtime's on B windows;
-`predict_call_overhead_us`: the intercept of a least-squares line through predict's times at
-B = 1..16 (the cost of a call beyond its rows; the new code runs these rows through the fused step),
-`predict_torch_call_overhead_us` the same at B = 32..256 (the batch path by chains in torch).
+float32 beside it; each worker times its steps and the floor in alternating blocks of 50 calls, and
+`*_step_to_floor` is the median of the rounds' step / floor ratios, which load does not move much),
+`onnx_step_us` (the exported graph on one window), predictions/s of `predict` on one sequence of B
+rows for B = 1, 32, 1024, 65,536, and ONNX Runtime's on B windows; `predict_call_overhead_us`: the
+intercept of a least-squares line through predict's times at B = 1..16 (the cost of a call beyond its
+rows; the new code runs these rows through the fused step), `predict_torch_call_overhead_us` the same
+at B = 32..256 (the batch path by chains in torch).
 Prints a table with `uptime` and ends with one JSON line.
 """
 
@@ -65,6 +67,25 @@ def _step_us(kin: Any, xs: np.ndarray, warmup: int = 200) -> np.ndarray:
     return ns / 1e3
 
 
+def _step_and_floor_us(kin: Any, floor: Any, xs: np.ndarray, block: int = 50) -> tuple[float, float]:
+    """Medians (µs) of kin.step over xs and of the floor chain, measured in alternating blocks of
+    `block` calls (a load burst falls on both alike)."""
+    _step_us(kin, xs[:block])
+    steps, floors = [], []
+    clock = time.perf_counter_ns
+    kin.reset()
+    for a in range(0, len(xs), block):
+        for x in xs[a:a + block]:
+            t0 = clock()
+            kin.step(x)
+            steps.append(clock() - t0)
+        for _ in range(block):
+            t0 = clock()
+            floor()
+            floors.append(clock() - t0)
+    return float(np.median(steps)) / 1e3, float(np.median(floors)) / 1e3
+
+
 def _predict_us(kin: Any, rows: np.ndarray, calls: int) -> float:
     """Median time (µs) of one predict call on the sequence `rows`."""
     kin.predict(rows)
@@ -84,13 +105,16 @@ def worker(model: Path, inputs: Path) -> None:
 
     torch.set_num_threads(1)
     kin = Kinematics.load(model)
+    floor = floor_call(kin, np.float64)[0]
     data = np.load(inputs)
     steps, long = np.ascontiguousarray(data["steps"]), np.ascontiguousarray(data["long"])
     print(json.dumps({"ready": str(Path(sys.modules["ctrkin"].__file__ or "").parent)}), flush=True)
     for line in sys.stdin:
         what, *arg = line.split()
         if what == "step":
-            out: Any = float(np.median(_step_us(kin, steps)))
+            out: Any = _step_and_floor_us(kin, floor, steps)
+        elif what == "floor":
+            out = floor_us(model, np.float32)[0]
         else:
             b = int(arg[0])
             out = _predict_us(kin, long[:b], CALLS[b])
@@ -175,11 +199,8 @@ def _floor_kernel() -> Any:
     return chain
 
 
-def floor_us(model: Path, dtype: type, calls: int = 3000) -> tuple[float, int]:
-    """Median time (µs) of the bare chain in `dtype` with the model's weights, and its multiply-adds."""
-    from ctrkin.inference import Kinematics
-
-    kin = Kinematics.load(model)
+def floor_call(kin: Any, dtype: type) -> tuple[Any, int]:
+    """The bare chain in `dtype` on the weights of `kin` (a call without arguments), its multiply-adds."""
     net = kin.net
     lstm, dense, out = net.seq[0], net.head[0], net.out
     w = [np.ascontiguousarray(t.detach().numpy(), dtype=dtype) for t in (lstm.weight_ih_l0, lstm.weight_hh_l0,
@@ -192,12 +213,19 @@ def floor_us(model: Path, dtype: type, calls: int = 3000) -> tuple[float, int]:
     args = (x, w[0], w[1], w[2], h, w[3], w[4], w[5], w[6], gates, z, hid, y)
     chain = _floor_kernel()
     chain(*args)
+    return (lambda: chain(*args)), w[0].size + w[1].size + w[3].size + w[5].size
+
+
+def floor_us(model: Path, dtype: type, calls: int = 1000) -> tuple[float, int]:
+    """Median time (µs) of the bare chain in `dtype` with the model's weights, and its multiply-adds."""
+    from ctrkin.inference import Kinematics
+
+    call, macs = floor_call(Kinematics.load(model), dtype)
     ns = np.empty(calls)
     for k in range(calls):
         t0 = time.perf_counter_ns()
-        chain(*args)
+        call()
         ns[k] = time.perf_counter_ns() - t0
-    macs = w[0].size + w[1].size + w[3].size + w[5].size
     return float(np.median(ns)) / 1e3, macs
 
 
@@ -266,21 +294,27 @@ def compare(model: Path, joints: np.ndarray, rounds: int, old_src: Path, folder:
     np.savez(folder / "inputs.npz", steps=steps, long=long)
     workers = {"old": Worker(old_src, model, folder / "inputs.npz"),
                "new": Worker(REPO / "src", model, folder / "inputs.npz")}
-    requests = ["step", *(f"predict {b}" for b in sorted({*FITS[""], *FITS["torch_"], *BATCHES}))]
+    requests = ["step", "floor 32",
+                *(f"predict {b}" for b in sorted({*FITS[""], *FITS["torch_"], *BATCHES}))]
     answers: dict[str, dict[str, list[float]]] = {w: {r: [] for r in requests} for w in workers}
     try:
         for r in range(rounds):
             order = ("old", "new") if r % 2 == 0 else ("new", "old")
             for request in requests:
                 for w in order:
+                    if request.startswith("floor") and w == "old":
+                        continue                    # the floor: measured once a round, beside the steps
                     answers[w][request].append(workers[w].ask(request))
     finally:
         for w in workers.values():
             w.close()
-    figures: dict[str, float] = {}
+    figures: dict[str, Any] = {}
     for w, got in answers.items():
-        med = {k: float(np.median(v)) for k, v in got.items()}
-        figures[f"{w}_fk_step_us"] = med["step"]
+        pairs = np.array(got.pop("step"))                        # (rounds, 2): step, floor
+        med = {k: float(np.median(v)) for k, v in got.items() if v}
+        figures[f"{w}_step_to_floor"] = float(np.median(pairs[:, 0] / pairs[:, 1]))   # round by round
+        figures[f"{w}_fk_step_us"] = float(np.median(pairs[:, 0]))
+        figures[f"{w}_fk_floor_us"] = float(np.median(pairs[:, 1]))
         for b in BATCHES:
             figures[f"{w}_predictions_per_s_b{b}"] = b / med[f"predict {b}"] * 1e6
         for path, sizes in FITS.items():
@@ -288,9 +322,9 @@ def compare(model: Path, joints: np.ndarray, rounds: int, old_src: Path, folder:
             figures[f"{w}_predict_{path}call_overhead_us"] = float(intercept)
             figures[f"{w}_predict_{path}per_row_us"] = float(slope)
         figures[f"{w}_predict_b1_us"] = med["predict 1"]
-    figures["fk_floor_us"], macs = floor_us(model, np.float64)
-    figures["fk_floor_f32_us"] = floor_us(model, np.float32)[0]
-    figures["multiply_adds"] = macs
+    figures["fk_floor_us"] = figures["new_fk_floor_us"]
+    figures["fk_floor_f32_us"] = float(np.median(answers["new"]["floor 32"]))
+    figures["multiply_adds"] = floor_us(model, np.float64, calls=1)[1]
     figures.update(onnx_figures(model, long, folder))
     figures["fk_step_us"] = figures["new_fk_step_us"]
     figures["predict_call_overhead_us"] = figures["new_predict_call_overhead_us"]
@@ -303,8 +337,8 @@ def print_table(f: dict[str, Any], rev: str, load: str) -> None:
     print(f"{'':34s} {'old ' + rev:>14s} {'new':>12s} {'floor / ONNX':>14s}")
     print(f"{'FK step µs (median)':34s} {f['old_fk_step_us']:14.2f} {f['new_fk_step_us']:12.2f} "
           f"{f['fk_floor_us']:8.2f} f64 / {f['onnx_step_us']:.2f} ONNX")
-    print(f"{'  ratio to the f64 floor':34s} {f['old_fk_step_us'] / f['fk_floor_us']:14.2f} "
-          f"{f['new_fk_step_us'] / f['fk_floor_us']:12.2f}   (f32 floor {f['fk_floor_f32_us']:.2f} µs, "
+    print(f"{'  to the f64 floor (round by round)':34s} {f['old_step_to_floor']:14.2f} "
+          f"{f['new_step_to_floor']:12.2f}   (f32 floor {f['fk_floor_f32_us']:.2f} µs, "
           f"{f['multiply_adds']:,} multiply-adds)")
     for path, sizes in FITS.items():
         what = f"predict fixed cost µs (B={sizes[0]}..{sizes[-1]})"
@@ -369,6 +403,7 @@ def main() -> None:
         load = os.getloadavg()
         uptime = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
         figures["load_1min"] = [load_before[0], load[0]]
+        figures["fk_step_to_floor"] = figures["new_step_to_floor"]
         print_table(figures, args.baseline, uptime)
         print(json.dumps(figures))
 
