@@ -52,17 +52,19 @@ IK_MODELS = {"fk_paper": "fk_lstm_mlp", "fk_branch": "fk_lstm_mlp_branch", "ik_p
 
 
 # --- the worker: one tree's ctrkin, measurements on request ---------------------------------------
-def _step_us(kin: Any, xs: np.ndarray, warmup: int = 200) -> np.ndarray:
-    """Per-step times (µs) of kin.step over xs after a warm-up, from a sequence start."""
+def _step_us(kin: Any, xs: np.ndarray, warmup: int = 200, step: Any = None) -> np.ndarray:
+    """Per-step times (µs) of `step` (default kin.step) over xs after a warm-up, from a sequence
+    start."""
+    step = step or kin.step
     kin.reset()
     for x in xs[:warmup]:
-        kin.step(x)
+        step(x)
     kin.reset()
     ns = np.empty(len(xs))
     clock = time.perf_counter_ns
     for k, x in enumerate(xs):
         t0 = clock()
-        kin.step(x)
+        step(x)
         ns[k] = clock() - t0
     return ns / 1e3
 
@@ -351,8 +353,10 @@ def print_table(f: dict[str, Any], rev: str, load: str) -> None:
               f"{f[f'new_predictions_per_s_b{b}']:12,.0f} {f[f'onnx_predictions_per_s_b{b}']:14,.0f}")
 
 
-def reproduction_table(run: Path, steps: int) -> dict[str, float]:
-    """Issue 8's table: the streaming step of each learned model of a reproduction."""
+def reproduction_table(run: Path, steps: int, rounds: int) -> dict[str, float]:
+    """Issue 8's table: the streaming step of each learned model of a reproduction; for the FK
+    models also the cost of the face (issue 27): the step through `Kinematics.step` and directly on
+    its family's predictor in alternating rounds, and the median of the rounds' differences."""
     from ctrkin.data.dataset import Dataset
     from ctrkin.inference import Kinematics
 
@@ -371,6 +375,13 @@ def reproduction_table(run: Path, steps: int) -> dict[str, float]:
         figures[f"{key}_step_us_median"] = float(np.median(us))
         figures[f"{key}_step_us_p95"] = float(np.quantile(us, 0.95))
         print(f"{name:28s} {np.median(us):10.1f} {np.quantile(us, 0.95):10.1f} {n:7d}")
+        if kin.task == "fk" and rounds and hasattr(kin, "predictor"):
+            xs = np.ascontiguousarray(inputs["fk"][:n])
+            own = kin.predictor.step
+            diffs = [float(np.median(_step_us(kin, xs)) - np.median(_step_us(kin, xs, step=own)))
+                     for _ in range(rounds)]
+            figures[f"{key}_face_us_median"] = float(np.median(diffs))
+            print(f"{'':28s} through Kinematics: {np.median(diffs):+.2f} µs (median of {rounds} rounds)")
     return figures
 
 
@@ -381,7 +392,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--run", type=Path, default=None, help="a `ctrkin reproduce` folder (default: stand-in)")
     ap.add_argument("--baseline", default=BASELINE, help="the old code's git revision")
-    ap.add_argument("--rounds", type=int, default=5, help="alternating old/new rounds")
+    ap.add_argument("--rounds", type=int, default=5,
+                    help="alternating old/new rounds (and face / predictor rounds with --all-models)")
     ap.add_argument("--all-models", action="store_true", help="with --run: every model's step (issue 8)")
     ap.add_argument("--steps", type=int, default=3000, help="--all-models: steps per model")
     args = ap.parse_args()
@@ -396,7 +408,7 @@ def main() -> None:
         model, joints = run_model(args.run) if args.run is not None else stand_in_model(folder, old_src)
         figures: dict[str, Any] = {}
         if args.all_models and args.run is not None:
-            figures.update(reproduction_table(args.run, args.steps))
+            figures.update(reproduction_table(args.run, args.steps, args.rounds))
         load_before = os.getloadavg()
         figures.update(compare(model, np.ascontiguousarray(joints, dtype=np.float64), args.rounds, old_src,
                                folder))

@@ -42,6 +42,8 @@ def test_configs_validate_device():
         TrainConfig(device="gpu")
     with pytest.raises(Exception, match="device"):
         ReproduceConfig(device="gpu")
+    with pytest.raises(Exception, match="Ray tasks reserve CPUs only"):
+        ReproduceConfig(device="cuda", executor="ray")
     # the device is how, not what, is trained: a run may resume or be reused on another device
     assert TrainConfig(device="cpu").differences(TrainConfig(device="cuda")) == []
 

@@ -156,5 +156,8 @@ class ReproduceConfig:
             raise CtrkinError(f"executor must be one of {get_args(Executor)}, got {self.executor!r}")
         if self.device not in DEVICES:
             raise CtrkinError(f"device must be one of {DEVICES}, got {self.device!r}")
+        if self.device == "cuda" and self.executor == "ray":
+            raise CtrkinError("--device cuda with --executor ray: the Ray tasks reserve CPUs only; pass "
+                              "--device cpu, or use the local executor to train on a GPU")
         if not isinstance(self.workers, int) or self.workers < 1:
             raise CtrkinError(f"workers must be an integer >= 1, got {self.workers!r}")

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from ctrkin.data.dataset import Dataset
+from ctrkin.errors import CtrkinError
 from ctrkin.evaluation.executors import run_jobs
 from ctrkin.evaluation.scales import Budget, ReproScale
 from ctrkin.evaluation.table import ABLATION, BASELINES, FK_BRANCH, FK_PAPER, IK_FOLLOW, IK_PAPER, IK_REFINED
@@ -103,7 +104,14 @@ def train_all(
     returns the loaded models. dataset_dir: the saved paper dataset with its split; executor:
     "local" (spawned processes) or "ray" (Ray tasks of one CPU each, ctrkin.evaluation.executors;
     the same results for the same seeds); device: auto | cpu | cuda (ctrkin.training.device), resolved
-    here once, so that auto says once where the runs train."""
+    here once, so that auto says once where the runs train (the Ray executor's tasks train on the
+    CPU: they reserve no GPU)."""
+    if executor == "ray" and device != "cpu":        # Ray hides the GPUs from tasks that reserve none
+        if device == "cuda":
+            raise CtrkinError("--device cuda with --executor ray: the Ray tasks reserve CPUs only; pass "
+                              "--device cpu, or use the local executor to train on a GPU")
+        log("--device auto with --executor ray: the Ray tasks reserve CPUs only, training on the CPU")
+        device = "cpu"
     torch_device, note = resolve_device(device)
     if note:
         log(note)
