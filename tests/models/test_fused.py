@@ -197,3 +197,29 @@ def test_short_predict_is_the_fused_step(fused_dirs, outer_fk, sweeps, name):
         with pytest.raises((JointError, ModelError)) as want_error:
             ref.predict(bad)
         assert str(got_error.value) == str(want_error.value)
+
+
+def test_copies_keep_one_state_for_both_paths(fused_dirs, sweeps):
+    """After copy.deepcopy or pickle of a model mid-sequence, the engine's state arrays are views of
+    the fused step's buffers again (a copy would otherwise give the reference path and probe() a
+    stale history): probe() after more fused steps answers as on the original."""
+    import copy
+    import pickle
+
+    kin = Kinematics.load(fused_dirs["fk_branch"])
+    path = _joint_path(sweeps, np.random.default_rng(4), 40)
+    kin.reset(outer_motion=1)
+    for q in path[:20]:
+        kin.step(q)
+    twins = [copy.deepcopy(kin), pickle.loads(pickle.dumps(kin))]
+    for q in path[20:30]:
+        kin.step(q)
+    want = kin.probe(path[30:])
+    for twin in twins:
+        engine, fused = twin.predictor._engine, twin.predictor._fused
+        assert np.shares_memory(engine._h[0], fused.state.buf)
+        assert np.shares_memory(engine._x, fused.state.buf)
+        for q in path[20:30]:
+            twin.step(q)
+        for a, b in zip(twin.probe(path[30:]), want, strict=True):
+            np.testing.assert_array_equal(a, b)

@@ -26,7 +26,7 @@ so both paths can alternate within one sequence and `probe()` sees the same hist
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -327,13 +327,28 @@ class FusedFK:
                                *(a for i in range(n_layers) for a in (self.head_w[i], self.head_b[i]))],
                               np.float64)
         e = self.engine
-        floats = [e._h[0], e._c[0], e._h2[0], e._c2[0], e._g[0], e._t[0], e._hist, e._x]
-        self.state = _Packed(floats, np.float64)
+        self.state = _Packed(self._engine_state(), np.float64)
         self.ints = _Packed([self.tables[1], self.tables[2], e._bits[0]], np.int64)
-        e._h[0], e._c[0], e._h2[0], e._c2[0], e._g[0], e._t[0], e._hist, e._x = (
-            self.state.view(k, a.shape) for k, a in enumerate(floats))
-        e._bits[0] = self.ints.view(BITS, e._bits[0].shape)
+        self._share_state()
         self.config = np.array([*self.cfg, n_layers], dtype=np.int64)
+
+    def _engine_state(self) -> list[np.ndarray]:
+        """The engine's state arrays, in the state buffer's order (H, C, H2, C2, G, T, HIST, X)."""
+        e = self.engine
+        return [e._h[0], e._c[0], e._h2[0], e._c2[0], e._g[0], e._t[0], e._hist, e._x]
+
+    def _share_state(self) -> None:
+        """Point the engine's state arrays at views of the buffers (they hold the same values)."""
+        e = self.engine
+        e._h[0], e._c[0], e._h2[0], e._c2[0], e._g[0], e._t[0], e._hist, e._x = (
+            self.state.view(k, a.shape) for k, a in enumerate(self._engine_state()))
+        e._bits[0] = self.ints.view(BITS, e._bits[0].shape)
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """After a deep copy or unpickling the engine's arrays are copies of their own, no longer views
+        of the buffers: share them again, so that both paths keep seeing one state."""
+        self.__dict__.update(state)
+        self._share_state()
 
     @classmethod
     def build(cls, bundle: ModelBundle, engine: StreamingEngine | None, guard: FKGuard, clip: Clip,
