@@ -14,6 +14,7 @@ from ctrkin.errors import JointError, ModelError
 from ctrkin.families.registry import open_bundle
 from ctrkin.families.snap_aware.fold_gate import FoldGate
 from ctrkin.inference import Kinematics
+from ctrkin.models.fk_predictor import FUSED_ROWS
 from ctrkin.models.frame import OuterFrame
 from ctrkin.training import TrainConfig, train
 
@@ -152,3 +153,73 @@ def test_probe_sees_the_fused_history(fused_dirs, sweeps):
 def test_models_outside_the_fused_scope_keep_the_reference_path(model_dirs):
     assert not Kinematics.load(model_dirs["fk_cnn"]).fused
     assert not Kinematics.load(model_dirs["ik"]).fused
+
+
+@pytest.fixture(scope="module")
+def outer_fk(sweeps, tmp_path_factory):
+    """A paper-family FK model learned in the outer tube's frame (no lag, no branch state)."""
+    folder = tmp_path_factory.mktemp("outer_fk") / "fk"
+    train(sweeps, TrainConfig(task="fk", max_epochs=1, threads=1, target_frame="outer",
+                              options={"structure": "L8|D8"}), folder, progress=False)
+    return folder
+
+
+@pytest.mark.parametrize("name", ["fk", "fk_default", "outer"])
+def test_short_predict_is_the_fused_step(fused_dirs, outer_fk, sweeps, name):
+    """predict on up to FUSED_ROWS rows runs the fused step (issue 26): the poses `step` gives from a
+    reset, bit for bit, within float32 round-off of the torch batch path, the stream untouched; rows
+    the fast checks refuse go to the batch path, which raises its own message."""
+    folder = outer_fk if name == "outer" else fused_dirs[name]
+    kin, ref = Kinematics.load(folder), Kinematics.load(folder, fused=False)
+    assert kin.predictor._fused.stateless and (kin.frame is not None) == (name == "outer")
+    path = _joint_path(sweeps, np.random.default_rng(5), 80)
+    path[40:, :2] += 720.0                                 # whole turns outside the trained range
+    kin.reset()
+    stream = [kin.step(q) for q in path[:10]]
+    for start, n in [(0, 1), (3, 2), (11, 7), (20, FUSED_ROWS), (45, FUSED_ROWS), (50, 5)]:
+        rows = path[start:start + n]
+        got = kin.predict(rows)
+        twin = kin.copy()
+        twin.reset()
+        np.testing.assert_array_equal(got, np.array([twin.step(q) for q in rows]), err_msg=f"{start}+{n}")
+        np.testing.assert_allclose(got, ref.predict(rows), atol=2e-4, err_msg=f"{start}+{n}")
+    longer = path[:FUSED_ROWS + 1]                         # the batch path, float32
+    np.testing.assert_allclose(kin.predict(longer)[:FUSED_ROWS], kin.predict(longer[:FUSED_ROWS]), atol=2e-4)
+    # the stream went on where it was: predict did not touch it
+    fresh = Kinematics.load(folder)
+    fresh.reset()
+    want = [fresh.step(q) for q in path[:12]]
+    np.testing.assert_array_equal(np.array(stream + [kin.step(q) for q in path[10:12]]), np.array(want))
+    for bad in [np.array([[np.nan, 0.0, -20.0, -5.0]]), np.array([[0.0, 0.0, -40.0, 5.0]]),
+                np.r_[path[:3], [[1e12, 0.0, -20.0, -5.0]]], np.r_[path[:3], [[np.inf, 0.0, -20.0, -5.0]]]]:
+        with pytest.raises((JointError, ModelError)) as got_error:
+            kin.predict(bad)
+        with pytest.raises((JointError, ModelError)) as want_error:
+            ref.predict(bad)
+        assert str(got_error.value) == str(want_error.value)
+
+
+def test_copies_keep_one_state_for_both_paths(fused_dirs, sweeps):
+    """After copy.deepcopy or pickle of a model mid-sequence, the engine's state arrays are views of
+    the fused step's buffers again (a copy would otherwise give the reference path and probe() a
+    stale history): probe() after more fused steps answers as on the original."""
+    import copy
+    import pickle
+
+    kin = Kinematics.load(fused_dirs["fk_branch"])
+    path = _joint_path(sweeps, np.random.default_rng(4), 40)
+    kin.reset(outer_motion=1)
+    for q in path[:20]:
+        kin.step(q)
+    twins = [copy.deepcopy(kin), pickle.loads(pickle.dumps(kin))]
+    for q in path[20:30]:
+        kin.step(q)
+    want = kin.probe(path[30:])
+    for twin in twins:
+        engine, fused = twin.predictor._engine, twin.predictor._fused
+        assert np.shares_memory(engine._h[0], fused.state.buf)
+        assert np.shares_memory(engine._x, fused.state.buf)
+        for q in path[20:30]:
+            twin.step(q)
+        for a, b in zip(twin.probe(path[30:]), want, strict=True):
+            np.testing.assert_array_equal(a, b)

@@ -40,12 +40,14 @@ def reproduce_cmd(overwrite: bool, settings: tuple[str, ...], **options: Any) ->
     from ctrkin.evaluation.reproduce import reproduce
     from ctrkin.evaluation.scales import get_scale
     from ctrkin.robots import load_robot
+    from ctrkin.training.device import resolve_device
 
     cfg = ReproduceConfig(**options, virtual=virtual_config(settings))
+    resolve_device(cfg.device)            # cuda without one: refused before the folder is touched
     output_folder(cfg.out, "reproduction", overwrite, inputs=[cfg.robot], reuse=True)
     results = reproduce(load_robot(cfg.robot), get_scale(cfg.scale), cfg.out, robot_seed=cfg.robot_seed,
                         workers=cfg.workers, log=say, executor=cfg.executor, overwrite=overwrite,
-                        virtual=cfg.virtual)
+                        virtual=cfg.virtual, device=cfg.device)
     for line in headlines(results.fk, results.ik):
         say(line)
 

@@ -38,6 +38,7 @@ from ctrkin.evaluation.tcm_baseline import TCMBaseline
 from ctrkin.evaluation.training_runs import train_all
 from ctrkin.inference import Kinematics
 from ctrkin.robots.robot import Robot
+from ctrkin.training.device import resolve_device
 from ctrkin.util.folders import folder_lock
 from ctrkin.version import __version__
 from ctrkin.virtual.config import VirtualConfig
@@ -90,24 +91,29 @@ def reproduce(
     executor: str = "local",
     overwrite: bool = False,
     virtual: VirtualConfig | None = None,
+    device: str = "auto",
 ) -> ReproResults:
     """Run the whole reproduction into `out`; workers: trainings run in parallel (one thread each);
     executor: where they run, "local" processes or "ray" tasks (ctrkin.evaluation.executors).
     Stages: collect data, train, fit the TCM baseline, FK experiments, IK experiments, grids,
     timing; then results.json and report.md. Returns the results as written to results.json.
     `out` may hold a reproduction of the same settings (reused); one of other settings is refused
-    unless `overwrite`, which replaces it (ctrkin.evaluation.repro_folder). virtual: the virtual
-    robot's effect magnitudes (default VirtualConfig(); `ctrkin reproduce --set`). Any robot: the
-    protocols carry the paper robot's translations over to its geometry (ctrkin.acquisition.ranges)."""
+    unless `overwrite`, which replaces it (ctrkin.evaluation.repro_folder). device: where the models
+    train (auto | cpu | cuda, ctrkin.training.device), not part of the settings a rerun must match.
+    virtual: the virtual robot's effect magnitudes (default VirtualConfig(); `ctrkin reproduce
+    --set`). Any robot: the protocols carry the paper robot's translations over to its geometry
+    (ctrkin.acquisition.ranges)."""
     out = Path(out)
     virtual = VirtualConfig() if virtual is None else virtual
+    resolve_device(device)              # cuda without one is refused before any work
     with folder_lock(out, OutputError, "reproduce"):
         claim(out, robot, scale, robot_seed, overwrite, virtual)
-        return _reproduce(robot, scale, out, robot_seed, workers, log, executor, virtual)
+        return _reproduce(robot, scale, out, robot_seed, workers, log, executor, virtual, device)
 
 
 def _reproduce(robot: Robot, scale: ReproScale, out: Path, robot_seed: int, workers: int,
-               log: Callable[[str], None], executor: str, virtual: VirtualConfig) -> ReproResults:
+               log: Callable[[str], None], executor: str, virtual: VirtualConfig,
+               device: str) -> ReproResults:
     figures = out / "figures"
     figures.mkdir(parents=True, exist_ok=True)
     st = _Stages(log)
@@ -116,7 +122,7 @@ def _reproduce(robot: Robot, scale: ReproScale, out: Path, robot_seed: int, work
         data.paper.save_split(out / "data" / "paper", data.paper.get_split(seed=0))
     with st.stage("train models"):
         models = train_all(out / "data" / "paper", scale, out / "models", workers=workers, log=log,
-                           executor=executor)
+                           executor=executor, device=device)
     with st.stage("fit the TCM baseline's registration on training rows"):
         tcm = _tcm_baseline(robot, data, scale)
     with st.stage("calibrate the TCM on training rows (friction included)"):

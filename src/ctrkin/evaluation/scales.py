@@ -9,7 +9,7 @@ from typing import Any, Literal, get_args
 
 from ctrkin.acquisition.protocols import PAPER_SIZES
 from ctrkin.errors import CtrkinError
-from ctrkin.training.config import LrSchedule, scaled_lr
+from ctrkin.training.config import DEVICES, Device, LrSchedule, scaled_lr
 from ctrkin.virtual.config import VirtualConfig
 
 
@@ -144,6 +144,9 @@ class ReproduceConfig:
     executor: Executor = field(default="local", metadata=_help(
         "local: spawned processes; ray: one Ray task per training, on the cluster at RAY_ADDRESS or a "
         "local instance (pip install 'ctrkin[ray]')."))
+    device: Device = field(default="auto", metadata=_help(
+        "Where the models train: auto (CUDA where torch sees a GPU, else the CPU, and says which), cpu, "
+        "or cuda (an error without one). Not part of the settings a rerun must match."))
     out: str = field(default="out/reproduce", metadata=_help(
         "Output folder. A rerun with the same settings reuses its data and models; one with other "
         "settings is refused unless --overwrite."))
@@ -154,6 +157,11 @@ class ReproduceConfig:
         get_scale(self.scale)
         if self.executor not in get_args(Executor):
             raise CtrkinError(f"executor must be one of {get_args(Executor)}, got {self.executor!r}")
+        if self.device not in DEVICES:
+            raise CtrkinError(f"device must be one of {DEVICES}, got {self.device!r}")
+        if self.device == "cuda" and self.executor == "ray":
+            raise CtrkinError("--device cuda with --executor ray: the Ray tasks reserve CPUs only; pass "
+                              "--device cpu, or use the local executor to train on a GPU")
         if not isinstance(self.workers, int) or self.workers < 1:
             raise CtrkinError(f"workers must be an integer >= 1, got {self.workers!r}")
         if not isinstance(self.virtual, VirtualConfig):

@@ -18,12 +18,14 @@ from typing import Any
 import numpy as np
 
 from ctrkin.data.dataset import Dataset
+from ctrkin.errors import CtrkinError
 from ctrkin.evaluation.executors import run_jobs
 from ctrkin.evaluation.scales import Budget, ReproScale
 from ctrkin.evaluation.table import ABLATION, BASELINES, FK_BRANCH, FK_PAPER, IK_FOLLOW, IK_PAPER, IK_REFINED
 from ctrkin.families.refined.folder import assemble_refined
 from ctrkin.inference import Kinematics
 from ctrkin.training.config import TrainConfig
+from ctrkin.training.device import resolve_device
 from ctrkin.training.engine import train
 from ctrkin.util.progress import progress_bar
 
@@ -95,17 +97,28 @@ def _train_run(dataset_dir: str, n_sequences: int | None, cfg: dict[str, Any], o
 
 def train_all(
     dataset_dir: Path, scale: ReproScale, out: Path, workers: int = 2, log: Callable[[str], None] = print,
-    executor: str = "local",
+    executor: str = "local", device: str = "auto",
 ) -> dict[str, Kinematics]:
     """Train (or resume / reuse) every run into out/<name>, `workers` runs at a time with one torch
     thread each (two single-threaded runs use two cores better than one run with two threads);
     returns the loaded models. dataset_dir: the saved paper dataset with its split; executor:
     "local" (spawned processes) or "ray" (Ray tasks of one CPU each, ctrkin.evaluation.executors;
-    the same results for the same seeds)."""
+    the same results for the same seeds); device: auto | cpu | cuda (ctrkin.training.device), resolved
+    here once, so that auto says once where the runs train (the Ray executor's tasks train on the
+    CPU: they reserve no GPU)."""
+    if executor == "ray" and device != "cpu":        # Ray hides the GPUs from tasks that reserve none
+        if device == "cuda":
+            raise CtrkinError("--device cuda with --executor ray: the Ray tasks reserve CPUs only; pass "
+                              "--device cpu, or use the local executor to train on a GPU")
+        log("--device auto with --executor ray: the Ray tasks reserve CPUs only, training on the CPU")
+        device = "cpu"
+    torch_device, note = resolve_device(device)
+    if note:
+        log(note)
     runs = plan_runs(scale)
     jobs = []
     for run in runs:
-        cfg = replace(run.config, threads=1).to_dict()
+        cfg = {**replace(run.config, threads=1).to_dict(), "device": torch_device.type}
         n_seq = None if run.role == "main" else scale.grid_sequences
         jobs.append((str(dataset_dir), n_seq, cfg, str(out / run.name)))
     with progress_bar(total=len(runs), desc="train models", unit="model") as bar:

@@ -36,7 +36,19 @@ def padded_rows(features: np.ndarray, bounds: list[tuple[int, int]], ib: int
 
 def _scaled_lstm_weights(layer: nn.LSTM) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """(W_ih, W_hh, b) with the cell-candidate rows doubled, so one in-place sigmoid over all four
-    gates also gives tanh(g) = 2·σ(2g) − 1 (fewer passes over memory than sigmoid + tanh)."""
+    gates also gives tanh(g) = 2·σ(2g) − 1 (fewer passes over memory than sigmoid + tanh). Kept on
+    the layer while its parameters are unchanged (their version counters): building them cost
+    ~30 µs of a predict call."""
+    key = tuple(p._version for p in layer.parameters())
+    cached = layer.__dict__.get("_ctrkin_scaled")
+    if cached is not None and cached[0] == key:
+        return cached[1]
+    weights = _scaled(layer)
+    layer.__dict__["_ctrkin_scaled"] = (key, weights)
+    return weights
+
+
+def _scaled(layer: nn.LSTM) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     hid = layer.hidden_size
     scale = torch.ones(4 * hid, 1)
     scale[2 * hid:3 * hid] = 2.0

@@ -17,6 +17,7 @@ motor last turned and its previous angle (ctrkin.models.motion), and the outer l
 from __future__ import annotations
 
 import math
+import threading
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -25,6 +26,7 @@ import numpy as np
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import ModelError
 from ctrkin.models.batch import padded_rows, seqnet_predict
+from ctrkin.models.engine import StreamingEngine
 from ctrkin.models.features import (
     by_name,
     pair_features,
@@ -43,6 +45,9 @@ from ctrkin.models.outer_lag import lag_one
 from ctrkin.models.predictor_base import BasePredictor
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle
+
+FUSED_ROWS = 16      # predict runs the fused step on sequences up to this long (bench_streaming)
+MAX_ROW_THREADS = 8  # predict's fused buffers kept for this many threads (then made anew)
 
 
 class FKPredictor(BasePredictor):
@@ -104,6 +109,7 @@ class FKPredictor(BasePredictor):
         self._rebuild_fused()                       # it holds the registration and the lag flag
 
     def _rebuild_fused(self) -> None:
+        self.__dict__.pop("_rows_fused", None)      # predict's own, built again when next needed
         clip = Clip(self._dcols, self._dlo, self._dhi)
         self._fused = (FusedFK.build(self.bundle, self._engine, self._guard, clip, self.frame, self._relay())
                        if self._use_fused else None)
@@ -140,7 +146,17 @@ class FKPredictor(BasePredictor):
 
     def predict(self, data: Dataset | np.ndarray, sequence_id: np.ndarray | None = None,
                 strict: bool = False, **options: Any) -> np.ndarray:
-        """(T, 6) tip poses of every step of the sequences of `data` (Kinematics.predict)."""
+        """(T, 6) tip poses of every step of the sequences of `data` (Kinematics.predict). A short
+        sequence of joints (an array of up to FUSED_ROWS rows, one sequence) runs the fused streaming
+        step row by row (float64, equal to `step`), longer ones the network by chains in torch
+        (float32): the two agree to float32 round-off."""
+        if (type(data) is np.ndarray and data.ndim == 2 and 0 < data.shape[0] <= FUSED_ROWS
+                and data.shape[1] == self.layout.raw_width and data.dtype == np.float64
+                and sequence_id is None and not options and self._fused is not None
+                and self._fused.stateless):
+            y = self._fused_rows(data)
+            if y is not None:
+                return y
         raw, bounds = self.raw_inputs(data, sequence_id)
         net_raw, angles = self._network_joints(data, raw, bounds)
         feats = self._x_norm.transform(self.clip_deltas(sequence_features(self.layout, net_raw, bounds)))
@@ -304,6 +320,26 @@ class FKPredictor(BasePredictor):
         self._gate_state, self._outer_motion, self._outer_prev = st.gate_state, st.outer_motion, st.outer_prev
         self._engine._fresh, self._engine.state = False, st.branch
         return y
+
+    def _fused_rows(self, raw: np.ndarray) -> np.ndarray | None:
+        """predict's short path: the rows (T, 2N) of one sequence through the fused step on a FusedFK
+        of its own (the stream is not touched); None where the fast checks fail (the batch path then
+        answers, or raises with its message)."""
+        first = raw[0]
+        if not np.isfinite(first).all():
+            return None
+        per_thread: dict[int, FusedFK | None] = self.__dict__.setdefault("_rows_fused", {})
+        me = threading.get_ident()          # each thread its own buffers (threads may predict at once)
+        rows = per_thread.get(me)
+        if rows is None:
+            assert self._seqnet is not None
+            rows = FusedFK.build(self.bundle, StreamingEngine(self._seqnet), self._guard,
+                                 Clip(self._dcols, self._dlo, self._dhi), self.frame, self._relay())
+            if len(per_thread) >= MAX_ROW_THREADS:
+                per_thread.clear()
+            per_thread[me] = rows
+        assert rows is not None
+        return rows.rows(np.ascontiguousarray(raw), self._guard.shift(first))
 
     def _motion_after(self, a_n: float) -> int:
         """m_N after the outer motor reaches a_n (deg) as the next step."""

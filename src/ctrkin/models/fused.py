@@ -26,7 +26,7 @@ so both paths can alternate within one sequence and `probe()` sees the same hist
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -35,6 +35,7 @@ from ctrkin.models.engine import StreamingEngine, _dense_rows, _lstm_rows, _push
 from ctrkin.models.frame import OuterFrame, pose_to_world
 from ctrkin.models.guards import MAX_ABS_ALPHA_DEG, FKGuard
 from ctrkin.models.relay import GateTables, gate_step
+from ctrkin.models.seqnet import UNKNOWN_STATE
 from ctrkin.models.store import ModelBundle
 from ctrkin.robots.robot import JOINT_TOL
 
@@ -89,27 +90,69 @@ def _joints_ok(raw: np.ndarray, shift: np.ndarray, n: int, lengths: np.ndarray, 
     return True
 
 
+# The constants and the state of one model reach the kernel as three flat buffers and a directory
+# (`_Packed`): a numba call unboxes each array argument and types each tuple element, which for the
+# three dozen arrays of a step cost as much as the network's arithmetic (issue 26: 2.2 of 15 µs quiet,
+# 7.7 of 35 µs at load 7). Piece k of a buffer is buf[o:o + d0·d1·d2] as shape (d0[, d1[, d2]]), with
+# (o, d0, d1, d2) = directory[4k:4k + 4]; every view is C-contiguous, so the kernels run the same
+# specialisations (and give the same bits) as on the engine's own arrays.
+# constants (float64): guard, normalisation, network, gate tables, registration; head layer l's
+# weights at HEAD + 2l and biases at HEAD + 2l + 1
+(LENGTHS, ALPHA_LO, ALPHA_HI, XLO, XSPAN, CLIP_LO, CLIP_HI, YLO, YSPAN, W_IH, W_HH, BIAS, OUT_W, OUT_B,
+ GATE_W0, GATE_W1, GATE_B0, GATE_B1, T_AXES, T_FORWARD, T_BACKWARD, ROT, TRANS, GATE_CONSTS, HEAD) = range(25)
+# the streaming state (float64, the engine's arrays are views of it); the int64 buffer: the gate
+# tables' start and size, the sigmoid's scratch
+H, C, H2, C2, G, T, HIST, X = range(8)
+T_START, T_SIZE, BITS = range(3)
+# the model's settings, in the int64 directory after the pieces' entries (cfg of `_fk_step`)
+N_TUBES, PHASE, DELTA, FLATTEN, RELU_OUT, GATE_KIND, OUTER_FRAME, HAS_LAG, LAGGED_INPUTS, N_HEAD = range(10)
+
+
+# explicit signatures: one compiled version each, not one per piece number (numba would otherwise
+# specialise on each literal k)
+@njit(["float64[::1](float64[::1], int64[::1], int64)", "int64[::1](int64[::1], int64[::1], int64)"],
+      cache=True)
+def _piece(buf, where, k):
+    """The flat view of piece k of buf (its shape: `where` at 4k + 1..3)."""
+    o = where[4 * k]
+    return buf[o:o + where[4 * k + 1] * where[4 * k + 2] * where[4 * k + 3]]
+
+
+@njit("float64[:, ::1](float64[::1], int64[::1], int64)", cache=True)
+def _v2(buf, where, k):
+    return _piece(buf, where, k).reshape((where[4 * k + 1], where[4 * k + 2]))
+
+
+@njit("float64[:, :, ::1](float64[::1], int64[::1], int64)", cache=True)
+def _v3(buf, where, k):
+    return _piece(buf, where, k).reshape((where[4 * k + 1], where[4 * k + 2], where[4 * k + 3]))
+
+
 @njit(cache=True)
-def _fk_step(raw, shift, prev, started, prev_out, cfg, guard, norm,
-             w_ih, w_hh, b, h, c, h2, c2, g, t, bits, hist, x, fresh, branch,
-             head_w, head_b, out_w, out_b, gate_w, gate_b, gate_state, motion, outer_prev,
-             tables, gate_consts, rot, trans, lag, y):
+def _fk_step(raw, shift, prev, started, prev_out, consts, cwhere, state, swhere, ints, iwhere, cfg,
+             fresh, branch, gate_state, motion, outer_prev, lag, y):
     """One FK step: joints raw (2N,) (deg, mm, as given) -> y (6,) tracker-frame pose. Returns
     (gate state, m_N, αN, branch state) or a gate state DECLINED (nothing changed).
 
     shift (2N,): the sequence's whole turns; prev (2N,): the previous shifted joints (started);
-    prev_out (2N,): receives this step's (as the network sees them). cfg: (N, phase, delta, flatten,
-    relu output, gate kind, outer frame, its lag, its lagged inputs). guard: (lengths, α lo, α hi);
-    norm: (x lo, x span, clip lo, clip hi, y lo, y span).
-    The LSTM (w_ih, w_hh, b) and its chains h, c (scratch h2, c2, g, t, bits), history hist, input
-    row x (1, F) are the StreamingEngine's; fresh: the sequence's first step. head_w, head_b: per
-    Dense layer (B, out, in), (B, out) for B branches; out_w, out_b likewise; gate_w, gate_b: the
-    learned gate's two layers. tables, gate_consts: the fold gate's GateTables and (c, κ, band);
-    rot, trans: the outer frame's registration; lag: its outer lag λ(β) (deg) at these joints."""
-    n, phase, delta, flatten, relu_out, gate_kind, outer_frame, has_lag, lagged_inputs = cfg
-    if not _joints_ok(raw, shift, n, guard[0], guard[1], guard[2]):
+    prev_out (2N,): receives this step's (as the network sees them). consts, state, ints: the flat
+    buffers, cwhere, swhere, iwhere their directories (module comment above); cfg (int64): N, phase,
+    delta, flatten, relu output, gate kind, outer frame, its lag, its lagged inputs, Dense layers.
+    The constants: the guard (lengths, α lo, α hi), normalisation (x lo, x span, clip lo, clip hi,
+    y lo, y span), the LSTM (w_ih, w_hh, b: the StreamingEngine's), per Dense layer (B, out, in),
+    (B, out) for B branches and the output layer likewise, the learned gate's two layers, the fold
+    gate's GateTables and (c, κ, band), the outer frame's registration (rot, trans). The state: the
+    LSTM chains h, c (scratch h2, c2, g, t, bits), the history hist and the input row x (1, F) of the
+    StreamingEngine; fresh: the sequence's first step. lag: the outer frame's λ(β) (deg) here."""
+    n, gate_kind = cfg[N_TUBES], cfg[GATE_KIND]
+    phase, delta, flatten, relu_out = cfg[PHASE] != 0, cfg[DELTA] != 0, cfg[FLATTEN] != 0, cfg[RELU_OUT] != 0
+    outer_frame, has_lag, lagged_inputs = cfg[OUTER_FRAME] != 0, cfg[HAS_LAG] != 0, cfg[LAGGED_INPUTS] != 0
+    if not _joints_ok(raw, shift, n, _piece(consts, cwhere, LENGTHS), _piece(consts, cwhere, ALPHA_LO),
+                      _piece(consts, cwhere, ALPHA_HI)):
         return DECLINED, motion, outer_prev, branch
-    xlo, xspan, clip_lo, clip_hi, ylo, yspan = norm
+    xlo, xspan = _piece(consts, cwhere, XLO), _piece(consts, cwhere, XSPAN)
+    clip_lo, clip_hi = _piece(consts, cwhere, CLIP_LO), _piece(consts, cwhere, CLIP_HI)
+    ylo, yspan = _piece(consts, cwhere, YLO), _piece(consts, cwhere, YSPAN)
     q = raw - shift
     a0_cmd = q[0] - q[n - 1]                    # the commanded α0: the fold gate's input
     # m_N from αN as given (FKPredictor._motion_after), followed by the fold gate or the lagged frame
@@ -125,6 +168,7 @@ def _fk_step(raw, shift, prev, started, prev_out, cfg, guard, norm,
     a0 = q[0] - q[n - 1]                                             # eq. (1)
     d_a0 = a0 - (prev[0] - prev[n - 1]) if started else 0.0          # eq. (2)
     prev_out[:] = q
+    x = _v2(state, swhere, X)
     f = x[0]
     f[: 2 * n] = q
     f[2 * n] = a0
@@ -138,10 +182,18 @@ def _fk_step(raw, shift, prev, started, prev_out, cfg, guard, norm,
     for j in range(f.size):
         f[j] = (min(max(f[j], clip_lo[j]), clip_hi[j]) - xlo[j]) / xspan[j]
     if gate_kind == GATE_FOLD:          # the relay on the shifted joints (SnapAwarePredictor._fold_step)
-        gate_state = gate_step(gate_state, a0_cmd, q[n:], float(motion), tables[0], tables[1], tables[2],
-                               tables[3], tables[4], gate_consts[0], gate_consts[1], gate_consts[2])
+        gc = _piece(consts, cwhere, GATE_CONSTS)
+        gate_state = gate_step(gate_state, a0_cmd, q[n:], float(motion), _piece(consts, cwhere, T_AXES),
+                               _piece(ints, iwhere, T_START), _piece(ints, iwhere, T_SIZE),
+                               _piece(consts, cwhere, T_FORWARD), _piece(consts, cwhere, T_BACKWARD),
+                               gc[0], gc[1], gc[2])
         branch = 1.0 if gate_state > 0.5 else 0.0
     # the engine (StreamingEngine.step, one LSTM layer): a fresh sequence feeds its first step IB times
+    w_ih, w_hh, b = _v2(consts, cwhere, W_IH), _v2(consts, cwhere, W_HH), _piece(consts, cwhere, BIAS)
+    h, c = _v2(state, swhere, H), _v2(state, swhere, C)
+    h2, c2 = _v2(state, swhere, H2), _v2(state, swhere, C2)
+    g, t, bits = _v2(state, swhere, G), _v2(state, swhere, T), _piece(ints, iwhere, BITS)
+    hist = _v3(state, swhere, HIST)
     ib = hist.shape[0]
     for _ in range(ib if fresh else 1):
         _lstm_rows(x, True, w_ih, w_hh, b, h, c, h2, c2, g, t, bits)
@@ -149,30 +201,70 @@ def _fk_step(raw, shift, prev, started, prev_out, cfg, guard, norm,
     window = hist[ib - 1]
     z = window.reshape((1, window.size)) if flatten else window[ib - 1:]
     if gate_kind == GATE_LEARNED:                                    # StreamingEngine._head
+        gate_w0, gate_w1 = _v2(consts, cwhere, GATE_W0), _v2(consts, cwhere, GATE_W1)
         zs = np.empty((1, z.shape[1] + 1))
         zs[0, :-1] = z[0]
         zs[0, -1] = branch
-        g1 = np.empty((1, gate_w[0].shape[0]))
+        g1 = np.empty((1, gate_w0.shape[0]))
         g2 = np.empty((1, 1))
-        _dense_rows(zs, gate_w[0], gate_b[0], g1, True)
-        _dense_rows(g1, gate_w[1], gate_b[1], g2, False)
+        _dense_rows(zs, gate_w0, _piece(consts, cwhere, GATE_B0), g1, True)
+        _dense_rows(g1, gate_w1, _piece(consts, cwhere, GATE_B1), g2, False)
         branch = 1.0 if g2[0, 0] > 0 else 0.0
     head = int(branch) if gate_kind != GATE_NONE else 0
-    for layer in range(len(head_w)):
-        buf = np.empty((1, head_w[layer].shape[1]))
-        _dense_rows(z, head_w[layer][head], head_b[layer][head], buf, True)
+    for layer in range(cfg[N_HEAD]):
+        hw, hb = _v3(consts, cwhere, HEAD + 2 * layer), _v2(consts, cwhere, HEAD + 2 * layer + 1)
+        buf = np.empty((1, hw.shape[1]))
+        _dense_rows(z, hw[head], hb[head], buf, True)
         z = buf
+    out_w, out_b = _v3(consts, cwhere, OUT_W), _v2(consts, cwhere, OUT_B)
     yn = np.empty((1, out_w.shape[1]))
     _dense_rows(z, out_w[head], out_b[head], yn, relu_out)
     local = yn[0] * yspan + ylo
     if outer_frame:                              # at αN less the lag (FKPredictor._step_angle)
-        pose_to_world(local, outer, rot, trans, y)
+        pose_to_world(local, outer, _v2(consts, cwhere, ROT), _piece(consts, cwhere, TRANS), y)
     else:
         y[:] = local
         nq = math.sqrt(y[3] * y[3] + y[4] * y[4] + y[5] * y[5])
         if nq > 1e-12:
             y[3:6] /= nq
     return gate_state, motion, outer_prev, branch
+
+
+@njit(cache=True)
+def _fk_rows(rows, shift, prev, prev_out, consts, cwhere, state, swhere, ints, iwhere, cfg, out):
+    """Each row of one sequence rows (T, 2N) as a step from a sequence start (reset() defaults: no
+    branch state, the outer tube at rest) -> out (T, 6), as `_fk_step` would give them one by one.
+    Returns T, or the first declined row (its checks failed: nothing is to be trusted)."""
+    gate_state, motion, outer_prev, branch = -1, 0, math.nan, UNKNOWN_STATE
+    for r in range(rows.shape[0]):
+        gate_state, motion, outer_prev, branch = _fk_step(
+            rows[r], shift, prev, r > 0, prev_out, consts, cwhere, state, swhere, ints, iwhere, cfg, r == 0,
+            branch, gate_state, motion, outer_prev, 0.0, out[r])
+        if gate_state == DECLINED:
+            return r
+        prev[:] = prev_out
+    return rows.shape[0]
+
+
+class _Packed:
+    """Arrays laid end to end in one flat buffer of `dtype`, and the directory `where` (int64,
+    4 entries per piece: offset, shape padded with 1s to three dimensions) that `_piece` reads."""
+
+    def __init__(self, arrays: list[np.ndarray], dtype: type) -> None:
+        where, offset = [], 0
+        for a in arrays:
+            shape = (*a.shape, 1, 1, 1)[:3]
+            where.extend([offset, *shape])
+            offset += a.size
+        self.buf: np.ndarray = np.zeros(offset, dtype=dtype)
+        self.where = np.array(where, dtype=np.int64)
+        for k, a in enumerate(arrays):
+            self.view(k, a.shape)[...] = a
+
+    def view(self, k: int, shape: tuple[int, ...]) -> np.ndarray:
+        """Piece k as an array of `shape` sharing the buffer."""
+        o, d0, d1, d2 = (int(v) for v in self.where[4 * k:4 * k + 4])
+        return self.buf[o:o + d0 * d1 * d2].reshape(shape)
 
 
 class FusedFK:
@@ -223,6 +315,40 @@ class FusedFK:
                     frame is not None and frame.lags_inputs)
         self.prev = np.zeros(2 * n)        # the last step's shifted joints (FKPredictor._prev)
         self._none = np.zeros(2 * n)
+        self._pack(n_layers)
+
+    def _pack(self, n_layers: int) -> None:
+        """The flat buffers `_fk_step` reads (module comment above it); the engine's state arrays
+        become views of the state buffer, so the reference path and this one share them."""
+        w_ih, w_hh, b = self.lstm
+        self.consts = _Packed([*self.guard, *self.norm, w_ih, w_hh, b, self.out_w, self.out_b, *self.gate_w,
+                               *self.gate_b, self.tables[0], self.tables[3], self.tables[4], self.rot,
+                               self.trans, np.array(self.gate_consts, float),
+                               *(a for i in range(n_layers) for a in (self.head_w[i], self.head_b[i]))],
+                              np.float64)
+        e = self.engine
+        self.state = _Packed(self._engine_state(), np.float64)
+        self.ints = _Packed([self.tables[1], self.tables[2], e._bits[0]], np.int64)
+        self._share_state()
+        self.config = np.array([*self.cfg, n_layers], dtype=np.int64)
+
+    def _engine_state(self) -> list[np.ndarray]:
+        """The engine's state arrays, in the state buffer's order (H, C, H2, C2, G, T, HIST, X)."""
+        e = self.engine
+        return [e._h[0], e._c[0], e._h2[0], e._c2[0], e._g[0], e._t[0], e._hist, e._x]
+
+    def _share_state(self) -> None:
+        """Point the engine's state arrays at views of the buffers (they hold the same values)."""
+        e = self.engine
+        e._h[0], e._c[0], e._h2[0], e._c2[0], e._g[0], e._t[0], e._hist, e._x = (
+            self.state.view(k, a.shape) for k, a in enumerate(self._engine_state()))
+        e._bits[0] = self.ints.view(BITS, e._bits[0].shape)
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """After a deep copy or unpickling the engine's arrays are copies of their own, no longer views
+        of the buffers: share them again, so that both paths keep seeing one state."""
+        self.__dict__.update(state)
+        self._share_state()
 
     @classmethod
     def build(cls, bundle: ModelBundle, engine: StreamingEngine | None, guard: FKGuard, clip: Clip,
@@ -243,13 +369,26 @@ class FusedFK:
         previous shifted joints (None at a start), the fold gate's state and m_N, lag the outer frame's
         λ(β) (deg) -> the (6,) pose and the new state (gate_state DECLINED: nothing changed, take the
         reference path)."""
-        e = self.engine
         y = np.empty(6)
-        w_ih, w_hh, b = self.lstm
         res = _fk_step(raw, shift, self._none if prev is None else prev, prev is not None, self.prev,
-                       self.cfg, self.guard, self.norm, w_ih, w_hh, b, e._h[0], e._c[0], e._h2[0],
-                       e._c2[0], e._g[0], e._t[0], e._bits[0], e._hist, e._x, e._fresh, e.state,
-                       self.head_w, self.head_b, self.out_w, self.out_b, self.gate_w, self.gate_b,
-                       gate_state, outer_motion, outer_prev, self.tables, self.gate_consts, self.rot,
-                       self.trans, lag, y)
+                       self.consts.buf, self.consts.where, self.state.buf, self.state.where, self.ints.buf,
+                       self.ints.where, self.config, self.engine._fresh, self.engine.state, gate_state,
+                       outer_motion, outer_prev, lag, y)
         return y, StepState(*res)
+
+    @property
+    def stateless(self) -> bool:
+        """Whether a step depends on nothing before the sequence's start (no branch state, no outer
+        lag): then `rows` gives what `step` gives from a reset()."""
+        return bool(self.config[GATE_KIND] == GATE_NONE and not self.config[HAS_LAG])
+
+    def rows(self, raw: np.ndarray, shift: np.ndarray) -> np.ndarray | None:
+        """The steps of one whole sequence raw (T, 2N) (as given; shift (2N,): its whole turns) from a
+        sequence start: (T, 6) poses equal to `step`'s, on this object's state (a model's own copy,
+        never the stream's: FKPredictor.predict); None where a row fails the fast checks. Only for a
+        `stateless` model."""
+        out = np.empty((len(raw), 6))
+        prev = np.zeros(len(shift))
+        done = _fk_rows(raw, shift, prev, self.prev, self.consts.buf, self.consts.where, self.state.buf,
+                        self.state.where, self.ints.buf, self.ints.where, self.config, out)
+        return out if done == len(raw) else None

@@ -24,10 +24,12 @@ Split = Literal["dataset", "sequence", "random"]
 PoseSource = Literal["measured", "true"]
 LrSchedule = Literal["constant", "cosine"]
 Loop = Literal["epoch", "batch"]
+Device = Literal["auto", "cpu", "cuda"]
 SPLITS: tuple[str, ...] = get_args(Split)
 POSE_SOURCES: tuple[str, ...] = get_args(PoseSource)
 LR_SCHEDULES: tuple[str, ...] = get_args(LrSchedule)
 LOOPS: tuple[str, ...] = get_args(Loop)
+DEVICES: tuple[str, ...] = get_args(Device)
 PAPER_BATCH, PAPER_LR, PAPER_EPOCHS = 32, 1e-3, 500
 MIN_STEPS = 10_000         # the default budget's least optimiser steps (issue 22: 63 NDI samples)
 PATIENCE_STEPS = 1_000     # early stopping's least optimiser steps without an improvement
@@ -133,6 +135,10 @@ class TrainConfig:
         "val loss, as the paper); the best epoch's weights are still chosen by the raw val loss."))
     max_seconds: float | None = field(default=None, metadata=_help(
         "Stop after this much training time (s, wall clock; default: no limit)."))
+    device: Device = field(default="auto", metadata=_help(
+        "Where the network trains: auto (CUDA where torch sees a GPU, else the CPU, and says which), "
+        "cpu, or cuda (an error without one). The model folder is the same; results equal the CPU's "
+        "within float rounding (ctrkin.training.device)."))
 
     def __post_init__(self) -> None:
         # the registry (torch, the networks) and the feature layout are imported here, not with the
@@ -180,6 +186,8 @@ class TrainConfig:
             raise ModelError(f"val_smoothing must be in [0, 1), got {self.val_smoothing}")
         if self.max_seconds is not None and not self.max_seconds > 0:
             raise ModelError(f"max_seconds must be positive or None, got {self.max_seconds}")
+        if self.device not in DEVICES:
+            raise ModelError(f"device must be one of {DEVICES}, got {self.device!r}")
         if self.min_delta < 0:
             raise ModelError(f"min_delta must be >= 0, got {self.min_delta}")
         self.layout(2)   # validates ib and angle_encoding
@@ -219,7 +227,7 @@ class TrainConfig:
     def differences(self, other: TrainConfig,
                     ignore: tuple[str, ...] = ("max_epochs", "base_epochs", "min_steps", "threads",
                                                "max_seconds", "loop",
-                                               "fused_adam")) -> list[str]:
+                                               "fused_adam", "device")) -> list[str]:
         """What differs, as 'key: a vs b' (keys that may change on resume are ignored: how, not what,
         is trained)."""
         a, b = self.to_dict(), other.to_dict()

@@ -11,6 +11,7 @@ come from its family's recipe (ctrkin.models.recipe), found by the registry
 
 from __future__ import annotations
 
+import copy
 import csv
 import io
 import math
@@ -34,6 +35,7 @@ from ctrkin.models.store import CONFIG, ModelBundle, read_json, write_json
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.curves import plot_curves
 from ctrkin.training.data import data_signature, split_rows, split_signature
+from ctrkin.training.device import resolve_device
 from ctrkin.training.fit import diagnose
 from ctrkin.util.files import atomic_path, atomic_write_text
 from ctrkin.util.folders import folder_lock, swap_in, write_manifest
@@ -62,9 +64,10 @@ def _epoch(net: torch.nn.Module, opt: torch.optim.Optimizer, X: torch.Tensor, Y:
     net.train()
     perm = torch.randperm(len(X), generator=gen)
     total, count = 0.0, 0
+    on_device = perm.to(X.device)
     for a in range(0, len(perm), batch):
         idx = perm[a:a + batch]
-        loss = loss_fn(net, X[idx], Y[idx], idx, gen)
+        loss = loss_fn(net, X[on_device[a:a + batch]], Y[on_device[a:a + batch]], idx, gen)
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
@@ -80,8 +83,9 @@ def _epoch_gathered(net: torch.nn.Module, opt: torch.optim.Optimizer, X: torch.T
     and batches as `_epoch`, so both loops see the same data order for a seed."""
     net.train()
     perm = torch.randperm(len(X), generator=gen)
-    Xp, Yp = X[perm], Y[perm]
-    total = torch.zeros((), dtype=torch.float64)
+    on_device = perm.to(X.device)
+    Xp, Yp = X[on_device], Y[on_device]
+    total = torch.zeros((), dtype=torch.float64, device=X.device)
     for a in range(0, len(perm), batch):
         x, y = Xp[a:a + batch], Yp[a:a + batch]
         loss = loss_fn(net, x, y, perm[a:a + batch], gen)
@@ -167,6 +171,9 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
 
 def _train_locked(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, progress: bool,
                   say: Callable[[str], None]) -> TrainResult:
+    device, note = resolve_device(cfg.device)
+    if note:
+        say(note)
     torch.set_num_threads(cfg.threads)
     split, rows = split_rows(ds, cfg)
     train_rows = len(rows["train"])
@@ -188,7 +195,7 @@ def _train_locked(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, pro
                                           "samples": len(ds.frame), "source": str(ds.meta.get("path", "")),
                                           "protocol": ds.meta.get("protocol")}, **prepared.extra},
                                 frame=prepared.frame, build=build_net)
-    run = _Run(bundle, cfg, rec, out, signature, split_sig, train_rows)
+    run = _Run(bundle, cfg, rec, out, signature, split_sig, train_rows, device)
     run.start(overwrite, say)
     run.epochs(progress)
     return run.finish(split, say)
@@ -198,16 +205,25 @@ class _Run:
     """One training run's state: the network, Adam, the batch-order generator, the early-stopping
     counters and history (`state`), the best weights, and the build folder with its checkpoint.
     cfg.max_epochs is resolved (TrainConfig.epoch_budget); the patience counts at least
-    cfg.patience_steps optimiser steps (TrainConfig.patience_epochs)."""
+    cfg.patience_steps optimiser steps (TrainConfig.patience_epochs).
+
+    On a device other than the CPU (ctrkin.training.device) Adam steps a copy of the network there
+    (`net`), whose weights are copied back into the bundle's CPU network (`cpu_net`) after every
+    epoch: the recipe (its rollouts, validation, metrics) and the saved folder see the CPU network,
+    and the batch order, augmentation draws and checkpoints are those of a CPU run. On the CPU both
+    are the one network."""
 
     def __init__(self, bundle: ModelBundle, cfg: TrainConfig, rec: Recipe, out: Path, signature: str,
-                 split_sig: str, train_rows: int) -> None:
+                 split_sig: str, train_rows: int, device: torch.device | None = None) -> None:
         assert cfg.max_epochs is not None
         self.bundle, self.cfg, self.recipe, self.out = bundle, cfg, rec, out
         self.max_epochs, self.train_rows = cfg.max_epochs, train_rows
         self.patience = cfg.patience_epochs(train_rows)
         self.signature, self.split_sig = signature, split_sig
-        self.net = bundle.net
+        self.device = device or torch.device("cpu")
+        self.cpu_net = bundle.net
+        self.net = (copy.deepcopy(self.cpu_net).to(self.device) if _needs_copy(self.device)
+                    else self.cpu_net)
         self.opt = _optimizer(self.net, cfg)
         self.gen = torch.Generator().manual_seed(cfg.seed)
         self.state: dict[str, Any] = {"epoch": 0, "best_val": float("inf"), "best_epoch": 0, "since_best": 0,
@@ -233,7 +249,9 @@ class _Run:
                 raise ModelError(f"{self.out} holds a training run with a different setup "
                                  f"({'; '.join(diffs)}); pass overwrite (--overwrite) or choose another "
                                  "--out")
-            self.net.load_state_dict(saved["net"])
+            self.cpu_net.load_state_dict(saved["net"])
+            if self.net is not self.cpu_net:
+                self.net.load_state_dict(saved["net"])
             self.opt.load_state_dict(saved["opt"])
             self.gen.set_state(saved["gen"])
             self.best_weights = saved["best"]
@@ -259,15 +277,16 @@ class _Run:
                 t0 = time.perf_counter()
                 for group in self.opt.param_groups:
                     group["lr"] = _learning_rate(cfg, state["epoch"], self.max_epochs)
-                X, Y = rec.epoch_tensors(state["epoch"], self.bundle)
+                X, Y = self._on_device(rec.epoch_tensors(state["epoch"], self.bundle))
                 train_loss = run_epoch(net, self.opt, X, Y, cfg.batch_size, self.gen, rec.loss)
-                val_loss = rec.val_loss(net)
+                self._sync()
+                val_loss = rec.val_loss(self.cpu_net)
                 state["seconds"] += time.perf_counter() - t0
                 state["epoch"] += 1
                 state["history"].append({"epoch": state["epoch"], "train_loss": train_loss,
                                          "val_loss": val_loss, "seconds": state["seconds"]})
                 if _early_stopping(state, val_loss, cfg):
-                    self.best_weights = {k: v.detach().clone() for k, v in net.state_dict().items()}
+                    self.best_weights = {k: v.detach().clone() for k, v in self.cpu_net.state_dict().items()}
                 if (state["since_best"] >= self.patience or state["epoch"] >= self.max_epochs
                         or _out_of_time(state, cfg)):
                     state["done"] = True
@@ -280,10 +299,29 @@ class _Run:
         finally:
             bar.close()
 
+    def _on_device(self, tensors: tuple[torch.Tensor, torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
+        """An epoch's (X, Y) on the training device (copied once while the recipe returns the same
+        tensors)."""
+        if self.net is self.cpu_net:
+            return tensors
+        key = tuple(id(t) for t in tensors)
+        if getattr(self, "_moved_key", None) != key:
+            self._moved_key = key
+            self._moved = (tensors[0].to(self.device), tensors[1].to(self.device))
+        return self._moved
+
+    def _sync(self) -> None:
+        """The trained weights into the CPU network (nothing to do when training on it)."""
+        if self.net is not self.cpu_net:
+            with torch.no_grad():
+                for dst, src in zip(self.cpu_net.state_dict().values(), self.net.state_dict().values(),
+                                    strict=True):
+                    dst.copy_(src)
+
     def _checkpoint(self) -> None:
         with atomic_path(self.ckpt) as tmp:
             torch.save({"config": self.cfg.to_dict(), "data_signature": self.signature,
-                        "split_signature": self.split_sig, "net": self.net.state_dict(),
+                        "split_signature": self.split_sig, "net": self.cpu_net.state_dict(),
                         "opt": self.opt.state_dict(), "gen": self.gen.get_state(), "best": self.best_weights,
                         "state": self.state}, tmp)
 
@@ -295,6 +333,7 @@ class _Run:
             raise ModelError(f"no epoch was trained (max_epochs = {cfg.max_epochs})")
         if self.recipe.checkpoints and not self.ckpt.is_file():   # resumed a finished run without training
             shutil.copy2(self.previous[0], self.ckpt)
+        net = self.cpu_net
         net.load_state_dict(self.best_weights)
         net.eval()
         self.bundle.save(build)
@@ -345,13 +384,18 @@ def _reusable(out: Path, cfg: TrainConfig, signature: str, split_sig: str, overw
     saved = read_json(out / CONFIG)
     data = saved.get("data", {})
     diffs = setup_differences(saved["train"], data.get("signature"), data.get("split_signature"), cfg,
-                              signature, split_sig, ignore=("threads",))
+                              signature, split_sig, ignore=("threads", "device"))
     if diffs:
         raise ModelError(f"{out} holds a model with a different setup ({'; '.join(diffs)}); pass "
                          f"overwrite (--overwrite) or choose another --out")
     with open(out / "history.csv", newline="") as f:
         history = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
     return TrainResult(out, read_json(out / "metrics.json"), history)
+
+
+def _needs_copy(device: torch.device) -> bool:
+    """Whether the network trains as a copy on `device` (any device but the CPU; _Run)."""
+    return device.type != "cpu"
 
 
 def _out_of_time(state: dict[str, Any], cfg: TrainConfig) -> bool:

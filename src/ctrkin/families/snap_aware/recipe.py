@@ -41,15 +41,17 @@ class BranchBatch:
 
     def loss(self, net: BranchNet, x: torch.Tensor, y: torch.Tensor, idx: torch.Tensor,
              gen: torch.Generator) -> torch.Tensor:
-        s, prev, forced = self.state[idx], self.state_prev[idx].clone(), self.forced[idx]
-        u = torch.rand((len(idx), 2), generator=gen)
+        dev = x.device        # the labels and draws stay on the CPU (the same draws on any device)
+        s, forced = self.state[idx].to(dev), self.forced[idx].to(dev)
+        prev = self.state_prev[idx].to(dev, copy=True)
+        u = torch.rand((len(idx), 2), generator=gen).to(dev)
         flip = forced & (u[:, 0] < 0.5) & (prev != UNKNOWN_STATE)     # a wrong state must recover
         prev = torch.where(flip, 1.0 - prev, prev)
         prev = torch.where(u[:, 1] < self.unknown_prob, torch.full_like(prev, UNKNOWN_STATE), prev)
         h = net.trunk(x)
         pose_loss = torch.nn.functional.l1_loss(net.head_out(h, s), y)          # MAE (paper IV.A)
         gate_loss = torch.nn.functional.binary_cross_entropy_with_logits(
-            net.gate_logit(h, prev), s, weight=self.gate_rows[idx])
+            net.gate_logit(h, prev), s, weight=self.gate_rows[idx].to(dev))
         return pose_loss + self.weight * gate_loss
 
 
