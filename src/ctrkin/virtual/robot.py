@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from ctrkin.geometry import tip_pose
 from ctrkin.mechanics import Equilibrium, follow, solve, solve_many
 from ctrkin.robots.robot import Robot
 from ctrkin.virtual.config import VirtualConfig
@@ -131,8 +132,17 @@ class VirtualRobot:
         play(Qa, width, state.play, p)
         base = self.base_joints(p)
         tr = follow(self.true_robot, base, start=state.equilibrium, progress=progress)
-        motion = Motion(commanded=Qa, base=base, true_poses=tr.tip_poses, snaps=tr.snaps)
-        return motion, VirtualState(tr.equilibria[-1], p[-1].copy())
+        poses, eqs = tr.tip_poses, tr.equilibria
+        for t in np.flatnonzero(~tr.converged):
+            # follow gave up this step (its continuation budget, SolverSettings.max_search_steps, spent
+            # near a reversal with friction): a real tube still has a pose, so the step is solved from
+            # the equilibrium before it with its friction state (solve's snap recovery)
+            before = eqs[t - 1] if t > 0 else state.equilibrium
+            eq = solve(self.true_robot, base[t], guess=before, state=before.friction_state, strict=True)
+            eqs[t] = eq
+            poses[t] = tip_pose(eq.tip_position[None, :], eq.tip_tangent[None, :])[0]
+        motion = Motion(commanded=Qa, base=base, true_poses=poses, snaps=tr.snaps)
+        return motion, VirtualState(eqs[-1], p[-1].copy())
 
     # --- sensing --------------------------------------------------------------------------------
     def record(self, motion: Motion, rng: np.random.Generator) -> Recording:
