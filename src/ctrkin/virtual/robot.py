@@ -136,9 +136,13 @@ class VirtualRobot:
         for t in np.flatnonzero(~tr.converged):
             # follow gave up this step (its continuation budget, SolverSettings.max_search_steps, spent
             # near a reversal with friction): a real tube still has a pose, so the step is solved from
-            # the equilibrium before it with its friction state (solve's snap recovery)
+            # the equilibrium before it with its friction state (solve's snap recovery), else afresh
             before = eqs[t - 1] if t > 0 else state.equilibrium
-            eq = solve(self.true_robot, base[t], guess=before, state=before.friction_state, strict=True)
+            eq = solve(self.true_robot, base[t], guess=before, state=before.friction_state)
+            if not eq.converged:   # no branch near it: the lowest-energy stable one, same friction state
+                eq = solve(self.true_robot, base[t], state=before.friction_state)
+            if not eq.converged:   # none at all: the step stays unconverged (NaN pose), as follow said
+                continue
             eqs[t] = eq
             poses[t] = tip_pose(eq.tip_position[None, :], eq.tip_tangent[None, :])[0]
         motion = Motion(commanded=Qa, base=base, true_poses=poses, snaps=tr.snaps)
