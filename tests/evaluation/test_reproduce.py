@@ -19,8 +19,10 @@ from ctrkin.inference import Kinematics
 FIGURES = [
     "fig5a_model_comparison",
     "fig5b_delta_ablation",
+    "fig6_delta_overlaps",
     "fig7_input_buffer",
     "fig8_structures",
+    "fig9_training_curves",
     "fig10a_sweeps",
     "fig10b_random_points",
     "fig10c_arbitrary",
@@ -61,6 +63,19 @@ def test_results_json_is_the_results_and_every_headline_figure_is_finite(tiny_ru
             continue
         assert isinstance(value, (int, float)) and math.isfinite(value), key
     assert results.dataset.samples == 2 * 4 * 721  # tiny: 2 levels × 4 outer angles × 721
+
+
+def test_fig6_and_fig9_counterparts_hold_their_figures(tiny_run) -> None:
+    _out, results = tiny_run
+    by_level = results.experiments["delta_overlaps"]["by_level"]
+    assert 2 <= len(by_level) <= 3                                  # lowest, middle, highest sweep level
+    for entry in by_level.values():
+        assert set(entry) == {"lstm_mlp_paper_position_mae_mm", "lstm_mlp_no_delta_position_mae_mm"}
+        assert all(math.isfinite(v) and v > 0 for v in entry.values())
+    curves = results.experiments["training_curves"]
+    assert {"fk_lstm_mlp_paper", "fk_lstm_mlp_branch", "ik_lstm_mlp_paper", "ik_follow_mlp"} <= set(curves)
+    for entry in curves.values():
+        assert 1 <= entry["best_epoch"] <= entry["epochs"]
 
 
 @pytest.mark.slow

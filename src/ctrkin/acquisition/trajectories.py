@@ -30,6 +30,11 @@ def paper_level_to_relative_translation(beta12_paper: float) -> float:
     return 0.4 * beta12_paper - 2.0
 
 
+def relative_translation_to_paper_level(d_mm: float) -> float:
+    """The inverse of `paper_level_to_relative_translation`: β12 = (d + 2) / 0.4 (paper units)."""
+    return (d_mm + 2.0) / 0.4
+
+
 def rotation_sweep(n_tubes: int, relative_translation: float, outer_beta: float = 0.0,
                    outer_alpha: float = 0.0, step_deg: float = 1.0, turns: float = 1.0,
                    start_deg: float = 0.0) -> np.ndarray:

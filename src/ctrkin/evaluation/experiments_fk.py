@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from ctrkin.acquisition.trajectories import relative_translation_to_paper_level
 from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.context import Context, summary, valid_rows
 from ctrkin.evaluation.snapping import (
@@ -42,19 +43,21 @@ from ctrkin.evaluation.table import (
     with_headline,
 )
 from ctrkin.metrics import position_error, timing_stats
+from ctrkin.robots import Robot, paper_robot
 from ctrkin.viz import experiments as fig
 
 
 def turn_curves(rows: Sequence[Row]) -> fig.Curves:
     """The T(L) curves of the turn figures, in drawing order: the measurement, the rows drawn as
-    points, the truth, the rows drawn as lines with the recommended FK model's last (on top)."""
+    points, the rows drawn as lines with the recommended FK model's last, and the truth (a thin line
+    on top: under the predictions it was hidden wherever they are right)."""
     drawn = [r for r in rows if r.curve is not None]
     points = [r for r in drawn if r.curve is not None and r.curve.kind == "points"]
     lines = sorted((r for r in drawn if r not in points), key=lambda r: r is RECOMMENDED["fk"])
     out: fig.Curves = {"measured": fig.MEASURED_CURVE}
     out |= {r.name: (r.label, *r.curve) for r in points if r.curve is not None}
-    out["truth"] = fig.TRUTH_CURVE
     out |= {r.name: (r.label, *r.curve) for r in lines if r.curve is not None}
+    out["truth"] = fig.TRUTH_CURVE
     return out
 
 
@@ -76,7 +79,8 @@ FIG5B = Figure("fig5b_delta_ablation", "Fig. 5b: the directional parameter Δα0
 FIG10A = Figure("fig10a_sweeps", "Fig. 10a: rotation sweeps",
                 "T(L), the tip azimuth measured from the outer tube's base rotation (deg), against the "
                 "relative rotation α0 = α1 − αN (deg), for full inner rotations 0 → 360 → 0° at each "
-                "relative translation d (one panel each, low nonlinearity to snapping). " + TURNS)
+                "relative translation d (one panel each, low nonlinearity to snapping; on the paper "
+                "robot each title also gives the paper's level β12 = 15..55). " + TURNS)
 FIG_SNAP_TURNS = Figure("snap_turns", "Snap turns (beyond the paper)",
                     "As Fig. 10a, for full turns at full overlap at outer angles αN and translations βN that "
                     "the training data never recorded (one panel each). " + TURNS)
@@ -88,6 +92,14 @@ FIG10C = Figure("fig10c_arbitrary", "Fig. 10c: arbitrary path",
                 "The paper's simultaneous trajectory: measured tip, snap-aware LSTM-MLP and point-wise "
                 "TCM in the x–y and x–z planes (mm), and the distribution of their position errors "
                 "against the measurement.")
+
+
+def level_label(d: float, robot: Robot) -> str:
+    """A relative translation level's panel title: d, and on the paper robot the paper's own name of
+    the level (β12 = 15..55 for d = 4..20 mm, ctrkin.acquisition.trajectories)."""
+    if robot.fingerprint() != paper_robot().fingerprint():
+        return f"d = {d:g} mm"
+    return f"d = {d:g} mm (paper β12 = {relative_translation_to_paper_level(d):g})"
 
 
 def fk_comparison(ctx: Context, rows_: tuple[Row, ...]) -> dict[str, Any]:
@@ -210,7 +222,7 @@ def sweeps(ctx: Context, rows_: tuple[Row, ...]) -> dict[str, Any]:
                 entry[f"{name}_at_snap"] = summary(preds[name], measured, truth, m & near)
         by_level[f"{d:g}"] = entry
         sel = lev == k
-        panels.append({"label": f"d = {d:g} mm", "alpha0": joints[sel, 0] - joints[sel, n - 1],
+        panels.append({"label": level_label(d, ds.robot), "alpha0": joints[sel, 0] - joints[sel, n - 1],
                        "snaps": snap[sel], **{key: series[sel] for key, series in az.items()}})
     out["by_level"] = by_level
     if snap.any():

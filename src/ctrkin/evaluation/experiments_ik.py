@@ -31,34 +31,51 @@ FIG11 = Figure("fig11_ik_random", "Fig. 11: IK at random poses",
 FIG12_SQUARE = Figure("fig12_ik_square", "Fig. 12: IK along a square",
                       "The recommended IK along a square of 10 target poses: targets and the tips reached "
                       "through the learned FK model and by driving the virtual robot (3-D, mm), and the "
-                      "predicted joints per point.")
+                      "predicted joints per point. Both checks move through the same 1°/0.1 mm steps "
+                      "from target to target (the FK model sees the history the robot has); where the "
+                      "two disagree, the learned FK model is wrong there, and the robot is the check "
+                      "that counts.")
 FIG12_TRIANGLE = Figure("fig12_ik_triangle", "Fig. 12: IK along a triangle",
                         "As the square (Fig. 12 above), along a triangle of 10 target poses: targets, tips "
                         "reached and predicted joints.")
+
+
+def joined(Q: np.ndarray, n_tubes: int, bounds_: list[tuple[int, int]]
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Joints Q (T, 2N) as the robot is driven through them: each sequence from its first row, and
+    consecutive rows joined by 1°/0.1 mm moves (the paper's increments, ctrkin.acquisition.plan.move).
+    Returns the dense path (P, 2N), the index of each row of Q in it (T,), and each path row's
+    sequence (P,)."""
+    path, rows, sid = [], np.empty(len(Q), int), []
+    start = 0
+    for s, (a, b) in enumerate(bounds_):
+        rows[a] = start
+        parts = [Q[a][None]]
+        for k in range(a + 1, b):
+            seg = move(Q[k - 1], Q[k], n_tubes)
+            parts.append(seg if len(seg) else Q[k][None])
+            rows[k] = rows[k - 1] + len(parts[-1])
+        seq = np.vstack(parts)
+        path.append(seq)
+        sid.append(np.full(len(seq), s))
+        start += len(seq)
+    return np.vstack(path), rows, np.concatenate(sid)
 
 
 def drive(
     virtual: VirtualRobot, Q: np.ndarray, bounds_: list[tuple[int, int]] | None = None
 ) -> tuple[np.ndarray, int]:
     """Command the virtual robot through joints Q (T, 2N), each sequence from rest at its first row;
-    consecutive rows are joined by 1°/0.1 mm moves. Returns the noise-free tracker view of the tip at
-    every row (T, 6) and how many rows had to be projected onto the valid joint set."""
+    consecutive rows are joined by 1°/0.1 mm moves (`joined`). Returns the noise-free tracker view of
+    the tip at every row (T, 6) and how many rows had to be projected onto the valid joint set."""
     robot = virtual.nominal
     Qv = clip_to_valid(robot, Q)
     clipped = int(np.any(np.abs(Qv - Q) > 1e-9, axis=1).sum())
     out = np.empty((len(Q), 6))
-    n = robot.n_tubes
     for a, b in bounds_ or [(0, len(Q))]:
-        state = virtual.rest(Qv[a])
-        path, rows = [Qv[a][None]], [0]
-        for k in range(a + 1, b):
-            seg = move(Qv[k - 1], Qv[k], n)
-            if len(seg) == 0:
-                seg = Qv[k][None]
-            path.append(seg)
-            rows.append(rows[-1] + len(seg))
-        motion, _ = virtual.move(state, np.vstack(path))
-        out[a:b] = virtual.tracker.registered(motion.true_poses[np.array(rows)])
+        path, rows, _ = joined(Qv[a:b], robot.n_tubes, [(0, b - a)])
+        motion, _ = virtual.move(virtual.rest(Qv[a]), path)
+        out[a:b] = virtual.tracker.registered(motion.true_poses[rows])
     return out, clipped
 
 
@@ -73,10 +90,13 @@ def _ik_checks(
     flags of the result, and those tips."""
     fk = ctx.models[str(RECOMMENDED["fk"].folder)]
     joints = res.joints
-    sid = np.concatenate([np.full(y - x, k) for k, (x, y) in enumerate(b)])
     Qv = clip_to_valid(ctx.data.virtual.nominal, joints)
-    # IK joints jump between turns; the FK model refuses a sequence that leaves its range by a turn
-    via_fk = np.asarray(fk.predict(fk.alpha_into_range(Qv), sequence_id=sid), float)
+    # the FK model sees the joints as the robot is driven through them (1°/0.1 mm moves between the
+    # targets, the steps it was trained on): fed the targets' joints alone, a 40° jump between two
+    # targets is a Δα0 no training sequence had, and its tips drifted away from the targets (Fig. 12)
+    # (IK joints jump between turns; the FK model refuses a sequence that leaves its range by a turn)
+    path, at, sid = joined(fk.alpha_into_range(Qv), ctx.data.virtual.nominal.n_tubes, b)
+    via_fk = np.asarray(fk.predict(path, sequence_id=sid), float)[at]
     via_robot, clipped = drive(ctx.data.virtual, joints, b)
     flags = {
         "joints_projected_to_valid": clipped,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
 import matplotlib
@@ -10,6 +11,16 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from ctrkin.util.files import atomic_path
+
+
+def read_history(folder: str | Path) -> list[dict[str, float]]:
+    """A trained model folder's history.csv: one dict per epoch ('epoch', 'train_loss', 'val_loss',
+    ...); [] where the folder has none (a model assembled from others, e.g. the refined IK)."""
+    path = Path(folder) / "history.csv"
+    if not path.is_file():
+        return []
+    with open(path, newline="") as f:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
 
 
 def plot_curves(history: list[dict[str, float]], path: str | Path, title: str) -> None:

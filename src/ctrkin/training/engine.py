@@ -33,7 +33,7 @@ from ctrkin.families.registry import build_net, recipe
 from ctrkin.models.recipe import Recipe, TrainingData
 from ctrkin.models.store import CONFIG, ModelBundle, read_json, write_json
 from ctrkin.training.config import TrainConfig
-from ctrkin.training.curves import plot_curves
+from ctrkin.training.curves import plot_curves, read_history
 from ctrkin.training.data import data_signature, split_rows, split_signature
 from ctrkin.training.device import resolve_device
 from ctrkin.training.fit import diagnose
@@ -388,9 +388,7 @@ def _reusable(out: Path, cfg: TrainConfig, signature: str, split_sig: str, overw
     if diffs:
         raise ModelError(f"{out} holds a model with a different setup ({'; '.join(diffs)}); pass "
                          f"overwrite (--overwrite) or choose another --out")
-    with open(out / "history.csv", newline="") as f:
-        history = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
-    return TrainResult(out, read_json(out / "metrics.json"), history)
+    return TrainResult(out, read_json(out / "metrics.json"), read_history(out))
 
 
 def _needs_copy(device: torch.device) -> bool:

@@ -14,7 +14,7 @@ import numpy as np
 
 from ctrkin.util.files import atomic_path
 
-TCM, MODEL, MEAS, TRUE = "k", "tab:blue", "tab:red", "0.55"
+TCM, MODEL, MEAS, TRUE = "k", "tab:blue", "tab:red", "0.3"
 
 
 def _save(fig: plt.Figure, path: str | Path) -> None:
@@ -28,7 +28,7 @@ def _save(fig: plt.Figure, path: str | Path) -> None:
 # filled forward and open backward; "line": solid forward, dashed backward. The predictors' curves
 # come from the report's table (ctrkin.evaluation.table.Row.curve); these two are the data's.
 MEASURED_CURVE = ("measured", MEAS, "points", 2.5)
-TRUTH_CURVE = ("truth", TRUE, "line", 1.2)
+TRUTH_CURVE = ("truth", TRUE, "line", 0.8)
 Curves = dict[str, tuple[str, str, str, float]]
 
 
@@ -222,6 +222,51 @@ def ik_path_figure(targets: np.ndarray, reached_fk: np.ndarray, reached_robot: n
     ax.set_xlabel("point")
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
+    _save(fig, path)
+
+
+def delta_overlaps_figure(panels: Sequence[dict], path: str | Path) -> None:
+    """Fig. 6: per panel (a relative translation) the measured tip and each model's prediction in the
+    x–y plane. panels: dicts with `label`, `measured` (T, 3) mm and `series`: label -> (prediction
+    (T, 3) mm, position MAE mm); the first series in the model colour, the others after it."""
+    fig, axes = plt.subplots(1, max(len(panels), 1), figsize=(4.4 * max(len(panels), 1), 4.2),
+                             squeeze=False)
+    for ax, p in zip(axes[0], panels, strict=False):
+        ax.plot(p["measured"][:, 0], p["measured"][:, 1], "o", color=MEAS, ms=2.5, label="measured")
+        maes = []
+        for k, (label, (pred, mae)) in enumerate(p["series"].items()):
+            colour = MODEL if k == 0 else f"C{k}"
+            ax.plot(pred[:, 0], pred[:, 1], "-", color=colour, lw=1.0, label=label)
+            maes.append(f"{mae:.2f}")
+        ax.set_title(f"{p['label']}\nMAE {' / '.join(maes)} mm", fontsize=9)
+        ax.set_xlabel("x (mm)")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_ylabel("y (mm)")
+    if panels:
+        axes[0, 0].legend(fontsize=7)
+    _save(fig, path)
+
+
+def training_curves_figure(curves: dict[str, dict[str, list[dict[str, float]]]], path: str | Path) -> None:
+    """Fig. 9: training (solid) and validation (dashed) loss per epoch of each model, one panel per
+    task. curves: task ("fk", "ik") -> model label -> history (dicts with 'epoch', 'train_loss',
+    'val_loss'); the best validation epoch is marked."""
+    fig, axes = plt.subplots(1, len(curves), figsize=(5.2 * len(curves), 3.8), squeeze=False)
+    for ax, (task, models), tag in zip(axes[0], curves.items(), "abcdefgh", strict=False):
+        for k, (label, history) in enumerate(models.items()):
+            ep = [h["epoch"] for h in history]
+            ax.plot(ep, [h["train_loss"] for h in history], "-", color=f"C{k}", label=f"{label}: training")
+            ax.plot(ep, [h["val_loss"] for h in history], "--", color=f"C{k}", label=f"{label}: validation")
+            best = min(history, key=lambda h: h["val_loss"])
+            ax.plot(best["epoch"], best["val_loss"], "o", color=f"C{k}", ms=5)
+        ax.set_yscale("log")
+        ax.set_xlabel("epoch")
+        ax.set_title(f"({tag}) {task.upper()}", fontsize=10)
+        ax.grid(alpha=0.3, which="both")
+        if models:
+            ax.legend(fontsize=7)
+    axes[0, 0].set_ylabel("MAE loss (normalised)")
     _save(fig, path)
 
 
