@@ -114,5 +114,5 @@ def test_training_curves_figure_marks_each_models_best_epoch(saved) -> None:
     fk, ik = saved[0].axes
     assert fk.get_title() == "(a) FK" and ik.get_title() == "(b) IK"
     assert len(fk.lines) == 6 and len(ik.lines) == 3           # training, validation, best per model
-    best = [ln for ln in fk.lines if ln.get_marker() == "o"][0]
+    best = next(ln for ln in fk.lines if ln.get_marker() == "o")
     assert list(best.get_xdata()) == [3] and list(best.get_ydata()) == [0.5]
