@@ -104,9 +104,8 @@ def virtual_config(settings: Iterable[str]) -> Any:
         raise click.BadParameter(str(e), param_hint="--set") from None
 
 
-robot_option = click.option(
-    "--robot", "robot_spec", default="paper", show_default=True,
-    help="Built-in robot name (paper, timclab) or path to a robot TOML file.")
+ROBOT_HELP = "Built-in robot name (paper, timclab) or path to a robot TOML file."
+robot_option = click.option("--robot", "robot_spec", default="paper", show_default=True, help=ROBOT_HELP)
 
 
 class OutputExistsError(click.ClickException):
