@@ -147,14 +147,11 @@ def test_bad_key_values_are_one_usage_error(item: str, words: str) -> None:
     ("ctrkin.cli.collect:collect_cmd", "ctrkin.cli.collect:CollectConfig", {}),
     ("ctrkin.cli.mechanics:solve_cmd", "ctrkin.cli.mechanics:SolveConfig", {}),
     ("ctrkin.cli.mechanics:sweep_cmd", "ctrkin.cli.mechanics:SweepConfig", {}),
-    ("ctrkin.cli.plan:plan_cmd", "ctrkin.cli.plan:PlanCommandConfig", {}),
-    ("ctrkin.cli.calibrate:calibrate_cmd", "ctrkin.cli.calibrate:CalibrateConfig", {}),
-    ("ctrkin.cli.evaluate:evaluate_cmd", "ctrkin.cli.evaluate:EvaluateConfig", {}),
-    ("ctrkin.cli.predict:predict_cmd", "ctrkin.cli.predict:PredictConfig", {}),
-    ("ctrkin.cli.show:show_cmd", "ctrkin.cli.show:ShowConfig", {}),
-    ("ctrkin.cli.export:export_cmd", "ctrkin.cli.export:ExportConfig", {}),
-    ("ctrkin.cli.robot:template_cmd", "ctrkin.cli.robot:TemplateConfig", {}),
-    ("ctrkin.cli.dataset:info_cmd", "ctrkin.cli.dataset:InfoConfig", {}),
+    *((f"ctrkin.cli.{module}:{command}", f"ctrkin.cli.{module}:{config}", {}) for module, command, config in (
+        ("plan", "plan_cmd", "PlanCommandConfig"), ("calibrate", "calibrate_cmd", "CalibrateConfig"),
+        ("evaluate", "evaluate_cmd", "EvaluateConfig"), ("predict", "predict_cmd", "PredictConfig"),
+        ("show", "show_cmd", "ShowConfig"), ("export", "export_cmd", "ExportConfig"),
+        ("robot", "template_cmd", "TemplateConfig"), ("dataset", "info_cmd", "InfoConfig"))),
 ])
 def test_commands_take_every_field_of_their_config(command: str, config: str, own: dict) -> None:
     """Each field of the command's configuration is an option of the command (with the field's help

@@ -59,6 +59,12 @@ def option_help(text: str, **metadata: Any) -> dict[str, Any]:
     return {HELP: text, **metadata}
 
 
+def option(text: str, default: Any = dataclasses.MISSING, **metadata: Any) -> Any:
+    """A configuration field with its help and option shape (option_help): `data: str | None =
+    option("Dataset folder.", None, path="folder")`; without a default, a required option."""
+    return dataclasses.field(default=default, metadata=option_help(text, **metadata))
+
+
 # path kind -> its click type: an existing folder or file (InputPath: exit status 1 where it is not
 # there), an output file or folder, an output file
 PATHS: dict[str, Callable[[], click.ParamType]] = {

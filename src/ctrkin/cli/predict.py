@@ -21,7 +21,7 @@ order; both take an optional sequence_id (a new run where it changes) and step.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 
 from ctrkin.cli.common import output_file, overwrite_option, parse_floats, say
-from ctrkin.cli.from_config import config_options, option_help
+from ctrkin.cli.from_config import config_options, option
 from ctrkin.data.schema import INDEX_COLUMNS, POSE_COLUMNS
 from ctrkin.errors import DatasetError, ModelError
 from ctrkin.robots.robot import joint_names
@@ -60,22 +60,19 @@ class PredictConfig:
     """What `ctrkin predict` runs a model on (the argument and one option per field): one of a
     dataset, a file of joints or a file of target poses. Checked on construction: usage errors."""
 
-    model_dir: str = field(metadata=option_help("A model folder (ctrkin train).", path="folder",
-                                                argument=True))
-    data: str | None = field(default=None, metadata=option_help(
-        "Dataset folder (from the model's robot).", path="folder"))
-    joints: str | None = field(default=None, metadata=option_help(
+    model_dir: str = option("A model folder (ctrkin train).", path="folder", argument=True)
+    data: str | None = option("Dataset folder (from the model's robot).", None, path="folder")
+    joints: str | None = option(
         "FK model: a .csv or .parquet file of joints, columns alpha_1..alpha_N (deg), beta_1..beta_N (mm) "
-        "(optional sequence_id, step), one row a step in time order.", path="file"))
-    poses: str | None = field(default=None, metadata=option_help(
+        "(optional sequence_id, step), one row a step in time order.", None, path="file")
+    poses: str | None = option(
         "IK model: a .csv or .parquet file of target poses, columns x, y, z (mm), q0, qx, qy (optional "
-        "sequence_id, step), in the frame of the model's training data.", path="file"))
-    start_joints: str | None = field(default=None, metadata=option_help(
+        "sequence_id, step), in the frame of the model's training data.", None, path="file")
+    start_joints: str | None = option(
         "Follow IK (follow_mlp) with --poses: the robot's joints (deg, mm) at the start of every sequence "
-        "(default: those of the nearest training target).", metavar="A1,..,AN,B1,..,BN"))
-    out: str | None = field(default=None, metadata=option_help(
-        "File to write, format by extension: .csv, .parquet or .json (a list of rows). Default: CSV on "
-        "stdout.", path="out"))
+        "(default: those of the nearest training target).", None, metavar="A1,..,AN,B1,..,BN")
+    out: str | None = option("File to write, format by extension: .csv, .parquet or .json (a list of rows). "
+                             "Default: CSV on stdout.", None, path="out")
 
     def __post_init__(self) -> None:
         if self.out is not None and Path(self.out).suffix.lower() not in FORMATS:

@@ -9,7 +9,7 @@
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +18,7 @@ import numpy as np
 
 from ctrkin.acquisition.trajectories import rotation_sweep
 from ctrkin.cli.common import ROBOT_HELP, emit_json, output_file, output_options, parse_floats, say
-from ctrkin.cli.from_config import config_options, option_help
+from ctrkin.cli.from_config import config_options, option
 from ctrkin.mechanics import follow
 from ctrkin.robots import load_robot
 
@@ -63,21 +63,20 @@ def _path(configs: list[list[float]], n_tubes: int) -> tuple[np.ndarray, np.ndar
 class ShowConfig:
     """What `ctrkin show` draws (one option per field)."""
 
-    robot: str = field(default="paper", metadata=option_help(ROBOT_HELP))
-    q: tuple[str, ...] = field(default=(), metadata=option_help(
+    robot: str = option(ROBOT_HELP, "paper")
+    q: tuple[str, ...] = option(
         "Joints α1..αN (deg), β1..βN (mm), comma-separated (repeat for a path: it is followed by "
-        "continuation in 1°/0.1 mm steps, with its history and snaps).", repeat=True, metavar="JOINTS"))
-    sweep: str | None = field(default=None, metadata=option_help(
+        "continuation in 1°/0.1 mm steps, with its history and snaps).", (), repeat=True, metavar="JOINTS")
+    sweep: str | None = option(
         "The inner tube turning 0 -> 360 -> 0° at relative translation d (paper Fig. 2b), the other tubes "
-        "at α = outer, β = beta_outer.", metavar="d=MM[,outer=DEG,beta_outer=MM,step=DEG]"))
-    out: str | None = field(default=None, metadata=option_help(
+        "at α = outer, β = beta_outer.", None, metavar="d=MM[,outer=DEG,beta_outer=MM,step=DEG]")
+    out: str | None = option(
         "Output: .png (a still), .gif or .mp4 (an animation; .mp4 needs ffmpeg). Default: shape.png for "
-        "--q, sweep.gif for --sweep.", path="out_file"))
-    frames: int | None = field(default=None, metadata=option_help(
+        "--q, sweep.gif for --sweep.", None, path="out_file")
+    frames: int | None = option(
         "Animation: about how many steps to show (default 120; snap steps always). Still image of a path: "
-        f"shapes drawn along it (default {STILL_SHAPES}).", range=(1, None)))
-    spacing: float = field(default=0.5, metadata=option_help(
-        "Largest distance between drawn backbone points (mm).", range=(0.01, None)))
+        f"shapes drawn along it (default {STILL_SHAPES}).", None, range=(1, None))
+    spacing: float = option("Largest distance between drawn backbone points (mm).", 0.5, range=(0.01, None))
 
 
 @click.command("show", epilog="""\b
