@@ -40,10 +40,8 @@ from ctrkin.cli.common import (
     output_folder,
     output_options,
     say,
-    virtual_config,
-    virtual_settings_option,
 )
-from ctrkin.cli.from_config import RANGE, config_options, option_help
+from ctrkin.cli.from_config import RANGE, config_options, option_help, virtual_config, virtual_settings_option
 from ctrkin.evaluation.scales import Scale
 from ctrkin.robots import Robot, load_robot
 from ctrkin.virtual import VirtualRobot

@@ -254,3 +254,20 @@ def parse_key_values(items: Iterable[str], option: str, config: type | None = No
         except click.BadParameter as e:
             raise click.BadParameter(f"{key}: {e.message}", param_hint=option) from None
     return out
+
+
+virtual_settings_option = click.option(
+    "--set", "settings", multiple=True, metavar="KEY=VALUE",
+    help="Override a virtual robot effect magnitude (repeatable; the keys are VirtualConfig's fields, "
+    "docs/virtual_robot.md), e.g. --set noise_mm=0.1.")
+
+
+def virtual_config(settings: Iterable[str]) -> Any:
+    """The VirtualConfig of --set KEY=VALUE settings (the one parser, typed by VirtualConfig's fields,
+    parse_key_values); an unknown key or a bad value is a usage error."""
+    from ctrkin.virtual.config import VirtualConfig, VirtualConfigError
+
+    try:
+        return VirtualConfig(**parse_key_values(settings, "--set", VirtualConfig))
+    except VirtualConfigError as e:
+        raise click.BadParameter(str(e), param_hint="--set") from None
