@@ -29,7 +29,8 @@ every figure. Columns (held-out data of the reproduction; position RMSE in mm un
               reached within 1 mm (of 20); sq / tri  square and triangle, tip via the robot
   gate res/max (no fold)  the fold gate's assumption (`gate_residuals`): RMS / largest residual (deg)
               of the training snaps from the nominal folds shifted by the fitted offsets, and the
-              snaps where the nominal robot has no fold, of all snaps in the band
+              snaps where the nominal robot has no fold, of all snaps in the band (the JSON line
+              also has them on the held-out sweeps: sweeps_gate_*)
 Goals (issue 21, goal 1): FK true ≤ 0.5, TCM ÷ FK ≥ 5, cal ÷ FK ≥ 2, P/R ≥ 0.9, mag ≤ 5°, rev ≤ 0.5,
 IK ≤ 1.0, rand ≥ 18/20, sq and tri ≤ 1.5 mm; a figure that misses its goal is marked `*`.
 """
@@ -187,6 +188,12 @@ def gate_residuals(fk_folder: Path, data_folder: Path) -> dict[str, float]:
             "gate_widen_deg": gate.widen_deg, "gate_outer_lag_deg": gate.outer_lag_deg}
 
 
+def _held_out(residuals: dict[str, Any]) -> dict[str, Any]:
+    """gate_residuals on the held-out sweeps, under sweeps_* (the fitted offsets only once)."""
+    fitted = ("gate_widen_deg", "gate_outer_lag_deg")
+    return {f"sweeps_{k}": v for k, v in residuals.items() if k not in fitted}
+
+
 def _robot(case: Case) -> Robot:
     return load_robot(case.robot) if isinstance(case.robot, str) else case.robot()
 
@@ -220,7 +227,8 @@ def _figures(name: str, case: Case, robot: Robot, out: Path, wall_s: float | Non
     row = {"robot": name, "what": case.what, "seed": case.seed, "n_tubes": robot.n_tubes, **figures_of(res)}
     fk_folder = out / name / res["recommended"]["fk"]
     for extra in (lambda: reversals(robot, case, fk_folder),
-                  lambda: gate_residuals(fk_folder, out / name / "data" / "paper")):
+                  lambda: gate_residuals(fk_folder, out / name / "data" / "paper"),
+                  lambda: _held_out(gate_residuals(fk_folder, out / name / "data" / "sweeps"))):
         try:
             row |= extra()
         except Exception as exc:  # a figure that cannot be computed is reported, the rest kept
