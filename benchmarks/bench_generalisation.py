@@ -38,6 +38,7 @@ IK ≤ 1.0, rand ≥ 18/20, sq and tri ≤ 1.5 mm; a figure that misses its goal
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import json
 import math
@@ -137,7 +138,7 @@ def reversals(robot: Robot, case: Case, fk_folder: Path) -> dict[str, float]:
     noise-free truth, on the reproduction's virtual robot (same hardware seed and effects)."""
     from ctrkin.inference import Kinematics
 
-    virtual = VirtualRobot(robot, VirtualConfig(**case.settings), seed=case.seed)
+    virtual = VirtualRobot(robot, dataclasses.replace(VirtualConfig(), **case.settings), seed=case.seed)
     ds = record(reversals_plan(robot), virtual, seed=REVERSAL_SEED, workers=1, progress=False)
     truth = registered_truth(ds, virtual)
     fk = Kinematics.load(fk_folder)
@@ -148,7 +149,7 @@ def reversals(robot: Robot, case: Case, fk_folder: Path) -> dict[str, float]:
             "reversal_samples": int(keep.sum())}
 
 
-def gate_residuals(fk_folder: Path, data_folder: Path) -> dict[str, float]:
+def gate_residuals(fk_folder: Path, data_folder: Path) -> dict[str, Any]:
     """How far the robot's snaps are from the fold gate's assumed form (docs/learned_kinematics.md:
     What the learned models assume about the robot): the gate places a snap at the nominal TCM's
     fold φ±(β) shifted by ±c − κ·m_N. Over every snap of the training data (paper protocol) inside
