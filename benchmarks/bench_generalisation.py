@@ -38,7 +38,6 @@ IK ≤ 1.0, rand ≥ 18/20, sq and tri ≤ 1.5 mm; a figure that misses its goal
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import itertools
 import json
 import math
@@ -99,7 +98,7 @@ class Case:
 
     robot: Any
     seed: int
-    settings: dict[str, float]
+    settings: dict[str, Any]
     what: str
 
 
@@ -138,7 +137,7 @@ def reversals(robot: Robot, case: Case, fk_folder: Path) -> dict[str, float]:
     noise-free truth, on the reproduction's virtual robot (same hardware seed and effects)."""
     from ctrkin.inference import Kinematics
 
-    virtual = VirtualRobot(robot, dataclasses.replace(VirtualConfig(), **case.settings), seed=case.seed)
+    virtual = VirtualRobot(robot, VirtualConfig(**case.settings), seed=case.seed)
     ds = record(reversals_plan(robot), virtual, seed=REVERSAL_SEED, workers=1, progress=False)
     truth = registered_truth(ds, virtual)
     fk = Kinematics.load(fk_folder)
