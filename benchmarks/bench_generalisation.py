@@ -63,6 +63,9 @@ from ctrkin.robots.robot import Robot
 from ctrkin.robots.tube import Tube
 from ctrkin.virtual import VirtualConfig, VirtualRobot
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))   # the benchmark beside this one
+from bench_fold_gate import snap_residuals
+
 # every effect at the top of its published range: the `--set` line of docs/virtual_robot.md (What the
 # defaults give), benchmarks/bench_virtual_effects.py's TOP
 TOP = {"precurvature_error": 0.2, "stiffness_error": 0.2, "tube_friction": 0.69, "gear_backlash_deg": 2.0,
@@ -150,41 +153,14 @@ def reversals(robot: Robot, case: Case, fk_folder: Path) -> dict[str, float]:
 
 def gate_residuals(fk_folder: Path, data_folder: Path) -> dict[str, Any]:
     """How far the robot's snaps are from the fold gate's assumed form (docs/learned_kinematics.md:
-    What the learned models assume about the robot): the gate places a snap at the nominal TCM's
-    fold φ±(β) shifted by ±c − κ·m_N. Over every snap of the training data (paper protocol) inside
-    the bistable band: the RMS and largest residual (deg of α0) of the snap's phase from that form
-    with the model's fitted c and κ, and the snaps at translations where the nominal robot has no
-    fold (the gate never switches there)."""
+    What the learned models assume about the robot; benchmarks/bench_fold_gate.py): the residuals
+    (deg of α0) of every snap of a dataset in the bistable band from θ± = φ±(β) ± c − κ·m_N with the
+    model's fitted c and κ, and the snaps where the nominal robot has no fold."""
     from ctrkin.data.dataset import Dataset
     from ctrkin.families.snap_aware.fold_gate import FoldGate
-    from ctrkin.families.snap_aware.labels import phase_deg, snap_events
-    from ctrkin.models.motion import recorded_motion
-    from ctrkin.models.relay import MIN_FOLD_DEG
 
     gate = FoldGate.load(fk_folder)
-    ds = Dataset.load(data_folder)
-    n, q, snap = ds.n_tubes, ds.joints(), ds.frame["snap"].to_numpy()
-    bounds = ds.sequence_bounds()
-    motion, _ = recorded_motion(ds.frame, q, bounds, n)
-    alpha0 = q[:, 0] - q[:, n - 1]
-    phi = phase_deg(alpha0)
-    fwd, bwd = gate.folds(q[:, n:])
-    resid, no_fold = [], 0
-    for a, b in bounds:
-        for t in snap_events(snap, a, b):
-            sign = int(np.sign(alpha0[t] - alpha0[t - 1]))
-            if sign == 0 or abs(phi[t]) >= gate.band_deg:
-                continue
-            fold = fwd[t] if sign > 0 else bwd[t]
-            if abs(fold) < MIN_FOLD_DEG:
-                no_fold += 1
-                continue
-            mid = phi[t] - 0.5 * (alpha0[t] - alpha0[t - 1])
-            resid.append(mid - fold - (sign * gate.widen_deg - gate.outer_lag_deg * motion[t]))
-    r = np.asarray(resid, float)
-    return {"gate_snaps": int(len(r) + no_fold), "gate_no_fold_snaps": no_fold,
-            "gate_residual_rms_deg": float(np.sqrt(np.mean(r ** 2))) if len(r) else None,
-            "gate_residual_max_deg": float(np.abs(r).max()) if len(r) else None,
+    return {**snap_residuals(gate, Dataset.load(data_folder)),
             "gate_widen_deg": gate.widen_deg, "gate_outer_lag_deg": gate.outer_lag_deg}
 
 
