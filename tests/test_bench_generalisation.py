@@ -86,3 +86,19 @@ def test_reuse_reports_one_robot_end_to_end(bench, tmp_path, capsys, model_dirs,
     assert row["gate_residual_rms_deg"] >= 0 and row["gate_residual_max_deg"] >= row["gate_residual_rms_deg"]
     assert any(line.startswith("default-top") for line in lines)                # the table's row
     assert json.loads((out / "rows.jsonl").read_text())["robot"] == "default-top"
+
+
+@pytest.fixture(scope="module")
+def fold_bench(bench):
+    return sys.modules["bench_fold_gate"]            # imported by bench_generalisation, beside it
+
+
+def test_the_fold_gate_matches_the_nominal_robot_it_assumes(fold_bench, sweeps) -> None:
+    """On sweeps of the nominal robot itself (follow, no effects) the gate's assumption holds: its
+    offsets vanish, every snap lies on the nominal fold within one 4° step, and its switches are
+    exactly the snaps."""
+    r = fold_bench.measure(sweeps, sweeps)
+    assert r["sweeps_recorded_snaps"] > 0 and r["sweeps_gate_no_fold_snaps"] == 0
+    assert abs(r["widen_deg"]) < 2.0
+    assert r["sweeps_gate_residual_max_deg"] < 2.0
+    assert r["sweeps_gate_precision"] == 1.0 and r["sweeps_gate_recall"] == 1.0
