@@ -21,8 +21,9 @@ at quick scale, without training a network (the gate does not depend on it), and
               misfit costs before any network.
 
 Data: recorded here on the virtual robot (`--robot`, `--robot-seed`, `--set KEY=VALUE` as
-`ctrkin reproduce`), or read from a reproduction's `data` folder (`--data`: its `paper`, with the
-saved split, and `sweeps`). Prints a table and ends with one JSON line.
+`ctrkin reproduce`, with its protocols and seeds: the same data as its `paper` and `sweeps`), or
+read from a reproduction's `data` folder (`--data`: its `paper`, with the saved split, and
+`sweeps`). Prints a table and ends with one JSON line.
 """
 
 from __future__ import annotations
@@ -124,10 +125,10 @@ def _record(args: argparse.Namespace) -> tuple[Dataset, Dataset]:
     virtual = VirtualRobot(robot, virtual_config(tuple(args.set)), seed=args.robot_seed)
     scale = get_scale(args.scale)
     kw: dict[str, Any] = {"scale": scale.protocol_scale}
-    paper_kw: dict[str, Any] = {**kw, **_paper_kw(scale, robot)}
+    paper_kw: dict[str, Any] = {**kw, "seed": SEEDS["paper"], **_paper_kw(scale, robot)}
     paper_plan = protocols.build("paper", robot, **paper_kw)
     paper = record(paper_plan, virtual, seed=SEEDS["paper"], workers=args.workers, progress=False)
-    sweeps_plan = protocols.build("sweeps", robot, **kw)
+    sweeps_plan = protocols.build("sweeps", robot, **kw, seed=SEEDS["sweeps"])
     sweeps = record(sweeps_plan, virtual, seed=SEEDS["sweeps"], workers=args.workers, progress=False)
     return paper, sweeps
 
