@@ -9,7 +9,13 @@ import numpy as np
 import pytest
 
 from ctrkin.errors import ModelError
-from ctrkin.models.uncertainty import HISTORY, Uncertainty, conformal_radius, sequence_features
+from ctrkin.models.uncertainty import (
+    HISTORY,
+    Uncertainty,
+    conformal_radius,
+    grouped_radius,
+    sequence_features,
+)
 
 
 def _walks(rng: np.random.Generator, count: int, steps: int, d: tuple[float, float] = (4.0, 12.0),
@@ -30,14 +36,25 @@ def test_conformal_radius_is_the_stated_rank():
     assert conformal_radius(np.arange(5.0), 0.9) == math.inf      # too few for the level
 
 
+def test_grouped_radius_weighs_sequences_alike():
+    # 19 sequences of one row each: the row-wise rank; one long sequence of large errors counts once
+    s = np.arange(1.0, 20.0)
+    assert grouped_radius(s, [(i, i + 1) for i in range(19)], 0.9) == conformal_radius(s, 0.9)
+    long = np.r_[s, np.full(100, 50.0)]
+    runs = [(i, i + 1) for i in range(19)] + [(19, 119)]
+    assert grouped_radius(long, runs, 0.9) == 19.0          # m = 20: level 0.945, weight 1/20 each
+
+
 def test_fk_intervals_cover_exchangeable_errors():
     rng = np.random.default_rng(0)
     x, b = _walks(rng, 8, 50)
-    cal_x, cal_b = _walks(rng, 8, 50)
+    cal_x, cal_b = _walks(rng, 150, 10)                    # m = 150 sequences: level 0.9·151/150
     unc = Uncertainty.fit("fk", 2, x, b, cal_x, cal_b, rng.normal(0, 0.3, (len(cal_x), 3)))
     test = rng.normal(0, 0.3, (20000, 3))
     cover = unc.covers(test, np.zeros_like(test)).mean()
     assert 0.88 <= cover <= 0.92
+    few_x, few_b = _walks(rng, 8, 50)                      # 8 sequences cannot give 90 %: (8+1)/8·0.9 > 1
+    assert Uncertainty.fit("fk", 2, x, b, few_x, few_b, np.zeros((len(few_x), 3))).radius == math.inf
     assert unc.half_widths().shape == (3,)
 
 

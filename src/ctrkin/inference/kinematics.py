@@ -249,7 +249,7 @@ class Kinematics:
             self._unc_stream = unc.stream()
         value = self.step(x, check, strict)
         score = self._unc_stream.step(x)
-        return UncertainStep(value, unc.half_widths(), score, score > unc.threshold, unc.level)
+        return UncertainStep(value, self._unc_stream.half_widths, score, score > unc.threshold, unc.level)
 
     def _accepts(self, method: str, options: dict[str, Any]) -> None:
         why = refused_options(self.predictor, method, options)

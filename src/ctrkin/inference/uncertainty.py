@@ -32,9 +32,9 @@ if TYPE_CHECKING:
 __all__ = ["UncertainPrediction", "UncertainStep", "Uncertainty", "calibrate", "ood_scores", "predict_rows"]
 
 
-def _rows_bounds(sid: np.ndarray, rows: np.ndarray) -> list[tuple[int, int]]:
-    """Sequences [a, b) of the selected rows (in order): a new one where sequence_id changes or a row
-    is skipped."""
+def row_runs(sid: np.ndarray, rows: np.ndarray) -> list[tuple[int, int]]:
+    """Sequences [a, b) (positions in `rows`) of the selected rows (in order): a new one where
+    sequence_id changes or a row is skipped."""
     rows = np.asarray(rows)
     if len(rows) == 0:
         return []
@@ -74,8 +74,8 @@ def calibrate(kin: Kinematics, ds: Dataset, train_rows: np.ndarray, cal_rows: np
     pred, truth = predict_rows(kin, ds)
     sid = ds.frame["sequence_id"].to_numpy()
     x = raw_inputs(kin, ds)
-    return Uncertainty.fit(kin.task, ds.n_tubes, x[train_rows], _rows_bounds(sid, train_rows),
-                           x[cal_rows], _rows_bounds(sid, cal_rows), pred[cal_rows] - truth[cal_rows],
+    return Uncertainty.fit(kin.task, ds.n_tubes, x[train_rows], row_runs(sid, train_rows),
+                           x[cal_rows], row_runs(sid, cal_rows), pred[cal_rows] - truth[cal_rows],
                            level=level, false_alarm=false_alarm)
 
 
@@ -83,4 +83,4 @@ def ood_scores(unc: Uncertainty, kin: Kinematics, ds: Dataset, rows: np.ndarray 
     """(R,) OOD scores of rows of ds (default all), each run of consecutive rows one sequence."""
     sid = ds.frame["sequence_id"].to_numpy()
     rows = np.arange(len(sid)) if rows is None else np.sort(np.asarray(rows))
-    return unc.ood_scores(raw_inputs(kin, ds)[rows], _rows_bounds(sid, rows))
+    return unc.ood_scores(raw_inputs(kin, ds)[rows], row_runs(sid, rows))

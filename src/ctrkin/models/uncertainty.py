@@ -10,14 +10,20 @@ arrays stay where callers read them (ctrkin.models.predictor: "an uncertainty be
   (IK: joints, α errors wrapped, σ_j the calibration errors' median per joint, deg or mm). The radius
   r is the ⌈(n + 1)·level⌉-th smallest s. For a new row exchangeable with the calibration rows,
   P(s ≤ r) ≥ level (and ≤ level + 1/(n + 1) without ties): the FK tip lies in the ball of radius r
-  about the prediction, the IK joints in the box ±r·σ_j.
+  about the prediction, the IK joints in the box ±r·σ_j. Rows of one sequence are not exchangeable
+  (their errors are correlated); sequences are. So the rows are pooled with each of the m
+  calibration sequences weighing 1/m, and r is that pooled distribution's quantile at
+  level·(m + 1)/m (Dunn, Wasserman & Ramdas 2022, two-layer hierarchical conformal): the finite-sample
+  correction counts sequences, not rows.
 - **Out of distribution**. Per step the features g(x_t) and their last two changes (FK: cos and sin of
   each relative rotation αi − αN, the translations; IK: the target pose), standardised by the training
   rows' spread. The configuration part g and the history part each get the mean distance to the k
-  nearest of up to `max_reference` training rows in that part (brute force in numba: the same kernel
+  nearest of up to `max_reference` (1,000) training rows in that part (brute force in numba: the same kernel
   for batch and streaming, so both give the same score), over its median on the calibration rows;
   the score is the larger of the two (a joint combination never visited stands out in the few
-  configuration columns, not diluted by the history's, and the reverse).
+  configuration columns, not diluted by the history's, and the reverse), plus the features' excess
+  beyond their trained ranges in units of 1 % of their spread (outside the trained range is out of
+  distribution however near: the score then passes every in-range neighbour distance).
   Joints beyond the trained ranges, combinations the protocols never visited and histories unlike
   the recorded ones (larger steps, reversals) all land far from every training row. The flag's
   threshold is the calibration rows' score at `1 − false_alarm` (1 % by default), so an in-range row
@@ -44,6 +50,7 @@ from ctrkin.errors import ModelError
 FILE = "uncertainty.npz"
 FORMAT = 1
 HISTORY = 2           # changes of g over the last HISTORY steps are features (the "history" part)
+RANGE_UNIT = 0.01    # a feature 1 % of its training spread beyond its trained range adds 1 to the score
 FLOOR = 1e-6          # a feature that never varied in training: its spread floored (no division by 0)
 
 
@@ -156,12 +163,26 @@ def _stream_features(fk: bool, n: int, rows: np.ndarray, count: int, center: np.
 
 
 @numba.njit(cache=True)
-def _score(z: np.ndarray, ref: np.ndarray, g: int, k: int, tau: np.ndarray, best: np.ndarray) -> float:
+def _score(z: np.ndarray, ref: np.ndarray, g: int, k: int, tau: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+           best: np.ndarray) -> float:
     """The OOD score of standardised features z (F,): the larger of the configuration's (columns < g)
-    and the history's k-NN distance, each over its calibration median tau (2,)."""
+    and the history's k-NN distance, each over its calibration median tau (2,), plus the excess
+    beyond the trained range [lo, hi] (F,) in units of RANGE_UNIT."""
     a = _knn_score(z, ref, 0, g, k, best) / tau[0]
     b = _knn_score(z, ref, g, ref.shape[1], k, best) / tau[1]
-    return max(a, b)
+    excess = 0.0
+    for f in range(z.shape[0]):
+        excess += max(z[f] - hi[f], 0.0) + max(lo[f] - z[f], 0.0)
+    return max(a, b) + excess / RANGE_UNIT
+
+
+@numba.njit(cache=True)
+def _stream_score(fk: bool, n: int, rows: np.ndarray, count: int, center: np.ndarray, spread: np.ndarray,
+                  z: np.ndarray, ref: np.ndarray, g: int, k: int, tau: np.ndarray, lo: np.ndarray,
+                  hi: np.ndarray, best: np.ndarray) -> float:
+    """One streamed step's OOD score (one call: the features into z, then the score)."""
+    _stream_features(fk, n, rows, count, center, spread, z)
+    return _score(z, ref, g, k, tau, lo, hi, best)
 
 
 @numba.njit(cache=True)
@@ -175,18 +196,19 @@ def _part_scores(Z: np.ndarray, ref: np.ndarray, lo: int, hi: int, k: int) -> np
 
 
 @numba.njit(cache=True)
-def _scores(Z: np.ndarray, ref: np.ndarray, g: int, k: int, tau: np.ndarray) -> np.ndarray:
+def _scores(Z: np.ndarray, ref: np.ndarray, g: int, k: int, tau: np.ndarray, lo: np.ndarray,
+            hi: np.ndarray) -> np.ndarray:
     out = np.empty(Z.shape[0])
     best = np.empty(k)
     for t in range(Z.shape[0]):
-        out[t] = _score(Z[t], ref, g, k, tau, best)
+        out[t] = _score(Z[t], ref, g, k, tau, lo, hi, best)
     return out
 
 
 def conformal_radius(scores: np.ndarray, level: float) -> float:
     """The ⌈(n + 1)·level⌉-th smallest of n calibration scores (module docstring); inf if n is too
-    small for the level."""
-    s = np.sort(np.asarray(scores, float)[np.isfinite(scores)])
+    small for the level (an infinite score, a refused prediction, ranks last)."""
+    s = np.sort(np.asarray(scores, float))
     rank = math.ceil((len(s) + 1) * level)
     return float(s[rank - 1]) if rank <= len(s) else math.inf
 
@@ -202,17 +224,39 @@ def scores(task: str, n_tubes: int, errors: np.ndarray, scale: np.ndarray) -> np
     return np.asarray(np.max(np.abs(e) / scale, axis=1))
 
 
-def interval(task: str, n_tubes: int, errors: np.ndarray, level: float) -> tuple[float, np.ndarray]:
-    """The conformal radius and the IK's joint scale (empty for FK) of calibration errors (C, ·);
-    rows with a NaN error (a prediction refused) are left out."""
+def grouped_radius(scores: np.ndarray, bounds: list[tuple[int, int]], level: float) -> float:
+    """The conformal radius for rows that come in m sequences (rows of one sequence are correlated;
+    the sequences exchangeable): the pooled-CDF quantile of Dunn, Wasserman & Ramdas (2022), each
+    sequence weighing 1/m, at level·(m + 1)/m; inf if m is too small for the level."""
+    m = len(bounds)
+    want = level * (m + 1) / m if m else math.inf
+    if want > 1.0:
+        return math.inf
+    s = np.asarray(scores, float)
+    w = np.concatenate([np.full(b - a, 1.0 / (m * (b - a))) for a, b in bounds])
+    keep = np.isfinite(s)
+    order = np.argsort(s[keep])
+    cum = np.cumsum(w[keep][order])
+    i = int(np.searchsorted(cum, want - 1e-12))
+    return float(s[keep][order][i]) if i < len(order) else math.inf
+
+
+def interval(task: str, n_tubes: int, errors: np.ndarray, level: float,
+             bounds: list[tuple[int, int]] | None = None) -> tuple[float, np.ndarray]:
+    """The conformal radius and the IK's joint scale (empty for FK) of calibration errors (C, ·) in
+    sequences `bounds` (None: every row its own); a row with a NaN error (a prediction refused)
+    never counts as covered."""
     e = np.atleast_2d(np.asarray(errors, float))
-    e = e[np.all(np.isfinite(e), axis=1)]
+    ok = np.all(np.isfinite(e), axis=1)
     scale = np.empty(0)
     if task == "ik":
-        w = e.copy()
+        w = e[ok].copy()
         w[:, :n_tubes] = wrap_deg(w[:, :n_tubes])
         scale = np.maximum(np.median(np.abs(w), axis=0), FLOOR)
-    return conformal_radius(scores(task, n_tubes, e, scale), level), scale
+    s = np.where(ok, scores(task, n_tubes, np.where(ok[:, None], e, 0.0), scale), math.inf)
+    if bounds is None:
+        return conformal_radius(s, level), scale
+    return grouped_radius(s, bounds, level), scale
 
 
 @dataclass(frozen=True, eq=False)
@@ -223,7 +267,8 @@ class Uncertainty:
     position, IK the multiple of joint_scale; joint_scale: (2N,) IK only (deg, mm), else empty;
     center, spread: (F,) standardisation of the OOD features; reference: (M, F) standardised training
     rows; k: neighbours; n_config: the configuration's features (the first columns; the rest are the
-    history's); tau: (2,) the calibration rows' median k-NN distance in each part;
+    history's); tau: (2,) the calibration rows' median k-NN distance in each part; lo, hi: (F,) the
+    standardised features' trained range;
     threshold: the OOD flag's score; false_alarm: its in-range rate;
     n_calibration: rows the radius and threshold came from."""
 
@@ -238,6 +283,8 @@ class Uncertainty:
     k: int
     n_config: int
     tau: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
     threshold: float
     false_alarm: float
     n_calibration: int
@@ -245,7 +292,7 @@ class Uncertainty:
     @classmethod
     def fit(cls, task: str, n_tubes: int, train_x: np.ndarray, train_bounds: list[tuple[int, int]],
             cal_x: np.ndarray, cal_bounds: list[tuple[int, int]], cal_errors: np.ndarray,
-            level: float = 0.9, false_alarm: float = 0.01, k: int = 5, max_reference: int = 2000
+            level: float = 0.9, false_alarm: float = 0.01, k: int = 5, max_reference: int = 1000
             ) -> Uncertainty:
         """From training rows train_x (T, ·) and calibration rows cal_x (C, ·) with their sequences, and
         the model's errors on the calibration rows: FK (C, 3) predicted − measured tip (mm), IK (C, 2N)
@@ -255,15 +302,17 @@ class Uncertainty:
         err = np.atleast_2d(np.asarray(cal_errors, float))
         if len(err) != len(cal_x):
             raise ModelError(f"{len(err)} calibration errors for {len(cal_x)} calibration rows")
-        radius, scale = interval(task, n_tubes, err, level)
+        radius, scale = interval(task, n_tubes, err, level, cal_bounds)
         ok = np.all(np.isfinite(err), axis=1)
         feats = sequence_features(task, n_tubes, train_x, train_bounds)
         center, spread = feats.mean(axis=0), np.maximum(feats.std(axis=0), FLOOR)
         pick = np.linspace(0, len(feats) - 1, min(max_reference, len(feats))).round().astype(int)
-        ref = np.ascontiguousarray((feats[np.unique(pick)] - center) / spread)
+        z_train = (feats - center) / spread
+        ref = np.ascontiguousarray(z_train[np.unique(pick)])
         g = base_features(task, n_tubes, train_x[:1]).shape[1]
         unc = cls(task, n_tubes, float(level), radius, scale, center, spread, ref, int(min(k, len(ref))),
-                  g, np.ones(2), math.inf, float(false_alarm), int(ok.sum()))
+                  g, np.ones(2), z_train.min(axis=0), z_train.max(axis=0), math.inf, float(false_alarm),
+                  int(ok.sum()))
         z = np.ascontiguousarray((sequence_features(task, n_tubes, cal_x, cal_bounds) - center) / spread)
         if len(z):
             tau = np.maximum([np.median(_part_scores(z, ref, lo, hi, unc.k))
@@ -277,7 +326,8 @@ class Uncertainty:
     def ood_scores(self, x: np.ndarray, bounds: list[tuple[int, int]]) -> np.ndarray:
         """(T,) OOD scores of rows x (T, ·) in sequences `bounds` (larger: further from training)."""
         z = (sequence_features(self.task, self.n_tubes, x, bounds) - self.center) / self.spread
-        return _scores(np.ascontiguousarray(z), self.reference, self.n_config, self.k, self.tau)
+        return _scores(np.ascontiguousarray(z), self.reference, self.n_config, self.k, self.tau, self.lo,
+                       self.hi)
 
     def half_widths(self) -> np.ndarray:
         """The interval's half widths: FK (3,) the ball's radius on each axis (mm); IK (2N,) deg, mm."""
@@ -299,7 +349,8 @@ class Uncertainty:
         os.close(fd)
         np.savez(tmp, format=FORMAT, task=self.task, n_tubes=self.n_tubes, level=self.level,
                  radius=self.radius, joint_scale=self.joint_scale, center=self.center, spread=self.spread,
-                 reference=self.reference, k=self.k, n_config=self.n_config, tau=self.tau,
+                 reference=self.reference, k=self.k, n_config=self.n_config, tau=self.tau, lo=self.lo,
+                 hi=self.hi,
                  threshold=self.threshold,
                  false_alarm=self.false_alarm, n_calibration=self.n_calibration)
         os.replace(tmp, folder / FILE)
@@ -318,7 +369,7 @@ class Uncertainty:
             return cls(str(f["task"]), int(f["n_tubes"]), float(f["level"]), float(f["radius"]),
                        f["joint_scale"].copy(), f["center"].copy(), f["spread"].copy(),
                        np.ascontiguousarray(f["reference"]), int(f["k"]), int(f["n_config"]),
-                       f["tau"].copy(), float(f["threshold"]),
+                       f["tau"].copy(), f["lo"].copy(), f["hi"].copy(), float(f["threshold"]),
                        float(f["false_alarm"]), int(f["n_calibration"]))
 
 
@@ -333,6 +384,8 @@ class UncertainStream:
         self._rows = np.zeros((HISTORY + 1, width))
         self._z = np.empty(len(unc.center))
         self._best = np.empty(max(unc.k, 1))
+        self.half_widths = unc.half_widths()          # the same every step
+        self.half_widths.flags.writeable = False
         self.reset()
 
     def reset(self) -> None:
@@ -346,8 +399,8 @@ class UncertainStream:
         else:
             self._count += 1
         rows[self._count - 1] = x
-        _stream_features(self._fk, u.n_tubes, rows, self._count, u.center, u.spread, self._z)
-        return float(_score(self._z, u.reference, u.n_config, u.k, u.tau, self._best))
+        return float(_stream_score(self._fk, u.n_tubes, rows, self._count, u.center, u.spread, self._z,
+                                   u.reference, u.n_config, u.k, u.tau, u.lo, u.hi, self._best))
 
 
 @dataclass(frozen=True, eq=False)
