@@ -140,7 +140,7 @@ def auroc(inside: np.ndarray, outside: np.ndarray) -> float:
     return float((r_out - len(outside) * (len(outside) + 1) / 2) / (len(inside) * len(outside)))
 
 
-def _walks(robot: Robot, rng: np.random.Generator, region: dict[str, Any], count: int,
+def region_walks(robot: Robot, rng: np.random.Generator, region: dict[str, Any], count: int,
            steps: int) -> list[np.ndarray]:
     return [walk(robot, rng, steps, **region) for _ in range(count)]
 
@@ -173,9 +173,9 @@ def uncertainty_study(robot: Robot, vr: VirtualRobot, rng: np.random.Generator, 
     reg = regions(robot)
     n_train, steps, n_held, short = (24, 120, 48, 40) if quick else (60, 150, 120, 50)
     t0 = time.perf_counter()
-    train_ds = record_walks(vr, _walks(robot, rng, reg["train"], n_train, steps), seed + 1)
-    held = record_walks(vr, _walks(robot, rng, reg["train"], n_held, short), seed + 2, first_id=10_000)
-    ood = {name: record_walks(vr, _walks(robot, rng, reg[name], n_held // 4, short), seed + 3 + i)
+    train_ds = record_walks(vr, region_walks(robot, rng, reg["train"], n_train, steps), seed + 1)
+    held = record_walks(vr, region_walks(robot, rng, reg["train"], n_held, short), seed + 2, first_id=10_000)
+    ood = {name: record_walks(vr, region_walks(robot, rng, reg[name], n_held // 4, short), seed + 3 + i)
            for i, name in enumerate(("range", "combination", "steps", "reversals"))}
     both = Dataset(pd.concat([train_ds.frame, held.frame], ignore_index=True), robot, {"protocol": "walks"})
     train_rows = np.arange(len(train_ds.frame))

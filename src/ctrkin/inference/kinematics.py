@@ -8,6 +8,8 @@
         pose = fk.step(q)                 # keeps the input buffer itself; equals predict() to 1e-5
     ik = ctrkin.Kinematics.load("models/ik")
     res = ik.predict(targets)             # targets: (T, 6) poses -> IKResult(joints, in_workspace, ...)
+    s = fk.step_uncertain(q)              # with a calibrated uncertainty.npz in the folder: the pose, its
+                                          # 90 % interval and an out-of-distribution score and flag
 
 `Kinematics` is the face of every model family (docs/design.md: Model families): `load` opens a model
 folder through the registry (ctrkin.families.registry) as its family's predictor
