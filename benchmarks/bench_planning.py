@@ -14,9 +14,14 @@ tip of some configuration, though not always of one on the branch the robot is o
   Its plan is checked independently: its joints are followed again from the start on the same robot
   and the snaps counted, and the tips of that run compared with the targets.
 
-Prints a table (counts, fraction within 1 mm, least and median margin, planning time per target)
-and ends with one JSON line of the issue's keys; control_hz, tracking_rmse_mm, coverage_90 and
-ood_auroc belong to goals not built yet (the control loop, uncertainty): null.
+Then the learned half (benchmarks/learned_loop.py, its docstring has the method; `--no-learned`
+leaves it out, `--learned-quick` shrinks it): calibrated uncertainty of the learned FK and IK on the
+paper robot and on the comet nylon robot (coverage of the 90 % intervals, AUROC of the
+out-of-distribution score, streaming cost), and the closed-loop controller on the virtual robot
+(cycles per second, steady-state tracking RMS, snaps, the stop on a tracker dropout).
+
+Prints the tables and ends with one JSON line of the issue's keys (coverage_90: the one furthest
+from 0.9 over robots and tasks; ood_auroc: the least), the learned half's figures under "learned".
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import numpy as np
 
+import learned_loop  # benchmarks/, beside this file
 from ctrkin import follow, paper_robot, solve
 from ctrkin.planning import PlanConfig, plan_path
 from ctrkin.planning.naive import naive_path
@@ -72,6 +78,8 @@ def main() -> None:
     ap.add_argument("--targets", type=int, default=4, help="targets per path")
     ap.add_argument("--robot", default="paper")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--no-learned", action="store_true", help="leave out uncertainty and control")
+    ap.add_argument("--learned-quick", action="store_true", help="fewer walks, shorter training and loop")
     args = ap.parse_args()
     robot = paper_robot() if args.robot == "paper" else load_robot(args.robot)
     rng = np.random.default_rng(args.seed)
@@ -126,15 +134,19 @@ def main() -> None:
     offers = sum(r["offers"] for r in rows["planner"])
     print(f"planner: {unreach} targets reported unreachable on the current branch ({offers} with a "
           f"deliberate snap offered)")
-    print("not built this session (null below): control_hz, tracking_rmse_mm (control loop), "
-          "coverage_90, ood_auroc (uncertainty)")
+    learned: dict = {}
+    keys = dict.fromkeys(("control_hz", "tracking_rmse_mm", "coverage_90", "ood_auroc"))
+    if not args.no_learned:
+        learned = learned_loop.run(args.learned_quick, args.seed)
+        print()
+        learned_loop.print_table(learned)
+        keys = learned_loop.summary(learned)
     print(json.dumps({
         "unplanned_snaps_naive": out["naive"]["snaps"], "unplanned_snaps_planner": out["planner"]["snaps"],
         "within_1mm_fraction": out["planner"]["within"], "within_1mm_fraction_naive": out["naive"]["within"],
         "least_margin_planner": out["planner"]["least"], "least_margin_naive": out["naive"]["least"],
         "planning_s_per_target": out["planner"]["sec"], "unreachable_reported": unreach,
-        "paths": args.paths, "targets": n_t, "control_hz": None, "tracking_rmse_mm": None,
-        "coverage_90": None, "ood_auroc": None}))
+        "paths": args.paths, "targets": n_t, **keys, "learned": learned}))
 
 
 if __name__ == "__main__":

@@ -22,19 +22,23 @@ MODULE_PATH = re.compile(r"ctrkin(\.\w+)+")
 FORBIDDEN = {
     # hardware sits between the virtual robot and acquisition: it may drive the virtual robot, and
     # only acquisition (and what sits above it) runs protocols on it
-    "robots": {"hardware", "virtual", "acquisition", "planning"},
-    "mechanics": {"hardware", "virtual", "acquisition", "planning"},
-    "virtual": {"hardware", "acquisition", "planning"},
+    "robots": {"hardware", "virtual", "acquisition", "planning", "control"},
+    "mechanics": {"hardware", "virtual", "acquisition", "planning", "control"},
+    "virtual": {"hardware", "acquisition", "planning", "control"},
     "hardware": {"acquisition", "data", "calibration", "models", "families", "training", "inference",
-                 "evaluation", "cli", "planning"},
-    "models": {"families", "training", "inference", "evaluation", "cli", "virtual", "hardware", "planning"},
-    "families": {"training", "inference", "evaluation", "cli", "virtual", "hardware", "planning"},
-    "training": {"inference", "evaluation", "cli", "virtual", "hardware", "planning"},
-    "inference": {"training", "evaluation", "cli", "virtual", "hardware", "planning"},
+                 "evaluation", "cli", "planning", "control"},
+    "models": {"families", "training", "inference", "evaluation", "cli", "virtual", "hardware", "planning",
+               "control"},
+    "families": {"training", "inference", "evaluation", "cli", "virtual", "hardware", "planning", "control"},
+    "training": {"inference", "evaluation", "cli", "virtual", "hardware", "planning", "control"},
+    "inference": {"training", "evaluation", "cli", "virtual", "hardware", "planning", "control"},
     # planning works on a robot's mechanics (nominal or calibrated), later on learned models through
     # inference; it runs nothing on a robot (hardware, virtual, acquisition) and trains nothing
     "planning": {"hardware", "virtual", "acquisition", "data", "calibration", "families", "training",
-                 "evaluation", "cli"},
+                 "evaluation", "cli", "control"},
+    # control closes a loop on a learned FK (duck-typed: a Kinematics) and demonstrates it on the
+    # virtual robot; it trains nothing and reads no datasets
+    "control": {"acquisition", "data", "calibration", "families", "training", "evaluation", "cli"},
 }
 REGISTRY = "ctrkin.families.registry"
 ABOVE_ALL = {"cli": {"cli"}, "evaluation": {"cli", "evaluation"}}   # imported only by these

@@ -9,7 +9,7 @@ import click
 import pytest
 from click.testing import CliRunner
 
-from ctrkin.cli.from_config import config_options, parse_key_values
+from ctrkin.cli.from_config import config_options, option_help, parse_key_values
 
 
 def _help(text: str) -> dict[str, str]:
@@ -147,6 +147,11 @@ def test_bad_key_values_are_one_usage_error(item: str, words: str) -> None:
     ("ctrkin.cli.collect:collect_cmd", "ctrkin.cli.collect:CollectConfig", {}),
     ("ctrkin.cli.mechanics:solve_cmd", "ctrkin.cli.mechanics:SolveConfig", {}),
     ("ctrkin.cli.mechanics:sweep_cmd", "ctrkin.cli.mechanics:SweepConfig", {}),
+    *((f"ctrkin.cli.{module}:{command}", f"ctrkin.cli.{module}:{config}", {}) for module, command, config in (
+        ("plan", "plan_cmd", "PlanCommandConfig"), ("calibrate", "calibrate_cmd", "CalibrateConfig"),
+        ("evaluate", "evaluate_cmd", "EvaluateConfig"), ("predict", "predict_cmd", "PredictConfig"),
+        ("show", "show_cmd", "ShowConfig"), ("export", "export_cmd", "ExportConfig"),
+        ("robot", "template_cmd", "TemplateConfig"), ("dataset", "info_cmd", "InfoConfig"))),
 ])
 def test_commands_take_every_field_of_their_config(command: str, config: str, own: dict) -> None:
     """Each field of the command's configuration is an option of the command (with the field's help
@@ -163,6 +168,8 @@ def test_commands_take_every_field_of_their_config(command: str, config: str, ow
     for f in dataclasses.fields(cfg):
         if f.name in own:
             assert all(p in params for p in own[f.name]), f.name
+        elif isinstance(params.get(f.name), click.Argument):       # arguments have no help of their own
+            assert f.metadata.get("argument"), f.name
         else:
             assert f.name in params, f.name
             assert params[f.name].help == f.metadata["help"], f.name
@@ -209,3 +216,94 @@ def test_a_range_on_a_field_that_is_not_a_number_is_refused() -> None:
 
     with pytest.raises(TypeError, match="range applies to int and float"):
         config_options(Wrong)
+
+
+# Options a command adds beside its configuration's: the shared output options, and where a command's
+# line reads into a field of its configuration (or of a library configuration) by hand.
+SHARED = {"overwrite", "force", "as_json", "settings"}      # --overwrite, --force, --json, --set
+OWN = {
+    "train": {"list_models", "data_dir", "out_dir", "structure", "model_options"},
+    "dataset import": {"log_files", "robot_spec", "profile_file", "out_dir", "maps", "units", "quat_cols",
+                       "gap_text", "keep_outliers", "no_average"},
+    "collect": {"protocol", "rig_file", "out_dir"},
+    "reproduce": {"out"},
+    "plan": {"out_dir"},
+    "sweep": {"out_dir"},
+}
+
+
+def _commands() -> dict[str, click.Command]:
+    from ctrkin.cli.main import COMMANDS, cli
+
+    ctx = click.Context(cli)
+    out = {}
+    for name in COMMANDS:
+        cmd = cli.get_command(ctx, name)
+        assert cmd is not None
+        subs = cmd.commands if isinstance(cmd, click.Group) else {"": cmd}
+        out |= {f"{name} {sub}".strip(): c for sub, c in subs.items()}
+    return out
+
+
+def test_every_command_is_generated_from_its_configuration() -> None:
+    """Each command of `ctrkin` (sub-commands included) takes its options from a typed configuration
+    (ctrkin.cli.from_config.config_options); beside them only the shared output options and the
+    hand-read options listed in OWN."""
+    import dataclasses
+
+    from ctrkin.cli.from_config import CONFIG
+
+    commands = _commands()
+    assert {"calibrate", "evaluate", "predict", "show", "export", "robot template", "dataset info",
+            "train", "plan"} <= set(commands)
+    for name, cmd in commands.items():
+        cfg = getattr(cmd.callback, CONFIG, None)
+        assert cfg is not None and dataclasses.is_dataclass(cfg), name
+        fields = {f.name for f in dataclasses.fields(cfg)}
+        extra = {p.name for p in cmd.params if p.name not in fields and p.name != "help"}
+        assert extra <= SHARED | OWN.get(name, set()), (name, extra - SHARED - OWN.get(name, set()))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Shapes:
+    folder: str = field(metadata=option_help("A folder.", path="folder", argument=True))
+    out: str = field(metadata=option_help("Where to write.", path="out"))
+    q: tuple[str, ...] = field(default=(), metadata=option_help("Joints.", repeat=True, metavar="JOINTS"))
+    loso: bool = field(default=False, metadata=option_help("Also this.", flag=True))
+
+
+def test_arguments_paths_flags_and_repeated_options(tmp_path) -> None:
+    @click.command()
+    @config_options(Shapes)
+    def cmd(**settings: Any) -> None:
+        click.echo(repr(Shapes(**settings)))
+
+    given = _params(cmd, [str(tmp_path), "--out", "x", "--q", "1,2", "--q", "3,4", "--loso"])
+    assert given == {"folder": str(tmp_path), "out": "x", "q": ("1,2", "3,4"), "loso": True}
+    assert _params(cmd, [str(tmp_path), "--out", "x"])["q"] == ()
+    runner = CliRunner()
+    text = runner.invoke(cmd, ["--help"]).output
+    assert "FOLDER" in text and "--q JOINTS" in text and "--no-loso" not in text
+    missing = runner.invoke(cmd, [str(tmp_path / "nope"), "--out", "x"])
+    assert missing.exit_code == 1 and "does not exist" in missing.output          # an input: exit 1
+    res = runner.invoke(cmd, [str(tmp_path)])
+    assert res.exit_code == 2 and "Missing option '--out'" in res.output          # no default: required
+
+
+def test_shapes_the_field_cannot_take_are_refused() -> None:
+    @dataclass(frozen=True)
+    class FlagOnNumber:
+        n: int = field(default=1, metadata=option_help("A number.", flag=True))
+
+    @dataclass(frozen=True)
+    class PathOnNumber:
+        n: int = field(default=1, metadata=option_help("A number.", path="folder"))
+
+    @dataclass(frozen=True)
+    class RepeatOnText:
+        s: str = field(default="", metadata=option_help("Text.", repeat=True))
+
+    for cls, words in ((FlagOnNumber, "a flag is a bool"), (PathOnNumber, "a path is a str"),
+                       (RepeatOnText, "a repeated option is a tuple")):
+        with pytest.raises(TypeError, match=words):
+            config_options(cls)

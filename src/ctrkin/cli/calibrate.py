@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass, field
 from typing import Any, cast
 
 import click
@@ -17,10 +18,49 @@ import tomli_w
 
 from ctrkin.calibration import calibrate, leave_one_sequence_out
 from ctrkin.calibration.params import ALL_GROUPS, default_groups
-from ctrkin.cli.common import InputPath, emit_json, output_file, output_options, say
+from ctrkin.cli.common import emit_json, output_file, output_options, say
+from ctrkin.cli.from_config import config_options, option_help
 from ctrkin.data.dataset import Dataset
 from ctrkin.robots import load_robot
 from ctrkin.util.files import atomic_write_text
+
+
+@dataclass(frozen=True, kw_only=True)
+class CalibrateConfig:
+    """What `ctrkin calibrate` fits (one option per field)."""
+
+    data: str = field(metadata=option_help("Dataset folder (ctrkin dataset import).", path="folder"))
+    robot: str | None = field(default=None, metadata=option_help(
+        "Nominal robot (name or TOML file); default: the dataset's robot."))
+    out: str = field(metadata=option_help(
+        "Calibrated robot file to write (a normal robot file plus a [calibration] table).", path="out"))
+    fit: str | None = field(default=None, metadata=option_help(
+        f"Parameter groups to fit, comma-separated, from {','.join(ALL_GROUPS)}; default: all but "
+        "bending_stiffness (per tube a scale of E, relative to the outermost tube: tubes whose E differs) "
+        "and friction (μ between the tubes, fitted on the continued TCM), friction included when the robot "
+        "file has friction > 0."))
+    loso: bool = field(default=False, metadata=option_help(
+        "Also report leave-one-sequence-out error (one refit per sequence).", flag=True))
+    max_evaluations: int = field(default=60, metadata=option_help("Least-squares evaluations.",
+                                                                  range=(1, 100_000)))
+    no_prior: bool = field(default=False, metadata=option_help(
+        "Fit without the prior about the nominal values (ctrkin.calibration.params.PRIOR_SIGMA).", flag=True))
+    prior_scales: str = field(default="1", metadata=option_help(
+        "With --loso: candidate multipliers of every prior σ, comma-separated (e.g. 0.5,1,2); with several, "
+        "each fold picks one by a nested leave-one-sequence-out on its training sequences (needs >= 3 "
+        "sequences)."))
+
+    def scales(self) -> tuple[float, ...]:
+        """--prior-scales as numbers (a usage error unless positive numbers separated by commas)."""
+        try:
+            scales = tuple(float(v) for v in self.prior_scales.split(",") if v.strip())
+        except ValueError:
+            raise click.BadParameter(f"numbers separated by commas, e.g. 0.5,1,2; got {self.prior_scales!r}",
+                                     param_hint="--prior-scales") from None
+        if not scales or not all(v > 0 for v in scales):
+            raise click.BadParameter(f"positive numbers, e.g. 0.5,1,2; got {self.prior_scales!r}",
+                                     param_hint="--prior-scales")
+        return scales
 
 
 @click.command("calibrate", epilog="""\b
@@ -28,55 +68,28 @@ Examples:
   ctrkin calibrate --data data/optitrack --robot examples/robots/comet_nylon_optitrack.toml \\
       --out robots/optitrack_cal.toml --loso --prior-scales 0.5,1,2
   ctrkin calibrate --data data/optitrack --out robots/optitrack_cal.toml --json > calibration.json""")
-@click.option("--data", "data_dir", required=True, type=InputPath(file_okay=False),
-              help="Dataset folder (ctrkin dataset import).")
-@click.option("--robot", "robot_spec", default=None,
-              help="Nominal robot (name or TOML file); default: the dataset's robot.")
-@click.option("--out", "out_file", required=True, type=click.Path(),
-              help="Calibrated robot file to write (a normal robot file plus a [calibration] table).")
-@click.option("--fit", "fit", default=None,
-              help=f"Parameter groups to fit, comma-separated, from {','.join(ALL_GROUPS)}; default: all "
-              "but bending_stiffness (per tube a scale of E, relative to the outermost tube: tubes whose "
-              "E differs) and friction (μ between the tubes, fitted on the continued TCM), friction "
-              "included when the robot file has friction > 0.")
-@click.option("--loso", is_flag=True, help="Also report leave-one-sequence-out error (one refit per "
-              "sequence).")
-@click.option("--max-evaluations", default=60, show_default=True, type=click.IntRange(1, 100_000),
-              help="Least-squares evaluations.")
-@click.option("--no-prior", is_flag=True, help="Fit without the prior about the nominal values "
-              "(ctrkin.calibration.params.PRIOR_SIGMA).")
-@click.option("--prior-scales", default="1", show_default=True,
-              help="With --loso: candidate multipliers of every prior σ, comma-separated (e.g. 0.5,1,2); "
-              "with several, each fold picks one by a nested leave-one-sequence-out on its training "
-              "sequences (needs >= 3 sequences).")
+@config_options(CalibrateConfig)
 @output_options
-def calibrate_cmd(data_dir: str, robot_spec: str | None, out_file: str, fit: str | None, loso: bool,
-                  max_evaluations: int, no_prior: bool, prior_scales: str, overwrite: bool,
-                  as_json: bool) -> None:
+def calibrate_cmd(overwrite: bool, as_json: bool, **settings: Any) -> None:
     """Fit registration and TCM parameters (precurvature, stiffness ratio, α/β offsets, transmission
     length, marker offset, and μ between the tubes) by bounded least squares; print them with
     standard errors."""
-    try:
-        scales = tuple(float(v) for v in prior_scales.split(",") if v.strip())
-    except ValueError:
-        raise click.BadParameter(f"numbers separated by commas, e.g. 0.5,1,2; got {prior_scales!r}",
-                                 param_hint="--prior-scales") from None
-    if not scales or not all(v > 0 for v in scales):
-        raise click.BadParameter(f"positive numbers, e.g. 0.5,1,2; got {prior_scales!r}",
-                                 param_hint="--prior-scales")
-    output_file(out_file, "robot description", overwrite, inputs=[data_dir, robot_spec])
+    cfg = CalibrateConfig(**settings)
+    scales = cfg.scales()
+    data_dir, out_file, loso, prior = cfg.data, cfg.out, cfg.loso, not cfg.no_prior
+    output_file(out_file, "robot description", overwrite, inputs=[data_dir, cfg.robot])
     ds = Dataset.load(data_dir)
-    robot = load_robot(robot_spec) if robot_spec else ds.robot
-    groups = (default_groups(robot) if fit is None
-              else tuple(g.strip() for g in fit.split(",") if g.strip()))
-    res = calibrate(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior)
+    robot = load_robot(cfg.robot) if cfg.robot else ds.robot
+    groups = (default_groups(robot) if cfg.fit is None
+              else tuple(g.strip() for g in cfg.fit.split(",") if g.strip()))
+    res = calibrate(ds, robot, groups, max_nfev=cfg.max_evaluations, prior=prior)
     if loso:
-        res.loso = leave_one_sequence_out(ds, robot, groups, max_nfev=max_evaluations, prior=not no_prior,
+        res.loso = leave_one_sequence_out(ds, robot, groups, max_nfev=cfg.max_evaluations, prior=prior,
                                           prior_scales=scales)
     d = res.model.robot.to_dict()
     d["name"] = f"{robot.name}-calibrated"
     d["calibration"] = {**res.model.to_dict(), "dataset": str(data_dir),
-                        "data_sha256": ds.meta.get("data_sha256"), "prior": not no_prior,
+                        "data_sha256": ds.meta.get("data_sha256"), "prior": prior,
                         "fit": json.loads(json.dumps(res.to_dict(), default=float, allow_nan=True)
                                           .replace("NaN", "null"))}
     atomic_write_text(out_file, tomli_w.dumps(cast(dict[str, Any], _drop_none(d))))

@@ -35,14 +35,13 @@ from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.acquisition.task_paths import SHAPES, task_path
 from ctrkin.cli.common import (
+    ROBOT_HELP,
     emit_json,
     output_folder,
     output_options,
     say,
-    virtual_config,
-    virtual_settings_option,
 )
-from ctrkin.cli.from_config import RANGE, config_options
+from ctrkin.cli.from_config import RANGE, config_options, option_help, virtual_config, virtual_settings_option
 from ctrkin.evaluation.scales import Scale
 from ctrkin.robots import Robot, load_robot
 from ctrkin.virtual import VirtualRobot
@@ -51,33 +50,29 @@ CHOICES = [*protocols.PROTOCOLS, *SHAPES]
 MAX_POINTS = 100_000      # random points or path points: far beyond any protocol, within memory
 
 
-def _help(text: str) -> dict[str, str]:
-    return {"help": text}
-
-
 @dataclass(frozen=True)
 class CollectConfig:
     """What `ctrkin collect` records (one option per field; the virtual robot's effect magnitudes
     are VirtualConfig's, set by --set KEY=VALUE; the rig, where there is one, is --rig's file)."""
 
-    protocol: str = field(default="paper", metadata=_help("What to record: " + ", ".join(CHOICES) + "."))
-    scale: Scale = field(default="quick", metadata=_help(
+    protocol: str = field(default="paper", metadata=option_help(
+        "What to record: " + ", ".join(CHOICES) + "."))
+    scale: Scale = field(default="quick", metadata=option_help(
         "Size of the paper protocol, the training data of `reproduce --scale` of the same name (the other "
         "protocols do not depend on it). full: the paper's, 8 levels x 36 outer angles (207,648 "
         "samples); quick: 4 levels x 18 outer angles (51,912); tiny: 2 levels x 4 outer angles "
         "(5,768)."))
-    robot: str = field(default="paper", metadata=_help(
-        "Built-in robot name (paper, timclab) or path to a robot TOML file."))
-    seed: int = field(default=0, metadata=_help("Noise, glitches, random configurations."))
-    robot_seed: int = field(default=0, metadata=_help("The virtual hardware draw."))
-    n_points: int | None = field(default=None, metadata={RANGE: (1, MAX_POINTS), **_help(
+    robot: str = field(default="paper", metadata=option_help(ROBOT_HELP))
+    seed: int = field(default=0, metadata=option_help("Noise, glitches, random configurations."))
+    robot_seed: int = field(default=0, metadata=option_help("The virtual hardware draw."))
+    n_points: int | None = field(default=None, metadata={RANGE: (1, MAX_POINTS), **option_help(
         "random-points: number of targets (default 20); square/triangle: number of path points (default "
         "10, as in the paper; at least 4 for a square, 3 for a triangle).")})
-    levels: tuple[float, ...] | None = field(default=None, metadata=_help(
+    levels: tuple[float, ...] | None = field(default=None, metadata=option_help(
         "paper/sweeps: relative translations d = beta_N - beta_1 (mm), comma-separated (default: the "
         "protocol's, the paper robot's carried over to the robot's curved overlap and reach; "
         "docs/protocols.md: Other robots)."))
-    workers: int | None = field(default=None, metadata=_help("Processes (default: all cores)."))
+    workers: int | None = field(default=None, metadata=option_help("Processes (default: all cores)."))
 
     def __post_init__(self) -> None:
         if self.protocol not in CHOICES:

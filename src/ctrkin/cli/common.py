@@ -86,27 +86,8 @@ def log_line(message: str) -> None:
         click.echo(message, err=True)
 
 
-virtual_settings_option = click.option(
-    "--set", "settings", multiple=True, metavar="KEY=VALUE",
-    help="Override a virtual robot effect magnitude (repeatable; the keys are VirtualConfig's fields, "
-    "docs/virtual_robot.md), e.g. --set noise_mm=0.1.")
-
-
-def virtual_config(settings: Iterable[str]) -> Any:
-    """The VirtualConfig of --set KEY=VALUE settings (the one parser, typed by VirtualConfig's fields,
-    ctrkin.cli.from_config.parse_key_values); an unknown key or a bad value is a usage error."""
-    from ctrkin.cli.from_config import parse_key_values
-    from ctrkin.virtual.config import VirtualConfig, VirtualConfigError
-
-    try:
-        return VirtualConfig(**parse_key_values(settings, "--set", VirtualConfig))
-    except VirtualConfigError as e:
-        raise click.BadParameter(str(e), param_hint="--set") from None
-
-
-robot_option = click.option(
-    "--robot", "robot_spec", default="paper", show_default=True,
-    help="Built-in robot name (paper, timclab) or path to a robot TOML file.")
+ROBOT_HELP = "Built-in robot name (paper, timclab) or path to a robot TOML file."
+robot_option = click.option("--robot", "robot_spec", default="paper", show_default=True, help=ROBOT_HELP)
 
 
 class OutputExistsError(click.ClickException):

@@ -31,7 +31,7 @@ from rich.console import Console
 from rich.table import Table
 
 from ctrkin.cli.common import InputPath, output_folder, overwrite_option, quiet, robot_option, say
-from ctrkin.cli.from_config import config_options
+from ctrkin.cli.from_config import config_options, option_help
 from ctrkin.data.cleaning import CleaningConfig
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
@@ -103,18 +103,26 @@ def print_summary(s: dict[str, Any], title: str) -> None:
     console.print(ranges)
 
 
+@dataclass(frozen=True, kw_only=True)
+class InfoConfig:
+    """What `ctrkin dataset info` summarises, and how (the argument and one option per field)."""
+
+    folder: str = field(metadata=option_help("A dataset folder.", path="folder", argument=True))
+    json: bool = field(default=False, metadata=option_help("Print the summary as JSON.", flag=True))
+
+
 @dataset_group.command("info", epilog="""\b
 Examples:
   ctrkin dataset info data/paper --json""")
-@click.argument("folder", type=InputPath(file_okay=False))
-@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
-def info_cmd(folder: str, as_json: bool) -> None:
+@config_options(InfoConfig)
+def info_cmd(**settings: Any) -> None:
     """Summary of the dataset in FOLDER: samples, sequences, ranges, snaps, cleaning, noise, split."""
-    s = summarize(Dataset.load(folder))
-    if as_json:
+    cfg = InfoConfig(**settings)
+    s = summarize(Dataset.load(cfg.folder))
+    if cfg.json:
         click.echo(json.dumps(s, indent=2))
     else:
-        print_summary(s, title=str(folder))
+        print_summary(s, title=str(cfg.folder))
 
 
 # --- import ----------------------------------------------------------------------------------------
@@ -238,24 +246,21 @@ def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | 
 
 
 # --- split -----------------------------------------------------------------------------------------
-def _help(text: str) -> dict[str, str]:
-    return {"help": text}
-
-
 @dataclass(frozen=True)
 class SplitConfig:
-    """How `ctrkin dataset split` splits a dataset (one option per field)."""
+    """How `ctrkin dataset split` splits a dataset (the argument and one option per field)."""
 
-    kind: Literal["sequence", "random"] = field(default="sequence", metadata=_help(
+    folder: str = field(metadata=option_help("A dataset folder.", path="folder", argument=True))
+    kind: Literal["sequence", "random"] = field(default="sequence", metadata=option_help(
         "sequence: whole sequences per part (no leakage through the input buffer); random: the paper's "
         "per-sample shuffle."))
-    seed: int = field(default=0, metadata=_help("Seed of the shuffle."))
-    fractions: tuple[float, ...] = field(default=(0.7, 0.15, 0.15), metadata=_help(
+    seed: int = field(default=0, metadata=option_help("Seed of the shuffle."))
+    fractions: tuple[float, ...] = field(default=(0.7, 0.15, 0.15), metadata=option_help(
         "Train, validation, test fractions."))
-    test: tuple[str, ...] | None = field(default=None, metadata=_help(
+    test: tuple[str, ...] | None = field(default=None, metadata=option_help(
         "Sequences for the test part, by name (file stem for imported logs) or index, comma-separated; "
         "the rest is split into train and validation by --fractions."))
-    val_rows: float | None = field(default=None, metadata=_help(
+    val_rows: float | None = field(default=None, metadata=option_help(
         "With --test: validation is this fraction of the other sequences' rows, drawn at random, instead "
         "of whole sequences (with few sequences a whole one is spent on validation); the split of "
         "benchmarks/bench_realdata.py is --val-rows 0.15."))
@@ -293,14 +298,14 @@ Examples:
   ctrkin dataset split data/paper --fractions 0.8,0.1,0.1 --seed 2
   ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate
   ctrkin dataset split data/optitrack --test 19_05_23-13_08_2-tubes_rotate --val-rows 0.15 --overwrite""")
-@click.argument("folder", type=InputPath(file_okay=False))
 @config_options(SplitConfig)
 @overwrite_option(help="Replace a split.json that FOLDER already has (otherwise a different saved split "
                   "is refused: models trained on it would no longer match).")
-def split_cmd(folder: str, overwrite: bool, **settings: Any) -> None:
+def split_cmd(overwrite: bool, **settings: Any) -> None:
     """Make a train/validation/test split of the dataset in FOLDER and save it as split.json. Warns
     when the parts are far from the requested fractions (few, unequal sequences)."""
     cfg = SplitConfig(**settings)
+    folder = cfg.folder
     ds = Dataset.load(folder)
     split = cfg.make(ds)
     ds.save_split(folder, split, overwrite=overwrite)

@@ -15,12 +15,14 @@ from __future__ import annotations
 import contextlib
 import tempfile
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import click
 
-from ctrkin.cli.common import InputPath, emit_json, output_folder, output_options, say
+from ctrkin.cli.common import emit_json, output_folder, output_options, say
+from ctrkin.cli.from_config import config_options, option_help
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import CtrkinError
 from ctrkin.evaluation.real import evaluate, loso, predictor_name
@@ -33,6 +35,24 @@ def folder_names(predictors: tuple[str, ...]) -> list[str]:
     return [n if names.count(n) == 1 else f"{n}-{k + 1}" for k, n in enumerate(names)]
 
 
+@dataclass(frozen=True, kw_only=True)
+class EvaluateConfig:
+    """What `ctrkin evaluate` compares (one option per field)."""
+
+    data: str = field(metadata=option_help("Dataset folder.", path="folder"))
+    predictor: tuple[str, ...] = field(metadata=option_help(
+        "tcm (nominal robot of the dataset, registration fitted here), a robot file (.toml, calibrated or "
+        "not) or a trained FK model folder. Repeatable.", repeat=True))
+    out: str | None = field(default=None, metadata=option_help(
+        "Folder for results.json and plots (one sub-folder per predictor, named after it, when several); "
+        "written as a whole (with --overwrite it replaces an earlier evaluation folder).", path="out"))
+    loso: bool = field(default=False, metadata=option_help(
+        "Also leave-one-sequence-out: each sequence predicted by the predictor refitted to the other "
+        "sequences (a calibration's groups, or a model retrained with its own settings).", flag=True))
+    loso_epochs: int | None = field(default=None, metadata=option_help(
+        "With --loso and a learned model: cap its epochs per fold (default: its own)."))
+
+
 @click.command("evaluate", epilog="""\b
 Examples:
   ctrkin evaluate --data data/optitrack --predictor tcm --out out/eval_tcm
@@ -40,26 +60,14 @@ Examples:
   ctrkin evaluate --data data/optitrack --predictor models/fk_optitrack --out out/eval_fk
   ctrkin evaluate --data data/optitrack --predictor robots/optitrack_cal.toml --loso
   ctrkin evaluate --data data/optitrack --predictor tcm --json > eval_tcm.json""")
-@click.option("--data", "data_dir", required=True, type=InputPath(file_okay=False),
-              help="Dataset folder.")
-@click.option("--predictor", "predictors", required=True, multiple=True,
-              help="tcm (nominal robot of the dataset, registration fitted here), a robot file "
-                   "(.toml, calibrated or not) or a trained FK model folder. Repeatable.")
-@click.option("--out", "out_dir", default=None, type=click.Path(),
-              help="Folder for results.json and plots (one sub-folder per predictor, named after it, "
-              "when several); written as a whole (with --overwrite it replaces an earlier evaluation "
-              "folder).")
-@click.option("--loso", "with_loso", is_flag=True,
-              help="Also leave-one-sequence-out: each sequence predicted by the predictor refitted to "
-              "the other sequences (a calibration's groups, or a model retrained with its own settings).")
-@click.option("--loso-epochs", default=None, type=int,
-              help="With --loso and a learned model: cap its epochs per fold (default: its own).")
+@config_options(EvaluateConfig)
 @output_options
-def evaluate_cmd(data_dir: str, predictors: tuple[str, ...], out_dir: str | None, with_loso: bool,
-                 loso_epochs: int | None, overwrite: bool, as_json: bool) -> None:
+def evaluate_cmd(overwrite: bool, as_json: bool, **settings: Any) -> None:
     """Compare predictors with the measured tips: position (and orientation, where measured) errors
     per part (training, validation, held out, in-sample), per sequence and overall; plots of predicted
     vs measured tips, of error against joints and of the error per sequence."""
+    cfg = EvaluateConfig(**settings)
+    data_dir, predictors, out_dir = cfg.data, cfg.predictor, cfg.out
     if out_dir is not None:
         output_folder(out_dir, "evaluation", overwrite, inputs=[data_dir, *predictors])
     ds = Dataset.load(data_dir)
@@ -74,9 +82,9 @@ def evaluate_cmd(data_dir: str, predictors: tuple[str, ...], out_dir: str | None
         for spec, sub in zip(predictors, subs, strict=True):
             out = None if build is None else (build if len(predictors) == 1 else build / sub)
             res = evaluate(ds, spec, out)
-            if with_loso:
+            if cfg.loso:
                 with tempfile.TemporaryDirectory() as work:
-                    res["loso"] = loso(ds, spec, Path(work), loso_epochs)
+                    res["loso"] = loso(ds, spec, Path(work), cfg.loso_epochs)
             results.append({"predictor": spec, **res,
                             "out": None if out_dir is None else
                             (out_dir if len(predictors) == 1 else f"{out_dir}/{sub}")})

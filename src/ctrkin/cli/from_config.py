@@ -14,9 +14,16 @@ Field -> option: `max_epochs` -> `--max-epochs` (and its aliases), passed to the
 `Literal["a", "b"]` a choice; bool `--name/--no-name`; `tuple[X, ...]` of int, float or str a
 comma-separated list ("8,14,20" -> (8.0, 14.0, 20.0)); an int or float field with
 `metadata={"range": (lo, hi)}` a value in that closed range (click.IntRange, FloatRange). The help is
-the field's `field(metadata={"help": ...})`. A field without help, or of another type (a dict, a list), is an
-error where the command is defined, unless excluded (the command then sets it from options of its
-own).
+the field's `field(metadata={"help": ...})`. A field without a default is a required option. A field
+without help, or of another type (a dict, a list), is an error where the command is defined, unless
+excluded (the command then sets it from options of its own).
+
+Further metadata keys shape the option where a command's line is not the plain form:
+`{"path": kind}` a path (PATHS: an existing folder or file, refused with exit status 1, or an output
+path); `{"argument": True}` a positional argument (its name upper-cased, e.g. MODEL_DIR) instead of an
+option; `{"flag": True}` a bool as one flag `--name` (no `--no-name`); `{"repeat": True}` a tuple field
+given by repeating the option (`--q A --q B`) instead of a comma-separated list; `{"metavar": "..."}`
+the value's name in --help.
 
 `--option KEY=VALUE` style settings go through `parse_key_values`: one error message (a usage error,
 exit status 2) and values typed by the dataclass's fields or, without one, read as int, float, bool
@@ -32,10 +39,40 @@ from typing import Any, Literal, TypeVar, Union, get_args, get_origin, get_type_
 
 import click
 
+from ctrkin.cli.common import InputPath
+
 F = TypeVar("F", bound=Callable[..., Any])
 
 HELP = "help"      # the metadata key of a field's help text
 RANGE = "range"    # the metadata key of an int or float field's bounds (lo, hi), inclusive (None: open)
+PATH = "path"      # ... of a path field's kind, a key of PATHS
+ARGUMENT = "argument"    # ... True: a positional argument
+FLAG = "flag"      # ... True: a bool field as one flag, --name without --no-name
+REPEAT = "repeat"  # ... True: a tuple field given by repeating the option
+METAVAR = "metavar"  # ... the value's name in --help
+CONFIG = "ctrkin_config"   # the attribute of a command's function naming its configuration class
+
+
+def option_help(text: str, **metadata: Any) -> dict[str, Any]:
+    """A field's metadata: its help text and any of the keys above, e.g.
+    `field(default=None, metadata=option_help("Dataset folder.", path="folder"))`."""
+    return {HELP: text, **metadata}
+
+
+def option(text: str, default: Any = dataclasses.MISSING, **metadata: Any) -> Any:
+    """A configuration field with its help and option shape (option_help): `data: str | None =
+    option("Dataset folder.", None, path="folder")`; without a default, a required option."""
+    return dataclasses.field(default=default, metadata=option_help(text, **metadata))
+
+
+# path kind -> its click type: an existing folder or file (InputPath: exit status 1 where it is not
+# there), an output file or folder, an output file
+PATHS: dict[str, Callable[[], click.ParamType]] = {
+    "folder": lambda: InputPath(file_okay=False),
+    "file": lambda: InputPath(dir_okay=False),
+    "out": click.Path,
+    "out_file": lambda: click.Path(dir_okay=False),
+}
 
 
 def _option_name(field_name: str) -> str:
@@ -90,12 +127,13 @@ def _default(f: dataclasses.Field[Any]) -> Any:
 def config_options(cls: type, *, aliases: Mapping[str, Sequence[str]] | None = None,
                    exclude: Iterable[str] = (), required: Iterable[str] = (),
                    defaults: Mapping[str, Any] | None = None) -> Callable[[F], F]:
-    """A decorator adding one click option per field of the dataclass `cls`, in field order.
+    """A decorator adding one click option (or argument) per field of the dataclass `cls`, in field
+    order.
 
     aliases: field -> older option names that also set it (listed first in --help); exclude: fields
     the command sets otherwise; required, defaults: where the command line differs from the
     dataclass (a required option; another default). Options pass the field's value to the command
-    under the field's name."""
+    under the field's name; the function's attribute CONFIG names `cls`."""
     aliases, defaults = dict(aliases or {}), dict(defaults or {})
     exclude, required = set(exclude), set(required)
     hints = get_type_hints(cls)
@@ -103,42 +141,67 @@ def config_options(cls: type, *, aliases: Mapping[str, Sequence[str]] | None = N
     unknown = (set(aliases) | set(defaults) | exclude | required) - names
     if unknown:
         raise TypeError(f"{cls.__name__} has no fields {sorted(unknown)}")
-    decorators = []
-    for f in dataclasses.fields(cls):
-        if f.name in exclude or not f.init:
-            continue
-        where = f"{cls.__name__}.{f.name}"
-        if not f.metadata.get(HELP):
-            raise TypeError(f"{where} has no help: field(..., metadata={{'help': ...}})")
-        try:
-            kind, _optional = _click_type(hints[f.name])
-        except TypeError as e:
-            raise TypeError(f"{where}: {e}; exclude it and give the command its own option") from None
-        if RANGE in f.metadata:
-            if kind not in (int, float):
-                raise TypeError(f"{where}: a range applies to int and float fields")
-            lo, hi = f.metadata[RANGE]
-            kind = click.IntRange(lo, hi) if kind is int else click.FloatRange(lo, hi)
-        name = _option_name(f.name)
-        if kind is bool:
-            name += "/" + _option_name("no_" + f.name)
-        decls = [*aliases.get(f.name, ()), name]
-        kw: dict[str, Any] = {"help": f.metadata[HELP], "show_default": True}
-        if f.name in required:
-            kw["required"] = True
-        else:
-            default = defaults.get(f.name, _default(f))
-            if isinstance(kind, CommaList) and default:     # shown and parsed as typed: "8,14,20"
-                default = ",".join(map(str, default))
-            kw["default"] = default
-        decorators.append(click.option(*decls, f.name, type=kind, **kw))
+    decorators = [_parameter(f, hints[f.name], f"{cls.__name__}.{f.name}", aliases.get(f.name, ()),
+                             f.name in required, defaults)
+                  for f in dataclasses.fields(cls) if f.name not in exclude and f.init]
 
     def decorate(func: F) -> F:
         for add in reversed(decorators):     # click lists the outermost decorator first
             func = add(func)
+        setattr(func, CONFIG, cls)           # which configuration the command is generated from
         return func
 
     return decorate
+
+
+def _parameter(f: dataclasses.Field[Any], hint: Any, where: str, aliases: Sequence[str], required: bool,
+               defaults: Mapping[str, Any]) -> Callable[[F], F]:
+    """The click option (or argument) of one field (config_options)."""
+    meta = f.metadata
+    if not meta.get(HELP):
+        raise TypeError(f"{where} has no help: field(..., metadata={{'help': ...}})")
+    try:
+        kind, _optional = _click_type(hint)
+    except TypeError as e:
+        raise TypeError(f"{where}: {e}; exclude it and give the command its own option") from None
+    if RANGE in meta:
+        if kind not in (int, float):
+            raise TypeError(f"{where}: a range applies to int and float fields")
+        lo, hi = meta[RANGE]
+        kind = click.IntRange(lo, hi) if kind is int else click.FloatRange(lo, hi)
+    if PATH in meta:
+        if kind is not str:
+            raise TypeError(f"{where}: a path is a str field, one of {', '.join(PATHS)}")
+        kind = PATHS[meta[PATH]]()
+    repeat = bool(meta.get(REPEAT))
+    if repeat:
+        if not isinstance(kind, CommaList):
+            raise TypeError(f"{where}: a repeated option is a tuple[X, ...] field")
+        kind = kind.item
+    required = required or (f.name not in defaults and f.default is dataclasses.MISSING
+                            and f.default_factory is dataclasses.MISSING)
+    if meta.get(ARGUMENT):
+        return click.argument(f.name, type=kind, required=required, nargs=-1 if repeat else 1)
+    name = _option_name(f.name)
+    kw: dict[str, Any] = {"help": meta[HELP], "show_default": True}
+    if meta.get(FLAG):
+        if kind is not bool:
+            raise TypeError(f"{where}: a flag is a bool field")
+        kw["is_flag"] = True
+    elif kind is bool:
+        name += "/" + _option_name("no_" + f.name)
+    if repeat:
+        kw["multiple"] = True
+    if METAVAR in meta:
+        kw["metavar"] = meta[METAVAR]
+    if required:
+        kw["required"] = True
+    else:
+        default = defaults.get(f.name, _default(f))
+        if isinstance(kind, CommaList) and default:     # shown and parsed as typed: "8,14,20"
+            default = ",".join(map(str, default))
+        kw["default"] = default
+    return click.option(*aliases, name, f.name, type=kind, **kw)
 
 
 def _infer(text: str) -> Any:
@@ -191,3 +254,20 @@ def parse_key_values(items: Iterable[str], option: str, config: type | None = No
         except click.BadParameter as e:
             raise click.BadParameter(f"{key}: {e.message}", param_hint=option) from None
     return out
+
+
+virtual_settings_option = click.option(
+    "--set", "settings", multiple=True, metavar="KEY=VALUE",
+    help="Override a virtual robot effect magnitude (repeatable; the keys are VirtualConfig's fields, "
+    "docs/virtual_robot.md), e.g. --set noise_mm=0.1.")
+
+
+def virtual_config(settings: Iterable[str]) -> Any:
+    """The VirtualConfig of --set KEY=VALUE settings (the one parser, typed by VirtualConfig's fields,
+    parse_key_values); an unknown key or a bad value is a usage error."""
+    from ctrkin.virtual.config import VirtualConfig, VirtualConfigError
+
+    try:
+        return VirtualConfig(**parse_key_values(settings, "--set", VirtualConfig))
+    except VirtualConfigError as e:
+        raise click.BadParameter(str(e), param_hint="--set") from None

@@ -17,8 +17,8 @@ import numpy as np
 import pandas as pd
 
 from ctrkin.acquisition.trajectories import PAPER_LEVELS_MM, rotation_sweep
-from ctrkin.cli.common import emit_json, output_folder, output_options, say
-from ctrkin.cli.from_config import RANGE, config_options
+from ctrkin.cli.common import ROBOT_HELP, emit_json, output_folder, output_options, say
+from ctrkin.cli.from_config import RANGE, config_options, option_help
 from ctrkin.errors import CtrkinError
 from ctrkin.geometry import POSE_COLUMNS, tip_azimuth
 from ctrkin.mechanics import Equilibrium, follow, solve
@@ -26,12 +26,6 @@ from ctrkin.robots import load_robot
 from ctrkin.util.folders import build_folder
 from ctrkin.util.progress import progress_bar
 
-
-def _help(text: str) -> dict[str, str]:
-    return {"help": text}
-
-
-ROBOT_HELP = "Built-in robot name (paper, timclab) or path to a robot TOML file."
 MIN_STEP_DEG = 1e-3      # a sweep of 720 / step steps per level: at most 720,000
 
 
@@ -39,10 +33,10 @@ MIN_STEP_DEG = 1e-3      # a sweep of 720 / step steps per level: at most 720,00
 class SolveConfig:
     """One point-wise TCM solve (`ctrkin solve`, one option per field)."""
 
-    robot: str = field(default="paper", metadata=_help(ROBOT_HELP))
-    q: tuple[float, ...] = field(default=(), metadata=_help(
+    robot: str = field(default="paper", metadata=option_help(ROBOT_HELP))
+    q: tuple[float, ...] = field(default=(), metadata=option_help(
         "Joints α1..αN (deg), β1..βN (mm), comma-separated, e.g. 0,0,-15,-5."))
-    backbone: bool = field(default=False, metadata=_help(
+    backbone: bool = field(default=False, metadata=option_help(
         "Also give the backbone: s (mm), points (mm) and each tube's twist ψ (deg) along it (in the JSON "
         "with --json, else as a table)."))
 
@@ -51,18 +45,18 @@ class SolveConfig:
 class SweepConfig:
     """Full inner-tube rotations followed by continuation (`ctrkin sweep`, one option per field)."""
 
-    robot: str = field(default="paper", metadata=_help(ROBOT_HELP))
-    translations: tuple[float, ...] = field(default=tuple(float(v) for v in PAPER_LEVELS_MM), metadata=_help(
-        "Relative translations d = β_N − β_1 (mm)."))
-    outer_beta: float = field(default=0.0, metadata=_help("β of the other tubes (mm)."))
-    outer_alpha: float = field(default=0.0, metadata=_help("α of the other tubes (deg)."))
+    robot: str = field(default="paper", metadata=option_help(ROBOT_HELP))
+    translations: tuple[float, ...] = field(default=tuple(float(v) for v in PAPER_LEVELS_MM),
+                                            metadata=option_help("Relative translations d = β_N − β_1 (mm)."))
+    outer_beta: float = field(default=0.0, metadata=option_help("β of the other tubes (mm)."))
+    outer_alpha: float = field(default=0.0, metadata=option_help("α of the other tubes (deg)."))
     step_deg: float = field(default=1.0, metadata={RANGE: (MIN_STEP_DEG, 360.0),
-                                                   **_help("Rotation step (deg).")})
-    friction: float | None = field(default=None, metadata={RANGE: (0.0, 2.0), **_help(
+                                                   **option_help("Rotation step (deg).")})
+    friction: float | None = field(default=None, metadata={RANGE: (0.0, 2.0), **option_help(
         "Coulomb coefficient μ between the tubes (docs/mechanics.md: Friction and clearance); default: "
         "the robot file's (0 for the built-in robots). With μ > 0 the plot also marks the frictionless "
         "folds (circles).")})
-    clearance: float | None = field(default=None, metadata={RANGE: (0.0, 10.0), **_help(
+    clearance: float | None = field(default=None, metadata={RANGE: (0.0, 10.0), **option_help(
         "Share of the tubes' radial gap the inner tube may tilt in at an outer tube's tip (1: all of "
         "it); default: the robot file's (0).")})
 

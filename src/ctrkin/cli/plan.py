@@ -16,39 +16,35 @@ import click
 import numpy as np
 
 from ctrkin.cli.common import emit_json, jsonable, output_folder, output_options, say
-from ctrkin.cli.from_config import RANGE, config_options
+from ctrkin.cli.from_config import RANGE, config_options, option_help
 from ctrkin.errors import CtrkinError
 from ctrkin.util.folders import build_folder
 
 ROBOT_HELP = "Built-in robot name (paper, timclab) or path to a robot TOML file (nominal or calibrated)."
 
 
-def _help(text: str) -> dict[str, str]:
-    return {"help": text}
-
-
 @dataclass(frozen=True)
 class PlanCommandConfig:
     """A plan through a file of tip targets (`ctrkin plan`, one option per field)."""
 
-    robot: str = field(default="paper", metadata=_help(ROBOT_HELP))
-    targets: str = field(default="", metadata=_help(
+    robot: str = field(default="paper", metadata=option_help(ROBOT_HELP))
+    targets: str = field(default="", metadata=option_help(
         "CSV of tip targets: columns x, y, z (mm, robot base frame) and optionally q0, qx, qy (the tip "
         "orientation, 5-DOF quaternion), one row per target, in order."))
-    start_joints: tuple[float, ...] = field(default=(), metadata=_help(
+    start_joints: tuple[float, ...] = field(default=(), metadata=option_help(
         "The robot's current joints α1..αN (deg), β1..βN (mm), comma-separated; its branch is the "
         "point-wise (least-energy) equilibrium there."))
-    tol_mm: float = field(default=1.0, metadata={RANGE: (1e-6, None), **_help(
+    tol_mm: float = field(default=1.0, metadata={RANGE: (1e-6, None), **option_help(
         "A target counts as reached within this tip distance (mm).")})
-    min_margin: float = field(default=0.25, metadata={RANGE: (0.0, 0.99), **_help(
+    min_margin: float = field(default=0.25, metadata={RANGE: (0.0, 0.99), **option_help(
         "Least stability margin allowed at any step (1: tubes aligned, 0: a fold, where the robot snaps).")})
-    alpha_limits: tuple[float, ...] = field(default=(-720.0, 720.0), metadata=_help(
+    alpha_limits: tuple[float, ...] = field(default=(-720.0, 720.0), metadata=option_help(
         "lo,hi of every α (deg)."))
-    beta_limits: tuple[float, ...] = field(default=(-math.inf, 0.0), metadata=_help(
+    beta_limits: tuple[float, ...] = field(default=(-math.inf, 0.0), metadata=option_help(
         "lo,hi of every β (mm), within the robot's own valid translations."))
-    allow_snaps: bool = field(default=False, metadata=_help(
+    allow_snaps: bool = field(default=False, metadata=option_help(
         "Take the offered deliberate snap where a target is not reachable on the current branch."))
-    naive: bool = field(default=True, metadata=_help(
+    naive: bool = field(default=True, metadata=option_help(
         "Also execute the naive plan (point-wise IK, straight joint lines) and mark its snaps in the "
         "figure."))
 

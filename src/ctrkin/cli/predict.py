@@ -21,6 +21,7 @@ order; both take an optional sequence_id (a new run where it changes) and step.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +29,8 @@ import click
 import numpy as np
 import pandas as pd
 
-from ctrkin.cli.common import InputPath, output_file, overwrite_option, parse_floats, say
+from ctrkin.cli.common import output_file, overwrite_option, parse_floats, say
+from ctrkin.cli.from_config import config_options, option
 from ctrkin.data.schema import INDEX_COLUMNS, POSE_COLUMNS
 from ctrkin.errors import DatasetError, ModelError
 from ctrkin.robots.robot import joint_names
@@ -53,10 +55,37 @@ def write_table(table: pd.DataFrame, path: Path) -> None:
             raise ValueError(f"unsupported extension {suffix!r}")
 
 
-def _check_format(_ctx: click.Context, _param: click.Parameter, value: str | None) -> str | None:
-    if value is not None and Path(value).suffix.lower() not in FORMATS:
-        raise click.BadParameter(f"{value!r}: the extension chooses the format, one of {', '.join(FORMATS)}")
-    return value
+@dataclass(frozen=True, kw_only=True)
+class PredictConfig:
+    """What `ctrkin predict` runs a model on (the argument and one option per field): one of a
+    dataset, a file of joints or a file of target poses. Checked on construction: usage errors."""
+
+    model_dir: str = option("A model folder (ctrkin train).", path="folder", argument=True)
+    data: str | None = option("Dataset folder (from the model's robot).", None, path="folder")
+    joints: str | None = option(
+        "FK model: a .csv or .parquet file of joints, columns alpha_1..alpha_N (deg), beta_1..beta_N (mm) "
+        "(optional sequence_id, step), one row a step in time order.", None, path="file")
+    poses: str | None = option(
+        "IK model: a .csv or .parquet file of target poses, columns x, y, z (mm), q0, qx, qy (optional "
+        "sequence_id, step), in the frame of the model's training data.", None, path="file")
+    start_joints: str | None = option(
+        "Follow IK (follow_mlp) with --poses: the robot's joints (deg, mm) at the start of every sequence "
+        "(default: those of the nearest training target).", None, metavar="A1,..,AN,B1,..,BN")
+    out: str | None = option("File to write, format by extension: .csv, .parquet or .json (a list of rows). "
+                             "Default: CSV on stdout.", None, path="out")
+
+    def __post_init__(self) -> None:
+        if self.out is not None and Path(self.out).suffix.lower() not in FORMATS:
+            raise click.BadParameter(f"{self.out!r}: the extension chooses the format, one of "
+                                     f"{', '.join(FORMATS)}", param_hint=("--out",))
+        if sum(x is not None for x in (self.data, self.joints, self.poses)) != 1:
+            raise click.UsageError("give either --data (a dataset), --joints (a file of joints, FK) or "
+                                   "--poses (a file of IK target poses)")
+        if self.start_joints is not None and self.poses is None:
+            raise click.UsageError("--start-joints goes with --poses")
+        for path, hint in ((self.poses, "--poses"), (self.joints, "--joints")):
+            if path is not None and Path(path).suffix.lower() not in POSE_FORMATS:
+                raise click.BadParameter(f"{path!r}: a .csv or .parquet file", param_hint=hint)
 
 
 @click.command("predict", epilog="""\b
@@ -66,37 +95,17 @@ Examples:
   ctrkin predict models/fk --joints joints.csv --out tips.csv
   ctrkin predict models/ik --poses targets.csv --out joints.csv
   ctrkin predict models/ik_follow --poses targets.csv --start-joints 0,0,-20,-5""")
-@click.argument("model_dir", type=InputPath(file_okay=False))
-@click.option("--data", "data_dir", default=None, type=InputPath(file_okay=False),
-              help="Dataset folder (from the model's robot).")
-@click.option("--joints", "joints_file", default=None, type=InputPath(dir_okay=False),
-              help="FK model: a .csv or .parquet file of joints, columns alpha_1..alpha_N (deg), "
-              "beta_1..beta_N (mm) (optional sequence_id, step), one row a step in time order.")
-@click.option("--poses", "poses_file", default=None, type=InputPath(dir_okay=False),
-              help="IK model: a .csv or .parquet file of target poses, columns x, y, z (mm), q0, qx, qy "
-              "(optional sequence_id, step), in the frame of the model's training data.")
-@click.option("--start-joints", default=None, metavar="A1,..,AN,B1,..,BN",
-              help="Follow IK (follow_mlp) with --poses: the robot's joints (deg, mm) at the start of every "
-              "sequence (default: those of the nearest training target).")
-@click.option("--out", "out_file", default=None, type=click.Path(), callback=_check_format,
-              help="File to write, format by extension: .csv, .parquet or .json (a list of rows). "
-              "Default: CSV on stdout.")
+@config_options(PredictConfig)
 @overwrite_option()
-def predict_cmd(model_dir: str, data_dir: str | None, joints_file: str | None, poses_file: str | None,
-                start_joints: str | None, out_file: str | None, overwrite: bool) -> None:
+def predict_cmd(overwrite: bool, **settings: Any) -> None:
     """Predict every sample of a dataset (--data), the tips of a file of joints (--joints, FK), or solve
     IK for a file of target poses (--poses), with MODEL_DIR."""
     from ctrkin.inference import Kinematics
 
-    if sum(x is not None for x in (data_dir, joints_file, poses_file)) != 1:
-        raise click.UsageError("give either --data (a dataset), --joints (a file of joints, FK) or --poses "
-                               "(a file of IK target poses)")
-    if start_joints is not None and poses_file is None:
-        raise click.UsageError("--start-joints goes with --poses")
-    for path, hint in ((poses_file, "--poses"), (joints_file, "--joints")):
-        if path is not None and Path(path).suffix.lower() not in POSE_FORMATS:
-            raise click.BadParameter(f"{path!r}: a .csv or .parquet file", param_hint=hint)
-    start = None if start_joints is None else np.array(parse_floats(start_joints, "--start-joints"))
+    cfg = PredictConfig(**settings)
+    model_dir, data_dir, joints_file, poses_file = cfg.model_dir, cfg.data, cfg.joints, cfg.poses
+    out_file = cfg.out
+    start = None if cfg.start_joints is None else np.array(parse_floats(cfg.start_joints, "--start-joints"))
     if out_file is not None:
         output_file(out_file, "predictions", overwrite, inputs=[model_dir, data_dir, poses_file, joints_file])
     kin = Kinematics.load(model_dir)

@@ -19,8 +19,8 @@ from typing import Any
 
 import click
 
-from ctrkin.cli.common import output_folder, overwrite_option, say, virtual_config, virtual_settings_option
-from ctrkin.cli.from_config import config_options
+from ctrkin.cli.common import output_folder, overwrite_option, say
+from ctrkin.cli.from_config import config_options, virtual_config, virtual_settings_option
 from ctrkin.evaluation.scales import ReproduceConfig
 
 

@@ -6,11 +6,23 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+from typing import Any
+
 import click
 
 from ctrkin.cli.common import output_file, overwrite_option, say
+from ctrkin.cli.from_config import config_options, option_help
 from ctrkin.robots.builtin import robot_template
 from ctrkin.util.files import atomic_write_text
+
+
+@dataclass(frozen=True)
+class TemplateConfig:
+    """Where `ctrkin robot template` writes (one option per field)."""
+
+    out: str | None = field(default=None, metadata=option_help("TOML file to write (default: stdout).",
+                                                               path="out"))
 
 
 @click.group("robot", epilog="""\b
@@ -24,12 +36,12 @@ def robot_group() -> None:
 Examples:
   ctrkin robot template --out my_robot.toml
   ctrkin robot template > my_robot.toml""")
-@click.option("--out", "out_file", default=None, type=click.Path(),
-              help="TOML file to write (default: stdout).")
+@config_options(TemplateConfig)
 @overwrite_option()
-def template_cmd(out_file: str | None, overwrite: bool) -> None:
+def template_cmd(overwrite: bool, **settings: Any) -> None:
     """A robot TOML file to edit: the paper robot (paper Table I), every field commented with its unit;
     it loads back as the built-in `paper` robot."""
+    out_file = TemplateConfig(**settings).out
     text = robot_template()
     if out_file is None:
         click.echo(text, nl=False)

@@ -9,13 +9,16 @@
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import click
 import numpy as np
 
 from ctrkin.acquisition.trajectories import rotation_sweep
-from ctrkin.cli.common import emit_json, output_file, output_options, parse_floats, robot_option, say
+from ctrkin.cli.common import ROBOT_HELP, emit_json, output_file, output_options, parse_floats, say
+from ctrkin.cli.from_config import config_options, option
 from ctrkin.mechanics import follow
 from ctrkin.robots import load_robot
 
@@ -56,32 +59,40 @@ def _path(configs: list[list[float]], n_tubes: int) -> tuple[np.ndarray, np.ndar
     return np.vstack(rows), np.array(marks)
 
 
+@dataclass(frozen=True)
+class ShowConfig:
+    """What `ctrkin show` draws (one option per field)."""
+
+    robot: str = option(ROBOT_HELP, "paper")
+    q: tuple[str, ...] = option(
+        "Joints α1..αN (deg), β1..βN (mm), comma-separated (repeat for a path: it is followed by "
+        "continuation in 1°/0.1 mm steps, with its history and snaps).", (), repeat=True, metavar="JOINTS")
+    sweep: str | None = option(
+        "The inner tube turning 0 -> 360 -> 0° at relative translation d (paper Fig. 2b), the other tubes "
+        "at α = outer, β = beta_outer.", None, metavar="d=MM[,outer=DEG,beta_outer=MM,step=DEG]")
+    out: str | None = option(
+        "Output: .png (a still), .gif or .mp4 (an animation; .mp4 needs ffmpeg). Default: shape.png for "
+        "--q, sweep.gif for --sweep.", None, path="out_file")
+    frames: int | None = option(
+        "Animation: about how many steps to show (default 120; snap steps always). Still image of a path: "
+        f"shapes drawn along it (default {STILL_SHAPES}).", None, range=(1, None))
+    spacing: float = option("Largest distance between drawn backbone points (mm).", 0.5, range=(0.01, None))
+
+
 @click.command("show", epilog="""\b
 Examples:
   ctrkin show --q 0,0,-15,-5
   ctrkin show --q 0,0,-20,0 --q 200,0,-20,0 --out path.png
   ctrkin show --sweep d=20 --out sweep.gif
   ctrkin show --sweep d=20,outer=90,step=2 --frames 60 --out sweep.gif""")
-@robot_option
-@click.option("--q", "q_texts", multiple=True, metavar="JOINTS",
-              help="Joints α1..αN (deg), β1..βN (mm), comma-separated (repeat for a path: it is followed "
-              "by continuation in 1°/0.1 mm steps, with its history and snaps).")
-@click.option("--sweep", "sweep_text", metavar="d=MM[,outer=DEG,beta_outer=MM,step=DEG]",
-              help="The inner tube turning 0 -> 360 -> 0° at relative translation d (paper Fig. 2b), the "
-              "other tubes at α = outer, β = beta_outer.")
-@click.option("--out", "out_file", type=click.Path(dir_okay=False),
-              help="Output: .png (a still), .gif or .mp4 (an animation; .mp4 needs ffmpeg). Default: "
-              "shape.png for --q, sweep.gif for --sweep.")
-@click.option("--frames", type=click.IntRange(min=1), default=None,
-              help="Animation: about how many steps to show (default 120; snap steps always). Still "
-              f"image of a path: shapes drawn along it (default {STILL_SHAPES}).")
-@click.option("--spacing", type=click.FloatRange(min=0.01), default=0.5, show_default=True,
-              help="Largest distance between drawn backbone points (mm).")
+@config_options(ShowConfig)
 @output_options
-def show_cmd(robot_spec: str, q_texts: tuple[str, ...], sweep_text: str | None, out_file: str | None,
-             frames: int | None, spacing: float, overwrite: bool, as_json: bool) -> None:
+def show_cmd(overwrite: bool, as_json: bool, **settings: Any) -> None:
     """Draw the robot's 3-D shape (tubes with their diameters, the tip's path, snaps marked), or
     animate a sweep with its snap."""
+    cfg = ShowConfig(**settings)
+    robot_spec, q_texts, sweep_text, out_file = cfg.robot, cfg.q, cfg.sweep, cfg.out
+    frames, spacing = cfg.frames, cfg.spacing
     if bool(q_texts) == bool(sweep_text):
         raise click.UsageError("give --q (one or more configurations) or --sweep, not both")
     robot = load_robot(robot_spec)

@@ -8,6 +8,8 @@
         pose = fk.step(q)                 # keeps the input buffer itself; equals predict() to 1e-5
     ik = ctrkin.Kinematics.load("models/ik")
     res = ik.predict(targets)             # targets: (T, 6) poses -> IKResult(joints, in_workspace, ...)
+    s = fk.step_uncertain(q)              # with a calibrated uncertainty.npz in the folder: the pose, its
+                                          # 90 % interval and an out-of-distribution score and flag
 
 `Kinematics` is the face of every model family (docs/design.md: Model families): `load` opens a model
 folder through the registry (ctrkin.families.registry) as its family's predictor
@@ -40,6 +42,7 @@ from ctrkin.models.ik import IKResult, IKStep
 from ctrkin.models.predictor import Opened, Predictor
 from ctrkin.models.predictor_base import check_robot, robot_differences
 from ctrkin.models.store import ModelBundle, ModelConfig, read_json
+from ctrkin.models.uncertainty import UncertainStep, UncertainStream, Uncertainty, with_uncertainty
 from ctrkin.models.workspace import Workspace
 from ctrkin.robots.robot import Robot
 from ctrkin.util.folders import reading_folder
@@ -67,6 +70,8 @@ class Kinematics:
         self.path = path
         self._owner: int | None = None                 # id of the thread streaming the sequence
         self._owner_thread: threading.Thread | None = None
+        self.uncertainty: Uncertainty | None = None     # calibrated (ctrkin.inference.uncertainty)
+        self._unc_stream: UncertainStream | None = None
 
     @classmethod
     def load(cls, path: str | Path, fused: bool = True) -> Kinematics:
@@ -77,16 +82,21 @@ class Kinematics:
         with reading_folder(path) as src:
             pred = open_folder(src, fused)
             metrics = read_json(src / "metrics.json") if (src / "metrics.json").is_file() else {}
-        return cls(pred, metrics=metrics, path=src)
+            unc = Uncertainty.load(src)
+        kin = cls(pred, metrics=metrics, path=src)
+        kin.uncertainty = unc
+        return kin
 
     def copy(self) -> Kinematics:
         """The same model (network, settings, gates shared) with a stream of its own, at a sequence
         start: one per thread that streams."""
-        return Kinematics(self.predictor.stream_twin(), metrics=self.metrics, path=self.path)
+        kin = Kinematics(self.predictor.stream_twin(), metrics=self.metrics, path=self.path)
+        kin.uncertainty = self.uncertainty
+        return kin
 
     def __getstate__(self) -> dict[str, Any]:
         """A copy or an unpickled Kinematics holds no thread's stream."""
-        return {**self.__dict__, "_owner": None, "_owner_thread": None}
+        return {**self.__dict__, "_owner": None, "_owner_thread": None, "_unc_stream": None}
 
     def hand_over(self) -> None:
         """The calling thread continues the current sequence (its steps run on another thread from
@@ -204,6 +214,8 @@ class Kinematics:
             self._owner, self._owner_thread = held
             raise
         self._owner = self._owner_thread = None          # the next step's thread takes the new sequence
+        if self._unc_stream is not None:
+            self._unc_stream.reset()
 
     def step(self, x: np.ndarray, check: bool = True, strict: bool = False) -> Any:
         """One step of the current sequence. x: (2N,) joints (FK) or (6,) target pose (IK).
@@ -214,6 +226,32 @@ class Kinematics:
         if self._owner != _thread_id():
             self._claim("step")
         return self.predictor.step(x, check, strict)
+
+    # --- with the calibrated uncertainty (ctrkin.inference.uncertainty) ------------------------------
+    def _calibrated(self) -> Uncertainty:
+        if self.uncertainty is None:
+            raise ModelError(f"model {self.path or '(in memory)'} has no calibrated uncertainty: calibrate "
+                             "it on held-out rows (ctrkin.inference.uncertainty.calibrate) and save it "
+                             "into its folder")
+        return self.uncertainty
+
+    def predict_uncertain(self, data: Dataset | np.ndarray, sequence_id: np.ndarray | None = None,
+                          **options: Any) -> Any:
+        """`predict` with the calibrated uncertainty: an UncertainPrediction (value: predict's answer;
+        half_width: the level's interval, FK (3,) mm, IK (2N,) deg, mm; ood_score, ood (T,))."""
+        unc = self._calibrated()
+        raw, bounds = self.predictor.raw_inputs(data, sequence_id)  # type: ignore[attr-defined]
+        return with_uncertainty(unc, self.predict(data, sequence_id, **options), raw, bounds)
+
+    def step_uncertain(self, x: np.ndarray, check: bool = True, strict: bool = False) -> Any:
+        """`step` with the calibrated uncertainty: an UncertainStep (value: step's answer, half_width,
+        ood_score, ood); the score equals predict_uncertain's on the same sequence."""
+        unc = self._calibrated()
+        if self._unc_stream is None:
+            self._unc_stream = unc.stream()
+        value = self.step(x, check, strict)
+        score = self._unc_stream.step(x)
+        return UncertainStep(value, self._unc_stream.half_widths, score, score > unc.threshold, unc.level)
 
     def _accepts(self, method: str, options: dict[str, Any]) -> None:
         why = refused_options(self.predictor, method, options)

@@ -1,0 +1,16 @@
+"""Control: a closed-loop tip controller on the learned FK, and its demonstration on the virtual robot
+(docs/planning.md: Control loop)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ctrkin.util.lazy import lazy_attributes
+
+__all__ = ["Command", "ControlConfig", "Controller", "LoopResult", "circle_path", "run_virtual"]
+
+if TYPE_CHECKING:   # imported on first use instead (ctrkin.util.lazy)
+    from ctrkin.control.controller import Command, ControlConfig, Controller
+    from ctrkin.control.virtual_loop import LoopResult, circle_path, run_virtual
+
+__getattr__, __dir__ = lazy_attributes(__name__, __file__)

@@ -1,0 +1,104 @@
+"""benchmarks/bench_generalisation.py's machinery (issue 21, goal 4) without a reproduction: the
+reversal protocol on every robot of the benchmark, the goal-1 figures read from a results.json, the
+output rule, and the whole report path (`--reuse`) on one robot whose reproduction folder is made of
+the tests' trimmed tiny results, a small trained snap-aware FK and a sweep dataset."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_generalisation.py"
+TINY_RESULTS = Path(__file__).resolve().parent / "evaluation" / "tiny_results.json"
+
+
+@pytest.fixture(scope="module")
+def bench():
+    spec = importlib.util.spec_from_file_location("ctrkin_bench_generalisation", BENCH)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["ctrkin_bench_generalisation"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_reversal_plan_reverses_mid_turn_inside_each_robot(bench) -> None:
+    for case in bench.ROBOTS.values():
+        robot = bench._robot(case)
+        plan = bench.reversals_plan(robot)
+        assert len(plan.runs) == len(bench.REVERSAL_OUTER)
+        for run in plan.runs:
+            q = run.segments[0].q
+            robot.check_joints(q)                        # raises on a joint the robot cannot take
+            turn = np.sign(np.diff(q[:, 0]))
+            assert np.count_nonzero(np.diff(turn)) == len(bench.REVERSAL_TURNS_DEG) - 2   # 3 reversals
+            assert np.ptp(q[:, robot.n_tubes:], axis=0).max() == 0.0                      # β held
+
+
+def test_figures_of_reads_the_goal_figures_and_marks_misses(bench) -> None:
+    res = json.loads(TINY_RESULTS.read_text())
+    f = bench.figures_of(res)
+    fk = res["fk"]["lstm_mlp"]
+    assert f["fk_true_mm"] == fk["position_rmse_true_mm"]
+    assert f["tcm_ratio"] == pytest.approx(res["fk"]["tcm"]["position_rmse_mm"] / fk["position_rmse_mm"])
+    assert f["tcm_calibrated_mm"] is None                 # this trimmed file predates the calibrated TCM
+    assert f["ik_random_within_1mm"] == res["experiments"]["ik_random"]["lstm_mlp"]["within_1mm_via_robot"]
+    turns = res["snapping"]["snap_turns"][res["snapping"]["model"]]
+    assert f["turns_recall"] == min(turns["forward"]["recall"], turns["backward"]["recall"])
+    cells = bench.table_row({"robot": "r", "wall_s": 1.0, **f})
+    assert len(cells) == len(bench.HEADER)
+    assert cells[1] == f"{f['fk_true_mm']:.2f}*"           # 7.3 mm misses the 0.5 mm goal: marked
+
+
+def test_a_non_empty_out_is_refused_without_overwrite(bench, tmp_path, capsys) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    assert bench.main(["--robots", "default-top", "--scale", "tiny", "--out", str(out)]) == 1
+    assert "--overwrite" in capsys.readouterr().err
+    assert [p.name for p in out.iterdir()] == ["keep.txt"]
+
+
+@pytest.mark.slow
+def test_reuse_reports_one_robot_end_to_end(bench, tmp_path, capsys, model_dirs, sweeps) -> None:
+    out = tmp_path / "gen"
+    folder = out / "default-top"
+    res = json.loads(TINY_RESULTS.read_text())
+    folder.mkdir(parents=True)
+    (folder / "results.json").write_text(json.dumps(res))
+    shutil.copytree(model_dirs["fk_branch"], folder / res["recommended"]["fk"])
+    sweeps.save(folder / "data" / "paper")
+    sweeps.save(folder / "data" / "sweeps")
+    assert bench.main(["--robots", "default-top", "--out", str(out), "--overwrite", "--reuse"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    row = json.loads(lines[-1])["rows"][0]
+    assert "errors" not in row, row.get("errors")
+    assert row["robot"] == "default-top" and row["wall_s"] == res["seconds"]["total"]
+    assert np.isfinite(row["reversal_rmse_true_mm"]) and row["reversal_samples"] == 3 * 881
+    snaps = int(sweeps.frame["snap"].sum())
+    assert 0 < row["gate_snaps"] <= snaps and row["gate_snaps"] == row["sweeps_gate_snaps"]
+    assert row["gate_residual_rms_deg"] >= 0 and row["gate_residual_max_deg"] >= row["gate_residual_rms_deg"]
+    assert any(line.startswith("default-top") for line in lines)                # the table's row
+    assert json.loads((out / "rows.jsonl").read_text())["robot"] == "default-top"
+
+
+@pytest.fixture(scope="module")
+def fold_bench(bench):
+    return sys.modules["bench_fold_gate"]            # imported by bench_generalisation, beside it
+
+
+def test_the_fold_gate_matches_the_nominal_robot_it_assumes(fold_bench, sweeps) -> None:
+    """On sweeps of the nominal robot itself (follow, no effects) the gate's assumption holds: its
+    offsets vanish, every snap lies on the nominal fold within one 4° step, and its switches are
+    exactly the snaps."""
+    r = fold_bench.measure(sweeps, sweeps)
+    assert r["sweeps_recorded_snaps"] > 0 and r["sweeps_gate_no_fold_snaps"] == 0
+    assert abs(r["widen_deg"]) < 2.0
+    assert r["sweeps_gate_residual_max_deg"] < 2.0
+    assert r["sweeps_gate_precision"] == 1.0 and r["sweeps_gate_recall"] == 1.0
