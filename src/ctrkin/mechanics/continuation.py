@@ -26,10 +26,10 @@ elements that slipped one way sit on the edge of that ramp and unload into it wh
 the other way; the line search then finds no descent beside a kink, at any sub-step (on three
 tubes, 23 elements, the middle and outer tubes turned together: of 25 starts near the last state,
 none converge on the whole step or a quarter of it, 2 at 1/16). Newton from the twisted starts of
-`recover` reaches the equilibrium from farther away, so when every sub-step down to the smallest
-has failed, the rest of the step is taken from that search where it finds a stable equilibrium
-within a step's twist (JUMP_RAD) of the last state: the same branch, not a fold. Only otherwise is
-it a fold and a snap.
+`recover` reaches the equilibrium from farther away. So when every sub-step down to the smallest
+has failed and that search finds the same branch at the smallest one (no fold: no snap), the rest
+of the step is taken from the search as well, where it finds a stable equilibrium within a step's
+twist (JUMP_RAD); sub-stepping on would need a search per 1/256 of the step and spend the budget.
 """
 
 from __future__ import annotations
@@ -188,21 +188,21 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
         if dt > MIN_FRACTION * most:
             dt *= 0.5
             continue
-        if state is not None and t_try < 1.0:
-            # with friction Newton can stall beside a stick/slip kink, however small the step
-            # (module docstring): the rest of the step, if a search finds it on this branch
-            done = _rest_of_step(robot, prev, q_to, settings, same_grid, x, state, work)
-            if done is not None:
-                x, t, last = done[1].x, 1.0, done
-                state, modes = _after(*done, state)
-                break
         # fold: no stable equilibrium near the current one, however small the step
         sol = recover(pb, x, settings, work)
         # a fold was crossed: that is a snap unless the search only re-found the same branch
-        snapped = snapped or twist_distance(sol.x, x, pb.arrays.lengths) > SAME_BRANCH_RAD
+        same = twist_distance(sol.x, x, pb.arrays.lengths) <= SAME_BRANCH_RAD
+        snapped = snapped or not same
         x, det, t, last = sol.x, sol.det_j, t_try, (pb, sol)
         state, modes = _after(pb, sol, state)
         dt = min(1.0 - t, most)
+        if same and sol.stable and state is not None and t < 1.0:
+            # no fold: Newton stalled beside a stick/slip kink (module docstring), and would at
+            # every sub-step: the rest of the step from the search too, where it stays on the branch
+            rest = _rest_of_step(robot, prev, q_to, settings, same_grid, x, state, work)
+            if rest is not None:
+                x, t, last = rest[1].x, 1.0, rest
+                state, modes = _after(*rest, state)
     assert last is not None
     return equilibrium(*last, state), snapped
 
