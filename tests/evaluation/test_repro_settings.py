@@ -21,8 +21,8 @@ def test_the_default_effects_keep_the_key_of_earlier_reproductions() -> None:
     assert paper_key(tiny, 0, paper) == paper_key(tiny, 0, paper, VirtualConfig()) == before
     assert paper_key(tiny, 0, paper, VirtualConfig(noise_mm=0.25)) == before        # the default value
     assert paper_key(tiny, 0, paper, VirtualConfig(noise_mm=0.1)) == before + "|[('noise_mm', '0.1')]"
-    assert virtual_overrides(VirtualConfig(noise_mm=0.1, gear_backlash_deg=2.0)) == {
-        "gear_backlash_deg": 2.0, "noise_mm": 0.1}
+    assert virtual_overrides(VirtualConfig(noise_mm=0.1, gear_backlash_deg=1.0)) == {
+        "gear_backlash_deg": 1.0, "noise_mm": 0.1}
     timclab = load_robot("timclab")               # another robot: its own levels (the paper's carried over)
     assert "(77.33, 132.5)" in paper_key(tiny, 0, timclab)
 
