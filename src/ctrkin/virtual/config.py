@@ -20,7 +20,7 @@ SHAPES = ("em_distortion_length_mm",)   # fields that shape an effect but switch
 
 # the central published values of the effects whose default is the top of their range (the defaults
 # before issue 20 moved them): `--set KEY=VALUE` of each gives the typical robot back
-CENTRAL = {
+CENTRAL: dict[str, Any] = {
     "precurvature_error": 0.08,
     "stiffness_error": 0.08,
     "tube_friction": 0.2,
@@ -44,8 +44,9 @@ class VirtualConfig:
     Frozen and validated on construction (`VirtualConfigError` says which value and why); stored in
     the meta of every dataset the virtual robot records. The defaults are the top of each effect's
     published range (the largest honest error of a nominal model, issue 20); `CENTRAL` holds the
-    central values. The tube effects are drawn once per robot seed and tube; the transmission's dead band between motor and tube base is what makes the
-    robot's response depend on the direction of motion (hysteresis). docs/virtual_robot.md gives
+    central values. The tube effects are drawn once per robot seed and tube; the transmission's
+    dead band between motor and tube base is what makes the robot's response depend on the
+    direction of motion (hysteresis). docs/virtual_robot.md gives
     the source of each default.
 
     Attributes
