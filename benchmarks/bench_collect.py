@@ -2,6 +2,7 @@
 
     python benchmarks/bench_collect.py                 # full scale (~208k samples), all cores
     python benchmarks/bench_collect.py --scale quick --workers 1
+    python benchmarks/bench_collect.py --central       # the virtual robot at the central values
 
 Prints wall time, samples/s and peak memory: the resident set of this process and the largest of its
 worker processes (ru_maxrss, RUSAGE_SELF and RUSAGE_CHILDREN), plus the sum as an upper bound of the
@@ -25,7 +26,7 @@ from ctrkin.acquisition import protocols
 from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import sweep_hysteresis
 from ctrkin.robots import paper_robot
-from ctrkin.virtual import VirtualRobot
+from ctrkin.virtual import VirtualConfig, VirtualRobot
 
 LIMIT_S = 300.0
 LIMIT_MB = 2048.0
@@ -42,10 +43,13 @@ def main() -> int:
     ap.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--save", action="store_true", help="also time writing the dataset folder")
+    ap.add_argument("--central", action="store_true",
+                    help="the virtual robot at the central values (VirtualConfig().central()) instead "
+                    "of the defaults (the top of each published range)")
     args = ap.parse_args()
 
     robot = paper_robot()
-    virtual = VirtualRobot(robot, seed=0)
+    virtual = VirtualRobot(robot, VirtualConfig().central() if args.central else VirtualConfig(), seed=0)
     plan = protocols.build("paper", robot, scale=args.scale, seed=args.seed)
     virtual.rest(plan.runs[0].start)  # warm the numba kernels outside the timing
     workers = args.workers or os.cpu_count() or 1

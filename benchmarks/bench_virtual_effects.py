@@ -5,7 +5,7 @@ each effect alone (issue 20, goals 2 and 3; docs/virtual_robot.md: What the defa
     python benchmarks/bench_virtual_effects.py --seeds 0 1 2 3 4 --only defaults
     python benchmarks/bench_virtual_effects.py --only defaults --set tube_friction=0.5
     python benchmarks/bench_virtual_effects.py --only defaults --calibrated   # + calibrated TCM rows
-    python benchmarks/bench_virtual_effects.py --only top      # at the top of the published ranges
+    python benchmarks/bench_virtual_effects.py --central        # the same at the central values
 
 For each configuration, one virtual robot per seed records the paper protocol at d = 4, 12, 20 mm
 and four outer angles (8,652 samples, the training data), the 20 random points and the arbitrary
@@ -18,8 +18,10 @@ the defaults row also gets the calibrated physics baseline of `ctrkin reproduce`
 group and μ), scored point-wise (`tcm_calibrated`) and followed along each sequence with the
 friction state carried (`tcm_calibrated_continued`), with its time per point / step. Prints a table
 (RMSE and max in mm, per experiment; medians over seeds when there are several) and ends with one
-JSON line of the figures. With --only top: every effect at the top of its published range
-(`TOP`, sources in docs/virtual_robot.md) together, and each alone at that magnitude.
+JSON line of the figures. The defaults are every effect at the top of its published range
+(VirtualConfig, sources in docs/virtual_robot.md); --central starts from the central values instead
+(`VirtualConfig().central()`, the defaults before): the base row, and each effect alone at its
+value there.
 """
 
 from __future__ import annotations
@@ -59,40 +61,14 @@ EFFECTS = {
 }
 
 
-# each effect at the top of its published range (docs/virtual_robot.md: Effects and default
-# magnitudes cites each); effects whose default is an engineering estimate with no published range
-# keep their default
-TOP = {
-    "precurvature_error": 0.20,        # 10-20 % (issue 20; shape setting, Gilbert and Webster 2016)
-    "stiffness_error": 0.20,           # 10-20 % (issue 20; ±13 % from the diameter tolerance alone)
-    "tube_friction": 0.69,             # μ 0.16-0.69, NiTi on steel (Clocheret et al. 2004)
-    "gear_backlash_deg": 2.0,          # 1-2° (miniature planetary gearhead data sheets)
-    "leadscrew_backlash_mm": 0.1,      # 0.02-0.1 mm
-    "registration_deg": 5.0,           # 1-5° (issue 20)
-    "em_distortion_mm": 1.64,          # 0.96 ± 0.68 mm over 50 mm (Hummel et al. 2005): mean + 1 std
-    "sensor_offset_mm": 6.5,           # half an Aurora 5-DOF coil of 8-13 mm beyond the tip
-    "noise_mm": 0.40,                  # NDI's 0.70 mm RMS (3-D) for a 5-DOF sensor, per axis
-}
-
-
-def at_top(fields: tuple[str, ...] | None = None) -> VirtualConfig:
-    """The defaults with every TOP magnitude (fields None), or the ideal robot with `fields` at
-    their TOP magnitude (their default where TOP has none)."""
-    if fields is None:
-        return VirtualConfig(**TOP)
-    d = VirtualConfig()
-    return dataclasses.replace(VirtualConfig().ideal(), **{f: TOP.get(f, getattr(d, f)) for f in fields})
-
-
 # the training recording: 3 levels × 4 outer angles × 721 = 8,652 samples, pinned (the quick scale's
 # size changes between versions)
 TRAIN = {"levels": (4.0, 12.0, 20.0), "outer_step_deg": 90.0}
 
 
-def alone(fields: tuple[str, ...]) -> VirtualConfig:
-    """The ideal robot with `fields` at their defaults."""
-    d = VirtualConfig()
-    return dataclasses.replace(VirtualConfig().ideal(), **{f: getattr(d, f) for f in fields})
+def alone(base: VirtualConfig, fields: tuple[str, ...]) -> VirtualConfig:
+    """The ideal robot with `fields` at their values in `base`."""
+    return dataclasses.replace(base.ideal(), **{f: getattr(base, f) for f in fields})
 
 
 def _errors(pred: np.ndarray, measured: np.ndarray) -> tuple[float, float]:
@@ -149,9 +125,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", type=int, nargs="+", default=[0])
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--only", choices=["defaults", "all", "top"], default="all",
-                    help="all: defaults, ideal and each effect alone; top: every effect at the top of "
-                    "its published range, and each alone there")
+    ap.add_argument("--only", choices=["defaults", "all"], default="all",
+                    help="all: defaults, ideal and each effect alone")
+    ap.add_argument("--central", action="store_true",
+                    help="start from the central values (VirtualConfig().central()) instead of the "
+                    "defaults (the top of each published range)")
     ap.add_argument("--set", dest="settings", action="append", default=[], metavar="KEY=VALUE",
                     help="change a default (VirtualConfig field) of the 'defaults' row")
     ap.add_argument("--calibrated", action="store_true",
@@ -159,15 +137,13 @@ def main() -> None:
     args = ap.parse_args()
     changed = {k: type(getattr(VirtualConfig(), k))(v)
                for k, v in (item.split("=", 1) for item in args.settings)}
-    label = "defaults" + "".join(f" {k}={v}" for k, v in changed.items())
-    configs = {label: VirtualConfig(**changed)}
-    if args.only == "top":
-        configs = {"top of the published ranges": at_top()}
-        configs |= {f"{name} (top)": at_top(fields) for name, fields in EFFECTS.items()
-                    if any(f in TOP for f in fields)}
+    base = VirtualConfig().central() if args.central else VirtualConfig()
+    label = ("central values" if args.central else "defaults") + "".join(
+        f" {k}={v}" for k, v in changed.items())
+    configs = {label: dataclasses.replace(base, **changed)}
     if args.only == "all":
-        configs["ideal (no effect)"] = VirtualConfig().ideal()
-        configs |= {name: alone(fields) for name, fields in EFFECTS.items()}
+        configs["ideal (no effect)"] = base.ideal()
+        configs |= {name: alone(base, fields) for name, fields in EFFECTS.items()}
     keys = ("random_points_rmse_mm", "random_points_max_mm", "arbitrary_rmse_mm", "arbitrary_max_mm")
     print("nominal TCM vs measured, registration fitted on the paper protocol (8,652 samples); "
           f"seeds {args.seeds}")

@@ -10,7 +10,7 @@ from ctrkin.acquisition import protocols
 from ctrkin.acquisition.recorder import record
 from ctrkin.acquisition.summary import measurement_error, nominal_error, sweep_hysteresis
 from ctrkin.data import Dataset, schema
-from ctrkin.virtual import VirtualRobot
+from ctrkin.virtual import VirtualConfig, VirtualRobot
 
 # the quick scale of ctrkin 0.1 (8,652 samples): low, middle and full overlap, recorded in seconds
 SMALL = {"scale": "tiny", "levels": (4.0, 12.0, 20.0)}
@@ -54,17 +54,31 @@ def test_snaps_at_highest_overlap_only(quick):
     assert snaps[2] >= 4  # forward and backward in every sequence at d = 20 mm (some after glitches)
 
 
-def test_forward_backward_gap_grows_with_overlap(quick):
-    """T(L)'s loop widens with the curved overlap. The tip's loop in mm need not: the friction
-    between the tubes also acts where the outer tube's curvature meets the inner's straight part,
-    and at d = 4 mm the lagging inner tube swings its whole exposed curved part (issue 20)."""
-    h = sweep_hysteresis(quick)
+def test_forward_backward_gap_grows_with_overlap(robot):
+    """At the central values (μ 0.2) T(L)'s loop widens with the curved overlap. The tip's loop in
+    mm need not: the friction between the tubes also acts where the outer tube's curvature meets the
+    inner's straight part, and at d = 4 mm the lagging inner tube swings its whole exposed curved
+    part (issue 20)."""
+    plan = protocols.build("paper", robot, **SMALL)
+    central = record(plan, VirtualRobot(robot, VirtualConfig().central(), seed=0), seed=0, workers=1,
+                     progress=False)
+    h = sweep_hysteresis(central)
     assert list(h["relative_translation_mm"]) == [4.0, 12.0, 20.0]
     mean, gap = h["hysteresis_mean_mm"].to_numpy(), h["azimuth_gap_max_deg"].to_numpy()
     assert (mean > 0.2).all()
     assert gap[0] < gap[1] < gap[2]
     assert gap[2] > 10.0  # a snap: T(L) jumps by more than the paper's 10 deg
     assert h["hysteresis_max_mm"].iloc[0] > 0.02  # backlash gives hysteresis even without overlap
+
+
+def test_at_the_defaults_the_loop_saturates_at_middle_overlap(quick):
+    """At the defaults (μ 0.69, the top of its range) the loop is wider at every overlap, widest at
+    d = 12 mm of these three and narrower again at full overlap (docs/virtual_robot.md: What the
+    defaults give; at full scale 35°, 68° and 55° at d = 4, 12, 20 mm)."""
+    h = sweep_hysteresis(quick)
+    gap = h["azimuth_gap_max_deg"].to_numpy()
+    assert gap[0] < gap[2] < gap[1]
+    assert gap[0] > 20.0   # at the central values 11° (full scale)
 
 
 def test_nominal_tcm_error_is_several_mm(quick):

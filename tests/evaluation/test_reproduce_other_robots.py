@@ -13,9 +13,11 @@ from click.testing import CliRunner
 
 from ctrkin.acquisition.ranges import ProtocolRanges
 from ctrkin.cli.main import cli
+from ctrkin.evaluation.datasets import virtual_overrides
 from ctrkin.inference import Kinematics
 from ctrkin.robots.robot import Robot
 from ctrkin.robots.tube import Tube
+from ctrkin.virtual.config import CENTRAL, VirtualConfig
 
 
 def three_tube_robot() -> Robot:
@@ -34,13 +36,18 @@ def test_a_three_tube_robot_reproduces_end_to_end_with_set(tmp_path) -> None:
     robot = three_tube_robot()
     robot.to_toml(tmp_path / "three.toml")
     out = tmp_path / "repro"
+    # the central values (docs/virtual_robot.md): at the defaults, μ 0.69, follow gives up most steps
+    # of some three-tube sweeps and the virtual robot re-solves each (issue 20), far too slow for CI
+    settings = {**CENTRAL, "noise_mm": 0.1}
+    sets = [a for k, v in settings.items() for a in ("--set", f"{k}={v}")]
     res = CliRunner().invoke(cli, ["--quiet", "reproduce", "--scale", "tiny", "--robot",
-                                   str(tmp_path / "three.toml"), "--set", "noise_mm=0.1", "--workers", "1",
+                                   str(tmp_path / "three.toml"), *sets, "--workers", "1",
                                    "--out", str(out)])
     assert res.exit_code == 0, res.output + str(res.exception)
     results = json.loads((out / "results.json").read_text())
     assert results["robot"]["name"] == "three-tube-test" and len(results["robot"]["tubes"]) == 3
-    assert results["virtual_settings"] == {"noise_mm": 0.1}
+    expected = virtual_overrides(VirtualConfig(**settings))
+    assert results["virtual_settings"] == expected and expected["noise_mm"] == 0.1
     meta = json.loads((out / "data" / "paper" / "meta.json").read_text())
     ranges = ProtocolRanges.of(robot)
     assert meta["protocol_params"]["levels_mm"] == list(ranges.levels((4.0, 20.0)))
@@ -51,5 +58,6 @@ def test_a_three_tube_robot_reproduces_end_to_end_with_set(tmp_path) -> None:
     for folder in (results["recommended.fk"], results["recommended.ik"]):
         assert Kinematics.load(out / folder).layout.n_tubes == 3
     report = (out / "report.md").read_text()
-    assert "Robot: three-tube-test, virtual robot seed 0 with noise_mm = 0.1." in report
+    assert ("Robot: three-tube-test, virtual robot seed 0 with "
+            + ", ".join(f"{k} = {v}" for k, v in expected.items()) + ".") in report
     assert "Table I)" not in report

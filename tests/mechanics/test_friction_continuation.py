@@ -1,4 +1,5 @@
-"""Continuation with friction on translating paths (issue 20; mechanics.continuation).
+"""Continuation with friction on translating paths and through reversals on three tubes (issue 20;
+mechanics.continuation).
 
 While the tubes translate, a slipping friction element's torsional tangent depends on the
 sub-step's own axial slip (contact C4), so det J is not a measure of the branch that two sub-steps
@@ -12,13 +13,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ctrkin import follow, paper_robot
-from ctrkin.acquisition.protocols import arbitrary
-from ctrkin.mechanics import continuation
+from ctrkin import follow, paper_robot, solve
+from ctrkin.acquisition.protocols import arbitrary, paper
+from ctrkin.mechanics import Equilibrium, continuation
 from ctrkin.mechanics.friction import SLIP
 from ctrkin.mechanics.pointwise import newton, prepare, with_state
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS
-from ctrkin.virtual import VirtualRobot
+from ctrkin.virtual import VirtualConfig, VirtualRobot
+from ctrkin.virtual.transmission import dead_band, play
+from tests.evaluation.test_reproduce_other_robots import three_tube_robot
 
 
 @pytest.fixture(scope="module")
@@ -85,3 +88,41 @@ def test_det_j_is_still_compared_where_it_measures_the_branch() -> None:
     assert continuation._det_comparable(slip, slip, translating=False)
     assert not continuation._det_comparable(slip, slip, translating=True)
     assert not continuation._det_comparable(stick, slip, translating=False)
+
+
+@pytest.fixture(scope="module")
+def three_tube_reversal() -> tuple[object, Equilibrium, np.ndarray]:
+    """The three-tube robot of the tiny reproduction (tests/evaluation/test_reproduce_other_robots.py)
+    as the virtual robot's true tubes at the central values (μ 0.2), seed 0: run 1 of the paper
+    protocol's tiny scale up to its third segment, a full inner turn 0 → 360 → 0° with the middle and
+    outer tubes at 90° (d = 15.5 mm). Returns the true robot, its equilibrium before that segment and
+    the segment's tube-base joints up to 5 steps past the reversal (the motors' play holds α1 for a
+    step, then it turns back by 0.5°)."""
+    robot = three_tube_robot()
+    virtual = VirtualRobot(robot, VirtualConfig().central(), seed=0)
+    run = paper(robot, scale="tiny").runs[1]
+    state = virtual.rest(run.start)
+    for seg in run.segments[:2]:
+        state = virtual.move(state, seg.q)[1]
+    Q = run.segments[2].q[:367]
+    out = np.empty_like(Q)
+    play(Q, dead_band(robot, virtual.config, Q), state.play, out)
+    return virtual.true_robot, state.equilibrium, virtual.base_joints(out)
+
+
+def test_follow_steps_through_an_inner_reversal_on_three_tubes(three_tube_reversal) -> None:
+    """At the reversal every friction element turns from slip to stick, and Newton from the last
+    state stalls beside a stick/slip kink at every sub-step down to 1/256 of the step (2 of 25 starts
+    near it converge at 1/16, none at 1/4 or the whole step), so follow spent its search budget and
+    gave that step up (not converged, NaN pose). Now the rest of such a step is taken from the
+    multi-start search of `recover` when it finds the branch within a step's twist: every step
+    converges, without a snap at the reversal, to the equilibrium a point-wise solve from the step
+    before with its friction state finds."""
+    robot, start, base = three_tube_reversal
+    tr = follow(robot, base, start=start)
+    assert tr.converged.all() and tr.stable.all()
+    turn = int(np.argmax(np.diff(base[:, 0]) < 0)) + 1     # the first step back
+    assert 355 <= turn <= 365 and not tr.snaps[turn - 1:turn + 2].any()
+    before = tr.equilibria[turn - 1]
+    alone = solve(robot, base[turn], guess=before, state=before.friction_state)
+    assert np.abs(alone.tip_position - tr.equilibria[turn].tip_position).max() < 1e-6

@@ -1,11 +1,15 @@
-"""VirtualConfig: validation messages say what to change; round trip through the dataset meta."""
+"""VirtualConfig: validation messages say what to change; round trip through the dataset meta; the
+defaults and the central values (issue 20)."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import pytest
 
 from ctrkin.errors import CtrkinError
 from ctrkin.virtual import VirtualConfig, VirtualConfigError
+from ctrkin.virtual.config import CENTRAL
 
 
 def test_defaults_are_valid_and_round_trip():
@@ -46,3 +50,30 @@ def test_ideal_switches_everything_off():
     assert d.pop("readings_per_sample") == 1
     assert d.pop("em_distortion_length_mm") == VirtualConfig().em_distortion_length_mm
     assert all(v == 0.0 for v in d.values())
+
+
+DOCS = Path(__file__).parents[2] / "docs" / "virtual_robot.md"
+
+
+def _documented_set_line() -> dict[str, float]:
+    """The `--set` line of the central values in docs/virtual_robot.md (Effects and default
+    magnitudes), as VirtualConfig fields."""
+    lines = [ln for ln in DOCS.read_text().splitlines() if ln.strip().startswith("--set ")]
+    assert len(lines) == 1, lines
+    pairs = (item.split("=", 1) for item in lines[0].split("--set")[1:])
+    return {k.strip(): float(v) for k, v in pairs}
+
+
+def test_the_defaults_are_the_top_of_the_ranges_and_the_documented_line_gives_the_central_values():
+    """Issue 20: the defaults are every effect at the top of its published range; the central
+    values (the defaults before) are one documented --set line away, and `central()` is that line.
+    Each central value is below its default (a top is an upper end)."""
+    central = VirtualConfig().central()
+    assert set(CENTRAL) == set(_documented_set_line())
+    assert VirtualConfig(**_documented_set_line()) == central
+    default = VirtualConfig().to_dict()
+    changed = {k for k, v in central.to_dict().items() if default[k] != v}
+    assert changed == set(CENTRAL)
+    assert all(CENTRAL[k] < default[k] for k in CENTRAL)
+    assert (default["tube_friction"], default["sensor_offset_mm"], default["precurvature_error"]) == (
+        0.69, 6.5, 0.20)

@@ -68,8 +68,9 @@ def collect(
         key = _key(name, scale, robot_seed, kw, config)
         if (folder / "meta.json").is_file():
             ds = Dataset.load(folder, robot=robot)
-            if ds.meta.get("reproduce_key") == key:
-                return ds
+            if (ds.meta.get("reproduce_key") == key
+                    and ds.meta.get("virtual_robot", {}).get("config") == config.to_dict()):
+                return ds      # (the key holds only what differs from the defaults of its time)
         plan = protocols.build(
             name,
             robot,

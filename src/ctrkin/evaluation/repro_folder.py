@@ -38,11 +38,15 @@ def settings(robot: Robot, scale: ReproScale, robot_seed: int,
 
 def _recorded(out: Path) -> dict[str, Any] | None:
     """The settings the folder's reproduction was made with; None for a new or empty folder.
-    A folder of ctrkin before 0.2: {"paper_key", "robot_fingerprint"} of its paper dataset."""
+    A folder of ctrkin before 0.2: {"paper_key", "robot_fingerprint"} of its paper dataset.
+    virtual_config: the whole virtual robot configuration its paper dataset was recorded with (None
+    if it has none yet): the marker keeps only what differs from the default of its time, and the
+    defaults changed (docs/virtual_robot.md: Effects and default magnitudes)."""
     marker = read_marker(out)
     if marker is not None:      # a marker before --set has no virtual_settings: the default's
         return {**{k: marker.get(k) for k in ("scale", "robot", "robot_fingerprint", "robot_seed")},
-                "virtual_settings": marker.get("virtual_settings", {})}
+                "virtual_settings": marker.get("virtual_settings", {}),
+                "virtual_config": _paper_config(out)}
     try:
         meta = json.loads((out / "data" / "paper" / "meta.json").read_text())
     except (OSError, ValueError):
@@ -50,6 +54,15 @@ def _recorded(out: Path) -> dict[str, Any] | None:
     if not isinstance(meta, dict):
         return None
     return {"paper_key": meta.get("reproduce_key"), "robot_fingerprint": meta.get("robot_fingerprint")}
+
+
+def _paper_config(out: Path) -> Any:
+    """The virtual robot configuration in the folder's paper dataset meta, None if there is none."""
+    try:
+        meta = json.loads((out / "data" / "paper" / "meta.json").read_text())
+        return meta["virtual_robot"]["config"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
 
 
 def claim(out: Path, robot: Robot, scale: ReproScale, robot_seed: int, overwrite: bool,
@@ -65,8 +78,16 @@ def claim(out: Path, robot: Robot, scale: ReproScale, robot_seed: int, overwrite
             {k: got[k] for k in want} == want if "paper_key" not in got else
             (got["paper_key"] == paper_key(scale, robot_seed, robot, virtual)
              and got["robot_fingerprint"] == want["robot_fingerprint"]))
+        config = (virtual if virtual is not None else VirtualConfig()).to_dict()
+        earlier = got is not None and got.get("virtual_config") not in (None, config)
         if overwrite:
             _clear(out)
+        elif same and earlier:
+            raise OutputError(
+                f"{out} holds a reproduction recorded with other virtual robot effects (the defaults "
+                "of an earlier version, docs/virtual_robot.md: Effects and default magnitudes; "
+                "`--set` with the central values gives those back); pass --overwrite to replace it, "
+                "or choose another --out")
         elif not same:
             what = (f"scale {got.get('scale')}, robot {got.get('robot')}, robot seed {got.get('robot_seed')}"
                     f"{_effects(got.get('virtual_settings'))}"

@@ -19,6 +19,17 @@ sub-step's own axial slip Δd, so det J changes with the sub-step's length (on t
 robot's arbitrary path by 3× between a sub-step and one twice as long, every element slipping)
 and halving the step can never make two of them agree. Such a (sub)step is judged by its
 stability (det J > 0, det H > 0) and the twist jump alone.
+
+Newton itself can stall with friction: the residual is piecewise smooth, and a stuck element is a
+ramp of slope T_max / ε_t over ε_t ≈ 1e-3 rad of relative twist. Where a path reverses, the
+elements that slipped one way sit on the edge of that ramp and unload into it while others slip
+the other way; the line search then finds no descent beside a kink, at any sub-step (on three
+tubes, 23 elements, the middle and outer tubes turned together: of 25 starts near the last state,
+none converge on the whole step or a quarter of it, 2 at 1/16). Newton from the twisted starts of
+`recover` reaches the equilibrium from farther away. So when every sub-step down to the smallest
+has failed and that search finds the same branch at the smallest one (no fold: no snap), the rest
+of the step is taken from the search as well, where it finds a stable equilibrium within a step's
+twist (JUMP_RAD); sub-stepping on would need a search per 1/256 of the step and spend the budget.
 """
 
 from __future__ import annotations
@@ -180,12 +191,36 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
         # fold: no stable equilibrium near the current one, however small the step
         sol = recover(pb, x, settings, work)
         # a fold was crossed: that is a snap unless the search only re-found the same branch
-        snapped = snapped or twist_distance(sol.x, x, pb.arrays.lengths) > SAME_BRANCH_RAD
+        same = twist_distance(sol.x, x, pb.arrays.lengths) <= SAME_BRANCH_RAD
+        snapped = snapped or not same
         x, det, t, last = sol.x, sol.det_j, t_try, (pb, sol)
         state, modes = _after(pb, sol, state)
         dt = min(1.0 - t, most)
+        if same and sol.stable and state is not None and t < 1.0:
+            # no fold: Newton stalled beside a stick/slip kink (module docstring), and would at
+            # every sub-step: the rest of the step from the search too, where it stays on the branch
+            rest = _rest_of_step(robot, prev, q_to, settings, same_grid, x, state, work)
+            if rest is not None:
+                x, t, last = rest[1].x, 1.0, rest
+                state, modes = _after(*rest, state)
     assert last is not None
     return equilibrium(*last, state), snapped
+
+
+def _rest_of_step(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: SolverSettings,
+                  same_grid: bool, x: np.ndarray, state: FrictionState, work: list[int]
+                  ) -> tuple[Problem, NewtonResult] | None:
+    """The equilibrium at q_to on the branch of x (N,) rad/mm, found by the multi-start search of
+    `recover` from the friction state of the last accepted (sub)step, or None where the nearest
+    stable one is farther than a step may twist (JUMP_RAD: a fold, left to the snap search)."""
+    if same_grid:
+        pb = with_alpha(prev.problem, q_to, state)
+    else:
+        pb = with_state(prepare(robot, q_to, settings, checked=True, arr=prev.problem.arrays), state)
+    sol = recover(pb, x, settings, work)
+    if sol.stable and twist_distance(sol.x, x, pb.arrays.lengths) <= JUMP_RAD:
+        return pb, sol
+    return None
 
 
 def _det_comparable(before: bytes, after: bytes, translating: bool) -> bool:

@@ -1,8 +1,9 @@
 """Effect magnitudes of the virtual robot (frozen, validated, stored in every dataset's meta).
 
-Every default is a plausible value for a hand-made two-tube nitinol robot measured with an NDI Aurora
-5-DOF sensor; docs/virtual_robot.md gives the source of each. All randomness is drawn from a seed, so a
-config plus a robot seed is one reproducible "piece of hardware".
+Every default is a value for a hand-made two-tube nitinol robot measured with an NDI Aurora 5-DOF
+sensor, at the top of its published range where a source gives one (`CENTRAL` holds the central values
+the defaults were before; docs/virtual_robot.md gives the source of each, and why the top). All
+randomness is drawn from a seed, so a config plus a robot seed is one reproducible "piece of hardware".
 """
 
 from __future__ import annotations
@@ -17,6 +18,21 @@ from ctrkin.errors import CtrkinError
 SHAPES = ("em_distortion_length_mm",)   # fields that shape an effect but switch nothing
 
 
+# the central published values of the effects whose default is the top of their range (the defaults
+# before issue 20 moved them): `--set KEY=VALUE` of each gives the typical robot back
+CENTRAL: dict[str, Any] = {
+    "precurvature_error": 0.08,
+    "stiffness_error": 0.08,
+    "tube_friction": 0.2,
+    "gear_backlash_deg": 1.0,
+    "leadscrew_backlash_mm": 0.05,
+    "registration_deg": 1.0,
+    "em_distortion_mm": 1.0,
+    "sensor_offset_mm": 4.0,
+    "noise_mm": 0.25,
+}
+
+
 class VirtualConfigError(CtrkinError, ValueError):
     """A virtual robot effect magnitude is out of range, or not a setting at all."""
 
@@ -26,9 +42,11 @@ class VirtualConfig:
     """Magnitudes of the imperfections (all ≥ 0; zero switches an effect off).
 
     Frozen and validated on construction (`VirtualConfigError` says which value and why); stored in
-    the meta of every dataset the virtual robot records. The tube effects are drawn once per robot
-    seed and tube; the transmission's dead band between motor and tube base is what makes the
-    robot's response depend on the direction of motion (hysteresis). docs/virtual_robot.md gives
+    the meta of every dataset the virtual robot records. The defaults are the top of each effect's
+    published range (the largest honest error of a nominal model, issue 20); `CENTRAL` holds the
+    central values. The tube effects are drawn once per robot seed and tube; the transmission's
+    dead band between motor and tube base is what makes the robot's response depend on the
+    direction of motion (hysteresis). docs/virtual_robot.md gives
     the source of each default.
 
     Attributes
@@ -90,24 +108,24 @@ class VirtualConfig:
         Largest corruption (mm) of a translation reading.
     """
 
-    precurvature_error: float = 0.08
-    stiffness_error: float = 0.08
+    precurvature_error: float = 0.20
+    stiffness_error: float = 0.20
     residual_curvature: float = 1e-3
     alpha_zero_error_deg: float = 4.0
     precurvature_variation: float = 0.05
     precurvature_plane_deg: float = 3.0
-    tube_friction: float = 0.2
+    tube_friction: float = 0.69
     clearance: float = 1.0
-    gear_backlash_deg: float = 1.0
+    gear_backlash_deg: float = 2.0
     friction_deg: float = 0.5
     friction_deg_per_mm: float = 0.0
-    leadscrew_backlash_mm: float = 0.05
+    leadscrew_backlash_mm: float = 0.1
     registration_mm: float = 1.0
-    registration_deg: float = 1.0
-    em_distortion_mm: float = 1.0
+    registration_deg: float = 5.0
+    em_distortion_mm: float = 1.64
     em_distortion_length_mm: float = 10.0
-    sensor_offset_mm: float = 4.0
-    noise_mm: float = 0.25
+    sensor_offset_mm: float = 6.5
+    noise_mm: float = 0.40
     noise_deg: float = 0.2
     readings_per_sample: int = 5
     glitch_rate: float = 2e-4
@@ -177,6 +195,11 @@ class VirtualConfig:
             raise VirtualConfigError(f"unknown virtual robot setting(s) {sorted(unknown)}; "
                                      f"allowed: {sorted(known)}")
         return cls(**d)
+
+    def central(self) -> VirtualConfig:
+        """The effects whose default is the top of a published range at their central value instead
+        (`CENTRAL`, the defaults before issue 20; the same as `--set` with each of them)."""
+        return dataclasses.replace(self, **CENTRAL)
 
     def ideal(self) -> VirtualConfig:
         """All effects off: the virtual robot is then the nominal TCM with perfect sensing. The

@@ -134,8 +134,9 @@ class VirtualRobot:
         tr = follow(self.true_robot, base, start=state.equilibrium, progress=progress)
         poses, eqs = tr.tip_poses, tr.equilibria
         for t in np.flatnonzero(~tr.converged):
-            # follow gave up this step (its continuation budget, SolverSettings.max_search_steps, spent
-            # near a reversal with friction): a real tube still has a pose, so the step is solved from
+            # follow gave up this step (its continuation budget, SolverSettings.max_search_steps,
+            # spent; the inner reversals on three tubes that did this are now continued, but an
+            # extreme robot may still): a real tube still has a pose, so the step is solved from
             # the equilibrium before it with its friction state (solve's snap recovery), else afresh
             before = eqs[t - 1] if t > 0 else state.equilibrium
             eq = solve(self.true_robot, base[t], guess=before, state=before.friction_state)
