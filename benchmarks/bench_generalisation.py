@@ -10,11 +10,11 @@ Each robot runs the pipeline a new user runs, `ctrkin reproduce --scale S --robo
 --robot-seed K --set ...` (in a child process, into OUT/<robot>, its log OUT/<robot>.log; a rerun
 reuses what a finished stage left there, as reproduce does), then the recommended FK model is driven
 along mid-turn reversals recorded on the same virtual robot (`reversals`, below). The robots
-(`ROBOTS`): the paper robot with every effect at the top of its published range (the documented
-`--set` line of docs/virtual_robot.md, the new default robot); a second two-tube design (other
+(`ROBOTS`): the paper robot with every effect at the top of its published range (the virtual
+robot's defaults, docs/virtual_robot.md); a second two-tube design (other
 diameters and curvatures, another hardware seed); a three-tube robot; the paper robot's worst
-hardware seed with friction and backlash at the top of their ranges and the rest at the old
-defaults. Every robot but the last carries the top-of-range effects.
+hardware seed with friction and backlash at the top of their ranges and the rest at their central
+values (the defaults before issue 20). Every robot but the last carries the top-of-range effects.
 
 Prints one row per robot with the goal-1 figures of issue 21 and the wall time, then one JSON line of
 every figure. Columns (held-out data of the reproduction; position RMSE in mm unless said):
@@ -62,17 +62,19 @@ from ctrkin.robots import load_robot
 from ctrkin.robots.robot import Robot
 from ctrkin.robots.tube import Tube
 from ctrkin.virtual import VirtualConfig, VirtualRobot
+from ctrkin.virtual.config import CENTRAL
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))   # the benchmark beside this one
 from bench_fold_gate import snap_residuals
 
-# every effect at the top of its published range: the `--set` line of docs/virtual_robot.md (What the
-# defaults give), benchmarks/bench_virtual_effects.py's TOP
+# every effect at the top of its published range: the virtual robot's defaults since issue 20 (given
+# explicitly, so that the rows keep their meaning if the defaults move again)
 TOP = {"precurvature_error": 0.2, "stiffness_error": 0.2, "tube_friction": 0.69, "gear_backlash_deg": 2.0,
        "leadscrew_backlash_mm": 0.1, "registration_deg": 5.0, "em_distortion_mm": 1.64, "noise_mm": 0.4,
        "sensor_offset_mm": 6.5}
-# friction and backlash at the top of their ranges, everything else at the defaults before issue 21
-FRICTION_BACKLASH = {"tube_friction": 0.69, "gear_backlash_deg": 2.0, "leadscrew_backlash_mm": 0.1}
+# friction and backlash at the top of their ranges, everything else at the central values (CENTRAL: the
+# defaults before issue 20)
+FRICTION_BACKLASH = {**CENTRAL, "tube_friction": 0.69, "gear_backlash_deg": 2.0, "leadscrew_backlash_mm": 0.1}
 
 
 def _tube(od: float, idd: float, straight: float, curved: float, radius: float) -> Tube:
@@ -110,7 +112,7 @@ ROBOTS: dict[str, Case] = {
     "design-b": Case(design_b, 3, TOP, "second two-tube design, hardware seed 3, top of ranges"),
     "three-tube": Case(three_tube, 1, TOP, "three tubes, hardware seed 1, top of ranges"),
     "friction-backlash": Case("paper", 2, FRICTION_BACKLASH,
-                              "paper robot seed 2, friction and backlash at the top, rest default"),
+                              "paper robot seed 2, friction and backlash at the top, rest central"),
 }
 
 # mid-turn reversals: the inner tube turns 0 → 250 → 110 → 330 → 60° (absolute, 1° steps), reversing
