@@ -118,7 +118,8 @@ def test_a_new_experiment_is_one_module_plus_its_figure(sweeps, model_dirs, tmp_
     got = json.loads(res.stdout.splitlines()[-1])
     assert got["module"] == copy.as_posix()                         # the copy ran, not the package
     k = got["order"].index("toy")
-    assert got["order"][k - 1:k + 2] == ["snap_turns", "toy", "ik"]     # in run order, after the FK ones
+    # in run order: the last of experiments_fk's own, before the next module's (Fig. 6, 9: training)
+    assert got["order"][k - 1:k + 2] == ["snap_turns", "toy", "delta_overlaps"]
     assert "toy_errors" in got["figures"]
     for row in ("lstm_mlp_paper", "lstm_mlp_branch"):
         assert 0 < got["toy"][row]["position_rmse_mm"] < 1e3, row
