@@ -5,7 +5,6 @@ the tests' trimmed tiny results, a small trained snap-aware FK and a sweep datas
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import shutil
 import sys
@@ -14,18 +13,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_generalisation.py"
+from tests.benchmark_scripts import load_benchmark
+
 TINY_RESULTS = Path(__file__).resolve().parent / "evaluation" / "tiny_results.json"
 
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("ctrkin_bench_generalisation", BENCH)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["ctrkin_bench_generalisation"] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("bench_generalisation")
 
 
 def test_reversal_plan_reverses_mid_turn_inside_each_robot(bench) -> None:

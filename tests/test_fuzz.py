@@ -3,22 +3,14 @@ crash, silent wrong answer, hang, data loss or mixed read among them (the last t
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import pytest
 
-FUZZ = Path(__file__).resolve().parents[1] / "benchmarks" / "fuzz.py"
+from tests.benchmark_scripts import load_benchmark
 
 
 @pytest.mark.slow
 def test_fuzz_slice_has_no_crash_silent_or_hang():
-    spec = importlib.util.spec_from_file_location("ctrkin_fuzz", FUZZ)
-    assert spec is not None and spec.loader is not None
-    fuzz = importlib.util.module_from_spec(spec)
-    sys.modules["ctrkin_fuzz"] = fuzz
-    spec.loader.exec_module(fuzz)
+    fuzz = load_benchmark("fuzz")
     counts = fuzz.run(scale=0.01, seed=1, log=lambda _m: None)
     assert set(counts) == set(fuzz.AREAS)
     total = {o: sum(c[o] for c in counts.values()) for o in fuzz.OUTCOMES}
