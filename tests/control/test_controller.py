@@ -12,6 +12,7 @@ from ctrkin.control.controller import ConfigError
 from ctrkin.errors import ModelError
 from ctrkin.geometry import tip_pose
 from ctrkin.robots import paper_robot
+from ctrkin.virtual import VirtualConfig
 from ctrkin.virtual.robot import VirtualRobot
 
 START = np.array([90.0, 0.0, -12.0, 0.0])
@@ -62,7 +63,9 @@ def test_config_and_model_checked(model_dirs):
 
 
 def test_closes_on_the_virtual_robot_and_stops_on_dropout(fk):
-    vr = VirtualRobot(paper_robot(), seed=0)
+    # the central values (the defaults before issue 20): at the defaults' 2° gear backlash and 0.4 mm
+    # tracker noise this tiny model's poor Jacobian closes 18 % of a 0.5 mm step in 100 cycles, not 20 %
+    vr = VirtualRobot(paper_robot(), VirtualConfig().central(), seed=0)
     eq = vr.rest(START).equilibrium
     p0 = vr.tracker.registered(tip_pose(eq.tip_position[None], eq.tip_tangent[None]))[0, :3]
     targets = np.tile(p0 + np.array([0.5, 0.0, 0.0]), (120, 1))
