@@ -159,12 +159,7 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     while t < 1.0:
         t_try = min(1.0, t + dt)
         q_try = q_to if t_try == 1.0 else q_from + (q_to - q_from) * t_try
-        if same_grid:
-            pb = with_alpha(prev.problem, q_try, state)
-        else:
-            pb = prepare(robot, q_try, settings, checked=True, arr=arr)
-            if state is not None:
-                pb = with_state(pb, state)
+        pb = _problem_at(robot, prev, q_try, settings, same_grid, state)
         if path is None:
             guess = x
         else:  # x moved along the predicted branch (at the start of the step x = path.at(0))
@@ -207,16 +202,23 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     return equilibrium(*last, state), snapped
 
 
+def _problem_at(robot: Robot, prev: Equilibrium, q: np.ndarray, settings: SolverSettings,
+                same_grid: bool, state: FrictionState | None) -> Problem:
+    """The problem at joints q (2N,) of a step from `prev`, with the friction state of the last
+    accepted (sub)step: on prev's grid where the step keeps it (`same_grid`, see _advance)."""
+    if same_grid:
+        return with_alpha(prev.problem, q, state)
+    pb = prepare(robot, q, settings, checked=True, arr=prev.problem.arrays)
+    return pb if state is None else with_state(pb, state)
+
+
 def _rest_of_step(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: SolverSettings,
                   same_grid: bool, x: np.ndarray, state: FrictionState, work: list[int]
                   ) -> tuple[Problem, NewtonResult] | None:
     """The equilibrium at q_to on the branch of x (N,) rad/mm, found by the multi-start search of
     `recover` from the friction state of the last accepted (sub)step, or None where the nearest
     stable one is farther than a step may twist (JUMP_RAD: a fold, left to the snap search)."""
-    if same_grid:
-        pb = with_alpha(prev.problem, q_to, state)
-    else:
-        pb = with_state(prepare(robot, q_to, settings, checked=True, arr=prev.problem.arrays), state)
+    pb = _problem_at(robot, prev, q_to, settings, same_grid, state)
     sol = recover(pb, x, settings, work)
     if sol.stable and twist_distance(sol.x, x, pb.arrays.lengths) <= JUMP_RAD:
         return pb, sol
