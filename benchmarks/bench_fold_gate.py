@@ -115,7 +115,7 @@ def measure(paper: Dataset, sweeps: Dataset) -> dict[str, Any]:
 def _record(args: argparse.Namespace) -> tuple[Dataset, Dataset]:
     from ctrkin.acquisition import protocols
     from ctrkin.acquisition.recorder import record
-    from ctrkin.cli.common import virtual_config
+    from ctrkin.cli.from_config import virtual_config
     from ctrkin.evaluation.datasets import SEEDS, _paper_kw
     from ctrkin.evaluation.scales import get_scale
     from ctrkin.robots import load_robot

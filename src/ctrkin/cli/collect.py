@@ -41,10 +41,11 @@ from ctrkin.cli.common import (
     output_options,
     say,
 )
-from ctrkin.cli.from_config import RANGE, config_options, option_help, virtual_config, virtual_settings_option
+from ctrkin.cli.from_config import RANGE, config_options, option_help
 from ctrkin.evaluation.scales import Scale
 from ctrkin.robots import Robot, load_robot
 from ctrkin.virtual import VirtualRobot
+from ctrkin.virtual.config import SETTINGS_HELP, VirtualConfig
 
 CHOICES = [*protocols.PROTOCOLS, *SHAPES]
 MAX_POINTS = 100_000      # random points or path points: far beyond any protocol, within memory
@@ -56,7 +57,7 @@ class CollectConfig:
     are VirtualConfig's, set by --set KEY=VALUE; the rig, where there is one, is --rig's file)."""
 
     protocol: str = field(default="paper", metadata=option_help(
-        "What to record: " + ", ".join(CHOICES) + "."))
+        "What to record: " + ", ".join(CHOICES) + ".", choices=CHOICES))
     scale: Scale = field(default="quick", metadata=option_help(
         "Size of the paper protocol, the training data of `reproduce --scale` of the same name (the other "
         "protocols do not depend on it). full: the paper's, 8 levels x 36 outer angles (207,648 "
@@ -73,6 +74,15 @@ class CollectConfig:
         "protocol's, the paper robot's carried over to the robot's curved overlap and reach; "
         "docs/protocols.md: Other robots)."))
     workers: int | None = field(default=None, metadata=option_help("Processes (default: all cores)."))
+    rig: str | None = field(default=None, metadata=option_help(
+        "Run the protocol on the rig this TOML file describes (docs/hardware.md) instead of the virtual "
+        "robot; the robot is the rig's. Running the same command again resumes an interrupted "
+        "collection; --overwrite starts over.", path="file"))
+    virtual: VirtualConfig = field(default_factory=VirtualConfig, metadata=option_help(
+        SETTINGS_HELP, key_values=True, name="--set", metavar="KEY=VALUE"))
+    out: str = field(default="", metadata=option_help(
+        "Output folder (written as a whole: a failure leaves the previous one; a second collect into it "
+        "is refused while one runs).", path="out"))
 
     def __post_init__(self) -> None:
         if self.protocol not in CHOICES:
@@ -106,29 +116,18 @@ Examples:
   ctrkin collect --protocol sweeps --set noise_mm=0.1 --out data/sweeps-noisy
   ctrkin collect --protocol sweeps --levels 8 --out data/sweeps-8 --json > collect.json
   ctrkin collect --rig examples/rigs/paper.toml --protocol paper --scale full --out data/rig""")
-@click.option("--protocol", type=click.Choice(CHOICES), required=True,
-              help=CollectConfig.__dataclass_fields__["protocol"].metadata["help"])
-@config_options(CollectConfig, exclude=("protocol",))
-@click.option("--rig", "rig_file", default=None, type=click.Path(exists=True, dir_okay=False),
-              help="Run the protocol on the rig this TOML file describes (docs/hardware.md) instead of "
-              "the virtual robot; the robot is the rig's. Running the same command again resumes an "
-              "interrupted collection; --overwrite starts over.")
-@virtual_settings_option
-@click.option("--out", "out_dir", required=True, type=click.Path(),
-              help="Output folder (written as a whole: a failure leaves the previous one; a second "
-              "collect into it is refused while one runs).")
+@config_options(CollectConfig, required=("protocol", "out"))
 @output_options
-def collect_cmd(settings: tuple[str, ...], out_dir: str, overwrite: bool, as_json: bool,
-                rig_file: str | None, **options: Any) -> None:
+def collect_cmd(overwrite: bool, as_json: bool, **options: Any) -> None:
     """Record a protocol on the virtual robot or on a rig (or write square/triangle IK targets)."""
-    config = virtual_config(settings)
     cfg = CollectConfig(**options)
+    out_dir, rig_file = cfg.out, cfg.rig
     protocol, scale, seed, n_points = cfg.protocol, cfg.scale, cfg.seed, cfg.n_points
     if rig_file is not None:
         from ctrkin.cli.collect_rig import collect_on_rig
 
         ctx = click.get_current_context()
-        named = {"robot": "--robot", "robot_seed": "--robot-seed", "settings": "--set"}
+        named = {"robot": "--robot", "robot_seed": "--robot-seed", "virtual": "--set"}
         given = [o for p, o in named.items()
                  if ctx.get_parameter_source(p) == click.core.ParameterSource.COMMANDLINE]
         if given:
@@ -143,7 +142,7 @@ def collect_cmd(settings: tuple[str, ...], out_dir: str, overwrite: bool, as_jso
     out = output_folder(out_dir, "task path" if protocol in SHAPES else "dataset", overwrite,
                         inputs=[cfg.robot])
     robot = load_robot(cfg.robot)
-    virtual = VirtualRobot(robot, config, seed=cfg.robot_seed)
+    virtual = VirtualRobot(robot, cfg.virtual, seed=cfg.robot_seed)
     if protocol in SHAPES:
         path = task_path(virtual, protocol, n_points=10 if n_points is None else n_points, seed=seed)
         path.save(out)

@@ -87,7 +87,6 @@ def log_line(message: str) -> None:
 
 
 ROBOT_HELP = "Built-in robot name (paper, timclab) or path to a robot TOML file."
-robot_option = click.option("--robot", "robot_spec", default="paper", show_default=True, help=ROBOT_HELP)
 
 
 class OutputExistsError(click.ClickException):

@@ -22,7 +22,7 @@
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Literal, cast
 
@@ -30,8 +30,8 @@ import click
 from rich.console import Console
 from rich.table import Table
 
-from ctrkin.cli.common import InputPath, output_folder, overwrite_option, quiet, robot_option, say
-from ctrkin.cli.from_config import config_options, option_help
+from ctrkin.cli.common import ROBOT_HELP, output_folder, overwrite_option, quiet, say
+from ctrkin.cli.from_config import config_options, option, option_help
 from ctrkin.data.cleaning import CleaningConfig
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.importer import ImportConfig, import_csv
@@ -175,11 +175,56 @@ def parse_gap(text: str) -> float | str | None:
                                  param_hint="--sequence-gap") from None
 
 
-# The command line differs from ImportConfig only here: older option names; --map, --quaternion,
-# --units and --sequence-gap are read into mapping, quaternion_columns, the units and sequence_gap,
-# and --keep-outliers / --no-average into its CleaningConfig.
+def parse_columns(text: str) -> tuple[str, ...]:
+    """"ox, oy,oz,ow" -> ("ox", "oy", "oz", "ow")."""
+    return tuple(c.strip() for c in text.split(",")) if text else ()
+
+
+@dataclass(frozen=True, kw_only=True)
+class ImportCommand:
+    """What `ctrkin dataset import` reads and writes, and the options it reads into ImportConfig in a
+    form of its own (the argument and one option per field, around ImportConfig's)."""
+
+    log_files: tuple[str, ...] = option("Robot logs (CSV).", argument=True, repeat=True, path="file")
+    robot: str = option(ROBOT_HELP, "paper")
+    profile: str | None = option(
+        "Import profile (TOML: columns by position or name, scales, travel zero, groups, drops, reference "
+        "body, orientation). With a profile, several files make one dataset, one sequence per file, and "
+        "--map/--units/--quaternion are not used.", None, path="file")
+    out: str = option("Dataset folder to write.", path="out")
+    mapping: tuple[tuple[str, str], ...] = option(
+        "Map a log column to a field (alpha_1.., beta_1.., x, y, z, q0, qw, qx, qy, qz, tx, ty, tz, "
+        "sequence_id, time, step, snap). Repeatable or comma-separated. Columns already named like a "
+        "field need no mapping.", (), parse=parse_map, repeat=True, name="--map",
+        metavar="LOG_COLUMN=FIELD")
+    units: dict[str, str] | None = field(default=None, metadata=option_help(
+        "Units of the log in one option, e.g. 'rad,m' or 'angles=rad,beta=mm,position=m' (over "
+        "--angle-unit, --beta-unit, --position-unit).", parse=parse_units, repeat=True, metavar="UNITS"))
+    quaternion_columns: tuple[str, ...] = option(
+        "Four log columns holding a full quaternion, in --quat-order.", (), parse=parse_columns,
+        name="--quaternion", metavar="C1,C2,C3,C4")
+    sequence_gap: float | str | None = option(
+        "Without sequence_id: start a new sequence after a time gap larger than this (log time unit), "
+        "'auto' (10x the median time step) or 'none'.", "auto", parse=parse_gap)
+    keep_outliers: bool = option("Keep outliers, flagged outlier = True, instead of dropping them (the "
+                                 "paper dropped them).", False, flag=True)
+    no_average: bool = option("Do not average repeated readings of one sample.", False, flag=True)
+
+    def config(self, settings: dict[str, Any]) -> ImportConfig:
+        """The ImportConfig of these options and ImportConfig's own (`settings`)."""
+        return ImportConfig(
+            mapping=self.mapping, quaternion_columns=self.quaternion_columns,
+            sequence_gap=cast(Any, self.sequence_gap),
+            cleaning=CleaningConfig(average_repeats=not self.no_average,
+                                    outliers="flag" if self.keep_outliers else "drop"),
+            **{**settings, **(self.units or {})})
+
+
+# The command line differs from ImportConfig only here: older option names; mapping,
+# quaternion_columns, sequence_gap, the units and cleaning are ImportCommand's options.
 IMPORT_ALIASES = {"quaternion_order": ("--quat-order",), "drop_invalid_joints": ("--drop-invalid",)}
 IMPORT_OWN = ("mapping", "quaternion_columns", "sequence_gap", "cleaning")
+IMPORT_COMMAND = tuple(f.name for f in fields(ImportCommand))
 
 
 @dataset_group.command("import", epilog="""\b
@@ -187,49 +232,23 @@ Examples:
   ctrkin dataset import robot_log.csv --robot paper --units rad,m --out data/mylog
   ctrkin dataset import logs/*.csv --profile examples/profiles/comet_optitrack.toml \\
       --robot examples/robots/comet_nylon_optitrack.toml --out data/optitrack""")
-@click.argument("log_files", nargs=-1, required=True, type=InputPath(dir_okay=False))
-@robot_option
-@click.option("--profile", "profile_file", default=None, type=InputPath(dir_okay=False),
-              help="Import profile (TOML: columns by position or name, scales, travel zero, groups, "
-                   "drops, reference body, orientation). With a profile, several files make one "
-                   "dataset, one sequence per file, and --map/--units/--quaternion are not used.")
-@click.option("--out", "out_dir", required=True, type=click.Path(),
-              help="Dataset folder to write.")
-@click.option("--map", "maps", multiple=True, metavar="LOG_COLUMN=FIELD",
-              help="Map a log column to a field (alpha_1.., beta_1.., x, y, z, q0, qw, qx, qy, qz, tx, "
-                   "ty, tz, sequence_id, time, step, snap). Repeatable or comma-separated. Columns "
-                   "already named like a field need no mapping.")
-@click.option("--units", "units", multiple=True, metavar="UNITS",
-              help="Units of the log in one option, e.g. 'rad,m' or 'angles=rad,beta=mm,position=m' "
-                   "(over --angle-unit, --beta-unit, --position-unit).")
-@click.option("--quaternion", "quat_cols", default=None, metavar="C1,C2,C3,C4",
-              help="Four log columns holding a full quaternion, in --quat-order.")
-@click.option("--sequence-gap", "gap_text", default="auto", show_default=True,
-              help="Without sequence_id: start a new sequence after a time gap larger than this "
-                   "(log time unit), 'auto' (10x the median time step) or 'none'.")
+@config_options(ImportCommand, exclude=("keep_outliers", "no_average"))
 @config_options(ImportConfig, aliases=IMPORT_ALIASES, exclude=IMPORT_OWN)
-@click.option("--keep-outliers", is_flag=True, help="Keep outliers, flagged outlier = True, instead "
-              "of dropping them (the paper dropped them).")
-@click.option("--no-average", is_flag=True, help="Do not average repeated readings of one sample.")
+@config_options(ImportCommand, only=("keep_outliers", "no_average"))
 @overwrite_option(force_alias=True)
-def import_cmd(log_files: tuple[str, ...], robot_spec: str, profile_file: str | None, out_dir: str,
-               maps: tuple[str, ...], units: tuple[str, ...], quat_cols: str | None, gap_text: str,
-               keep_outliers: bool, no_average: bool, overwrite: bool, force: bool, **settings: Any) -> None:
+def import_cmd(overwrite: bool, force: bool, **settings: Any) -> None:
     """Import robot logs LOG_FILES (CSV, one row a tracker reading) into one cleaned dataset: repeated
     readings averaged, encoder glitches and pose outliers removed, snaps detected (see docs/data.md,
     and docs/real_robot.md for import profiles). Without --profile, one file."""
+    command = ImportCommand(**{name: settings.pop(name) for name in IMPORT_COMMAND})
+    log_files, profile_file = command.log_files, command.profile
     if profile_file is None and len(log_files) != 1:
         raise click.UsageError("several log files need --profile (one sequence per file); without a "
                                "profile import one file")
-    quaternion_columns = tuple(c.strip() for c in quat_cols.split(",")) if quat_cols else ()
-    mapping, gap = parse_map(maps), parse_gap(gap_text)
-    out = output_folder(out_dir, "dataset", overwrite or force,
-                        inputs=[*log_files, profile_file, robot_spec])
-    robot = load_robot(robot_spec)
-    cfg = ImportConfig(
-        mapping=mapping, quaternion_columns=quaternion_columns, sequence_gap=cast(Any, gap),
-        cleaning=CleaningConfig(average_repeats=not no_average, outliers="flag" if keep_outliers else "drop"),
-        **{**settings, **parse_units(units)})
+    out = output_folder(command.out, "dataset", overwrite or force,
+                        inputs=[*log_files, profile_file, command.robot])
+    robot = load_robot(command.robot)
+    cfg = command.config(settings)
     if profile_file is not None:
         from ctrkin.data.profile import load_profile
         from ctrkin.data.profile_import import import_with_profile

@@ -23,7 +23,18 @@ Further metadata keys shape the option where a command's line is not the plain f
 path); `{"argument": True}` a positional argument (its name upper-cased, e.g. MODEL_DIR) instead of an
 option; `{"flag": True}` a bool as one flag `--name` (no `--no-name`); `{"repeat": True}` a tuple field
 given by repeating the option (`--q A --q B`) instead of a comma-separated list; `{"metavar": "..."}`
-the value's name in --help.
+the value's name in --help; `{"name": "--set"}` the option's name where it is not the field's;
+`{"choices": (...)}` the values a str field takes (a list known only at run time); `{"parse": f}` a
+value the command line gives as text (a repeated option's tuple of texts) that `f` turns into the
+field's value (its click.BadParameter, or a CtrkinError or ValueError, a usage error), the field's own
+type then needing no command-line form; `{"key_values": True}` a field set by a repeated KEY=VALUE
+option: a dict (values read by their look) or a dataclass (keys its fields, values typed by them,
+built; parse_key_values); `{"eager": f}` a bool field as an eager flag that runs `f()` and exits
+(`--list-models`; not passed to the command).
+
+A command may stack several `config_options` (a command's own configuration, e.g. its input and
+output paths, around a library's configuration): each adds its fields' options where it stands, and
+the command's function names every class it is generated from (CONFIG, a tuple).
 
 `--option KEY=VALUE` style settings go through `parse_key_values`: one error message (a usage error,
 exit status 2) and values typed by the dataclass's fields or, without one, read as int, float, bool
@@ -40,6 +51,7 @@ from typing import Any, Literal, TypeVar, Union, get_args, get_origin, get_type_
 import click
 
 from ctrkin.cli.common import InputPath
+from ctrkin.errors import CtrkinError
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -50,7 +62,12 @@ ARGUMENT = "argument"    # ... True: a positional argument
 FLAG = "flag"      # ... True: a bool field as one flag, --name without --no-name
 REPEAT = "repeat"  # ... True: a tuple field given by repeating the option
 METAVAR = "metavar"  # ... the value's name in --help
-CONFIG = "ctrkin_config"   # the attribute of a command's function naming its configuration class
+NAME = "name"      # ... the option's name where it is not --field-name
+CHOICES = "choices"  # ... the values a str field takes
+PARSE = "parse"    # ... a function: the option's text(s) -> the field's value
+KEY_VALUES = "key_values"  # ... True: a repeated KEY=VALUE option into a dict or a dataclass
+EAGER = "eager"    # ... a function an eager flag runs before the command exits
+CONFIG = "ctrkin_config"   # the attribute of a command's function naming its configuration classes
 
 
 def option_help(text: str, **metadata: Any) -> dict[str, Any]:
@@ -125,20 +142,25 @@ def _default(f: dataclasses.Field[Any]) -> Any:
 
 
 def config_options(cls: type, *, aliases: Mapping[str, Sequence[str]] | None = None,
-                   exclude: Iterable[str] = (), required: Iterable[str] = (),
+                   exclude: Iterable[str] = (), only: Iterable[str] | None = None,
+                   required: Iterable[str] = (),
                    defaults: Mapping[str, Any] | None = None) -> Callable[[F], F]:
     """A decorator adding one click option (or argument) per field of the dataclass `cls`, in field
     order.
 
     aliases: field -> older option names that also set it (listed first in --help); exclude: fields
-    the command sets otherwise; required, defaults: where the command line differs from the
-    dataclass (a required option; another default). Options pass the field's value to the command
-    under the field's name; the function's attribute CONFIG names `cls`."""
+    the command sets otherwise; only: these fields alone (the others' options stand elsewhere, from
+    another config_options of the same class); required, defaults: where the command line differs
+    from the dataclass (a required option; another default). Options pass the field's value to the
+    command under the field's name; the function's attribute CONFIG names `cls` (beside the classes
+    of the command's other config_options)."""
     aliases, defaults = dict(aliases or {}), dict(defaults or {})
     exclude, required = set(exclude), set(required)
     hints = get_type_hints(cls)
     names = {f.name for f in dataclasses.fields(cls)}
-    unknown = (set(aliases) | set(defaults) | exclude | required) - names
+    if only is not None:
+        exclude |= names - set(only)
+    unknown = (set(aliases) | set(defaults) | exclude | required | set(only or ())) - names
     if unknown:
         raise TypeError(f"{cls.__name__} has no fields {sorted(unknown)}")
     decorators = [_parameter(f, hints[f.name], f"{cls.__name__}.{f.name}", aliases.get(f.name, ()),
@@ -148,7 +170,8 @@ def config_options(cls: type, *, aliases: Mapping[str, Sequence[str]] | None = N
     def decorate(func: F) -> F:
         for add in reversed(decorators):     # click lists the outermost decorator first
             func = add(func)
-        setattr(func, CONFIG, cls)           # which configuration the command is generated from
+        configs = getattr(func, CONFIG, ())     # the configurations the command is generated from
+        setattr(func, CONFIG, configs if cls in configs else (cls, *configs))
         return func
 
     return decorate
@@ -160,29 +183,40 @@ def _parameter(f: dataclasses.Field[Any], hint: Any, where: str, aliases: Sequen
     meta = f.metadata
     if not meta.get(HELP):
         raise TypeError(f"{where} has no help: field(..., metadata={{'help': ...}})")
+    if EAGER in meta:
+        return _eager_flag(f, where)
+    parse = meta.get(PARSE)
+    if meta.get(KEY_VALUES):
+        parse = _key_values(hint, meta.get(NAME, _option_name(f.name)))
+    if parse is not None:
+        return _parsed(f, parse, aliases)
     try:
         kind, _optional = _click_type(hint)
     except TypeError as e:
         raise TypeError(f"{where}: {e}; exclude it and give the command its own option") from None
+    if CHOICES in meta:
+        if kind is not str:
+            raise TypeError(f"{where}: choices apply to str fields")
+        kind = click.Choice(tuple(meta[CHOICES]))
     if RANGE in meta:
         if kind not in (int, float):
             raise TypeError(f"{where}: a range applies to int and float fields")
         lo, hi = meta[RANGE]
         kind = click.IntRange(lo, hi) if kind is int else click.FloatRange(lo, hi)
-    if PATH in meta:
-        if kind is not str:
-            raise TypeError(f"{where}: a path is a str field, one of {', '.join(PATHS)}")
-        kind = PATHS[meta[PATH]]()
     repeat = bool(meta.get(REPEAT))
     if repeat:
         if not isinstance(kind, CommaList):
             raise TypeError(f"{where}: a repeated option is a tuple[X, ...] field")
         kind = kind.item
+    if PATH in meta:
+        if kind is not click.STRING and kind is not str:
+            raise TypeError(f"{where}: a path is a str field (or a repeated one), one of {', '.join(PATHS)}")
+        kind = PATHS[meta[PATH]]()
     required = required or (f.name not in defaults and f.default is dataclasses.MISSING
                             and f.default_factory is dataclasses.MISSING)
     if meta.get(ARGUMENT):
         return click.argument(f.name, type=kind, required=required, nargs=-1 if repeat else 1)
-    name = _option_name(f.name)
+    name = meta.get(NAME, _option_name(f.name))
     kw: dict[str, Any] = {"help": meta[HELP], "show_default": True}
     if meta.get(FLAG):
         if kind is not bool:
@@ -202,6 +236,68 @@ def _parameter(f: dataclasses.Field[Any], hint: Any, where: str, aliases: Sequen
             default = ",".join(map(str, default))
         kw["default"] = default
     return click.option(*aliases, name, f.name, type=kind, **kw)
+
+
+def _eager_flag(f: dataclasses.Field[Any], where: str) -> Callable[[F], F]:
+    """An eager flag (`--list-models`): given, it runs the field's EAGER function and the command
+    exits before its other options are checked."""
+    run = f.metadata[EAGER]
+    if f.default is not False:
+        raise TypeError(f"{where}: an eager flag is a bool field with default False")
+
+    def callback(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
+        if value and not ctx.resilient_parsing:
+            run()
+            ctx.exit()
+
+    return click.option(f.metadata.get(NAME, _option_name(f.name)), f.name, is_flag=True, expose_value=False,
+                        is_eager=True, callback=callback, help=f.metadata[HELP])
+
+
+def _parsed(f: dataclasses.Field[Any], parse: Callable[[Any], Any],
+            aliases: Sequence[str]) -> Callable[[F], F]:
+    """The option of a field the command line gives as text and `parse` turns into its value (a
+    repeated option: parse gets the tuple of texts; its default is none given)."""
+    meta = f.metadata
+    repeat = bool(meta.get(REPEAT) or meta.get(KEY_VALUES))
+
+    def callback(ctx: click.Context, param: click.Parameter, value: Any) -> Any:
+        if value is None:
+            return _default(f)
+        try:
+            return parse(value)
+        except click.BadParameter as e:
+            if e.param is None and e.param_hint is None:
+                e.param = param
+            raise
+        except (CtrkinError, ValueError) as e:
+            raise click.BadParameter(str(e), ctx, param) from None
+
+    kw: dict[str, Any] = {"help": meta[HELP], "callback": callback, "metavar": meta.get(METAVAR)}
+    if repeat:
+        kw |= {"multiple": True, "default": ()}
+    else:       # a default that is text is parsed as given; none given is the field's default
+        default = _default(f)
+        kw |= {"default": default if isinstance(default, str) else None, "show_default": True}
+    return click.option(*aliases, meta.get(NAME, _option_name(f.name)), f.name, **kw)
+
+
+def _key_values(hint: Any, option: str) -> Callable[[tuple[str, ...]], Any]:
+    """The parse of a KEY_VALUES field: KEY=VALUE settings into a dict, or into the dataclass `hint`
+    (keys its fields, values typed by them; its own checks' errors usage errors)."""
+    if dataclasses.is_dataclass(hint) and isinstance(hint, type):
+        cls = hint
+
+        def build(items: tuple[str, ...]) -> Any:
+            try:
+                return cls(**parse_key_values(items, option, cls))
+            except CtrkinError as e:
+                raise click.BadParameter(str(e), param_hint=option) from None
+
+        return build
+    if get_origin(hint) is dict or hint is dict:
+        return lambda items: parse_key_values(items, option)
+    raise TypeError(f"{hint}: KEY=VALUE settings go into a dict or a dataclass")
 
 
 def _infer(text: str) -> Any:
@@ -256,18 +352,9 @@ def parse_key_values(items: Iterable[str], option: str, config: type | None = No
     return out
 
 
-virtual_settings_option = click.option(
-    "--set", "settings", multiple=True, metavar="KEY=VALUE",
-    help="Override a virtual robot effect magnitude (repeatable; the keys are VirtualConfig's fields, "
-    "docs/virtual_robot.md), e.g. --set noise_mm=0.1.")
-
-
 def virtual_config(settings: Iterable[str]) -> Any:
     """The VirtualConfig of --set KEY=VALUE settings (the one parser, typed by VirtualConfig's fields,
     parse_key_values); an unknown key or a bad value is a usage error."""
-    from ctrkin.virtual.config import VirtualConfig, VirtualConfigError
+    from ctrkin.virtual.config import VirtualConfig
 
-    try:
-        return VirtualConfig(**parse_key_values(settings, "--set", VirtualConfig))
-    except VirtualConfigError as e:
-        raise click.BadParameter(str(e), param_hint="--set") from None
+    return _key_values(VirtualConfig, "--set")(tuple(settings))

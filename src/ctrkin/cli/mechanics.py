@@ -59,6 +59,8 @@ class SweepConfig:
     clearance: float | None = field(default=None, metadata={RANGE: (0.0, 10.0), **option_help(
         "Share of the tubes' radial gap the inner tube may tilt in at an outer tube's tip (1: all of "
         "it); default: the robot file's (0).")})
+    out: str = field(default="out/sweep", metadata=option_help(
+        "Output folder for sweep.csv and sweep.png.", path="out"))
 
     def __post_init__(self) -> None:
         if not self.translations:
@@ -124,10 +126,8 @@ Examples:
   ctrkin sweep --translations 8,16 --step 5 --out out/sweep-json --json > sweep.json
   ctrkin sweep --friction 0.2 --clearance 1 --out out/sweep-friction""")
 @config_options(SweepConfig, aliases={"step_deg": ("--step",)})
-@click.option("--out", "out_dir", default="out/sweep", show_default=True,
-              type=click.Path(), help="Output folder for sweep.csv and sweep.png.")
 @output_options
-def sweep_cmd(out_dir: str, overwrite: bool, as_json: bool, **settings: Any) -> None:
+def sweep_cmd(overwrite: bool, as_json: bool, **settings: Any) -> None:
     """Full inner-tube rotation forward and back at several relative translations (paper
     Fig. 2b), solved by continuation: writes sweep.csv and a plot of T(L) against α0."""
     cfg = SweepConfig(**settings)
@@ -135,7 +135,7 @@ def sweep_cmd(out_dir: str, overwrite: bool, as_json: bool, **settings: Any) -> 
     from ctrkin.viz.sweep import plot_sweeps
 
     levels = list(cfg.translations)
-    out = output_folder(out_dir, "sweep", overwrite, inputs=[cfg.robot])
+    out = output_folder(cfg.out, "sweep", overwrite, inputs=[cfg.robot])
     robot = load_robot(cfg.robot)
     robot = dataclasses.replace(robot, friction=robot.friction if cfg.friction is None else cfg.friction,
                                 clearance=robot.clearance if cfg.clearance is None else cfg.clearance)

@@ -47,6 +47,8 @@ class PlanCommandConfig:
     naive: bool = field(default=True, metadata=option_help(
         "Also execute the naive plan (point-wise IK, straight joint lines) and mark its snaps in the "
         "figure."))
+    out: str = field(default="out/plan", metadata=option_help(
+        "Output folder for plan.csv, plan.json and plan.png.", path="out"))
 
     def __post_init__(self) -> None:
         if not self.targets:
@@ -61,10 +63,8 @@ Examples:
   ctrkin plan --targets targets.csv --start-joints 0,0,-20,0 --out out/plan
   ctrkin plan --targets targets.csv --start-joints 150,0,-20,0 --min-margin 0.3 --out out/plan --json""")
 @config_options(PlanCommandConfig, required=("targets", "start_joints"))
-@click.option("--out", "out_dir", default="out/plan", show_default=True, type=click.Path(),
-              help="Output folder for plan.csv, plan.json and plan.png.")
 @output_options
-def plan_cmd(out_dir: str, overwrite: bool, as_json: bool, **settings: Any) -> None:
+def plan_cmd(overwrite: bool, as_json: bool, **settings: Any) -> None:
     """Plan a snap-safe joint trajectory through tip targets on the mechanics: writes plan.csv
     (joints, predicted tip, margin per step, flags), plan.json (per target) and plan.png."""
     cfg = PlanCommandConfig(**settings)
@@ -74,7 +74,7 @@ def plan_cmd(out_dir: str, overwrite: bool, as_json: bool, **settings: Any) -> N
     from ctrkin.robots import load_robot
     from ctrkin.viz.plan import plot_plan
 
-    out = output_folder(out_dir, "plan", overwrite, inputs=[cfg.robot, cfg.targets])
+    out = output_folder(cfg.out, "plan", overwrite, inputs=[cfg.robot, cfg.targets])
     robot = load_robot(cfg.robot)
     targets, tangents = read_targets(cfg.targets)
     pcfg = PlanConfig(tol_mm=cfg.tol_mm, min_margin=cfg.min_margin,

@@ -20,7 +20,7 @@ from typing import Any
 import click
 
 from ctrkin.cli.common import output_folder, overwrite_option, say
-from ctrkin.cli.from_config import config_options, virtual_config, virtual_settings_option
+from ctrkin.cli.from_config import config_options
 from ctrkin.evaluation.scales import ReproduceConfig
 
 
@@ -29,20 +29,17 @@ Examples:
   ctrkin reproduce --scale tiny --out out/tiny
   ctrkin reproduce --scale quick --out out/reproduce
   ctrkin reproduce --scale tiny --set noise_mm=0.1 --out out/tiny-noisy""")
-@config_options(ReproduceConfig, exclude=("out", "virtual"))
-@virtual_settings_option
-@click.option("--out", "out", default="out/reproduce", show_default=True, type=click.Path(),
-              help=ReproduceConfig.__dataclass_fields__["out"].metadata["help"])
+@config_options(ReproduceConfig)
 @overwrite_option(help="Replace --out if it holds a reproduction of other settings (only a ctrkin "
                   "reproduction folder holding nothing else is ever replaced).")
-def reproduce_cmd(overwrite: bool, settings: tuple[str, ...], **options: Any) -> None:
+def reproduce_cmd(overwrite: bool, **options: Any) -> None:
     """Collect data, train the models, run every experiment of the paper, write the report."""
     from ctrkin.evaluation.reproduce import reproduce
     from ctrkin.evaluation.scales import get_scale
     from ctrkin.robots import load_robot
     from ctrkin.training.device import resolve_device
 
-    cfg = ReproduceConfig(**options, virtual=virtual_config(settings))
+    cfg = ReproduceConfig(**options)
     resolve_device(cfg.device)            # cuda without one: refused before the folder is touched
     output_folder(cfg.out, "reproduction", overwrite, inputs=[cfg.robot], reuse=True)
     results = reproduce(load_robot(cfg.robot), get_scale(cfg.scale), cfg.out, robot_seed=cfg.robot_seed,

@@ -24,33 +24,50 @@ ctrkin.cli.from_config).
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import click
 
-from ctrkin.cli.common import InputPath, emit_json, json_option, log_line, output_folder, say
-from ctrkin.cli.from_config import config_options, parse_key_values
+from ctrkin.cli.common import emit_json, json_option, log_line, output_folder, say
+from ctrkin.cli.from_config import config_options, option, option_help
 from ctrkin.data import Dataset
 from ctrkin.training.config import RECOMMENDED, TrainConfig
 
 
-def _list_models(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
-    if not value or ctx.resilient_parsing:
-        return
+def _list_models() -> None:
     from ctrkin.families.registry import MODELS
     from ctrkin.models import STRUCTURES
 
     for name, e in MODELS.items():
         click.echo(f"{name:20s} {e.description}")
     click.echo("structures (lstm_mlp --structure): " + ", ".join(f"{k}={v}" for k, v in STRUCTURES.items()))
-    ctx.exit()
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrainCommand:
+    """What `ctrkin train` reads and writes, and the model options it reads into TrainConfig.options
+    (one option per field, around TrainConfig's)."""
+
+    list_models: bool = option("List the model registry and exit.", False, eager=_list_models)
+    data: str = option("Dataset folder (data.parquet + meta.json).", path="folder")
+    out: str = option("Model folder.", path="out")
+    structure: str | None = option("LSTM-MLP/LSTM/MLP structure: paper, S1..S5 or 'L128|D64'.", None)
+    model_options: dict[str, Any] = field(default_factory=dict, metadata=option_help(
+        "Other model options, e.g. channels=32 (cnn/tcn), width=64 (resnet).", key_values=True,
+        name="--option", metavar="KEY=VALUE"))
+
+    def options(self) -> dict[str, Any]:
+        """TrainConfig.options: --option's settings and --structure."""
+        return self.model_options | ({} if self.structure is None else {"structure": self.structure})
 
 
 # The command line differs from TrainConfig only here: older option names, and --task is required.
-# `options` is set by --structure and --option.
+# `options` is set by --structure and --option (TrainCommand).
 ALIASES = {"max_epochs": ("--epochs",), "angle_encoding": ("--angles",), "pose_source": ("--pose",)}
 REQUIRED = ("task",)
 DEFAULTS = {"model": "recommended"}     # the task's recommended model and settings (RECOMMENDED)
+COMMAND_FIELDS = tuple(f.name for f in fields(TrainCommand) if f.name != "list_models")
 
 
 @click.command("train", epilog="""\b
@@ -60,30 +77,22 @@ Examples:
   ctrkin train --task fk --model lstm_mlp --data data/paper --out models/fk_paper
   ctrkin train --list-models
   ctrkin train --task fk --data data/paper --out models/fk --json > fk_metrics.json""")
-@click.option("--list-models", is_flag=True, expose_value=False, is_eager=True, callback=_list_models,
-              help="List the model registry and exit.")
-@click.option("--data", "data_dir", required=True, type=InputPath(file_okay=False),
-              help="Dataset folder (data.parquet + meta.json).")
-@click.option("--out", "out_dir", required=True, type=click.Path(), help="Model folder.")
+@config_options(TrainCommand, only=("list_models", "data", "out"))
 @config_options(TrainConfig, aliases=ALIASES, required=REQUIRED, exclude=("options",), defaults=DEFAULTS)
-@click.option("--structure", default=None, help="LSTM-MLP/LSTM/MLP structure: paper, S1..S5 or 'L128|D64'.")
-@click.option("--option", "model_options", multiple=True, metavar="KEY=VALUE",
-              help="Other model options, e.g. channels=32 (cnn/tcn), width=64 (resnet).")
+@config_options(TrainCommand, only=("structure", "model_options"))
 @click.option("--overwrite", is_flag=True, help="Start over even if --out holds a checkpoint or another "
               "model (--out must be a ctrkin model folder holding nothing else, or new).")
 @json_option
-def train_cmd(data_dir: str, out_dir: str, structure: str | None, model_options: tuple[str, ...],
-              overwrite: bool, as_json: bool, **settings: Any) -> None:
+def train_cmd(overwrite: bool, as_json: bool, **settings: Any) -> None:
     """Train a history-aware kinematics model (the task's recommended model by default) and save it
     to --out."""
     from ctrkin.training import train
 
+    command = TrainCommand(**{name: settings.pop(name) for name in COMMAND_FIELDS})
+    data_dir, out_dir = command.data, command.out
     if settings["model"] == DEFAULTS["model"]:
         settings = recommended(settings, click.get_current_context())
-    opts = parse_key_values(model_options, "--option")
-    if structure is not None:
-        opts["structure"] = structure
-    cfg = TrainConfig(**settings, options=opts)
+    cfg = TrainConfig(**settings, options=command.options())
     # a model folder resumes (same setup) or needs --overwrite (another one): ctrkin.training decides
     output_folder(out_dir, "model", overwrite, inputs=[data_dir], reuse=True)
     ds = Dataset.load(data_dir)

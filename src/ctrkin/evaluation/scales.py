@@ -10,7 +10,7 @@ from typing import Any, Literal, get_args
 from ctrkin.acquisition.protocols import PAPER_SIZES
 from ctrkin.errors import CtrkinError
 from ctrkin.training.config import DEVICES, Device, LrSchedule, scaled_lr
-from ctrkin.virtual.config import VirtualConfig
+from ctrkin.virtual.config import SETTINGS_HELP, VirtualConfig
 
 
 @dataclass(frozen=True)
@@ -147,11 +147,11 @@ class ReproduceConfig:
     device: Device = field(default="auto", metadata=_help(
         "Where the models train: auto (CUDA where torch sees a GPU, else the CPU, and says which), cpu, "
         "or cuda (an error without one). Not part of the settings a rerun must match."))
-    out: str = field(default="out/reproduce", metadata=_help(
+    virtual: VirtualConfig = field(default_factory=VirtualConfig, metadata={
+        **_help(SETTINGS_HELP), "key_values": True, "name": "--set", "metavar": "KEY=VALUE"})
+    out: str = field(default="out/reproduce", metadata={**_help(
         "Output folder. A rerun with the same settings reuses its data and models; one with other "
-        "settings is refused unless --overwrite."))
-    virtual: VirtualConfig = field(default_factory=VirtualConfig, metadata=_help(
-        "The virtual robot's effect magnitudes (`--set KEY=VALUE`, as `ctrkin collect --set`)."))
+        "settings is refused unless --overwrite."), "path": "out"})
 
     def __post_init__(self) -> None:
         get_scale(self.scale)

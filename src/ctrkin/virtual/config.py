@@ -37,6 +37,11 @@ class VirtualConfigError(CtrkinError, ValueError):
     """A virtual robot effect magnitude is out of range, or not a setting at all."""
 
 
+# the help of a command's `--set KEY=VALUE` (a VirtualConfig field of its configuration, ctrkin.cli)
+SETTINGS_HELP = ("Override a virtual robot effect magnitude (repeatable; the keys are VirtualConfig's "
+                 "fields, docs/virtual_robot.md), e.g. --set noise_mm=0.1.")
+
+
 @dataclass(frozen=True)
 class VirtualConfig:
     """Magnitudes of the imperfections (all ≥ 0; zero switches an effect off).
