@@ -17,7 +17,8 @@ import numpy as np
 import pandas as pd
 
 from ctrkin.data.dataset import Dataset
-from ctrkin.data.importer import ImportConfig, _Log, _sha256, import_frame
+from ctrkin.data.importer import ImportConfig, import_frame
+from ctrkin.data.log_table import LogTable, file_sha256
 from ctrkin.data.profile import ColumnSpec, Profile
 from ctrkin.errors import DatasetError
 from ctrkin.geometry import POSITION_COLUMNS, matrix_to_quaternion, quaternion_to_matrix
@@ -248,7 +249,7 @@ def import_with_profile(paths: list[str | Path], profile: Profile, robot: Robot,
                                f"{counts['rows_all_zero']}, status {counts['rows_status']})")
         parts.append(text)
         origins += orig
-        report.append({"file": p.name, **counts, "sha256": _sha256(p)})
+        report.append({"file": p.name, **counts, "sha256": file_sha256(p)})
     base = config or ImportConfig()
     cfg = ImportConfig(
         position_only=profile.orientation != "tangent", sequence_gap=None,
@@ -261,7 +262,7 @@ def import_with_profile(paths: list[str | Path], profile: Profile, robot: Robot,
             t["step"] = [str(k) for k in range(len(t))]
     raw = pd.concat(parts, ignore_index=True)
     label = ", ".join(str(p) for p in paths)
-    log = _Log(Path(paths[0]), robot, cfg, raw=raw, origins=origins, profile=profile.source)
+    log = LogTable(Path(paths[0]), robot, cfg, raw=raw, origins=origins, profile=profile.source)
     ds = import_frame(log, robot, cfg, label)
     ds.meta["protocol_params"] = {"source": [r["file"] for r in report], "profile": profile.source}
     ds.meta["import"].update(profile=profile.to_dict(), files=report)
