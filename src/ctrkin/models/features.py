@@ -20,6 +20,7 @@ cross a sequence boundary: the start of a sequence is padded by repeating its fi
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -35,14 +36,37 @@ MAX_TUBES = 64               # bounds what a stored feature layout can make ctrk
 
 
 @dataclass(frozen=True)
+class FamilyLayout:
+    """A feature layout a model family defines for itself (register_layout), where its features are
+    not a function of the raw steps alone (the follow IK's depend on the robot's current joints).
+
+    names: (inputs, outputs) names of a FeatureLayout of this kind, ModelError where its other
+    settings do not suit it; why: why the shared feature functions refuse it (their message)."""
+
+    names: Callable[[FeatureLayout], tuple[list[str], list[str]]]
+    why: str
+
+
+# name -> a family's own layout; a family registers it when it is imported (ctrkin.families.registry
+# imports them all), so models/ names no family
+FAMILY_LAYOUTS: dict[str, FamilyLayout] = {}
+
+
+def register_layout(name: str, layout: FamilyLayout) -> None:
+    """Register a family's own feature layout under `name` (FeatureLayout(family=name))."""
+    FAMILY_LAYOUTS[name] = layout
+
+
+@dataclass(frozen=True)
 class FeatureLayout:
     """What goes into and comes out of a model, per step.
 
     task: "fk" (joints -> tip pose) or "ik" (tip poses -> joints); n_tubes: N; ib: input buffer length
     (current + IB−1 previous steps, 1..5 in the paper); delta: include Δα0 (FK) or the pose deltas (IK);
     angle_encoding: "minmax" (paper), "sincos" or "phase" (FK inputs only; module docstring);
-    follow: IK only, the follow IK of ctrkin.families.follow.features (inputs: the target in the frame of the
-    current outer tube, its step change and the current joints; outputs: the joint change).
+    family: a layout a model family registered for itself (FAMILY_LAYOUTS, register_layout): its
+    names are the family's and its features are computed by the family (e.g. "follow", the follow
+    IK of ctrkin.families.follow.features); None: the paper's FK or IK layout above.
     """
 
     task: Task = "fk"
@@ -50,7 +74,7 @@ class FeatureLayout:
     ib: int = 2
     delta: bool = True
     angle_encoding: AngleEncoding = "minmax"
-    follow: bool = False
+    family: str | None = None
     input_names: tuple[str, ...] = field(init=False)
     output_names: tuple[str, ...] = field(init=False)
 
@@ -66,11 +90,9 @@ class FeatureLayout:
         if self.task == "ik" and self.angle_encoding != "minmax":
             raise ModelError(f"angle_encoding={self.angle_encoding!r} applies to FK inputs only; use "
                              "'minmax' for IK")
-        if self.follow and (self.task != "ik" or self.ib != 1):
-            raise ModelError("follow=True is an IK layout with input buffer 1 (ctrkin.families.follow)")
         n = self.n_tubes
         alphas, betas = alpha_names(n), beta_names(n)
-        if self.task == "fk":
+        if self.task == "fk" and self.family is None:
             if self.angle_encoding == "sincos":
                 ins = [f"{f}_{a}" for a in alphas for f in ("sin", "cos")] + betas
                 ins += ["sin_alpha_0", "cos_alpha_0"]
@@ -81,11 +103,8 @@ class FeatureLayout:
             if self.delta:
                 ins.append("delta_alpha_0")
             outs = list(POSE_NAMES)
-        elif self.follow:
-            local = [f"{p}_local" for p in POSE_NAMES]
-            ins = local + [f"step_{p}" for p in local]
-            ins += [f"{f}_alpha_{i + 1}{n}" for i in range(n - 1) for f in ("sin", "cos")] + betas
-            outs = [f"step_{j}" for j in alphas + betas]
+        elif self.family is not None:
+            ins, outs = family_layout(self.family).names(self)
         else:
             ins = list(POSE_NAMES) + ([f"delta_{p}" for p in POSE_NAMES] if self.delta else [])
             outs = alphas + betas
@@ -114,16 +133,23 @@ class FeatureLayout:
 
     def to_dict(self) -> dict[str, object]:
         return {"task": self.task, "n_tubes": self.n_tubes, "ib": self.ib, "delta": self.delta,
-                "angle_encoding": self.angle_encoding, "follow": self.follow,
+                "angle_encoding": self.angle_encoding, "family": self.family,
                 "input_names": list(self.input_names),
                 "output_names": list(self.output_names)}
 
     @classmethod
     def from_dict(cls, d: dict) -> FeatureLayout:
+        """The layout of a model folder's features.json. Folders written before the families' own
+        layouts were registered name one as a flag of its own (`"follow": true`): read as that
+        family's layout."""
+        family = d.get("family")
+        if family is None:
+            flags = [k for k, v in d.items() if v is True and k not in _LAYOUT_KEYS]
+            family = flags[0] if len(flags) == 1 else None
         try:
             layout = cls(task=d["task"], n_tubes=int(d["n_tubes"]), ib=int(d["ib"]),
                          delta=bool(d["delta"]), angle_encoding=d["angle_encoding"],
-                         follow=bool(d.get("follow", False)))
+                         family=None if family is None else str(family))
         except KeyError as e:
             raise ModelError(f"feature layout lacks {e}") from None
         if "input_names" in d and tuple(d["input_names"]) != layout.input_names:
@@ -134,11 +160,24 @@ class FeatureLayout:
     def describe_difference(self, other: FeatureLayout) -> list[str]:
         """Human-readable list of what differs between two layouts (empty if equal)."""
         diffs = []
-        for k in ("task", "n_tubes", "ib", "delta", "angle_encoding", "follow"):
+        for k in ("task", "n_tubes", "ib", "delta", "angle_encoding", "family"):
             a, b = getattr(self, k), getattr(other, k)
             if a != b:
                 diffs.append(f"{k}: {a!r} vs {b!r}")
         return diffs
+
+
+_LAYOUT_KEYS = ("task", "n_tubes", "ib", "delta", "angle_encoding", "family", "input_names", "output_names")
+
+
+def family_layout(name: str) -> FamilyLayout:
+    """The registered layout of a family (ModelError if no family registered one by that name)."""
+    try:
+        return FAMILY_LAYOUTS[name]
+    except KeyError:
+        raise ModelError(f"feature layout {name!r} is not one a model family registered (registered: "
+                         f"{sorted(FAMILY_LAYOUTS)}; ctrkin.families.registry imports every family)"
+                         ) from None
 
 
 def step_features(layout: FeatureLayout, raw: np.ndarray, prev_raw: np.ndarray | None) -> np.ndarray:
@@ -176,8 +215,9 @@ def delta_columns(layout: FeatureLayout) -> np.ndarray:
 
 
 def _features(layout: FeatureLayout, cur: np.ndarray, prev: np.ndarray) -> np.ndarray:
-    if layout.follow:
-        raise ModelError("a follow IK's features depend on the current joints: see ctrkin.families.follow")
+    if layout.family is not None:
+        raise ModelError(f"the {layout.family} layout's features are its family's: "
+                         f"{family_layout(layout.family).why}")
     n = layout.n_tubes
     if layout.task == "ik":
         cols = [cur] + ([cur - prev] if layout.delta else [])

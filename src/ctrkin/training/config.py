@@ -211,7 +211,7 @@ class TrainConfig:
         from ctrkin.models.features import FeatureLayout
 
         return FeatureLayout(task=self.task, n_tubes=n_tubes, ib=self.ib, delta=self.delta,
-                             angle_encoding=self.angle_encoding, follow=self.follow)
+                             angle_encoding=self.angle_encoding, family="follow" if self.follow else None)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

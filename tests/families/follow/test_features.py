@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ctrkin.errors import ModelError
-from ctrkin.families.follow.features import follow_features, joint_noise, previous_rows, substeps
+from ctrkin.families.follow.features import LAYOUT, follow_features, joint_noise, previous_rows, substeps
 from ctrkin.models.features import FeatureLayout, sequence_features
 from ctrkin.models.frame import OuterFrame
 from ctrkin.pose import Registration, quat_from_tangent, tangent_from_quat
@@ -17,7 +17,7 @@ def _frame() -> OuterFrame:
 
 
 def test_layout_names_match_the_features():
-    layout = FeatureLayout(task="ik", n_tubes=3, ib=1, follow=True)
+    layout = FeatureLayout(task="ik", n_tubes=3, ib=1, family=LAYOUT)
     target = np.array([[10.0, 5.0, 80.0, *quat_from_tangent(np.array([0.1, 0.2, 1.0]))]])
     q = np.array([[30.0, 10.0, -20.0, -12.0, -8.0, -4.0]])
     f = follow_features(_frame(), 3, target, target, q)
@@ -30,7 +30,7 @@ def test_layout_names_match_the_features():
     with pytest.raises(ModelError, match="current joints"):
         sequence_features(layout, target, [(0, 1)])
     with pytest.raises(ModelError, match="input buffer 1"):
-        FeatureLayout(task="ik", ib=2, follow=True)
+        FeatureLayout(task="ik", ib=2, family=LAYOUT)
 
 
 def test_features_turn_with_the_whole_robot():
@@ -63,3 +63,29 @@ def test_substeps_interpolate_far_targets():
     np.testing.assert_allclose(s[-1], b, atol=1e-12)
     np.testing.assert_allclose(np.diff(s[:, :3], axis=0), np.tile([[0.6, 0.8, 0.0]], (4, 1)), atol=1e-12)
     assert len(substeps(a, a, 1.0)) == 1
+
+
+def test_the_layout_is_the_familys_and_old_folders_read_as_it():
+    """The follow layout is registered by the family (models/ names no family); a features.json of a
+    folder written before (`"follow": true`, tests/inference/old_folders, main 94a32c9) reads as it,
+    and is written back with the family's name and the same feature names."""
+    import json
+    from pathlib import Path
+
+    from ctrkin.models.features import FAMILY_LAYOUTS
+
+    assert LAYOUT in FAMILY_LAYOUTS
+    old = Path(__file__).parents[2] / "inference" / "old_folders" / "main_94a32c9" / "ik_follow_mlp"
+    stored = json.loads((old / "features.json").read_text())
+    assert stored["follow"] is True and "family" not in stored
+    layout = FeatureLayout.from_dict(stored)
+    assert layout == FeatureLayout(task="ik", n_tubes=2, ib=1, family=LAYOUT)
+    written = layout.to_dict()
+    assert written["family"] == LAYOUT and "follow" not in written
+    assert FeatureLayout.from_dict(written) == layout
+    assert written["input_names"] == stored["input_names"]
+    assert written["output_names"] == stored["output_names"]
+    plain = json.loads((old.parent / "ik_lstm_mlp" / "features.json").read_text())     # "follow": false
+    assert FeatureLayout.from_dict(plain).family is None
+    with pytest.raises(ModelError, match="not one a model family registered"):
+        FeatureLayout(task="ik", ib=1, family="nope")

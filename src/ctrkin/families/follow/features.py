@@ -26,8 +26,11 @@ import math
 
 import numpy as np
 
-from ctrkin.geometry import quat_from_tangent, tangent_from_quat
+from ctrkin.errors import ModelError
+from ctrkin.geometry import POSE_COLUMNS, quat_from_tangent, tangent_from_quat
+from ctrkin.models.features import FamilyLayout, FeatureLayout, register_layout
 from ctrkin.models.frame import OuterFrame
+from ctrkin.robots.robot import alpha_names, beta_names
 
 # perturbation of the current joints in training: σ per level (deg for α, SIGMA_BETA_PER_DEG × σ mm
 # for β), mixed with these probabilities (0: the exact path, large: a bad start to recover from)
@@ -36,9 +39,28 @@ JOINT_NOISE_PROB = (0.25, 0.35, 0.25, 0.15)
 SIGMA_BETA_PER_DEG = 0.1
 
 
+LAYOUT = "follow"    # the follow IK's feature layout: FeatureLayout(family=LAYOUT)
+
+
+def layout_names(layout: FeatureLayout) -> tuple[list[str], list[str]]:
+    """(inputs, outputs) names of the follow IK's layout: the target in the current outer tube's
+    frame, its step, sin/cos of each tube's angle to the outer one, the β; the joint change."""
+    if layout.task != "ik" or layout.ib != 1:
+        raise ModelError("the follow layout is an IK layout with input buffer 1 (ctrkin.families.follow)")
+    n = layout.n_tubes
+    local = [f"{p}_local" for p in POSE_COLUMNS]
+    ins = local + [f"step_{p}" for p in local]
+    ins += [f"{f}_alpha_{i + 1}{n}" for i in range(n - 1) for f in ("sin", "cos")] + beta_names(n)
+    return ins, [f"step_{j}" for j in alpha_names(n) + beta_names(n)]
+
+
+register_layout(LAYOUT, FamilyLayout(
+    layout_names, "they depend on the current joints (follow_features, ctrkin.families.follow)"))
+
+
 def follow_features(frame: OuterFrame, n_tubes: int, target: np.ndarray, previous: np.ndarray,
                     joints: np.ndarray) -> np.ndarray:
-    """Inputs (M, 12 + 2(N−1) + N) of the follow IK (FeatureLayout(follow=True).input_names).
+    """Inputs (M, 12 + 2(N−1) + N) of the follow IK (FeatureLayout(family=LAYOUT).input_names).
 
     target, previous: (M, 6) tracker-frame poses of this and the previous target (equal at a start);
     joints: (M, 2N) the current joints (deg, mm), whose outer angle αN sets the local frame.
