@@ -358,3 +358,14 @@ def test_stacked_configurations_are_all_named_and_split_by_only() -> None:
     assert set(getattr(cmd.callback, CONFIG)) == {Line, Settings}
     with pytest.raises(TypeError, match="no fields"):
         config_options(Line, only=("nope",))
+
+
+def test_a_parsed_option_can_be_required() -> None:
+    @click.command()
+    @config_options(Line, only=("gap",), required=("gap",))
+    def cmd(**given: Any) -> None:
+        pass
+
+    res = CliRunner().invoke(cmd, [])
+    assert res.exit_code == 2 and "Missing option '--gap'" in res.output
+    assert _params(cmd, ["--gap", "3"])["gap"] == 3.0

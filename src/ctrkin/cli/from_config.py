@@ -189,7 +189,7 @@ def _parameter(f: dataclasses.Field[Any], hint: Any, where: str, aliases: Sequen
     if meta.get(KEY_VALUES):
         parse = _key_values(hint, meta.get(NAME, _option_name(f.name)))
     if parse is not None:
-        return _parsed(f, parse, aliases)
+        return _parsed(f, parse, aliases, required)
     try:
         kind, _optional = _click_type(hint)
     except TypeError as e:
@@ -254,10 +254,11 @@ def _eager_flag(f: dataclasses.Field[Any], where: str) -> Callable[[F], F]:
                         is_eager=True, callback=callback, help=f.metadata[HELP])
 
 
-def _parsed(f: dataclasses.Field[Any], parse: Callable[[Any], Any],
-            aliases: Sequence[str]) -> Callable[[F], F]:
+def _parsed(f: dataclasses.Field[Any], parse: Callable[[Any], Any], aliases: Sequence[str],
+            required: bool) -> Callable[[F], F]:
     """The option of a field the command line gives as text and `parse` turns into its value (a
-    repeated option: parse gets the tuple of texts; its default is none given)."""
+    repeated option: parse gets the tuple of texts; its default is none given). required: the
+    command's required=, or a field without a default."""
     meta = f.metadata
     repeat = bool(meta.get(REPEAT) or meta.get(KEY_VALUES))
 
@@ -279,6 +280,9 @@ def _parsed(f: dataclasses.Field[Any], parse: Callable[[Any], Any],
     else:       # a default that is text is parsed as given; none given is the field's default
         default = _default(f)
         kw |= {"default": default if isinstance(default, str) else None, "show_default": True}
+    if required or (f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING):
+        kw["required"] = True
+        kw.pop("default")
     return click.option(*aliases, meta.get(NAME, _option_name(f.name)), f.name, **kw)
 
 
