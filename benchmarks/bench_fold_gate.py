@@ -72,17 +72,19 @@ def snap_residuals(gate: Any, ds: Dataset, rows: np.ndarray | None = None) -> di
             "gate_residual_max_deg": float(np.abs(r).max()) if len(r) else None}
 
 
-def gate_switches(gate: Any, ds: Dataset) -> dict[str, Any]:
-    """The gate's branch-state switches along every sequence of ds against its recorded snaps
-    (within ±2 steps, ctrkin.evaluation.snapping's matching): precision, recall, counts."""
+def gate_switches(gate: Any, ds: Dataset, states: np.ndarray | None = None) -> dict[str, Any]:
+    """The gate's branch-state switches along every sequence of ds (its own relay, or `states` (T,)
+    of another form) against the recorded snaps (within ±2 steps, ctrkin.evaluation.snapping's
+    matching): precision, recall, counts."""
     from ctrkin.evaluation.snapping import snap_score
     from ctrkin.families.snap_aware.labels import phase_deg
     from ctrkin.models.motion import recorded_motion, run_continues
 
     n, q = ds.n_tubes, ds.joints()
     bounds = ds.sequence_bounds()
-    motion, runs = recorded_motion(ds.frame, q, bounds, n)
-    states = gate.states(q[:, 0] - q[:, n - 1], q[:, n:], motion, bounds, run_continues(bounds, runs))
+    if states is None:
+        motion, runs = recorded_motion(ds.frame, q, bounds, n)
+        states = gate.states(q[:, 0] - q[:, n - 1], q[:, n:], motion, bounds, run_continues(bounds, runs))
     # a switch or a recorded snap as a 20° step of a pseudo-azimuth, which snap_score counts as an event
     # only inside the bistable band: outside it the state follows the sign of φ (one branch), and
     # its flip where α0 passes 0° (φ = ±180°) is no snap
@@ -97,8 +99,36 @@ def gate_switches(gate: Any, ds: Dataset) -> dict[str, Any]:
             "gate_switches": int(score["n_predicted"]), "recorded_snaps": int(score["n_reference"])}
 
 
-def measure(paper: Dataset, sweeps: Dataset) -> dict[str, Any]:
-    """The gate built as training builds it on paper's training rows; its residuals and switches."""
+def play_form(gate: Any, paper: Dataset, train: np.ndarray, held: dict[str, Dataset]) -> dict[str, Any]:
+    """The play-operator form (ctrkin.families.snap_aware.play) identified on the training snaps and
+    scored like the gate on each held-out dataset: its parameters, residuals, switches, and the
+    largest relative-translation lag at the snaps (what excites its slide term)."""
+    from ctrkin.families.snap_aware import play
+
+    rows = play.snap_rows(gate, paper, train)
+    ident = play.identify(rows)
+    out: dict[str, Any] = {"pi_widen_deg": ident.widen_deg, "pi_fold_scale": ident.fold_scale,
+                           "pi_inner_weights": ident.inner.round(4).tolist(),
+                           "pi_outer_weights": ident.outer.round(4).tolist(),
+                           "pi_slide_weights": ident.slide.round(3).tolist(), "pi_ridge": ident.ridge,
+                           "pi_cv_runs": len(np.unique(rows.run)),
+                           "pi_cv_rms_deg": None if np.isnan(ident.cv_rms_deg) else ident.cv_rms_deg}
+    for where, ds, sel in (("train", paper, train), *((k, d, None) for k, d in held.items())):
+        r = rows if sel is not None else play.snap_rows(gate, ds)
+        A, b = r.design()
+        e = A @ ident.x - b
+        out[f"{where}_pi_residual_rms_deg"] = float(np.sqrt(np.mean(e ** 2))) if len(e) else None
+        out[f"{where}_pi_residual_max_deg"] = float(np.abs(e).max()) if len(e) else None
+        out[f"{where}_slide_lag_max_mm"] = float(np.abs(r.lags.slide).max()) if len(e) else None
+        if sel is None:
+            sc = gate_switches(gate, ds, play.play_states(gate, ident, ds))
+            out |= {f"{where}_pi_{k}": v for k, v in sc.items()}
+    return out
+
+
+def measure(paper: Dataset, sweeps: Dataset, turns: Dataset | None = None) -> dict[str, Any]:
+    """The gate built as training builds it on paper's training rows, its residuals and switches
+    on the held-out sweeps (and the unseen turns, where given); beside it the play-operator form."""
     from ctrkin.families.snap_aware.recipe import fold_gate
 
     train = np.sort(paper.get_split().train)
@@ -106,16 +136,54 @@ def measure(paper: Dataset, sweeps: Dataset) -> dict[str, Any]:
     gate = fold_gate(paper, train)
     out: dict[str, Any] = {"widen_deg": gate.widen_deg, "outer_lag_deg": gate.outer_lag_deg,
                            "gate_seconds": time.perf_counter() - t0}
+    held = {"sweeps": sweeps} | ({} if turns is None else {"turns": turns})
     out |= {f"train_{k}": v for k, v in snap_residuals(gate, paper, train).items()}
-    out |= {f"sweeps_{k}": v for k, v in snap_residuals(gate, sweeps).items()}
-    out |= {f"sweeps_{k}": v for k, v in gate_switches(gate, sweeps).items()}
+    for where, ds in held.items():
+        out |= {f"{where}_{k}": v for k, v in snap_residuals(gate, ds).items()}
+        out |= {f"{where}_{k}": v for k, v in gate_switches(gate, ds).items()}
+    return out | play_form(gate, paper, train, held)
+
+
+HISTORIES = ("rest", "both tubes translated 4 mm", "inner slid 0.2 mm (d - 0.2 -> d)",
+             "inner slid 4 mm (d - 4 -> d)", "outer slid 4 mm (d - 4 -> d)", "a turn at d - 4, then slid")
+
+
+def history_probe(robot: Any, virtual: Any, workers: int) -> dict[str, list[float]]:
+    """The same inner turn (0 -> 360 -> 0°, outer at rest at α 0, βN 0, at the largest sweep level
+    d) after each unrecorded history of HISTORIES, each its own run from rest: the α0 (deg) of its
+    snaps. What a form must express that the training rows never show."""
+    from ctrkin.acquisition.plan import Plan, Run, Segment, transition
+    from ctrkin.acquisition.protocols import PAPER_FULL_LEVELS_MM, config, inner_turn
+    from ctrkin.acquisition.ranges import ProtocolRanges
+    from ctrkin.acquisition.recorder import record
+    from ctrkin.families.snap_aware.labels import snap_events
+
+    n = robot.n_tubes
+    d = ProtocolRanges.of(robot).d(PAPER_FULL_LEVELS_MM[-1])
+    turn = inner_turn(n, 0.0, 0.0, d)
+
+    def after(q0: np.ndarray, *first: Segment) -> Run:
+        hold = Segment(np.repeat(q0[None], 3, axis=0), record=False)
+        to_turn = transition(first[-1].q[-1] if first else q0, turn[0], n)
+        return Run((hold, *first, to_turn, Segment(turn, level=0)))
+
+    runs = (Run((Segment(turn, level=0),)), after(config(n, 0.0, 0.0, -4.0, d)),
+            after(config(n, 0.0, 0.0, 0.0, d - 0.2)), after(config(n, 0.0, 0.0, 0.0, d - 4.0)),
+            after(config(n, 0.0, 0.0, -4.0, d - 4.0)),
+            after(config(n, 0.0, 0.0, 0.0, d - 4.0), Segment(inner_turn(n, 0.0, 0.0, d - 4.0), record=False)))
+    plan = Plan("history-probe", runs, ({"relative_translation_mm": d},), {"d_mm": d})
+    ds = record(plan, virtual, seed=0, workers=workers, progress=False)
+    q, snap = ds.joints(), ds.frame["snap"].to_numpy()
+    out = {}
+    for name, (a, b) in zip(HISTORIES, ds.sequence_bounds(), strict=True):
+        out[name] = [round(float(q[t, 0] - q[t, n - 1]), 1) for t in snap_events(snap, a, b)]
     return out
 
 
-def _record(args: argparse.Namespace) -> tuple[Dataset, Dataset]:
+def _record(args: argparse.Namespace) -> tuple[Dataset, Dataset, Dataset, dict[str, list[float]]]:
     from ctrkin.acquisition import protocols
     from ctrkin.acquisition.recorder import record
-    from ctrkin.cli.common import virtual_config
+    from ctrkin.cli.from_config import virtual_config
     from ctrkin.evaluation.datasets import SEEDS, _paper_kw
     from ctrkin.evaluation.scales import get_scale
     from ctrkin.robots import load_robot
@@ -125,18 +193,22 @@ def _record(args: argparse.Namespace) -> tuple[Dataset, Dataset]:
     virtual = VirtualRobot(robot, virtual_config(tuple(args.set)), seed=args.robot_seed)
     scale = get_scale(args.scale)
     kw: dict[str, Any] = {"scale": scale.protocol_scale}
-    paper_kw: dict[str, Any] = {**kw, "seed": SEEDS["paper"], **_paper_kw(scale, robot)}
-    paper_plan = protocols.build("paper", robot, **paper_kw)
-    paper = record(paper_plan, virtual, seed=SEEDS["paper"], workers=args.workers, progress=False)
-    sweeps_plan = protocols.build("sweeps", robot, **kw, seed=SEEDS["sweeps"])
-    sweeps = record(sweeps_plan, virtual, seed=SEEDS["sweeps"], workers=args.workers, progress=False)
-    return paper, sweeps
+    got = {}
+    for name, extra in (("paper", _paper_kw(scale, robot)), ("sweeps", {}), ("snap-turns", {})):
+        plan = protocols.build(name, robot, **kw, **extra, seed=SEEDS[name])
+        got[name] = record(plan, virtual, seed=SEEDS[name], workers=args.workers, progress=False)
+    return got["paper"], got["sweeps"], got["snap-turns"], history_probe(robot, virtual, args.workers)
+
+
+def _fmt(v: Any, spec: str = ".2f") -> str:
+    return "–" if v is None else format(v, spec)
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--data", type=Path, help="a reproduction's data folder (paper/ and sweeps/) to read")
+    ap.add_argument("--data", type=Path, help="a reproduction's data folder (paper/, sweeps/ and, where "
+                    "there, snap-turns/) to read; no history probe then")
     ap.add_argument("--robot", default="paper", help="built-in robot or TOML file (when recording)")
     ap.add_argument("--robot-seed", type=int, default=0, help="the virtual hardware draw")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -145,24 +217,46 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
+    probe: dict[str, list[float]] = {}
     if args.data is not None:
         paper, sweeps = Dataset.load(args.data / "paper"), Dataset.load(args.data / "sweeps")
+        turns = Dataset.load(args.data / "snap-turns") if (args.data / "snap-turns").is_dir() else None
         source = str(args.data)
     else:
-        paper, sweeps = _record(args)
+        paper, sweeps, turns, probe = _record(args)
         source = f"{args.robot} seed {args.robot_seed} {' '.join(args.set) or '(defaults)'} at {args.scale}"
-    r = measure(paper, sweeps)
+    r = measure(paper, sweeps, turns)
     print(f"fold gate on {source} (load {os.getloadavg()[0]:.1f}, {time.perf_counter() - t0:.0f} s)")
-    print(f"  fitted c = {r['widen_deg']:.2f} deg, kappa = {r['outer_lag_deg']:.2f} deg")
-    for where in ("train", "sweeps"):
-        rms, mx = r[f"{where}_gate_residual_rms_deg"], r[f"{where}_gate_residual_max_deg"]
-        print(f"  {where:6s} snaps {r[f'{where}_gate_snaps']:4d}, no nominal fold "
-              f"{r[f'{where}_gate_no_fold_snaps']:3d}, residual RMS / max "
-              f"{'–' if rms is None else f'{rms:.2f}'} / {'–' if mx is None else f'{mx:.2f}'} deg")
-    print(f"  sweeps gate switches {r['sweeps_gate_switches']} vs recorded snaps "
-          f"{r['sweeps_recorded_snaps']}: "
-          f"P {r['sweeps_gate_precision']:.2f} / R {r['sweeps_gate_recall']:.2f} (±2 steps)")
-    print(json.dumps({"source": source, **r}))
+    print(f"  old form θ± = φ± ± c − κ·m_N: c = {r['widen_deg']:.2f} deg, "
+          f"kappa = {r['outer_lag_deg']:.2f} deg")
+    print(f"  play form θ± = g·φ± ± c + Σw·L(α1) − Σv·L(αN) ∓ Σu·L(d): c = {r['pi_widen_deg']:.2f} deg, "
+          f"g = {r['pi_fold_scale']:.3f}, w = {r['pi_inner_weights']}, v = {r['pi_outer_weights']}, "
+          f"u = {r['pi_slide_weights']} deg/mm "
+          f"(ridge {r['pi_ridge']:g}, {r['pi_cv_runs']} training run(s) with snaps; leave-one-run-out "
+          f"RMS {_fmt(r['pi_cv_rms_deg'])} deg)")
+    print(f"  {'':7s} {'snaps':>5s} {'no fold':>7s}  {'old: residual RMS / max':>24s}  "
+          f"{'play: residual RMS / max':>25s}  {'old: switches P / R':>20s}  {'play: switches P / R':>21s}  "
+          f"{'max |L(d)| (mm)':>15s}")
+    for where in ("train", "sweeps", "turns"):
+        if f"{where}_gate_snaps" not in r:
+            continue
+        old = f"{_fmt(r[f'{where}_gate_residual_rms_deg'])} / {_fmt(r[f'{where}_gate_residual_max_deg'])}"
+        new = f"{_fmt(r[f'{where}_pi_residual_rms_deg'])} / {_fmt(r[f'{where}_pi_residual_max_deg'])}"
+        sw_old = sw_new = "(in-sample)"
+        if where != "train":
+            sw_old = (f"{r[f'{where}_gate_switches']} vs {r[f'{where}_recorded_snaps']}: "
+                      f"{r[f'{where}_gate_precision']:.2f} / {r[f'{where}_gate_recall']:.2f}")
+            sw_new = (f"{r[f'{where}_pi_gate_switches']} vs {r[f'{where}_pi_recorded_snaps']}: "
+                      f"{r[f'{where}_pi_gate_precision']:.2f} / {r[f'{where}_pi_gate_recall']:.2f}")
+        counts = f"{r[f'{where}_gate_snaps']:5d} {r[f'{where}_gate_no_fold_snaps']:7d}"
+        print(f"  {where:7s} {counts}  {old:>24s}  "
+              f"{new:>25s}  {sw_old:>20s}  {sw_new:>21s}  {_fmt(r[f'{where}_slide_lag_max_mm'], '.3f'):>15s}")
+    if probe:
+        print("  history probe: the same inner turn at the largest sweep level after each unrecorded "
+              "history, α0 of its snaps (deg)")
+        for name, snaps in probe.items():
+            print(f"    {name:36s} {snaps}")
+    print(json.dumps({"source": source, **r, "history_probe": probe}))
     return 0
 
 
