@@ -99,36 +99,49 @@ def gate_switches(gate: Any, ds: Dataset, states: np.ndarray | None = None) -> d
             "gate_switches": int(score["n_predicted"]), "recorded_snaps": int(score["n_reference"])}
 
 
-def play_form(gate: Any, paper: Dataset, train: np.ndarray, held: dict[str, Dataset]) -> dict[str, Any]:
-    """The play-operator form (ctrkin.families.snap_aware.play) identified on the training snaps and
-    scored like the gate on each held-out dataset: its parameters, residuals, switches, and the
-    largest relative-translation lag at the snaps (what excites its slide term)."""
+def play_form(gate: Any, paper: Dataset, train: np.ndarray, held: dict[str, Dataset],
+              extra: Dataset | None = None, tag: str = "pi") -> dict[str, Any]:
+    """The play-operator form (ctrkin.families.snap_aware.play) identified on the training snaps (and
+    those of `extra`, training-only excitation runs) and scored like the gate on each held-out
+    dataset: its parameters, residuals, switches, and the largest slide of one tube against the
+    other before the snaps (what excites its slide term); keys `tag`_… and …_`tag`_…."""
     from ctrkin.families.snap_aware import play
 
     rows = play.snap_rows(gate, paper, train)
+    if extra is not None:
+        more = play.snap_rows(gate, extra)
+        rows = play.SnapRows(*(np.r_[getattr(rows, k), getattr(more, k)] for k in ("sign", "fold", "phase")),
+                             play.Lags(*(np.vstack([getattr(rows.lags, k), getattr(more.lags, k)])
+                                         for k in ("inner", "outer", "slide"))),
+                             np.r_[rows.run, more.run + rows.run.max(initial=0) + 1])
     ident = play.identify(rows)
-    out: dict[str, Any] = {"pi_widen_deg": ident.widen_deg, "pi_fold_scale": ident.fold_scale,
-                           "pi_inner_weights": ident.inner.round(4).tolist(),
-                           "pi_outer_weights": ident.outer.round(4).tolist(),
-                           "pi_slide_weights": ident.slide.round(3).tolist(), "pi_ridge": ident.ridge,
-                           "pi_cv_runs": len(np.unique(rows.run)),
-                           "pi_cv_rms_deg": None if np.isnan(ident.cv_rms_deg) else ident.cv_rms_deg}
+    out: dict[str, Any] = {"widen_deg": ident.widen_deg, "fold_scale": ident.fold_scale,
+                           "inner_weights": ident.inner.round(3).tolist(),
+                           "outer_weights": ident.outer.round(3).tolist(),
+                           "slide_weights": ident.slide.round(3).tolist(), "ridge": ident.ridge,
+                           "cv_runs": len(np.unique(rows.run)),
+                           "cv_rms_deg": None if np.isnan(ident.cv_rms_deg) else ident.cv_rms_deg}
+    out = {f"{tag}_{k}": v for k, v in out.items()}
     for where, ds, sel in (("train", paper, train), *((k, d, None) for k, d in held.items())):
         r = rows if sel is not None else play.snap_rows(gate, ds)
         A, b = r.design()
         e = A @ ident.x - b
-        out[f"{where}_pi_residual_rms_deg"] = float(np.sqrt(np.mean(e ** 2))) if len(e) else None
-        out[f"{where}_pi_residual_max_deg"] = float(np.abs(e).max()) if len(e) else None
-        out[f"{where}_slide_lag_max_mm"] = float(np.abs(r.lags.slide).max()) if len(e) else None
+        out[f"{where}_{tag}_residual_rms_deg"] = float(np.sqrt(np.mean(e ** 2))) if len(e) else None
+        out[f"{where}_{tag}_residual_max_deg"] = float(np.abs(e).max()) if len(e) else None
+        # the slide before each snap, up to the widest play's width (its lag in mm)
+        slid = np.abs(r.lags.slide[:, -1]) * play.SLIDE_WIDTHS_MM[-1]
+        out[f"{where}_{tag}_slide_lag_max_mm"] = float(slid.max()) if len(e) else None
         if sel is None:
             sc = gate_switches(gate, ds, play.play_states(gate, ident, ds))
-            out |= {f"{where}_pi_{k}": v for k, v in sc.items()}
+            out |= {f"{where}_{tag}_{k}": v for k, v in sc.items()}
     return out
 
 
-def measure(paper: Dataset, sweeps: Dataset, turns: Dataset | None = None) -> dict[str, Any]:
+def measure(paper: Dataset, sweeps: Dataset, turns: Dataset | None = None,
+            extra: Dataset | None = None) -> dict[str, Any]:
     """The gate built as training builds it on paper's training rows, its residuals and switches
-    on the held-out sweeps (and the unseen turns, where given); beside it the play-operator form."""
+    on the held-out sweeps (and the unseen turns, where given); beside it the play-operator form
+    (identified on the training snaps and those of `extra`, where given: `excitation`)."""
     from ctrkin.families.snap_aware.recipe import fold_gate
 
     train = np.sort(paper.get_split().train)
@@ -141,11 +154,43 @@ def measure(paper: Dataset, sweeps: Dataset, turns: Dataset | None = None) -> di
     for where, ds in held.items():
         out |= {f"{where}_{k}": v for k, v in snap_residuals(gate, ds).items()}
         out |= {f"{where}_{k}": v for k, v in gate_switches(gate, ds).items()}
-    return out | play_form(gate, paper, train, held)
+    out |= play_form(gate, paper, train, held)
+    return out if extra is None else out | play_form(gate, paper, train, held, extra, "pix")
 
 
 HISTORIES = ("rest", "both tubes translated 4 mm", "inner slid 0.2 mm (d - 0.2 -> d)",
              "inner slid 4 mm (d - 4 -> d)", "outer slid 4 mm (d - 4 -> d)", "a turn at d - 4, then slid")
+
+
+def excitation(robot: Any, virtual: Any, workers: int) -> Dataset:
+    """Training-only runs that excite the slide term (--excite): at the largest sweep level d, the
+    inner tube slid from d − s (s = 0.5, 4 mm) to d, or both tubes moved together 4 mm, then one
+    full inner turn, at the snap-turns' outer angles (their outer translation −1.25 mm, carried
+    over), each run from rest, its start recorded. A protocol a user could add; not the held-out
+    sweeps' path (a turn at d − 4 before the slide)."""
+    from ctrkin.acquisition.plan import Plan, Run, Segment, transition
+    from ctrkin.acquisition.protocols import (
+        PAPER_FULL_LEVELS_MM,
+        SNAP_TURN_OUTER_ANGLES_DEG,
+        config,
+        inner_turn,
+    )
+    from ctrkin.acquisition.ranges import ProtocolRanges
+    from ctrkin.acquisition.recorder import record
+
+    n = robot.n_tubes
+    ranges = ProtocolRanges.of(robot)
+    d, b_out = ranges.d(PAPER_FULL_LEVELS_MM[-1]), ranges.beta_outer(-1.25)
+    runs = []
+    for k, ao in enumerate(SNAP_TURN_OUTER_ANGLES_DEG):
+        turn = inner_turn(n, ao, b_out, d)
+        start = (config(n, 0.0, ao, b_out, d - 0.5), config(n, 0.0, ao, b_out, d - 4.0),
+                 config(n, 0.0, ao, b_out - 4.0, d))[k % 3]
+        # the start is recorded (a few rows at rest), so that the slide is in the run's joint path
+        runs.append(Run((Segment(np.repeat(start[None], 5, axis=0), level=0),
+                         transition(start, turn[0], n), Segment(turn, level=0))))
+    plan = Plan("excitation", tuple(runs), ({"relative_translation_mm": d},), {"d_mm": d})
+    return record(plan, virtual, seed=1, workers=workers, progress=False)
 
 
 def history_probe(robot: Any, virtual: Any, workers: int) -> dict[str, list[float]]:
@@ -180,7 +225,8 @@ def history_probe(robot: Any, virtual: Any, workers: int) -> dict[str, list[floa
     return out
 
 
-def _record(args: argparse.Namespace) -> tuple[Dataset, Dataset, Dataset, dict[str, list[float]]]:
+def _record(args: argparse.Namespace
+            ) -> tuple[Dataset, Dataset, Dataset, dict[str, list[float]], Dataset | None]:
     from ctrkin.acquisition import protocols
     from ctrkin.acquisition.recorder import record
     from ctrkin.cli.from_config import virtual_config
@@ -197,7 +243,8 @@ def _record(args: argparse.Namespace) -> tuple[Dataset, Dataset, Dataset, dict[s
     for name, extra in (("paper", _paper_kw(scale, robot)), ("sweeps", {}), ("snap-turns", {})):
         plan = protocols.build(name, robot, **kw, **extra, seed=SEEDS[name])
         got[name] = record(plan, virtual, seed=SEEDS[name], workers=args.workers, progress=False)
-    return got["paper"], got["sweeps"], got["snap-turns"], history_probe(robot, virtual, args.workers)
+    extra = excitation(robot, virtual, args.workers) if args.excite else None
+    return got["paper"], got["sweeps"], got["snap-turns"], history_probe(robot, virtual, args.workers), extra
 
 
 def _fmt(v: Any, spec: str = ".2f") -> str:
@@ -215,7 +262,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="a virtual robot effect, as `ctrkin reproduce --set` (repeatable)")
     ap.add_argument("--scale", default="quick", choices=("tiny", "quick", "full"))
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--excite", action="store_true", help="also record training-only turns after slides "
+                    "of the inner tube (`excitation`) and identify the play form on them too")
     args = ap.parse_args(argv)
+    extra = None
     t0 = time.perf_counter()
     probe: dict[str, list[float]] = {}
     if args.data is not None:
@@ -223,34 +273,36 @@ def main(argv: list[str] | None = None) -> int:
         turns = Dataset.load(args.data / "snap-turns") if (args.data / "snap-turns").is_dir() else None
         source = str(args.data)
     else:
-        paper, sweeps, turns, probe = _record(args)
+        paper, sweeps, turns, probe, extra = _record(args)
         source = f"{args.robot} seed {args.robot_seed} {' '.join(args.set) or '(defaults)'} at {args.scale}"
-    r = measure(paper, sweeps, turns)
+    r = measure(paper, sweeps, turns, extra)
+    if extra is not None:
+        source += " (play form also on the excitation runs)"
     print(f"fold gate on {source} (load {os.getloadavg()[0]:.1f}, {time.perf_counter() - t0:.0f} s)")
     print(f"  old form θ± = φ± ± c − κ·m_N: c = {r['widen_deg']:.2f} deg, "
           f"kappa = {r['outer_lag_deg']:.2f} deg")
-    print(f"  play form θ± = g·φ± ± c + Σw·L(α1) − Σv·L(αN) ∓ Σu·L(d): c = {r['pi_widen_deg']:.2f} deg, "
-          f"g = {r['pi_fold_scale']:.3f}, w = {r['pi_inner_weights']}, v = {r['pi_outer_weights']}, "
-          f"u = {r['pi_slide_weights']} deg/mm "
-          f"(ridge {r['pi_ridge']:g}, {r['pi_cv_runs']} training run(s) with snaps; leave-one-run-out "
-          f"RMS {_fmt(r['pi_cv_rms_deg'])} deg)")
-    print(f"  {'':7s} {'snaps':>5s} {'no fold':>7s}  {'old: residual RMS / max':>24s}  "
-          f"{'play: residual RMS / max':>25s}  {'old: switches P / R':>20s}  {'play: switches P / R':>21s}  "
-          f"{'max |L(d)| (mm)':>15s}")
+    forms = {"old": "", "play": "pi_"} | ({"play+excite": "pix_"} if "pix_widen_deg" in r else {})
+    for name, p in list(forms.items())[1:]:
+        print(f"  {name} form θ± = g·φ± ± c + Σw·L(α1) − Σv·L(αN) ∓ Σu·L(d): "
+              f"c = {r[p + 'widen_deg']:.2f} deg, "
+              f"g = {r[p + 'fold_scale']:.3f}, w = {r[p + 'inner_weights']}, v = {r[p + 'outer_weights']}, "
+              f"u = {r[p + 'slide_weights']} (deg when fully wound; ridge {r[p + 'ridge']:g}, "
+              f"{r[p + 'cv_runs']} run(s) with snaps, leave-one-run-out RMS {_fmt(r[p + 'cv_rms_deg'])} deg)")
+    print(f"  {'form':12s} {'snaps':>7s} {'no fold':>7s} {'residual RMS / max':>19s} "
+          f"{'switches vs snaps: P / R':>25s} {'slid before (mm)':>16s}")
     for where in ("train", "sweeps", "turns"):
         if f"{where}_gate_snaps" not in r:
             continue
-        old = f"{_fmt(r[f'{where}_gate_residual_rms_deg'])} / {_fmt(r[f'{where}_gate_residual_max_deg'])}"
-        new = f"{_fmt(r[f'{where}_pi_residual_rms_deg'])} / {_fmt(r[f'{where}_pi_residual_max_deg'])}"
-        sw_old = sw_new = "(in-sample)"
-        if where != "train":
-            sw_old = (f"{r[f'{where}_gate_switches']} vs {r[f'{where}_recorded_snaps']}: "
-                      f"{r[f'{where}_gate_precision']:.2f} / {r[f'{where}_gate_recall']:.2f}")
-            sw_new = (f"{r[f'{where}_pi_gate_switches']} vs {r[f'{where}_pi_recorded_snaps']}: "
-                      f"{r[f'{where}_pi_gate_precision']:.2f} / {r[f'{where}_pi_gate_recall']:.2f}")
-        counts = f"{r[f'{where}_gate_snaps']:5d} {r[f'{where}_gate_no_fold_snaps']:7d}"
-        print(f"  {where:7s} {counts}  {old:>24s}  "
-              f"{new:>25s}  {sw_old:>20s}  {sw_new:>21s}  {_fmt(r[f'{where}_slide_lag_max_mm'], '.3f'):>15s}")
+        for name, p in forms.items():
+            g = "gate_" if not p else p
+            res = f"{_fmt(r[f'{where}_{g}residual_rms_deg'])} / {_fmt(r[f'{where}_{g}residual_max_deg'])}"
+            sw = "(in-sample)"
+            if where != "train":
+                sw = (f"{r[f'{where}_{p}gate_switches']} vs {r[f'{where}_{p}recorded_snaps']}: "
+                      f"{r[f'{where}_{p}gate_precision']:.2f} / {r[f'{where}_{p}gate_recall']:.2f}")
+            slid = _fmt(r.get(f"{where}_{p}slide_lag_max_mm"), ".2f") if p else ""
+            counts = f"{r[f'{where}_gate_snaps']:3d} {r[f'{where}_gate_no_fold_snaps']:7d}"
+            print(f"  {where + ' ' + name:18s} {counts} {res:>19s} {sw:>25s} {slid:>16s}")
     if probe:
         print("  history probe: the same inner turn at the largest sweep level after each unrecorded "
               "history, α0 of its snaps (deg)")

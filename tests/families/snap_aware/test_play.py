@@ -15,9 +15,9 @@ def test_play_lag_is_bounded_and_follows_a_reversal() -> None:
     x = np.r_[np.arange(0, 31.0), np.arange(29.0, 9.0, -1.0)]          # 0 → 30 → 10 deg
     q = np.column_stack([x, np.zeros_like(x), np.zeros_like(x), np.zeros_like(x)])
     lags = play.path_lags(q, [(0, len(x))], 2, angle_widths=WIDTHS)
-    inner = lags.inner
+    inner = lags.inner * WIDTHS                                          # deg
     assert np.all(lags.outer == 0.0) and np.all(lags.slide == 0.0)
-    assert np.all(np.abs(inner) <= np.array(WIDTHS) + 1e-12)
+    assert np.all(np.abs(lags.inner) <= 1.0 + 1e-12)
     np.testing.assert_allclose(inner[30], [2.0, 5.0, 15.0, 30.0])       # wound forward, up to its width
     np.testing.assert_allclose(inner[-1], [-2.0, -5.0, -5.0, 10.0])      # 20° back: the wider ones still rest
 
@@ -26,7 +26,7 @@ def test_a_run_carries_the_lags_and_a_new_one_starts_at_rest() -> None:
     x = np.r_[np.arange(0, 11.0), np.arange(10.0, 21.0)]
     q = np.column_stack([x, np.zeros_like(x), np.zeros_like(x), np.zeros_like(x)])
     bounds = [(0, 11), (11, 22)]
-    carried = play.path_lags(q, bounds, 2, runs=np.zeros(22, int), angle_widths=WIDTHS).inner
+    carried = play.path_lags(q, bounds, 2, runs=np.zeros(22, int), angle_widths=WIDTHS).inner * WIDTHS
     fresh = play.path_lags(q, bounds, 2, runs=np.r_[np.zeros(11, int), np.ones(11, int)],
                            angle_widths=WIDTHS).inner
     np.testing.assert_allclose(carried[11], [2.0, 5.0, 10.0, 10.0])
@@ -37,7 +37,7 @@ def test_the_slide_play_follows_the_relative_translation() -> None:
     d = np.r_[np.full(3, 16.0), np.linspace(16.0, 20.0, 41), np.full(3, 20.0)]      # the inner slides back
     q = np.column_stack([np.zeros_like(d), np.zeros_like(d), -d, np.zeros_like(d)])
     lags = play.path_lags(q, [(0, len(d))], 2, slide_widths=(0.05, 1.0))
-    np.testing.assert_allclose(lags.slide[-1], [0.05, 1.0])
+    np.testing.assert_allclose(lags.slide[-1], [1.0, 1.0])             # both wound fully
     both = np.column_stack([np.zeros_like(d), np.zeros_like(d), -d, 16.0 - d])     # both tubes together
     assert not play.path_lags(both, [(0, len(d))], 2).slide.any()
 
@@ -46,8 +46,8 @@ def _synthetic(seed: int) -> tuple[play.SnapRows, dict[str, float]]:
     """Snaps of a known form: full inner turns after random outer steps and inner slides, one run
     each; the tubes snap where φ − w·L(α1) + v·L(αN) crosses ±(c − u·L(d)) + g·φ± (φ± = ±30°)."""
     rng = np.random.default_rng(seed)
-    truth = {"c": 12.0, "g": 1.1, "w": 0.6, "v": 0.8, "u": 100.0}
-    # w on the 5° play, v on the 45°, u on the 0.05 mm one
+    truth = {"c": 12.0, "g": 1.1, "w": 3.0, "v": 36.0, "u": 5.0}
+    # deg when fully wound: w on the 5° play, v on the 45°, u on the 0.05 mm one
     rows = []
     for run in range(12):
         outer0 = rng.uniform(0, 360)
@@ -93,9 +93,9 @@ def test_identify_recovers_a_known_play_delay() -> None:
     true_x = np.r_[truth["c"], truth["g"], [0, truth["w"], 0, 0], [0, 0, 0, truth["v"]], [truth["u"], 0]]
     assert np.abs(A @ x - A @ true_x).max() < 1.5
     assert np.all(x[1:] >= 0)
-    # the narrowing after a slide: 5° at the saturated 0.05 mm play (L = 0.05, 0.3 mm), 3° at 0.03 mm
-    assert ident.slide @ [0.05, 0.3] == pytest.approx(5.0, abs=1.0)
-    assert ident.slide @ [0.03, 0.03] == pytest.approx(3.0, abs=1.0)
+    # the narrowing after a slide: 5° at the saturated 0.05 mm play (lags 1, 0.3), 3° after 0.03 mm
+    assert ident.slide @ [1.0, 0.3] == pytest.approx(5.0, abs=1.0)
+    assert ident.slide @ [0.6, 0.03] == pytest.approx(3.0, abs=1.0)
 
 
 def test_identify_without_snaps_is_the_plain_fold() -> None:

@@ -13,11 +13,12 @@ Rate-independent hysteresis of that kind is, to first order, a non-negative sum 
 (Brokate and Sprekels 1996; the identification form of Kuhnen 2003), with no friction law assumed:
 
     play of width r:  y_t = min(max(y_{t−1}, x_t − r), x_t + r),  y = x at rest
-    lag               L_r(x)_t = x_t − y_t ∈ [−r, r]
+    lag               L_r(x)_t = (x_t − y_t) / r ∈ [−1, 1]   (the fraction of its play taken up)
     inputs            α1, αN (deg; widths ANGLE_WIDTHS_DEG) and the relative translation
                       d = βN − β1 (mm; widths SLIDE_WIDTHS_MM)
     thresholds        θ± = g·φ±(β) ± c + Σ w_k L_k(α1) − Σ v_k L_k(αN) ∓ Σ u_k L_k(d)
-                      w, v, u ≥ 0; g ≥ 0, c free
+                      w, v, u ≥ 0 (deg: each operator's share of the delay when fully
+                      wound); g ≥ 0, c free
 
 with φ = α0 − 180° wrapped (labels.phase_deg) and φ± the nominal folds (fold_gate). The angle terms
 are the tubes' relative rotation lagging the motors'; the slide term is an overlap lagging the
@@ -25,8 +26,9 @@ commanded one, which narrows the bistable band (a smaller overlap is less bistab
 sign assumed). A snap at row t in the direction s of the turn, taken mid-way between rows t−1 and t,
 gives one equation linear in x = (c, g, w, v, u):
     φ_mid = s·c + g·φ_s(β) + Σ w_k L_k(α1) − Σ v_k L_k(αN) − s·Σ u_k L_k(d).
-`identify` solves them by bounded least squares with a ridge on (w, v, u), its weight chosen by
-leave-one-run-out cross-validation on the same (training) snaps (the largest ridge with one run).
+`identify` solves them by bounded least squares with a ridge on (w, v, u) and on g − 1 (the nominal
+folds as the prior), its weight chosen by leave-one-run-out cross-validation on the same (training)
+snaps (the largest ridge with one run).
 
 The operators run along the whole joint path of a run (the `run` column, as m_N does:
 ctrkin.models.motion), the unrecorded move between two sequences of a run taken as one step from the
@@ -54,7 +56,8 @@ RIDGES = (1e-3, 1e-2, 1e-1, 1.0, 10.0)            # ridge weights tried by cross
 
 @dataclass(frozen=True)
 class Lags:
-    """Play lags along a path: inner (T, K) of α1, outer (T, K) of αN (deg), slide (T, J) of d (mm)."""
+    """Play lags along a path (fractions of each width): inner (T, K) of α1, outer (T, K) of αN,
+    slide (T, J) of d."""
 
     inner: np.ndarray
     outer: np.ndarray
@@ -67,7 +70,7 @@ class Lags:
 
 @njit(cache=True)
 def _lags(x: np.ndarray, starts: np.ndarray, widths: np.ndarray) -> np.ndarray:
-    """(T, K) lags x − y of the play operators along x (T,); starts (T,): a run starts at rest here."""
+    """(T, K) lags (x − y) / r of the play operators along x (T,); starts (T,): a run starts at rest."""
     out = np.empty((len(x), len(widths)))
     y = np.zeros(len(widths))
     for t in range(len(x)):
@@ -75,7 +78,7 @@ def _lags(x: np.ndarray, starts: np.ndarray, widths: np.ndarray) -> np.ndarray:
             y[:] = x[t]
         for k in range(len(widths)):
             y[k] = min(max(y[k], x[t] - widths[k]), x[t] + widths[k])
-            out[t, k] = x[t] - y[k]
+            out[t, k] = (x[t] - y[k]) / widths[k]
     return out
 
 
@@ -155,11 +158,15 @@ class Identified:
 
 
 def _solve(A: np.ndarray, b: np.ndarray, ridge: float) -> np.ndarray:
-    """Bounded least squares: c free, g and the weights ≥ 0, a ridge on the weights (not on c, g)."""
+    """Bounded least squares: c free, g and the weights ≥ 0, a ridge on the weights and on g − 1
+    (the nominal folds' scale; per degree of fold, so that it weighs as a weight does)."""
     k = A.shape[1]
-    reg = np.sqrt(ridge) * np.eye(k)[2:]
+    scale = float(np.sqrt(np.mean(A[:, 1] ** 2))) or 1.0
+    reg = np.sqrt(ridge) * np.eye(k)[1:]
+    reg[0, 1] *= scale
+    prior = np.r_[np.sqrt(ridge) * scale, np.zeros(k - 2)]
     lo = np.r_[-np.inf, np.zeros(k - 1)]
-    return lsq_linear(np.vstack([A, reg]), np.r_[b, np.zeros(k - 2)], bounds=(lo, np.full(k, np.inf))).x
+    return lsq_linear(np.vstack([A, reg]), np.r_[b, prior], bounds=(lo, np.full(k, np.inf))).x
 
 
 def identify(rows: SnapRows, ridges: tuple[float, ...] = RIDGES) -> Identified:
