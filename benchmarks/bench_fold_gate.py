@@ -1,8 +1,8 @@
-"""Benchmark: the fold gate's assumption measured where it fails (issue 21, goal 2;
-docs/learned_kinematics.md: What the learned models assume about the robot).
+"""Benchmark: the fold gate's assumption measured where it fails, beside a form identified from the
+history (issue 21, goal 2; docs/learned_kinematics.md: What the learned models assume about the robot).
 
-    python benchmarks/bench_fold_gate.py                                    # the old default robot
-    python benchmarks/bench_fold_gate.py --set tube_friction=0.69 --set precurvature_error=0.2 ...
+    python benchmarks/bench_fold_gate.py                                    # the default robot
+    python benchmarks/bench_fold_gate.py --excite --robot-seed 2 --set tube_friction=0.69 ...
     python benchmarks/bench_fold_gate.py --data out/reproduce/data          # a reproduction's data
 
 The snap-aware FK's fold gate (ctrkin.families.snap_aware.fold_gate) assumes the robot snaps where
@@ -18,12 +18,19 @@ at quick scale, without training a network (the gate does not depend on it), and
               gate cannot switch there;
   gate P/R    the gate's switches (its branch state run along each sweep, as the model runs it)
               against the recorded snaps of the sweeps, matched within ±2 steps: what the form's
-              misfit costs before any network.
+              misfit costs before any network; the same on the unseen snap turns.
+
+Beside the fold gate, the play-operator form (ctrkin.families.snap_aware.play: play operators of
+the motor angles and of the relative translation along each run, identified on the same training
+snaps), and with --excite the same form identified also on training-only turns after slides of one
+tube against the other (`excitation`). A history probe (when recording) turns the inner tube at the
+largest sweep level after six unrecorded histories (`history_probe`): what moves the snaps.
 
 Data: recorded here on the virtual robot (`--robot`, `--robot-seed`, `--set KEY=VALUE` as
-`ctrkin reproduce`, with its protocols and seeds: the same data as its `paper` and `sweeps`), or
-read from a reproduction's `data` folder (`--data`: its `paper`, with the saved split, and
-`sweeps`). Prints a table and ends with one JSON line.
+`ctrkin reproduce`, with its protocols and seeds: the same data as its `paper`, `sweeps` and
+`snap-turns`), or
+read from a reproduction's `data` folder (`--data`: its `paper`, with the saved split, `sweeps` and
+`snap-turns`; no probe, no excitation). Prints a table and ends with one JSON line.
 """
 
 from __future__ import annotations
