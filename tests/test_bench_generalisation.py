@@ -97,3 +97,15 @@ def test_the_fold_gate_matches_the_nominal_robot_it_assumes(fold_bench, sweeps) 
     assert abs(r["widen_deg"]) < 2.0
     assert r["sweeps_gate_residual_max_deg"] < 2.0
     assert r["sweeps_gate_precision"] == 1.0 and r["sweeps_gate_recall"] == 1.0
+
+
+def test_the_play_form_scores_beside_the_gate(fold_bench, sweeps) -> None:
+    """The play-operator form, identified on the same snaps, is scored beside the fold gate on every
+    held-out dataset; on the nominal robot's own sweeps it switches at the snaps as the gate does."""
+    r = fold_bench.measure(sweeps, sweeps, sweeps)
+    for where in ("sweeps", "turns"):
+        assert r[f"{where}_pi_recorded_snaps"] == r[f"{where}_recorded_snaps"] > 0
+        assert r[f"{where}_pi_gate_precision"] == 1.0 and r[f"{where}_pi_gate_recall"] == 1.0
+        assert r[f"{where}_pi_residual_max_deg"] < 2.0
+    assert r["pi_cv_runs"] >= 1 and all(w >= 0 for w in r["pi_slide_weights"])
+    assert "pix_widen_deg" not in r                                  # no excitation runs given
