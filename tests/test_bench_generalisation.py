@@ -97,3 +97,38 @@ def test_the_fold_gate_matches_the_nominal_robot_it_assumes(fold_bench, sweeps) 
     assert abs(r["widen_deg"]) < 2.0
     assert r["sweeps_gate_residual_max_deg"] < 2.0
     assert r["sweeps_gate_precision"] == 1.0 and r["sweeps_gate_recall"] == 1.0
+
+
+def test_the_play_form_scores_beside_the_gate(fold_bench, sweeps) -> None:
+    """The play-operator form, identified on the same snaps, is scored beside the fold gate on every
+    held-out dataset; on the nominal robot's own sweeps it switches at the snaps as the gate does."""
+    r = fold_bench.measure(sweeps, sweeps, sweeps)
+    for where in ("sweeps", "turns"):
+        assert r[f"{where}_pi_recorded_snaps"] == r[f"{where}_recorded_snaps"] > 0
+        assert r[f"{where}_pi_gate_precision"] == 1.0 and r[f"{where}_pi_gate_recall"] == 1.0
+        assert r[f"{where}_pi_residual_max_deg"] < 2.0
+    assert r["pi_cv_runs"] >= 1 and all(w >= 0 for w in r["pi_slide_weights"])
+    assert "pix_widen_deg" not in r                                  # no excitation runs given
+
+
+def test_the_history_probe_and_the_excitation_runs(fold_bench) -> None:
+    """On the nominal robot (no effects, no memory) every history of the probe gives the same snaps;
+    the excitation runs record their start, so that the slide before each turn is in the joint path
+    the play operators follow (and a move of both tubes together is no slide)."""
+    from ctrkin.families.snap_aware import play
+    from ctrkin.robots import load_robot
+    from ctrkin.virtual import VirtualRobot
+    from ctrkin.virtual.config import VirtualConfig
+
+    robot = load_robot("paper")
+    virtual = VirtualRobot(robot, VirtualConfig().ideal(), seed=0)
+    probe = fold_bench.history_probe(robot, virtual, 1)
+    assert list(probe) == list(fold_bench.HISTORIES)
+    assert len(probe["rest"]) == 2 and all(v == probe["rest"] for v in probe.values())
+    ex = fold_bench.excitation(robot, virtual, 1)
+    bounds = ex.sequence_bounds()
+    assert len(bounds) == 12 and ex.frame["run"].nunique() == 6
+    slide = play.dataset_lags(ex).slide
+    turns = [a for a, b in bounds if b - a > 5]                       # each run's recorded turn
+    slid = [bool(np.abs(slide[a]).max() > 0.99) for a in turns]
+    assert slid == [True, True, False] * 2                         # 0.5 mm, 4 mm, both tubes together

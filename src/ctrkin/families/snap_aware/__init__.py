@@ -5,6 +5,8 @@ FK): the paper's LSTM trunk, one head per equilibrium branch and a branch state 
     net.py        BranchNet: trunk, two heads, the gate; BranchNet.decode carries the state in batch
     labels.py     which branch each training row is on, from the dataset's snap flags
     fold_gate.py  the fold gate: tabulated folds of the nominal robot, offsets fitted to the snaps
+    play.py       a candidate delay identified from the history (play operators), measured beside the
+                  fold gate by benchmarks/bench_fold_gate.py; not the gate's form
     recipe.py     training: the paper's windows and MAE, the gate's cross-entropy, the fold gate
     predictor.py  in use: the paper's FK predictor with the branch state; ONNX with a state input
 """
