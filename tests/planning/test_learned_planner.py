@@ -80,3 +80,14 @@ def test_a_model_without_a_branch_state_is_refused(model_dirs):
         LearnedSnapModel(Kinematics.load(model_dirs["fk"]))
     with pytest.raises(ModelError, match="FK"):
         LearnedSnapModel(Kinematics.load(model_dirs["ik"]))
+
+
+def test_a_route_beyond_what_the_model_knows_is_refused(fk_branch):
+    """A route more than a turn outside the model's trained α range: the model would extrapolate, so
+    it cannot vouch for it (the planner rejects such a route)."""
+    model = LearnedSnapModel(fk_branch, jump_mm=JUMP, cap_deg=CAP)
+    model.start(np.array([100.0, 100.0, *FULL]))
+    route = model.stream(np.array([[a, 100.0, *FULL] for a in np.arange(105.0, 900.0, 5.0)]))
+    assert route.refused and "range" in route.refused
+    assert 0 < len(route.state) < 159                                   # cut where it refused
+    assert len(route.snap) == len(route.margin_deg) == len(route.state)

@@ -39,12 +39,15 @@ REFINE = 16           # candidates between two margin probes, where the state fl
 class LearnedRoute:
     """A route (T steps) streamed on the learned FK: state (T,) the branch state after each step,
     snap (T,) bool a predicted snap in the step, jump_mm (T,) the predicted tip jump of a flip (0
-    elsewhere), margin_deg (T,) the inner rotation left before a predicted snap (≤ cap)."""
+    elsewhere), margin_deg (T,) the inner rotation left before a predicted snap (≤ cap); refused: why
+    the model would not step along it ("" if it did; e.g. joints more than a turn outside its trained
+    range: it would extrapolate), the arrays then cut at the refused step."""
 
     state: np.ndarray
     snap: np.ndarray
     jump_mm: np.ndarray
     margin_deg: np.ndarray
+    refused: str = ""
 
     def last(self) -> LearnedRoute:
         """The route's last step as a one-step route."""
@@ -91,6 +94,8 @@ class LearnedSnapModel:
         rows = [] if history is None else [np.asarray(h, float) for h in np.atleast_2d(history)]
         self.history, self.state = [], -1
         route = self.stream(np.array([*rows, np.asarray(q0, float)]))
+        if route.refused:
+            raise ModelError(f"the learned snap model cannot start at the robot's joints: {route.refused}")
         if route.state[-1] < 0:
             raise ModelError(f"model {self.kin.path or '(in memory)'} has no branch state: the planner's "
                              "learned snap model needs a snap-aware FK (lstm_mlp_branch)")
@@ -121,7 +126,10 @@ class LearnedSnapModel:
                 jump[t] = self._jump(prev_q + np.linspace(0.0, 1.0, CUTS + 1)[:, None] * (q[t] - prev_q),
                                      prev_s)
                 snap[t] = jump[t] > self.jump_mm
-            self.kin.step(np.ascontiguousarray(q[t]))
+            try:
+                self.kin.step(np.ascontiguousarray(q[t]))
+            except ModelError as e:     # outside what it knows: it cannot vouch for the route
+                return LearnedRoute(state[:t], snap[:t], jump[:t], margin[:t], str(e))
             state[t] = s
             if margins:
                 margin[t] = self._margin(q[t], s)

@@ -175,7 +175,9 @@ def _best_route(robot: Robot, cur: Equilibrium, sol: BranchSolution, target: np.
                 learned: tuple[LearnedSnapModel, float] | None = None
                 ) -> tuple[Checked, LearnedRoute | None] | None:
     """The safe route of least joint motion to sol.q, None if none is safe; with a learned snap model
-    (and its floor, deg) also safe on it: no predicted snap (unless allowed), its margin ≥ the floor."""
+    (and its floor, deg) also safe on it: no predicted snap (unless allowed), its margin ≥ the floor,
+    and within what it knows (a route it refuses to step along, e.g. beyond its trained α range, is
+    rejected: it cannot vouch for it)."""
     cands = routes(robot, cur.q, sol.q, limits)
     cands.sort(key=lambda r: _motion([cur.q, *r[1]], robot.n_tubes))
     for name, waypoints in cands:       # sorted by motion: the first safe one is the best
@@ -186,7 +188,7 @@ def _best_route(robot: Robot, cur: Equilibrium, sol: BranchSolution, target: np.
             return c, None
         model, lfloor = learned
         lr = model.stream(c.q)
-        if (cfg.allow_snaps or not lr.snap.any()) and lr.margin_deg.min() >= lfloor:
+        if not lr.refused and (cfg.allow_snaps or not lr.snap.any()) and lr.margin_deg.min() >= lfloor:
             return c, lr
     return None
 
