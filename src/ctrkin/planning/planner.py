@@ -320,8 +320,9 @@ def plan_path(robot: Robot, start: np.ndarray | Equilibrium, targets: np.ndarray
                                     time.perf_counter() - t0, offer, snapped))
     joined = None
     if lroutes:
-        joined = LearnedRoute(*(np.concatenate([getattr(r, f) for r in lroutes])
-                                for f in ("state", "snap", "jump_mm", "margin_deg")))
+        state, snap, jump, margin = (np.concatenate([getattr(r, f) for r in lroutes])
+                                     for f in ("state", "snap", "jump_mm", "margin_deg"))
+        joined = LearnedRoute(state, snap, jump, margin)
     return Plan(np.array(rows_q), np.array(rows_tip), np.array(rows_m), np.array(rows_snap),
                 np.array(rows_t), rows_r, reports, joined)
 
