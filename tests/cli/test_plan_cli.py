@@ -51,3 +51,24 @@ def test_plan_refuses_bad_targets_and_joints(tmp_path) -> None:
                                    "--out", str(tmp_path / "p2")])
     assert res.exit_code == 1 and "beta_1 <= beta_2" in res.output
     assert not (tmp_path / "p1").exists() or not any((tmp_path / "p1").iterdir())
+
+
+def test_plan_with_a_learned_snap_model(tmp_path, model_dirs) -> None:
+    """--model streams the snap-aware FK along the plan: its state, margin and predicted snaps per step
+    in plan.csv, the summary in plan.json (the tests' small model: a jump above 0.3 mm is a snap, see
+    tests/planning/test_learned_planner.py); a model without a branch state is refused."""
+    out = tmp_path / "plan"
+    res = CliRunner().invoke(cli, ["plan", "--targets", _targets(tmp_path, (160.0, 200.0, 240.0)),
+                                   "--start-joints", "150,0,-20,0", "--model", str(model_dirs["fk_branch"]),
+                                   "--learned-jump-mm", "0.3", "--out", str(out), "--no-naive", "--json"])
+    assert res.exit_code == 0, res.output
+    summary = json.loads(res.stdout)
+    assert summary["learned_snaps"] == 0 and summary["learned_min_margin_deg"] >= 5.0
+    table = pd.read_csv(out / "plan.csv")
+    assert {"learned_state", "learned_margin_deg", "learned_snap", "learned_jump_mm"} <= set(table.columns)
+    assert table["learned_margin_deg"].min() >= 5.0 and not table["learned_snap"].any()
+    assert set(table["learned_state"]) <= {0, 1}
+    assert (out / "plan.png").stat().st_size > 10_000
+    res = CliRunner().invoke(cli, ["plan", "--targets", _targets(tmp_path), "--start-joints", "150,0,-20,0",
+                                   "--model", str(model_dirs["fk"]), "--out", str(tmp_path / "p2")])
+    assert res.exit_code == 1 and "branch state" in res.output

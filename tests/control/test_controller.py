@@ -81,3 +81,61 @@ def test_closes_on_the_virtual_robot_and_stops_on_dropout(fk):
     pts, vel = circle_path(p0, 2.0, 1.0, 1000, 1000.0)      # one turn
     assert np.allclose(pts[0], p0) and np.ptp(pts, axis=0).max() == pytest.approx(4.0, rel=1e-3)
     assert np.allclose(np.diff(pts, axis=0) * 1000.0, 0.5 * (vel[1:] + vel[:-1]), atol=1e-3)
+
+
+class _MechanicsFK:
+    """An FK double on the nominal mechanics (the controller's interface: task, probes, robot, reset,
+    step, probe_tips), so that a loop closed on the same mechanics tests the control law alone."""
+
+    task, probes = "fk", True
+
+    def __init__(self) -> None:
+        from ctrkin import solve
+
+        self.robot = paper_robot()
+        self._solve = solve
+
+    def reset(self) -> None:
+        pass
+
+    def step(self, q: np.ndarray) -> np.ndarray:
+        return self.probe_tips(q[None, :])[0][0]
+
+    def probe_tips(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        eqs = [self._solve(self.robot, self.robot.check_joints(q)) for q in Q]    # JointError beyond a stop
+        return np.array([e.tip_position for e in eqs]), np.array([e.tip_tangent for e in eqs])
+
+
+def _closed_on_mechanics(ctl: Controller, start: np.ndarray, target: np.ndarray, cycles: int
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """Errors (cycles,) mm and joints (cycles, 4) of the loop closed on the mechanics (no noise)."""
+    ctl.reset(start)
+    errs, joints = [], []
+    for _ in range(cycles):
+        tip = ctl.fk.step(ctl.q)
+        cmd = ctl.cycle(tip, target)
+        errs.append(cmd.error_mm)
+        joints.append(cmd.joints)
+    return np.array(errs), np.array(joints)
+
+
+@pytest.mark.parametrize("start, goal, joint", [
+    # the outer carriage at its front stop (β2 = 0; a forward difference would probe beyond it)
+    ([40.0, 0.0, -20.0, 0.0], [60.0, 10.0, -18.0, -1.0], 3),
+    # the inner rotation at the controller's limit, the target's joints beyond it
+    ([60.0, 0.0, -12.0, -2.0], [75.0, 0.0, -11.0, -2.0], 0),
+])
+def test_a_loop_starting_at_a_stop_steers_away_and_converges(start, goal, joint):
+    """The stop is kept in the least squares (the other joints take over), the Jacobian is never
+    probed beyond a stop (the mechanics double raises there, as the TCM does), and in the null space
+    the joints leave the stop while the tip converges."""
+    fk = _MechanicsFK()
+    target = fk.step(np.array(goal))
+    cfg = ControlConfig(gain=0.5, alpha_limits=(-60.0, 60.0), max_alpha_deg_s=2000.0,
+                        max_beta_mm_s=200.0, fd_alpha_deg=0.5, fd_beta_mm=0.05)
+    errs, joints = _closed_on_mechanics(Controller(fk, cfg), np.array(start), target, 60)
+    assert errs[0] > 1.0
+    assert errs[-1] < 0.02
+    assert paper_robot().is_valid(joints).all() and np.abs(joints[:, :2]).max() <= 60.0 + 1e-9
+    away = -joints[-1, 3] if joint == 3 else 60.0 - joints[-1, 0]      # mm or deg from the stop
+    assert away > (0.5 if joint == 3 else 5.0)

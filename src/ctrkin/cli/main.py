@@ -47,8 +47,9 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "export": ("ctrkin.cli.export", "export_cmd",
                "Export MODEL_DIR (from `ctrkin train`) to an ONNX file (written atomically)."),
     "plan": ("ctrkin.cli.plan", "plan_cmd",
-             "Plan a snap-safe joint trajectory through tip targets on the mechanics: writes plan.csv "
-             "(joints, predicted tip, margin per step, flags), plan.json (per target) and plan.png."),
+             "Plan a snap-safe joint trajectory through tip targets on the mechanics (and a learned snap "
+             "model, --model): writes plan.csv (joints, predicted tip, margins per step, flags), plan.json "
+             "(per target) and plan.png."),
     "predict": ("ctrkin.cli.predict", "predict_cmd",
                 "Predict every sample of a dataset (--data), the tips of a file of joints (--joints, FK), "
                 "or solve IK for a file of target poses (--poses), with MODEL_DIR."),

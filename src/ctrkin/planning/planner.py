@@ -40,6 +40,7 @@ from ctrkin.errors import CtrkinError
 from ctrkin.mechanics.continuation import follow
 from ctrkin.mechanics.pointwise import Equilibrium, solve
 from ctrkin.planning.ik import BranchSolution, Limits, branch_ik
+from ctrkin.planning.learned import LearnedRoute, LearnedSnapModel
 from ctrkin.planning.margin import stability_margin
 from ctrkin.planning.paths import Checked, check, densify, routes
 from ctrkin.robots.robot import Robot
@@ -53,7 +54,9 @@ class PlanConfig:
     stability margin (planning.margin: 1 at aligned tubes, 0 at a fold) allowed at any step;
     alpha_limits_deg: (lo, hi) of every α (deg); beta_limits_mm: (lo, hi) of every β (mm), within the
     robot's own valid set; allow_snaps: take the offered deliberate snap when a target is not
-    reachable on the current branch; ik_iterations: the IK's iteration budget per seed.
+    reachable on the current branch; ik_iterations: the IK's iteration budget per seed;
+    learned_min_deg: with a learned snap model (planning.learned), the least inner-tube rotation (deg)
+    left before the model predicts a snap, at any step (one route step, 5°, by default).
     """
 
     tol_mm: float = 1.0
@@ -62,6 +65,7 @@ class PlanConfig:
     beta_limits_mm: tuple[float, float] = (-math.inf, 0.0)
     allow_snaps: bool = False
     ik_iterations: int = 60
+    learned_min_deg: float = 5.0
 
     def __post_init__(self) -> None:
         if not self.tol_mm > 0:
@@ -72,6 +76,9 @@ class PlanConfig:
             lo, hi = getattr(self, name)
             if not lo < hi:
                 raise CtrkinError(f"PlanConfig.{name} must be (lo, hi) with lo < hi, got {(lo, hi)}")
+        if not 0.0 <= self.learned_min_deg < 180.0:
+            raise CtrkinError(f"PlanConfig.learned_min_deg must be in [0, 180) deg, got "
+                              f"{self.learned_min_deg}")
         if self.ik_iterations < 1:
             raise CtrkinError(f"PlanConfig.ik_iterations must be >= 1, got {self.ik_iterations}")
 
@@ -123,7 +130,9 @@ class TargetReport:
 class Plan:
     """The plan: q (T, 2N) joints of every step (row 0 the start), tips (T, 3) mm predicted,
     margin (T,), snap (T,) bool (only where allowed: planned), target (T,) int (the target reached at
-    this step, −1 between), route (T,) str; targets: one TargetReport each."""
+    this step, −1 between), route (T,) str; targets: one TargetReport each; learned: the learned snap
+    model along the plan (planning.learned: state, predicted snaps, jumps, margin in deg per step),
+    None without one."""
 
     q: np.ndarray
     tips: np.ndarray
@@ -132,6 +141,7 @@ class Plan:
     target: np.ndarray
     route: list[str]
     targets: list[TargetReport] = field(default_factory=list)
+    learned: LearnedRoute | None = None
 
     @property
     def n_reached(self) -> int:
@@ -161,14 +171,25 @@ def _safe(c: Checked, target: np.ndarray, cfg: PlanConfig, floor: float) -> bool
 
 
 def _best_route(robot: Robot, cur: Equilibrium, sol: BranchSolution, target: np.ndarray,
-                cfg: PlanConfig, limits: Limits, floor: float) -> Checked | None:
-    """The safe route of least joint motion to sol.q, None if none is safe."""
+                cfg: PlanConfig, limits: Limits, floor: float,
+                learned: tuple[LearnedSnapModel, float] | None = None
+                ) -> tuple[Checked, LearnedRoute | None] | None:
+    """The safe route of least joint motion to sol.q, None if none is safe; with a learned snap model
+    (and its floor, deg) also safe on it: no predicted snap (unless allowed), its margin ≥ the floor,
+    and within what it knows (a route it refuses to step along, e.g. beyond its trained α range, is
+    rejected: it cannot vouch for it)."""
     cands = routes(robot, cur.q, sol.q, limits)
     cands.sort(key=lambda r: _motion([cur.q, *r[1]], robot.n_tubes))
     for name, waypoints in cands:       # sorted by motion: the first safe one is the best
         c = check(robot, cur, name, waypoints)
-        if _safe(c, target, cfg, floor):
-            return c
+        if not _safe(c, target, cfg, floor):
+            continue
+        if learned is None:
+            return c, None
+        model, lfloor = learned
+        lr = model.stream(c.q)
+        if not lr.refused and (cfg.allow_snaps or not lr.snap.any()) and lr.margin_deg.min() >= lfloor:
+            return c, lr
     return None
 
 
@@ -207,12 +228,17 @@ def snap_offer(robot: Robot, cur: Equilibrium, target: np.ndarray, cfg: PlanConf
 
 
 def plan_path(robot: Robot, start: np.ndarray | Equilibrium, targets: np.ndarray,
-              tangents: np.ndarray | None = None, config: PlanConfig | None = None) -> Plan:
+              tangents: np.ndarray | None = None, config: PlanConfig | None = None,
+              learned: LearnedSnapModel | None = None) -> Plan:
     """Plan a joint trajectory through tip targets on robot's mechanics.
 
     start: the current joints (2N,) (deg, mm), solved point-wise, or the Equilibrium the robot is in
     (its branch); targets (K, 3) mm in the robot base frame; tangents (K, 3) unit tip tangents
-    or None (positions only); config: PlanConfig. Returns a Plan (module docstring).
+    or None (positions only); config: PlanConfig; learned: a learned snap model (planning.learned)
+    streamed along every route from the robot's state (started at the start joints unless its
+    `start` was called with the robot's history): a route on which it predicts a snap is rejected
+    (unless snaps are allowed), and so is one where its margin falls below learned_min_deg (or the
+    start's, where lower). Returns a Plan (module docstring).
     """
     cfg = config or PlanConfig()
     limits = cfg.limits(robot)
@@ -233,28 +259,38 @@ def plan_path(robot: Robot, start: np.ndarray | Equilibrium, targets: np.ndarray
         cur = solve(robot, q0)
     if not cur.stable:
         raise CtrkinError("the start is not a stable equilibrium: there is no branch to plan from")
+    lroutes: list[LearnedRoute] = []
+    if learned is not None:
+        if not learned.history:
+            learned.start(cur.q)
+        elif not np.allclose(learned.history[-1], cur.q):
+            raise CtrkinError("the learned snap model's history does not end at the start joints: call "
+                              "its start(q0, history) with the robot's joints and the way it came")
+        lroutes.append(learned.here)
     rows_q, rows_tip = [cur.q], [cur.tip_position]
     rows_m, rows_snap, rows_t, rows_r = [stability_margin(robot, cur)], [False], [-1], ["start"]
     reports = []
     for k, target in enumerate(targets):
         t0 = time.perf_counter()
         tan = None if tangents is None else tangents[k]
-        best: Checked | None = None
+        best: tuple[Checked, LearnedRoute | None] | None = None
         closest = math.inf
         # a start below the threshold may not get worse, so that the plan can lead out of it
         floor = min(cfg.min_margin, rows_m[-1])
+        lfloor = None if learned is None else (learned, min(cfg.learned_min_deg,
+                                                            float(lroutes[-1].margin_deg[-1])))
         for seed in _seeds(robot, cur, target, limits):
             sol = branch_ik(robot, seed, target, limits, tan, floor, max_iter=cfg.ik_iterations)
             closest = min(closest, sol.error_mm)
             if sol.error_mm <= cfg.tol_mm:
-                best = _best_route(robot, cur, sol, target, cfg, limits, floor)
+                best = _best_route(robot, cur, sol, target, cfg, limits, floor, lfloor)
                 if best is not None:
                     break
         if best is None:    # the history-free IK's joints, reached by a route checked on the branch
             sol = branch_ik(robot, solve(robot, cur.q), target, limits, tan, 0.0,
                             max_iter=cfg.ik_iterations, history=False)
             if sol.error_mm <= cfg.tol_mm:
-                best = _best_route(robot, cur, sol, target, cfg, limits, floor)
+                best = _best_route(robot, cur, sol, target, cfg, limits, floor, lfloor)
         offer = None
         snapped = False
         if best is None:
@@ -262,21 +298,31 @@ def plan_path(robot: Robot, start: np.ndarray | Equilibrium, targets: np.ndarray
             if cfg.allow_snaps and offer is not None and offer.reachable:
                 snap_route = check(robot, cur, "planned snap", [offer.q, offer.landing_q])
                 if np.linalg.norm(snap_route.tips[-1] - target) <= cfg.tol_mm:
-                    best, snapped = snap_route, True
+                    best = snap_route, None if learned is None else learned.stream(snap_route.q)
+                    snapped = True
         if best is None:
             reports.append(TargetReport(k, False, closest, "", -1, math.nan,
                                         time.perf_counter() - t0, offer))
             continue
-        rows_q += list(best.q)
-        rows_tip += list(best.tips)
-        rows_m += list(best.margin)
-        rows_snap += list(best.snaps)
-        rows_t += [-1] * (len(best.q) - 1) + [k]
-        rows_r += [best.name] * len(best.q)
-        cur = best.equilibria[-1]
-        reports.append(TargetReport(k, True, float(np.linalg.norm(best.tips[-1] - target)), best.name,
-                                    len(rows_q) - 1, float(best.margin.min()),
+        chosen, lr = best
+        if learned is not None and lr is not None:
+            learned.accept(chosen.q, lr)
+            lroutes.append(lr)
+        rows_q += list(chosen.q)
+        rows_tip += list(chosen.tips)
+        rows_m += list(chosen.margin)
+        rows_snap += list(chosen.snaps)
+        rows_t += [-1] * (len(chosen.q) - 1) + [k]
+        rows_r += [chosen.name] * len(chosen.q)
+        cur = chosen.equilibria[-1]
+        reports.append(TargetReport(k, True, float(np.linalg.norm(chosen.tips[-1] - target)), chosen.name,
+                                    len(rows_q) - 1, float(chosen.margin.min()),
                                     time.perf_counter() - t0, offer, snapped))
+    joined = None
+    if lroutes:
+        state, snap, jump, margin = (np.concatenate([getattr(r, f) for r in lroutes])
+                                     for f in ("state", "snap", "jump_mm", "margin_deg"))
+        joined = LearnedRoute(state, snap, jump, margin)
     return Plan(np.array(rows_q), np.array(rows_tip), np.array(rows_m), np.array(rows_snap),
-                np.array(rows_t), rows_r, reports)
+                np.array(rows_t), rows_r, reports, joined)
 

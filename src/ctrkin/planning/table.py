@@ -42,10 +42,15 @@ def read_targets(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
 def plan_table(plan: Plan, n_tubes: int) -> pd.DataFrame:
     """One row per step: step, the joints, the predicted tip (mm), the stability margin, the target
     reached at the step (−1 between targets), the route and flags (snap: a planned snap;
-    low_margin: below 0.1, only on a planned snap's way)."""
+    low_margin: below 0.1, only on a planned snap's way); with a learned snap model also its branch
+    state, its margin (deg of inner rotation left before its predicted snap), learned_snap (a snap it
+    predicts in the step: only a planned one) and learned_jump_mm (its predicted tip jump at a flip)."""
     cols: dict[str, Any] = {"step": np.arange(len(plan.q))}
     cols |= {c: plan.q[:, k] for k, c in enumerate(joint_names(n_tubes))}
     cols |= {f"tip_{c}": plan.tips[:, k] for k, c in enumerate(POSITION_COLUMNS)}
     cols |= {"margin": plan.margin, "target": plan.target, "route": plan.route,
              "snap": plan.snap, "low_margin": plan.margin < 0.1}
+    if plan.learned is not None:
+        cols |= {"learned_state": plan.learned.state, "learned_margin_deg": plan.learned.margin_deg,
+                 "learned_snap": plan.learned.snap, "learned_jump_mm": plan.learned.jump_mm}
     return pd.DataFrame(cols)
