@@ -102,10 +102,12 @@ def path_lags(joints: np.ndarray, bounds: list[tuple[int, int]], n_tubes: int,
     return Lags(*(_lags(np.ascontiguousarray(x), starts, np.asarray(w, float)) for x, w in inputs))
 
 
-def dataset_lags(ds: Any) -> Lags:
+def dataset_lags(ds: Any, angle_widths: tuple[float, ...] = ANGLE_WIDTHS_DEG,
+                 slide_widths: tuple[float, ...] = SLIDE_WIDTHS_MM) -> Lags:
     """path_lags of a Dataset's joints as recorded, its runs followed, glitch rows skipped."""
     runs = ds.frame["run"].to_numpy() if "run" in ds.frame.columns else None
-    return path_lags(ds.joints(), ds.sequence_bounds(), ds.n_tubes, runs, ds.frame["outlier"].to_numpy())
+    return path_lags(ds.joints(), ds.sequence_bounds(), ds.n_tubes, runs, ds.frame["outlier"].to_numpy(),
+                     angle_widths, slide_widths)
 
 
 @dataclass(frozen=True)

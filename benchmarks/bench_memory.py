@@ -1,0 +1,191 @@
+"""Benchmark: does the FK network see the robot's torsional hysteresis through generic memory
+features? (issue 21, goal 1's FK; docs/learned_kinematics.md: What the learned models assume about
+the robot).
+
+    python benchmarks/bench_memory.py --data out/reproduce/data/paper
+    python benchmarks/bench_memory.py --data ... --arms ib2,ib2+play --max-epochs 20
+
+With friction between the tubes at the top of its range the tip's state after a reversal depends on
+how far each tube has turned since (hysteresis loops tens of degrees of base rotation wide), which a
+window of IB = 2 steps cannot see. The arms, trained with one recipe on one split and compared on
+the held-out (test) sequences against the virtual robot's true pose:
+
+  ib2        the paper's features (α1..αN, β1..βN, α0, Δα0; ctrkin.models.features) in windows of 2
+  ib2+play   the same plus, appended to every step, the play-operator lags (a Prandtl–Ishlinskii
+             basis; ctrkin.families.snap_aware.play) of α1 and αN (half widths ANGLE_WIDTHS deg) and
+             of the relative translation d = βN − β1 (SLIDE_WIDTHS mm), carried along each run (the
+             `run` column) from the commanded joints only: no friction law or simulator parameter
+             enters them, so a robot computes them the same way
+  ib8        the paper's features in windows of 8 (a longer memory without a model of it)
+  ib8+play   both
+
+The recipe is the paper's LSTM-MLP (ctrkin.models.recipe.WindowRecipe; structure "paper"): Adam,
+MAE, min-max on the training rows, early stopping on the validation loss, with the settings of
+`--recipe` (a model folder's config.json, e.g. the reproduction's fk_lstm_mlp; default: the quick
+reproduction's: lr 1e-3, batch 64, at most 150 epochs, patience 15). Only the input columns and IB
+differ between arms; each arm starts from the same seed. Training runs here (not through
+ctrkin.training.train, whose layouts have no extra columns) with the engine's own epoch,
+learning-rate and early-stopping functions.
+
+Prints a table (arm, epochs, train / val / test position RMSE vs truth in mm, seconds, load) and
+ends with one JSON line of the figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from ctrkin.data.dataset import Dataset
+from ctrkin.families.registry import build_model
+from ctrkin.families.snap_aware.play import dataset_lags
+from ctrkin.models.normalize import MinMax
+from ctrkin.models.recipe import Prepared, TrainingData, WindowRecipe
+from ctrkin.models.store import ModelBundle
+from ctrkin.training.config import TrainConfig
+from ctrkin.training.data import split_rows
+from ctrkin.training.engine import _early_stopping, _epoch_gathered, _learning_rate, _optimizer
+
+ANGLE_WIDTHS = (2.0, 5.0, 15.0, 45.0, 90.0)     # deg: half widths of the α1, αN play operators
+SLIDE_WIDTHS = (0.05, 0.2, 1.0)                 # mm: of d = βN − β1
+ARMS = {"ib2": (2, False), "ib2+play": (2, True), "ib8": (8, False), "ib8+play": (8, True)}
+# the quick reproduction's paper LSTM-MLP (its models/fk_lstm_mlp/config.json)
+QUICK_RECIPE = {"model": "lstm_mlp", "options": {"structure": "paper"}, "lr": 1e-3, "batch_size": 64,
+                "max_epochs": 150, "patience": 15, "min_steps": 10000, "patience_steps": 1000,
+                "threads": 1, "loop": "epoch", "lr_schedule": "constant", "target_frame": "tracker"}
+
+
+def play_columns(ds: Dataset) -> np.ndarray:
+    """(T, 2K + J) play lags of α1 (K), αN (K) and d (J) along each run (fractions of each width)."""
+    lg = dataset_lags(ds, ANGLE_WIDTHS, SLIDE_WIDTHS)
+    return np.concatenate([lg.inner, lg.outer, lg.slide], axis=1)
+
+
+class MemoryRecipe(WindowRecipe):
+    """The paper's recipe with extra per-step input columns `extra` (T, E) appended after the
+    paper's features (so that Δα0 keeps its index and its clipping at evaluation), min-max fitted
+    on the training rows with them."""
+
+    def __init__(self, cfg: TrainConfig, extra: np.ndarray | None) -> None:
+        super().__init__(cfg)
+        self.extra = extra
+
+    def prepare(self, data: TrainingData) -> Prepared:
+        prepared = super().prepare(data)
+        if self.extra is None:
+            return prepared
+        from ctrkin.models.features import sequence_features, windows
+
+        net_in = self.raw_in if self.frame is None else self.frame.network_joints(self.raw_in, self.outer_deg)
+        feats = np.concatenate([sequence_features(self.layout, net_in, self.bounds), self.extra], axis=1)
+        self.x_norm = MinMax.fit(feats[self.rows["train"]])
+        self.X = windows(self.x_norm.transform(feats), self.bounds, self.layout.ib).astype(np.float32)
+        self.Xt = torch.from_numpy(self.X[self.rows["train"]])
+        return replace(prepared, x_norm=self.x_norm)
+
+
+def train_arm(ds: Dataset, cfg: TrainConfig, extra: np.ndarray | None) -> dict[str, Any]:
+    """Train one arm (module docstring) and return its epochs, seconds and RMSE vs truth per part."""
+    torch.set_num_threads(cfg.threads)
+    split, rows = split_rows(ds, cfg)
+    n_train = len(rows["train"])
+    cfg = replace(cfg, max_epochs=cfg.epoch_budget(n_train))
+    assert cfg.max_epochs is not None
+    rec = MemoryRecipe(cfg, extra)
+    prep = rec.prepare(TrainingData(ds, cfg, split, rows))
+    n_in = rec.X.shape[2]
+    torch.manual_seed(cfg.seed)
+    bundle = ModelBundle.create(cfg.to_dict(), prep.layout, prep.x_norm, prep.y_norm, ds.robot,
+                                build=lambda c, lay: build_model(c.model, n_in, lay.n_outputs, lay.ib,
+                                                                 c.output_activation, c.options))
+    net = bundle.net
+    opt, gen = _optimizer(net, cfg), torch.Generator().manual_seed(cfg.seed)
+    patience = cfg.patience_epochs(n_train)
+    state: dict[str, Any] = {"epoch": 0, "best_val": float("inf"), "best_epoch": 0, "since_best": 0}
+    best = {k: v.clone() for k, v in net.state_dict().items()}
+    t0 = time.perf_counter()
+    while state["epoch"] < cfg.max_epochs and state["since_best"] < patience:
+        for group in opt.param_groups:
+            group["lr"] = _learning_rate(cfg, state["epoch"], cfg.max_epochs)
+        X, Y = rec.epoch_tensors(state["epoch"], bundle)
+        _epoch_gathered(net, opt, X, Y, cfg.batch_size, gen, rec.loss)
+        val = rec.val_loss(net)
+        state["epoch"] += 1
+        if _early_stopping(state, val, cfg):
+            best = {k: v.detach().clone() for k, v in net.state_dict().items()}
+    seconds = time.perf_counter() - t0
+    net.load_state_dict(best)
+    net.eval()
+    metrics = rec.evaluate(bundle)
+    return {"inputs": n_in, "epochs": state["epoch"], "best_epoch": state["best_epoch"], "seconds": seconds,
+            "load": os.getloadavg()[0],
+            **{part: metrics[part]["vs_true"]["position_mm_rmse"] for part in ("train", "val", "test")
+               if part in metrics}}
+
+
+def recipe_config(path: Path | None, max_epochs: int | None) -> TrainConfig:
+    """The arms' common recipe: a model folder's config.json (`train`), else QUICK_RECIPE."""
+    d = dict(QUICK_RECIPE)
+    if path is not None:
+        d = json.loads(path.read_text())["train"]
+    cfg = TrainConfig.from_dict(d)
+    cfg = replace(cfg, task="fk", split="dataset", device="cpu")
+    return cfg if max_epochs is None else replace(cfg, max_epochs=max_epochs)
+
+
+def main(argv: list[str] | None = None) -> dict[str, Any]:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--data", type=Path, required=True, help="a paper-protocol dataset folder (its "
+                    "split.json is the split), e.g. a reproduction's data/paper")
+    ap.add_argument("--recipe", type=Path, default=None, help="a model folder's config.json whose training "
+                    "settings every arm uses (default: the quick reproduction's paper LSTM-MLP)")
+    ap.add_argument("--arms", default="ib2,ib2+play,ib8", help=f"comma-separated, of {sorted(ARMS)}")
+    ap.add_argument("--max-epochs", type=int, default=None, help="cap every arm's epochs (a smoke run)")
+    ap.add_argument("--seed", type=int, default=None, help="the arms' training seed (default: the recipe's)")
+    args = ap.parse_args(argv)
+    arms = [a.strip() for a in args.arms.split(",") if a.strip()]
+    unknown = sorted(set(arms) - set(ARMS))
+    if unknown:
+        ap.error(f"unknown arms {unknown}; choose from {sorted(ARMS)}")
+    ds = Dataset.load(args.data)
+    if ds.split is None:
+        ap.error(f"{args.data} has no split.json: the arms must be compared on a saved split")
+    if not ds.has_truth:
+        ap.error(f"{args.data} has no true pose columns (a virtual robot's data is needed)")
+    base = recipe_config(args.recipe, args.max_epochs)
+    if args.seed is not None:
+        base = replace(base, seed=args.seed)
+    lags = play_columns(ds)
+    out: dict[str, Any] = {}
+    print(f"memory features on {args.data}: {len(ds.frame)} rows, recipe {base.model} {base.options} "
+          f"lr {base.lr} batch {base.batch_size} max_epochs {base.max_epochs} patience {base.patience} "
+          f"seed {base.seed}; "
+          f"play widths {ANGLE_WIDTHS} deg, {SLIDE_WIDTHS} mm", flush=True)
+    print(f"{'arm':10s} {'inputs':>6s} {'epochs':>6s} {'best':>5s} {'train':>7s} {'val':>7s} {'test':>7s} "
+          f"{'s':>6s} {'load':>5s}   (position RMSE vs truth, mm)", flush=True)
+    for arm in arms:
+        ib, play = ARMS[arm]
+        r = train_arm(ds, replace(base, ib=ib), lags if play else None)
+        out[arm] = r
+        print(f"{arm:10s} {r['inputs']:6d} {r['epochs']:6d} {r['best_epoch']:5d} "
+              f"{r.get('train', math.nan):7.3f} {r.get('val', math.nan):7.3f} {r.get('test', math.nan):7.3f} "
+              f"{r['seconds']:6.0f} {r['load']:5.1f}", flush=True)
+    report = {"data": str(args.data), "recipe": {"model": base.model, "options": base.options, "lr": base.lr,
+                                                 "batch_size": base.batch_size, "max_epochs": base.max_epochs,
+                                                 "patience": base.patience, "seed": base.seed},
+              "angle_widths_deg": ANGLE_WIDTHS, "slide_widths_mm": SLIDE_WIDTHS, "arms": out}
+    print(json.dumps(report, default=float))
+    return report
+
+
+if __name__ == "__main__":
+    main()

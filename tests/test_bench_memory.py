@@ -1,0 +1,54 @@
+"""benchmarks/bench_memory.py: the play-lag columns fed beside the paper's FK features."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.benchmark_scripts import load_benchmark
+
+
+@pytest.fixture(scope="module")
+def bench():
+    return load_benchmark("bench_memory")
+
+
+def test_play_columns_follow_the_commanded_joints_only(bench, sweeps) -> None:
+    cols = bench.play_columns(sweeps)
+    k, j = len(bench.ANGLE_WIDTHS), len(bench.SLIDE_WIDTHS)
+    assert cols.shape == (len(sweeps.frame), 2 * k + j)
+    assert np.all(np.abs(cols) <= 1.0 + 1e-12)
+    # the sweeps turn the inner tube: its narrowest play is taken up, the widest not always
+    assert np.abs(cols[:, 0]).max() == pytest.approx(1.0)
+    moved = sweeps.frame.copy()
+    for c in ("x", "y", "z"):
+        moved[c] = moved[c] + 5.0          # the tip's poses do not enter the features
+    assert np.array_equal(bench.play_columns(type(sweeps)(moved, sweeps.robot, sweeps.meta)), cols)
+
+
+def test_the_extra_columns_follow_the_paper_features_in_every_window(bench, sweeps) -> None:
+    from ctrkin.models.recipe import TrainingData
+    from ctrkin.training.data import split_rows
+
+    cfg = bench.recipe_config(None, 1)
+    cfg = type(cfg).from_dict({**cfg.to_dict(), "ib": 3})
+    split, rows = split_rows(sweeps, cfg)
+    extra = bench.play_columns(sweeps)
+    plain = bench.MemoryRecipe(cfg, None)
+    plain.prepare(TrainingData(sweeps, cfg, split, rows))
+    rec = bench.MemoryRecipe(cfg, extra)
+    rec.prepare(TrainingData(sweeps, cfg, split, rows))
+    f = plain.X.shape[2]
+    assert rec.X.shape == (*plain.X.shape[:2], f + extra.shape[1])
+    np.testing.assert_allclose(rec.X[..., :f], plain.X[..., :f])      # Δα0 keeps its index
+    lo, hi = extra[rows["train"]].min(axis=0), extra[rows["train"]].max(axis=0)
+    want = (extra - lo) / np.where(hi > lo, hi - lo, 1.0)
+    np.testing.assert_allclose(rec.X[:, -1, f:][:, hi > lo], want[:, hi > lo], atol=1e-5)   # min-max on train
+
+
+def test_one_arm_trains_and_reports_rmse_vs_truth(bench, sweeps) -> None:
+    cfg = bench.recipe_config(None, 1)
+    cfg = type(cfg).from_dict({**cfg.to_dict(), "options": {"structure": "L16|D16"}})
+    r = bench.train_arm(sweeps, cfg, bench.play_columns(sweeps))
+    assert r["inputs"] == 6 + 13 and r["epochs"] == 1
+    assert all(np.isfinite(r[p]) and r[p] > 0 for p in ("train", "val", "test"))
