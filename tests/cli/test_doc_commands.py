@@ -145,9 +145,22 @@ def plan_targets(root: Path) -> None:
     pd.DataFrame(tips, columns=["x", "y", "z"]).to_csv(root / "targets.csv", index=False)
 
 
+def plan_model(root: Path) -> None:
+    """models/fk_branch (docs/planning.md: `plan --model`): a small snap-aware FK trained for three
+    epochs on six sweeps of the paper robot, as the tests' `fk_branch` model is."""
+    from ctrkin.acquisition.demo import sweep_dataset
+    from ctrkin.training import TrainConfig, train
+
+    sweeps = sweep_dataset(paper_robot(), translations=(8, 14, 20), outer_alphas=(0, 90), step_deg=4,
+                           noise_mm=0.02, seed=2)
+    train(sweeps, TrainConfig(task="fk", model="lstm_mlp_branch", max_epochs=3, threads=1,
+                              options={"structure": "L16|D16", "gate_units": 8}),
+          root / "models" / "fk_branch", progress=False)
+
+
 FIXTURES: dict[str, list[Callable[[Path], None]]] = {
     "data.md": [user_log, lab_logs],
-    "planning.md": [plan_targets],
+    "planning.md": [plan_targets, plan_model],
     "real_robot.md": [comet_logs],
     "tutorial.md": [comet_logs],
 }
