@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from ctrkin.robots import paper_robot
+from tests.small_models import six_sweeps, small_configs
 
 
 @pytest.fixture(scope="session")
@@ -21,10 +22,7 @@ def rng():
 @pytest.fixture(scope="session")
 def sweeps():
     """6 rotation sweeps (d = 8, 14, 20 mm; outer α 0, 90°) at 4° steps, 0.02 mm tracker noise."""
-    from ctrkin.acquisition.demo import sweep_dataset
-
-    return sweep_dataset(paper_robot(), translations=(8, 14, 20), outer_alphas=(0, 90), step_deg=4,
-                         noise_mm=0.02, seed=2)
+    return six_sweeps()
 
 
 @pytest.fixture(scope="session")
@@ -32,18 +30,11 @@ def model_dirs(sweeps, tmp_path_factory):
     """Small trained FK and IK models (few epochs, small LSTM), and the IK refined on the snap-aware FK
     (imported here: the tests of other stages need no torch)."""
     from ctrkin.families.refined import assemble_refined
-    from ctrkin.training import TrainConfig, train
+    from ctrkin.training import train
 
     root = tmp_path_factory.mktemp("models")
     dirs = {}
-    for name, cfg in {
-        "fk": TrainConfig(task="fk", max_epochs=3, threads=1, options={"structure": "L16|D16"}),
-        "ik": TrainConfig(task="ik", ib=3, max_epochs=3, threads=1, options={"structure": "L16|D16"}),
-        "fk_cnn": TrainConfig(task="fk", model="cnn", max_epochs=1, threads=1, options={"channels": 8}),
-        "fk_default": TrainConfig(task="fk", max_epochs=1, threads=1),
-        "fk_branch": TrainConfig(task="fk", model="lstm_mlp_branch", max_epochs=3, threads=1,
-                                 options={"structure": "L16|D16", "gate_units": 8}),
-    }.items():
+    for name, cfg in small_configs().items():
         train(sweeps, cfg, root / name, progress=False)
         dirs[name] = root / name
     dirs["ik_refined"] = assemble_refined(dirs["ik"], dirs["fk_branch"], root / "ik_refined")

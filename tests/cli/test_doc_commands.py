@@ -37,6 +37,7 @@ from ctrkin.cli.main import cli
 from ctrkin.mechanics import follow, solve
 from ctrkin.robots import load_robot, paper_robot
 from tests.lab_logs import configurations, ndi_lab_log, ndi_log, optitrack_log, to_ctrkin
+from tests.small_models import six_sweeps, small_configs
 
 REPO = Path(__file__).resolve().parents[2]
 DOCS = [REPO / "README.md", *sorted((REPO / "docs").rglob("*.md"))]
@@ -148,14 +149,9 @@ def plan_targets(root: Path) -> None:
 def plan_model(root: Path) -> None:
     """models/fk_branch (docs/planning.md: `plan --model`): a small snap-aware FK trained for three
     epochs on six sweeps of the paper robot, as the tests' `fk_branch` model is."""
-    from ctrkin.acquisition.demo import sweep_dataset
-    from ctrkin.training import TrainConfig, train
+    from ctrkin.training import train
 
-    sweeps = sweep_dataset(paper_robot(), translations=(8, 14, 20), outer_alphas=(0, 90), step_deg=4,
-                           noise_mm=0.02, seed=2)
-    train(sweeps, TrainConfig(task="fk", model="lstm_mlp_branch", max_epochs=3, threads=1,
-                              options={"structure": "L16|D16", "gate_units": 8}),
-          root / "models" / "fk_branch", progress=False)
+    train(six_sweeps(), small_configs()["fk_branch"], root / "models" / "fk_branch", progress=False)
 
 
 FIXTURES: dict[str, list[Callable[[Path], None]]] = {
