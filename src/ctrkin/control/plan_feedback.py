@@ -34,6 +34,7 @@ model's (the margin is the cushion for those).
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, replace
 from typing import Protocol
 
@@ -43,7 +44,7 @@ from ctrkin.errors import CtrkinError
 from ctrkin.mechanics.pointwise import Equilibrium, solve
 from ctrkin.planning.ik import MAX_DALPHA, MAX_DBETA, branch_ik
 from ctrkin.planning.margin import stability_margin
-from ctrkin.planning.paths import Checked, check
+from ctrkin.planning.paths import Checked, check, routes
 from ctrkin.planning.planner import Plan, PlanConfig, plan_path
 from ctrkin.robots.robot import Robot
 
@@ -136,13 +137,41 @@ def _correct(model: Robot, cur: Equilibrium, error: np.ndarray, cfg: PlanConfig,
     return None
 
 
-def _replan(model: Robot, cur: Equilibrium, goal: np.ndarray, cfg: PlanConfig) -> Checked | None:
-    """The planner's plan from cur to goal (3,) mm on the model (routes, detours, its checks), as a
-    checked route; None if it finds none (it never snaps: snaps are not allowed here)."""
+TURNS_DEG = (90.0, -90.0, 180.0, -180.0, 45.0, -45.0, 135.0, -135.0)
+PULLS_MM = (0.0, 6.0)
+
+
+def _replan(model: Robot, cur: Equilibrium, goal: np.ndarray, cfg: PlanConfig, floor: float
+            ) -> Checked | None:
+    """A checked route from cur to goal (3,) mm on the model where the local step found none: the
+    planner's plan (planning.plan_path: its seeds, routes and detours, its checks), else the branch
+    IK seeded with the inner tube turned by each of TURNS_DEG (another relative rotation: the tip
+    seen through a tracker may need one far from the plan's), first as it is, then pulled back by
+    PULLS_MM (out of the stop of full extension, where the local step ends), the planner's routes
+    to its answer checked alike; None if none is safe (snaps are never allowed here)."""
     plan = plan_path(model, cur, goal[None, :], config=replace(cfg, allow_snaps=False))
-    if not plan.n_reached:
-        return None
-    return check(model, cur, "replanned correction", list(plan.q[1:]))
+    if plan.n_reached:
+        return check(model, cur, "replanned correction", list(plan.q[1:]))
+    limits = cfg.limits(model)
+    n = model.n_tubes
+    for pull, turn in itertools.product(PULLS_MM, TURNS_DEG):
+        q = cur.q.copy()
+        q[0] += turn
+        q[n] -= pull
+        if not limits.holds(q) or not model.is_valid(q[None, :])[0]:
+            continue
+        seed = solve(model, q, guess=cur.x)
+        if not seed.stable:
+            continue
+        sol = branch_ik(model, seed, goal, limits, None, floor, max_iter=cfg.ik_iterations)
+        if sol.error_mm > cfg.tol_mm:
+            continue
+        for name, waypoints in routes(model, cur.q, sol.q, limits):
+            c = check(model, cur, f"correction turned {turn:+.0f} deg, pulled {pull:.0f} mm ({name})",
+                      waypoints)
+            if _safe(c, floor) and np.linalg.norm(c.tips[-1] - goal) <= cfg.tol_mm:
+                return c
+    return None
 
 
 def execute_plan(model: Robot, plan: Plan, targets: np.ndarray, rig: Rig, config: PlanConfig | None = None,
@@ -209,9 +238,10 @@ def execute_plan(model: Robot, plan: Plan, targets: np.ndarray, rig: Rig, config
                 break
             if steps[k] == fb.max_steps:
                 break
-            c = _correct(model, cur, err, cfg, fb, min(cfg.min_margin, stability_margin(model, cur)))
+            floor = min(cfg.min_margin, stability_margin(model, cur))
+            c = _correct(model, cur, err, cfg, fb, floor)
             if c is None:   # no safe local step: the planner's routes to the shifted goal
-                c = _replan(model, cur, cur.tip_position + err, cfg)
+                c = _replan(model, cur, cur.tip_position + err, cfg, floor)
             if c is None:
                 refused[k] += 1
                 break
