@@ -19,7 +19,9 @@ A real system therefore drives the plan and, at each target, reads its tracker a
    PlanConfig.min_margin, or the margin the robot is at where that is lower). A step that fails the
    check is halved up to `halvings` times; where none passes, the planner itself is asked for a
    route from here to the model's goal (planning.plan_path: its routes and detours, the same
-   checks); where it finds none, the target is left as it is (reported, never forced).
+   checks), then the branch IK seeded at other relative rotations (`_replan`: the tracker's view
+   of a target may need one far from the plan's); where none is safe, the target is left as it is
+   (reported, never forced).
 
 The loop is an integrator on the tracker: the model only needs the right Jacobian and the right
 branch, its offset from the robot is measured away. What it does not remove: the tracker's static
@@ -93,7 +95,8 @@ class FeedbackConfig:
 class Executed:
     """A plan driven with feedback. q (T, 2N): every joint command in order; at (K,) the index in q
     of each target's last command (−1: not driven, the plan did not reach it or the tracker was lost
-    before); measured (K, 3) mm the last tracker reading at each target (NaN if none); steps (K,)
+    before, or no command was needed: the robot was there at its start); measured (K, 3) mm the last
+    tracker reading at each target (NaN if none); steps (K,)
     correction steps taken; refused (K,) steps the margin check turned down (after halving) that
     ended the target's correction; settled (K,) bool: the measured tip within tol_mm;
     margin (T,) the model's stability margin at every command."""
