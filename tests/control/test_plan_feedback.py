@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from ctrkin import follow, paper_robot, solve
-from ctrkin.control.plan_feedback import FeedbackConfig, execute_plan
+from ctrkin.control.plan_feedback import FeedbackConfig, _correct, _replan, execute_plan
 from ctrkin.errors import CtrkinError
 from ctrkin.geometry import RigidTransform
 from ctrkin.planning import PlanConfig, plan_path, stability_margin
@@ -61,6 +61,22 @@ def test_feedback_takes_each_target_within_1mm_without_a_snap() -> None:
     floor = min(PlanConfig().min_margin, stability_margin(ROBOT, solve(ROBOT, start)))
     assert done.margin.min() >= floor
     assert len(done.q) == len(tips)                 # every command was driven, in order
+
+
+def test_where_no_local_step_is_safe_another_rotation_is_searched_and_checked() -> None:
+    # the inner tube at full extension (beta_1 = beta_2): a correction the local step cannot make (a
+    # case of the planning benchmark, where the tracker's view needed another relative rotation)
+    cur = solve(ROBOT, np.array([-148.3, 4.7, -24.5, -24.5]))
+    err = np.array([2.15, -5.48, 1.05])
+    cfg = PlanConfig()
+    floor = min(cfg.min_margin, stability_margin(ROBOT, cur))
+    assert _correct(ROBOT, cur, err, cfg, FeedbackConfig(), floor) is None
+    route = _replan(ROBOT, cur, cur.tip_position + err, cfg, floor)
+    assert route is not None
+    assert not route.snaps.any() and route.margin.min() >= floor
+    assert np.linalg.norm(route.tips[-1] - (cur.tip_position + err)) <= cfg.tol_mm
+    steps = np.abs(np.diff(np.vstack([cur.q, route.q]), axis=0))
+    assert steps[:, :2].max() <= 5.0 + 1e-9 and steps[:, 2:].max() <= 1.0 + 1e-9   # followed in route steps
 
 
 def test_bad_feedback_settings_are_refused() -> None:
