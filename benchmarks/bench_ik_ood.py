@@ -15,11 +15,13 @@ inputs:
 - pose + joints (recorded): the pose and the joints that made it (cos, sin of α1 − α2, β / 10 mm):
   what a score could see with a perfect IK's answer beside the pose, the ceiling of scoring the
   IK's predicted joints too;
-- position + joints (recorded): the same without the orientation.
+- position + joints (recorded): the same without the orientation;
+- with `--ik`: pose + joints (predicted): the pose and the joints the paper's LSTM-MLP IK (trained
+  here as learned_loop.py trains it, 30 epochs on the training walks) answers for it: what scoring
+  the IK's own answer beside its input gives with this IK.
 
 Calibrated on the first half of the held-out walks, AUROC against the second half. No model is
-trained: the question is what the inputs can tell apart, not how well an IK predicts. Ends with one
-JSON line.
+trained (but with `--ik`): the question is what the inputs can tell apart. Ends with one JSON line.
 """
 
 from __future__ import annotations
@@ -27,6 +29,9 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import tempfile
+from pathlib import Path
+from typing import Any
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
@@ -34,7 +39,7 @@ import numpy as np
 
 import learned_loop  # benchmarks/, beside this file
 from ctrkin.data.dataset import Dataset
-from ctrkin.inference.uncertainty import row_runs
+from ctrkin.inference.uncertainty import predict_rows, row_runs
 from ctrkin.models.uncertainty import Uncertainty
 from ctrkin.robots import load_robot, paper_robot
 from ctrkin.virtual.robot import VirtualRobot
@@ -46,20 +51,29 @@ def bounds(ds: Dataset) -> list[tuple[int, int]]:
     return row_runs(ds.frame["sequence_id"].to_numpy(), np.arange(len(ds.frame)))
 
 
-def inputs(ds: Dataset) -> dict[str, np.ndarray]:
-    """The scored inputs of every row (module docstring), two tubes or more (α1 against αN)."""
-    pose, q = ds.poses(), ds.joints()
-    n = ds.n_tubes
+def joint_features(q: np.ndarray, n: int) -> np.ndarray:
+    """(T, 2 + N): cos, sin of α1 − αN and β / 10 mm of joints q (T, 2N)."""
     rel = np.radians(q[:, 0] - q[:, n - 1])
-    joints = np.c_[np.cos(rel), np.sin(rel), q[:, n:] / 10.0]
-    return {"pose": pose, "position": pose[:, :3], "pose + joints (recorded)": np.c_[pose, joints],
-            "position + joints (recorded)": np.c_[pose[:, :3], joints]}
+    return np.c_[np.cos(rel), np.sin(rel), q[:, n:] / 10.0]
+
+
+def inputs(ds: Dataset, ik: Any = None) -> dict[str, np.ndarray]:
+    """The scored inputs of every row (module docstring), two tubes or more (α1 against αN); with
+    ik (a Kinematics) also the pose with its predicted joints."""
+    pose, q = ds.poses(), ds.joints()
+    joints = joint_features(q, ds.n_tubes)
+    out = {"pose": pose, "position": pose[:, :3], "pose + joints (recorded)": np.c_[pose, joints],
+           "position + joints (recorded)": np.c_[pose[:, :3], joints]}
+    if ik is not None:
+        out["pose + joints (predicted)"] = np.c_[pose, joint_features(predict_rows(ik, ds)[0], ds.n_tubes)]
+    return out
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--robot", default="paper")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--ik", action="store_true", help="also train the IK and score its predicted joints")
     args = ap.parse_args()
     robot = paper_robot() if args.robot == "paper" else load_robot(args.robot)
     vr = VirtualRobot(robot, seed=args.seed)
@@ -75,8 +89,19 @@ def main() -> None:
     half = len(hb) // 2
     cut = hb[half][0]
     test_bounds = [(a - cut, b - cut) for a, b in hb[half:]]
-    x_train, x_held = inputs(train), inputs(held)
-    x_ood = {k: inputs(d) for k, d in ood.items()}
+    ik = None
+    with tempfile.TemporaryDirectory() as tmp:
+        if args.ik:
+            from ctrkin import Kinematics
+            from ctrkin.training import TrainConfig
+            from ctrkin.training import train as train_model
+
+            cfg = TrainConfig(task="ik", max_epochs=30, threads=1, batch_size=128, lr=2e-3,
+                              options={"structure": "L64|D64"})
+            train_model(train, cfg, Path(tmp) / "ik", progress=False)
+            ik = Kinematics.load(Path(tmp) / "ik")
+        x_train, x_held = inputs(train, ik), inputs(held, ik)
+        x_ood = {k: inputs(d, ik) for k, d in ood.items()}
     out: dict[str, dict[str, float]] = {}
     print(f"IK OOD score on the {robot.name} robot (virtual, defaults, seed {args.seed}): AUROC, held-out "
           f"in-range walks against each kind")
