@@ -103,3 +103,41 @@ def run_virtual(controller: Controller, robot: VirtualRobot, targets: np.ndarray
         true_tips[t] = seen[:3]
     return LoopResult(joints, true_tips, measured, np.asarray(targets, float), snaps, cycle_s, stopped_at)
 
+
+
+class VirtualRig:
+    """The virtual robot as a rig for control.plan_feedback: its motors (backlash, friction, the true
+    tubes' mechanics) and its tracker (5 noisy readings averaged, noise drawn from `seed`), at rest
+    at motor joints start (2N,). Beside what a rig gives it keeps what only a simulator knows, for
+    judging: true_poses (T, 6) robot base frame, one per joint command; snaps (T,) bool, a fold of
+    the true robot crossed."""
+
+    def __init__(self, robot: VirtualRobot, start: np.ndarray, seed: int = 0) -> None:
+        self.robot = robot
+        self.state = robot.rest(start)
+        self.rng = np.random.default_rng(seed)
+        self.pose = self.state.equilibrium.tip_pose
+        self._poses: list[np.ndarray] = []
+        self._snaps: list[np.ndarray] = []
+
+    def move(self, q: np.ndarray) -> None:
+        motion, self.state = self.robot.move(self.state, np.atleast_2d(q))
+        self.pose = motion.true_poses[-1]
+        self._poses.append(motion.true_poses)
+        self._snaps.append(motion.snaps)
+
+    def measure(self) -> np.ndarray:
+        return np.asarray(self.robot.tracker.measure(self.pose[None, :], self.rng)[0, :3])
+
+    @property
+    def true_poses(self) -> np.ndarray:
+        return np.concatenate(self._poses) if self._poses else np.empty((0, 6))
+
+    @property
+    def snaps(self) -> np.ndarray:
+        return np.concatenate(self._snaps) if self._snaps else np.empty(0, bool)
+
+    def seen(self, poses: np.ndarray) -> np.ndarray:
+        """(T, 3) mm: true poses (T, 6) as the tracker sees them without noise (the reference of the
+        feedback: its frame, its sensor point, its field)."""
+        return np.asarray(self.robot.tracker.registered(poses)[:, :3])
