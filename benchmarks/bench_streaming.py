@@ -203,6 +203,13 @@ def _floor_kernel() -> Any:
 
 def floor_call(kin: Any, dtype: type) -> tuple[Any, int]:
     """The bare chain in `dtype` on the weights of `kin` (a call without arguments), its multiply-adds."""
+    chain, args, macs = floor_parts(kin, dtype)
+    return (lambda: chain(*args)), macs
+
+
+def floor_parts(kin: Any, dtype: type) -> tuple[Any, tuple[np.ndarray, ...], int]:
+    """The bare chain's compiled kernel, its arguments in `dtype` on the weights of `kin`, its
+    multiply-adds."""
     net = kin.net
     lstm, dense, out = net.seq[0], net.head[0], net.out
     w = [np.ascontiguousarray(t.detach().numpy(), dtype=dtype) for t in (lstm.weight_ih_l0, lstm.weight_hh_l0,
@@ -215,7 +222,7 @@ def floor_call(kin: Any, dtype: type) -> tuple[Any, int]:
     args = (x, w[0], w[1], w[2], h, w[3], w[4], w[5], w[6], gates, z, hid, y)
     chain = _floor_kernel()
     chain(*args)
-    return (lambda: chain(*args)), w[0].size + w[1].size + w[3].size + w[5].size
+    return chain, args, w[0].size + w[1].size + w[3].size + w[5].size
 
 
 def floor_us(model: Path, dtype: type, calls: int = 1000) -> tuple[float, int]:
@@ -385,6 +392,24 @@ def reproduction_table(run: Path, steps: int, rounds: int) -> dict[str, float]:
     return figures
 
 
+def breakdown(model: Path, xs: np.ndarray, rounds: int) -> None:
+    """The step's layers and the kernel's pieces against the floor (streaming_breakdown.py): a table
+    and one JSON line."""
+    from ctrkin.inference import Kinematics
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import streaming_breakdown as sb
+
+    kin = Kinematics.load(model)
+    chain, args, _ = floor_parts(kin, np.float64)
+    load_before = os.getloadavg()
+    us, ratio = sb.measure(sb.variants(kin, xs, lambda: chain(*args), args, chain), rounds)
+    print("load:", subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip())
+    figures = {"breakdown_us": sb.table(us, ratio), "step_to_floor": ratio["Kinematics.step"],
+               "load_1min": [load_before[0], os.getloadavg()[0]]}
+    print(json.dumps(figures))
+
+
 def main() -> None:
     if len(sys.argv) == 4 and sys.argv[1] == "--worker":
         worker(Path(sys.argv[2]), Path(sys.argv[3]))
@@ -396,6 +421,9 @@ def main() -> None:
                     help="alternating old/new rounds (and face / predictor rounds with --all-models)")
     ap.add_argument("--all-models", action="store_true", help="with --run: every model's step (issue 8)")
     ap.add_argument("--steps", type=int, default=3000, help="--all-models: steps per model")
+    ap.add_argument("--breakdown", action="store_true",
+                    help="only where the step's distance from its floor goes, this tree's code "
+                         "(streaming_breakdown.py)")
     args = ap.parse_args()
     import torch
 
@@ -406,6 +434,9 @@ def main() -> None:
             raise SystemExit(f"{args.run}/models not found: run `ctrkin reproduce --out {args.run}` first")
         old_src = baseline_tree(args.baseline)
         model, joints = run_model(args.run) if args.run is not None else stand_in_model(folder, old_src)
+        if args.breakdown:
+            breakdown(model, np.ascontiguousarray(joints[:3000], dtype=np.float64), args.rounds)
+            return
         figures: dict[str, Any] = {}
         if args.all_models and args.run is not None:
             figures.update(reproduction_table(args.run, args.steps, args.rounds))
