@@ -51,11 +51,10 @@ def _loops() -> dict[str, Any]:
     from ctrkin.models.fused import _fk_step
 
     @njit
-    def fk_step(n, raw, shift, prev, prev_out, consts, cwhere, state, swhere, ints, iwhere, cfg, branch,
-                gate_state, motion, outer_prev, lag, y):
+    def fk_step(n, raw, shift, prev, consts, state, ints, branch, gate_state, motion, outer_prev, lag):
         for _ in range(n):
-            _fk_step(raw, shift, prev, True, prev_out, consts, cwhere, state, swhere, ints, iwhere, cfg,
-                     False, branch, gate_state, motion, outer_prev, lag, y)
+            _fk_step(raw, shift, prev, consts, state, ints, True, False, branch, gate_state, motion,
+                     outer_prev, lag)
 
     @njit
     def lstm(n, x, w_ih, w_hh, b, h, c, h2, c2, g, t, bits):
@@ -96,17 +95,12 @@ def variants(kin: Any, xs: np.ndarray, floor: Callable[[], Any], floor_args: tup
         kin.step(x)
     it = iter(np.tile(xs, (1000, 1)))
     shift, prev = pred._shift, pred._prev.copy()
-    y = np.empty(6)
-    args = (shift, prev, True, fused.prev, fused.consts.buf, fused.consts.where, fused.state.buf,
-            fused.state.where, fused.ints.buf, fused.ints.where, fused.config, False, eng.state,
-            pred._gate_state, pred._outer_motion, pred._outer_prev, 0.0, y)
+    consts, state_buf, ints = fused._bufs
+    scalars = (eng.state, pred._gate_state, pred._outer_motion, pred._outer_prev, 0.0)
     from ctrkin.models.fused import _fk_step
 
     loops = _loops()
-    raw0 = np.ascontiguousarray(xs[0])
-    kernel_args = (raw0, shift, prev, fused.prev, fused.consts.buf, fused.consts.where, fused.state.buf,
-                   fused.state.where, fused.ints.buf, fused.ints.where, fused.config, eng.state,
-                   pred._gate_state, pred._outer_motion, pred._outer_prev, 0.0, y)
+    kernel_args = (np.ascontiguousarray(xs[0]), shift, prev, consts, state_buf, ints, *scalars)
     w_ih, w_hh, b = fused.lstm
     g, t = eng._g[0].copy(), eng._t[0].copy()
     bits = eng._bits[0].copy()
@@ -125,8 +119,9 @@ def variants(kin: Any, xs: np.ndarray, floor: Callable[[], Any], floor_args: tup
     steps: dict[str, Callable[[], float]] = {
         "Kinematics.step": _per_call(lambda: kin.step(next(it)), 1),
         "FKPredictor.step": _per_call(lambda: pred.step(next(it)), 1),
-        "FusedFK.step": _per_call(lambda: fused.step(next(it), shift, prev, args[13], args[14], args[15]), 1),
-        "the kernel call": _per_call(lambda: _fk_step(next(it), *args), 1),
+        "FusedFK.step": _per_call(lambda: fused.step(next(it), shift, prev, *scalars[1:4]), 1),
+        "the kernel call": _per_call(lambda: _fk_step(next(it), shift, prev, consts, state_buf, ints, True,
+                                                      False, *scalars), 1),
     }
     for name in loops:
         fn, a = loops[name], state[name]

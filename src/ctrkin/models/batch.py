@@ -12,11 +12,67 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
+import numba
 import numpy as np
 import torch
 from torch import nn
 
 from ctrkin.models.seqnet import SeqNet
+
+# ln 2 in two float32 parts (Cody-Waite: k·ln2_hi is exact for |k| ≤ 126) and 1/ln 2
+_LN2_HI, _LN2_LO = np.float32(0.693359375), np.float32(-2.12194440e-4)
+_INV_LN2 = np.float32(1.4426950408889634)
+_F32 = np.float32
+
+
+@numba.njit(cache=True, fastmath=True, error_model="numpy")
+def _sigmoid32(x: np.ndarray, bits: np.ndarray) -> None:
+    """x <- 1 / (1 + exp(−x)) in float32, in place on a 1-D array, in loops LLVM vectorises (the
+    float64 kernel's method, ctrkin.models.engine._sigmoid_inplace): exp by Cody-Waite reduction to
+    |r| ≤ ln2/2, a degree-6 Taylor polynomial (relative error < 1e-7, float32 round-off) and 2^k
+    built in the exponent bits (k within ±126: σ is 0 or 1 to float32 beyond). bits: int32 scratch of
+    x's size. error_model="numpy": no per-division zero check (1 + e^−x ≥ 1)."""
+    n = x.size
+    for j in range(n):
+        v = min(max(-x[j], _F32(-87.0)), _F32(87.0))
+        k = np.floor(v * _INV_LN2 + _F32(0.5))
+        r = (v - k * _LN2_HI) - k * _LN2_LO
+        x[j] = _F32(1.0) + r * (_F32(1.0) + r * (_F32(1 / 2) + r * (_F32(1 / 6) + r * (_F32(1 / 24) + r * (
+            _F32(1 / 120) + r * _F32(1 / 720))))))
+        bits[j] = (np.int32(k) + np.int32(127)) << np.int32(23)
+    two_k = bits[:n].view(np.float32)
+    for j in range(n):
+        x[j] = _F32(1.0) / (_F32(1.0) + x[j] * two_k[j])
+
+
+@numba.njit(cache=True, fastmath=True, error_model="numpy")
+def _lstm_position(rec: np.ndarray, gx: np.ndarray, first: bool, c: np.ndarray, out: np.ndarray,
+                   col: int) -> None:
+    """One LSTM position for n chains, elementwise in one pass per chain (float32): gates = gx (n, 4H)
+    (the input projections with the bias) + rec (n, 4H) (the recurrent products; not read if
+    `first`: zero state), gate order i, f, g, o with the g rows doubled (tanh(g) = 2σ(2g) − 1, as
+    `_scaled`); c (n, H) the cell states, updated; h (n, H) written to out[:, col:col + H]."""
+    n, four_h = gx.shape
+    hid = four_h // 4
+    g = np.empty(four_h, np.float32)
+    t = np.empty(hid, np.float32)
+    bits = np.empty(four_h, np.int32)
+    for r in range(n):
+        if first:
+            g[:] = gx[r]
+        else:
+            for k in range(four_h):
+                g[k] = gx[r, k] + rec[r, k]
+        _sigmoid32(g, bits)
+        for u in range(hid):
+            cc = g[u] * (_F32(2.0) * g[2 * hid + u] - _F32(1.0))           # σ(i)·tanh(g)
+            if not first:
+                cc += g[hid + u] * c[r, u]                                  # + σ(f)·c
+            c[r, u] = cc
+            t[u] = _F32(2.0) * cc
+        _sigmoid32(t, bits)
+        for u in range(hid):
+            out[r, col + u] = g[3 * hid + u] * (_F32(2.0) * t[u] - _F32(1.0))   # σ(o)·tanh(c)
 
 
 def padded_rows(features: np.ndarray, bounds: list[tuple[int, int]], ib: int
@@ -115,6 +171,8 @@ def _trunk_chunks(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: in
     x_all = torch.from_numpy(np.ascontiguousarray(padded, dtype=np.float32))
     s_all = torch.from_numpy(np.asarray(starts, dtype=np.int64))
     weights = {id(m): _scaled_lstm_weights(m) for m in net.seq if isinstance(m, nn.LSTM)}
+    # one LSTM layer (the paper's L128|D64): its elementwise work in one numba pass per position
+    fused = weights[id(net.seq[0])] if len(net.seq) == 1 and isinstance(net.seq[0], nn.LSTM) else None
     done = 0
     while done < len(starts):
         lo = int(starts[done])
@@ -122,6 +180,11 @@ def _trunk_chunks(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: in
         n_here = int(np.searchsorted(starts, hi, side="left")) - done
         rows = x_all[lo:hi + ib - 1]
         n = hi - lo
+        if fused is not None:
+            h = _one_lstm(fused, rows, n, ib, net.pooling)
+            yield slice(done, done + n_here), h[s_all[done:done + n_here] - lo]
+            done += n_here
+            continue
         inputs = [rows[k:k + n] for k in range(ib)]
         first = True
         for layer in net.seq:
@@ -141,3 +204,23 @@ def _trunk_chunks(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: in
         sel = s_all[done:done + n_here] - lo
         yield slice(done, done + n_here), h[sel]
         done += n_here
+
+
+def _one_lstm(weights: tuple[torch.Tensor, torch.Tensor, torch.Tensor], rows: torch.Tensor, n: int, ib: int,
+              pooling: str) -> torch.Tensor:
+    """The trunk features (n, IB·H | H) of the n chains starting at rows[0..n) (rows: (n + IB − 1, F))
+    of a network whose per-step layers are one LSTM: the products by torch (float32 BLAS), the gates
+    and cell updates by `_lstm_position` (one pass, instead of about ten torch operations over the
+    gate values: issue 26, B = 1,024)."""
+    w_ih, w_hh, bias = weights
+    hid = w_hh.shape[1]
+    gx = torch.addmm(bias, rows, w_ih.t()).numpy()                 # (n + IB − 1, 4H): each row once
+    window = np.empty((n, ib * hid), np.float32)
+    c = np.empty((n, hid), np.float32)
+    rec = np.empty((n, 4 * hid), np.float32)
+    win_t, rec_t, w_hh_t = torch.from_numpy(window), torch.from_numpy(rec), w_hh.t()
+    for k in range(ib):
+        if k > 0:
+            torch.mm(win_t[:, (k - 1) * hid:k * hid], w_hh_t, out=rec_t)
+        _lstm_position(rec, gx[k:k + n], k == 0, c, window, k * hid)
+    return win_t if pooling == "flatten" else win_t[:, (ib - 1) * hid:]
