@@ -283,8 +283,9 @@ def stand_in_model(folder: Path, old_src: Path) -> tuple[Path, np.ndarray]:
     trained by the baseline's code, whose model folders both trees read."""
     from ctrkin.data.dataset import Dataset
 
-    subprocess.run([sys.executable, "-c", STAND_IN, str(folder / "fk")], check=True,
-                   env={**os.environ, "PYTHONPATH": str(old_src)})
+    if not (folder / "fk_data").is_dir():
+        subprocess.run([sys.executable, "-c", STAND_IN, str(folder / "fk")], check=True,
+                       env={**os.environ, "PYTHONPATH": str(old_src)})
     return folder / "fk", Dataset.load(folder / "fk_data").joints()
 
 
@@ -421,6 +422,8 @@ def main() -> None:
                     help="alternating old/new rounds (and face / predictor rounds with --all-models)")
     ap.add_argument("--all-models", action="store_true", help="with --run: every model's step (issue 8)")
     ap.add_argument("--steps", type=int, default=3000, help="--all-models: steps per model")
+    ap.add_argument("--keep", type=Path, default=None,
+                    help="train the stand-in model into this folder once and reuse it in later runs")
     ap.add_argument("--breakdown", action="store_true",
                     help="only where the step's distance from its floor goes, this tree's code "
                          "(streaming_breakdown.py)")
@@ -433,7 +436,8 @@ def main() -> None:
         if args.run is not None and not (args.run / "models").is_dir():
             raise SystemExit(f"{args.run}/models not found: run `ctrkin reproduce --out {args.run}` first")
         old_src = baseline_tree(args.baseline)
-        model, joints = run_model(args.run) if args.run is not None else stand_in_model(folder, old_src)
+        model, joints = (run_model(args.run) if args.run is not None
+                         else stand_in_model(args.keep or folder, old_src))
         if args.breakdown:
             breakdown(model, np.ascontiguousarray(joints[:3000], dtype=np.float64), args.rounds)
             return

@@ -10,6 +10,7 @@ per-call overhead. Equal to `net(windows)` up to float32 round-off (tested).
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
 
 import numba
@@ -23,15 +24,17 @@ from ctrkin.models.seqnet import SeqNet
 _LN2_HI, _LN2_LO = np.float32(0.693359375), np.float32(-2.12194440e-4)
 _INV_LN2 = np.float32(1.4426950408889634)
 _F32 = np.float32
+FUSED_CHUNK = 256      # rows per chunk of the one-LSTM pass: its gate buffers (0.5 MB) stay in L2
 
 
 @numba.njit(cache=True, fastmath=True, error_model="numpy")
-def _sigmoid32(x: np.ndarray, bits: np.ndarray) -> None:
+def _sigmoid32(x: np.ndarray, bits: np.ndarray, two_k: np.ndarray) -> None:
     """x <- 1 / (1 + exp(−x)) in float32, in place on a 1-D array, in loops LLVM vectorises (the
     float64 kernel's method, ctrkin.models.engine._sigmoid_inplace): exp by Cody-Waite reduction to
     |r| ≤ ln2/2, a degree-6 Taylor polynomial (relative error < 1e-7, float32 round-off) and 2^k
-    built in the exponent bits (k within ±126: σ is 0 or 1 to float32 beyond). bits: int32 scratch of
-    x's size. error_model="numpy": no per-division zero check (1 + e^−x ≥ 1)."""
+    built in the exponent bits (k within ±126: σ is 0 or 1 to float32 beyond). bits: int32 scratch at
+    least x's size, two_k: its float32 view (made once by the caller: a view made here per call cost
+    more than the arithmetic). error_model="numpy": no per-division zero check (1 + e^−x ≥ 1)."""
     n = x.size
     for j in range(n):
         v = min(max(-x[j], _F32(-87.0)), _F32(87.0))
@@ -40,7 +43,6 @@ def _sigmoid32(x: np.ndarray, bits: np.ndarray) -> None:
         x[j] = _F32(1.0) + r * (_F32(1.0) + r * (_F32(1 / 2) + r * (_F32(1 / 6) + r * (_F32(1 / 24) + r * (
             _F32(1 / 120) + r * _F32(1 / 720))))))
         bits[j] = (np.int32(k) + np.int32(127)) << np.int32(23)
-    two_k = bits[:n].view(np.float32)
     for j in range(n):
         x[j] = _F32(1.0) / (_F32(1.0) + x[j] * two_k[j])
 
@@ -57,20 +59,22 @@ def _lstm_position(rec: np.ndarray, gx: np.ndarray, first: bool, c: np.ndarray, 
     g = np.empty(four_h, np.float32)
     t = np.empty(hid, np.float32)
     bits = np.empty(four_h, np.int32)
+    two_k = bits.view(np.float32)
     for r in range(n):
         if first:
-            g[:] = gx[r]
+            for k in range(four_h):
+                g[k] = gx[r, k]
         else:
             for k in range(four_h):
                 g[k] = gx[r, k] + rec[r, k]
-        _sigmoid32(g, bits)
+        _sigmoid32(g, bits, two_k)
         for u in range(hid):
             cc = g[u] * (_F32(2.0) * g[2 * hid + u] - _F32(1.0))           # σ(i)·tanh(g)
             if not first:
                 cc += g[hid + u] * c[r, u]                                  # + σ(f)·c
             c[r, u] = cc
             t[u] = _F32(2.0) * cc
-        _sigmoid32(t, bits)
+        _sigmoid32(t, bits, two_k)
         for u in range(hid):
             out[r, col + u] = g[3 * hid + u] * (_F32(2.0) * t[u] - _F32(1.0))   # σ(o)·tanh(c)
 
@@ -173,6 +177,8 @@ def _trunk_chunks(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: in
     weights = {id(m): _scaled_lstm_weights(m) for m in net.seq if isinstance(m, nn.LSTM)}
     # one LSTM layer (the paper's L128|D64): its elementwise work in one numba pass per position
     fused = weights[id(net.seq[0])] if len(net.seq) == 1 and isinstance(net.seq[0], nn.LSTM) else None
+    if fused is not None:
+        chunk = min(chunk, FUSED_CHUNK)
     done = 0
     while done < len(starts):
         lo = int(starts[done])
@@ -181,8 +187,8 @@ def _trunk_chunks(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: in
         rows = x_all[lo:hi + ib - 1]
         n = hi - lo
         if fused is not None:
-            h = _one_lstm(fused, rows, n, ib, net.pooling)
-            yield slice(done, done + n_here), h[s_all[done:done + n_here] - lo]
+            h = _one_lstm(fused, rows, n, ib, net.pooling)          # this thread's buffer: copied
+            yield slice(done, done + n_here), h.clone() if n_here == n else h[s_all[done:done + n_here] - lo]
             done += n_here
             continue
         inputs = [rows[k:k + n] for k in range(ib)]
@@ -211,16 +217,28 @@ def _one_lstm(weights: tuple[torch.Tensor, torch.Tensor, torch.Tensor], rows: to
     """The trunk features (n, IB·H | H) of the n chains starting at rows[0..n) (rows: (n + IB − 1, F))
     of a network whose per-step layers are one LSTM: the products by torch (float32 BLAS), the gates
     and cell updates by `_lstm_position` (one pass, instead of about ten torch operations over the
-    gate values: issue 26, B = 1,024)."""
+    gate values: issue 26, B = 1,024), in buffers this thread keeps (valid until its next call)."""
     w_ih, w_hh, bias = weights
     hid = w_hh.shape[1]
-    gx = torch.addmm(bias, rows, w_ih.t()).numpy()                 # (n + IB − 1, 4H): each row once
-    window = np.empty((n, ib * hid), np.float32)
-    c = np.empty((n, hid), np.float32)
-    rec = np.empty((n, 4 * hid), np.float32)
+    gx = _scratch("gx", (n + ib - 1, 4 * hid))
+    torch.addmm(bias, rows, w_ih.t(), out=torch.from_numpy(gx))         # each row's projection once
+    window, c, rec = _scratch("window", (n, ib * hid)), _scratch("c", (n, hid)), _scratch("rec", (n, 4 * hid))
     win_t, rec_t, w_hh_t = torch.from_numpy(window), torch.from_numpy(rec), w_hh.t()
     for k in range(ib):
         if k > 0:
             torch.mm(win_t[:, (k - 1) * hid:k * hid], w_hh_t, out=rec_t)
         _lstm_position(rec, gx[k:k + n], k == 0, c, window, k * hid)
     return win_t if pooling == "flatten" else win_t[:, (ib - 1) * hid:]
+
+
+_SCRATCH = threading.local()
+
+
+def _scratch(name: str, shape: tuple[int, int]) -> np.ndarray:
+    """A float32 array of `shape` that this thread keeps between calls under `name` (one allocated
+    afresh each call cost its page faults: ~0.5 ms of a 1,024-row call)."""
+    size = shape[0] * shape[1]
+    buf = _SCRATCH.__dict__.get(name)
+    if buf is None or buf.size < size:
+        buf = _SCRATCH.__dict__[name] = np.empty(size, np.float32)
+    return buf[:size].reshape(shape)
