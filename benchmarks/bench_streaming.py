@@ -5,6 +5,7 @@ floor) and ONNX Runtime on one thread, the old code beside the new in one run.
     python benchmarks/bench_streaming.py                       # a stand-in paper FK model (below)
     python benchmarks/bench_streaming.py --run out/reproduce   # the reproduction's fk_lstm_mlp
     python benchmarks/bench_streaming.py --run out/reproduce --all-models   # + the issue 8 table
+    python benchmarks/bench_streaming.py --breakdown           # where the step's distance from its floor goes
 
 The model: the paper's LSTM-MLP FK (L128|D64, IB 2, 85,376 multiply-adds a step) of a reproduction
 (`--run`, made by code both trees read), or, without one, the same network trained for one epoch on
@@ -23,7 +24,9 @@ rows for B = 1, 32, 1024, 65,536, and ONNX Runtime's on B windows; `predict_call
 intercept of a least-squares line through predict's times at B = 1..16 (the cost of a call beyond its
 rows; the new code runs these rows through the fused step), `predict_torch_call_overhead_us` the same
 at B = 32..256 (the batch path by chains in torch).
-Prints a table with `uptime` and ends with one JSON line.
+Prints a table with `uptime` and ends with one JSON line. `--breakdown`: only this tree's step, its
+layers peeled off one at a time and the kernel's pieces alone, against the floor
+(benchmarks/streaming_breakdown.py). `--keep DIR`: the stand-in model trained into DIR once and reused.
 """
 
 from __future__ import annotations

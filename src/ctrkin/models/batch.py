@@ -6,6 +6,12 @@ large matrix products: the input projection of the first LSTM is computed once p
 window position), and position 0 of every chain needs no recurrent product (zero state). For the
 paper's IB = 2 this halves the LSTM work of running nn.LSTM on (T, IB, F) windows, and avoids its
 per-call overhead. Equal to `net(windows)` up to float32 round-off (tested).
+
+A network whose per-step layers are one LSTM (the paper's L128|D64) keeps torch for the products (float32
+BLAS) and does each position's gates and cell update in one float32 numba pass (`_lstm_position`),
+in chunks of FUSED_CHUNK rows with buffers each thread keeps: about ten torch operations over the
+gate values, each a pass over memory, and fresh buffers' page faults cost more than the products at
+mid-size batches (issue 26; docs/learned_kinematics.md: Against the floor).
 """
 
 from __future__ import annotations

@@ -37,7 +37,7 @@ from ctrkin.models.features import (
     window_index,
 )
 from ctrkin.models.frame import OuterFrame, local_tips_to_world
-from ctrkin.models.fused import DECLINED, Clip, FusedFK, Relay
+from ctrkin.models.fused import DECLINED, Clip, FusedFK, Relay, _fk_step
 from ctrkin.models.guards import FKGuard
 from ctrkin.models.motion import outer_motion, recorded_motion
 from ctrkin.models.onnx_graph import write_onnx
@@ -266,15 +266,17 @@ class FKPredictor(BasePredictor):
             shift, prev = self._shift, self._prev
             if prev is None or shift is None:          # a sequence's first step fixes its whole turns
                 shift = self._guard.step(x, None)[1]
-            y, (gate_state, motion, outer_prev, branch) = fused.step(
-                x, shift, prev, self._gate_state, self._outer_motion, self._outer_prev,
+            engine = fused.engine                        # self._engine, typed
+            consts, state, ints = fused._bufs
+            gate_state, motion, outer_prev, branch = _fk_step(            # FusedFK.step, inline
+                x, shift, fused._none if prev is None else prev, consts, state, ints, prev is not None,
+                engine._fresh, engine.state, self._gate_state, self._outer_motion, self._outer_prev,
                 self._lag_at(x) if self._fused_lag else 0.0)
             if gate_state != DECLINED:
                 self._shift, self._prev = shift, fused.prev
                 self._gate_state, self._outer_motion, self._outer_prev = gate_state, motion, outer_prev
-                engine = self._engine
                 engine._fresh, engine.state = False, branch
-                return y
+                return fused._y.copy()
         raw = real_array(by_name(x, self.layout.raw_names, "joints"))
         if raw.shape != (self.layout.raw_width,):
             raise ModelError(f"step() expects shape ({self.layout.raw_width},), got {raw.shape}")
