@@ -5,8 +5,7 @@ The step is timed with its layers peeled off one at a time, each variant a call 
 one above it, all in alternating blocks of `BLOCK` calls (a load burst falls on every variant alike):
 
     Kinematics.step        the face (thread check) + ...
-    FKPredictor.step       the predictor's type checks, shift, lag, state write-back + ...
-    FusedFK.step           the result array, the returned tuple + ...
+    FKPredictor.step       the predictor's type checks, shift, lag, state write-back, result copy + ...
     the kernel call        numba's dispatch of the arguments + ...
     the kernel in a loop   the compiled step, called `LOOP` times inside numba (no dispatch)
 
@@ -119,7 +118,6 @@ def variants(kin: Any, xs: np.ndarray, floor: Callable[[], Any], floor_args: tup
     steps: dict[str, Callable[[], float]] = {
         "Kinematics.step": _per_call(lambda: kin.step(next(it)), 1),
         "FKPredictor.step": _per_call(lambda: pred.step(next(it)), 1),
-        "FusedFK.step": _per_call(lambda: fused.step(next(it), shift, prev, *scalars[1:4]), 1),
         "the kernel call": _per_call(lambda: _fk_step(next(it), shift, prev, consts, state_buf, ints, True,
                                                       False, *scalars), 1),
     }
@@ -170,8 +168,7 @@ def table(us: dict[str, float], ratio: dict[str, float]) -> dict[str, float]:
     rows = [
         ("Kinematics.step (the step as timed)", "Kinematics.step", None),
         ("  the face (thread check)", "Kinematics.step", "FKPredictor.step"),
-        ("  FKPredictor.step: checks, shift, lag, state", "FKPredictor.step", "FusedFK.step"),
-        ("  FusedFK.step: result array and tuple", "FusedFK.step", "the kernel call"),
+        ("  FKPredictor.step: checks, shift, state, result", "FKPredictor.step", "the kernel call"),
         ("  numba dispatch of the kernel's arguments", "the kernel call", "loop:fk_step"),
         ("  the kernel (in a numba loop)", "loop:fk_step", None),
         ("    LSTM cell updates of the IB chains", "loop:lstm", None),
