@@ -170,13 +170,14 @@ def seqnet_predict(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: i
 def seqnet_trunk(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: int = 1024) -> torch.Tensor:
     """(T, trunk_width) trunk features (net.trunk of every window), by chains; arguments as
     `seqnet_predict`."""
-    parts = [h for _, h in _trunk_chunks(net, padded, starts, chunk)]
+    parts = [h.clone() for _, h in _trunk_chunks(net, padded, starts, chunk)]   # a chunk may be a buffer
     return torch.cat(parts) if parts else torch.zeros((0, net.trunk_width))
 
 
 def _trunk_chunks(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: int
                   ) -> Iterator[tuple[slice, torch.Tensor]]:
-    """Yield (slice of rows, trunk features (rows, W)) chunk by chunk."""
+    """Yield (slice of rows, trunk features (rows, W)) chunk by chunk; the features may be a view of
+    a buffer the next chunk overwrites (`_one_lstm`): use them before asking for the next."""
     ib = net.ib
     x_all = torch.from_numpy(np.ascontiguousarray(padded, dtype=np.float32))
     s_all = torch.from_numpy(np.asarray(starts, dtype=np.int64))
@@ -193,8 +194,8 @@ def _trunk_chunks(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: in
         rows = x_all[lo:hi + ib - 1]
         n = hi - lo
         if fused is not None:
-            h = _one_lstm(fused, rows, n, ib, net.pooling)          # this thread's buffer: copied
-            yield slice(done, done + n_here), h.clone() if n_here == n else h[s_all[done:done + n_here] - lo]
+            h = _one_lstm(fused, rows, n, ib, net.pooling)          # this thread's buffer
+            yield slice(done, done + n_here), h if n_here == n else h[s_all[done:done + n_here] - lo]
             done += n_here
             continue
         inputs = [rows[k:k + n] for k in range(ib)]

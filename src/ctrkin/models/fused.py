@@ -60,16 +60,6 @@ class Relay(NamedTuple):
     band_deg: float
 
 
-class StepState(NamedTuple):
-    """What one fused step returns besides the pose: the fold gate's state (−1 at a start, −2: the
-    step was declined), the outer tube's last rotation m_N, its angle, and the network's branch state."""
-
-    gate_state: int
-    outer_motion: int
-    outer_prev: float
-    branch: float
-
-
 @njit(cache=True)
 def _joints_ok(raw: np.ndarray, shift: np.ndarray, n: int, lengths: np.ndarray, alpha_lo: np.ndarray,
                alpha_hi: np.ndarray) -> bool:
@@ -424,7 +414,7 @@ class FusedFK:
              outer_motion: int, outer_prev: float, lag: float = 0.0) -> tuple[np.ndarray, tuple[Any, ...]]:
         """One step: raw (2N,) joints as given, shift (2N,) the sequence's whole turns, prev the
         previous shifted joints (None at a start), the fold gate's state and m_N, lag the outer frame's
-        λ(β) (deg) -> the (6,) pose and the new state, a StepState's fields (gate_state DECLINED:
+        λ(β) (deg) -> the (6,) pose and the new state (gate state, m_N, αN, branch state; DECLINED:
         nothing changed, take the reference path)."""
         consts, state, ints = self._bufs
         e = self.engine
