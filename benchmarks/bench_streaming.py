@@ -5,6 +5,7 @@ floor) and ONNX Runtime on one thread, the old code beside the new in one run.
     python benchmarks/bench_streaming.py                       # a stand-in paper FK model (below)
     python benchmarks/bench_streaming.py --run out/reproduce   # the reproduction's fk_lstm_mlp
     python benchmarks/bench_streaming.py --run out/reproduce --all-models   # + the issue 8 table
+    python benchmarks/bench_streaming.py --breakdown           # where the step's distance from its floor goes
 
 The model: the paper's LSTM-MLP FK (L128|D64, IB 2, 85,376 multiply-adds a step) of a reproduction
 (`--run`, made by code both trees read), or, without one, the same network trained for one epoch on
@@ -23,7 +24,9 @@ rows for B = 1, 32, 1024, 65,536, and ONNX Runtime's on B windows; `predict_call
 intercept of a least-squares line through predict's times at B = 1..16 (the cost of a call beyond its
 rows; the new code runs these rows through the fused step), `predict_torch_call_overhead_us` the same
 at B = 32..256 (the batch path by chains in torch).
-Prints a table with `uptime` and ends with one JSON line.
+Prints a table with `uptime` and ends with one JSON line. `--breakdown`: only this tree's step, its
+layers peeled off one at a time and the kernel's pieces alone, against the floor
+(benchmarks/streaming_breakdown.py). `--keep DIR`: the stand-in model trained into DIR once and reused.
 """
 
 from __future__ import annotations
@@ -203,6 +206,13 @@ def _floor_kernel() -> Any:
 
 def floor_call(kin: Any, dtype: type) -> tuple[Any, int]:
     """The bare chain in `dtype` on the weights of `kin` (a call without arguments), its multiply-adds."""
+    chain, args, macs = floor_parts(kin, dtype)
+    return (lambda: chain(*args)), macs
+
+
+def floor_parts(kin: Any, dtype: type) -> tuple[Any, tuple[np.ndarray, ...], int]:
+    """The bare chain's compiled kernel, its arguments in `dtype` on the weights of `kin`, its
+    multiply-adds."""
     net = kin.net
     lstm, dense, out = net.seq[0], net.head[0], net.out
     w = [np.ascontiguousarray(t.detach().numpy(), dtype=dtype) for t in (lstm.weight_ih_l0, lstm.weight_hh_l0,
@@ -215,7 +225,7 @@ def floor_call(kin: Any, dtype: type) -> tuple[Any, int]:
     args = (x, w[0], w[1], w[2], h, w[3], w[4], w[5], w[6], gates, z, hid, y)
     chain = _floor_kernel()
     chain(*args)
-    return (lambda: chain(*args)), w[0].size + w[1].size + w[3].size + w[5].size
+    return chain, args, w[0].size + w[1].size + w[3].size + w[5].size
 
 
 def floor_us(model: Path, dtype: type, calls: int = 1000) -> tuple[float, int]:
@@ -276,8 +286,9 @@ def stand_in_model(folder: Path, old_src: Path) -> tuple[Path, np.ndarray]:
     trained by the baseline's code, whose model folders both trees read."""
     from ctrkin.data.dataset import Dataset
 
-    subprocess.run([sys.executable, "-c", STAND_IN, str(folder / "fk")], check=True,
-                   env={**os.environ, "PYTHONPATH": str(old_src)})
+    if not (folder / "fk_data").is_dir():
+        subprocess.run([sys.executable, "-c", STAND_IN, str(folder / "fk")], check=True,
+                       env={**os.environ, "PYTHONPATH": str(old_src)})
     return folder / "fk", Dataset.load(folder / "fk_data").joints()
 
 
@@ -385,6 +396,24 @@ def reproduction_table(run: Path, steps: int, rounds: int) -> dict[str, float]:
     return figures
 
 
+def breakdown(model: Path, xs: np.ndarray, rounds: int) -> None:
+    """The step's layers and the kernel's pieces against the floor (streaming_breakdown.py): a table
+    and one JSON line."""
+    from ctrkin.inference import Kinematics
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import streaming_breakdown as sb
+
+    kin = Kinematics.load(model)
+    chain, args, _ = floor_parts(kin, np.float64)
+    load_before = os.getloadavg()
+    us, ratio = sb.measure(sb.variants(kin, xs, lambda: chain(*args), args, chain), rounds)
+    print("load:", subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip())
+    figures = {"breakdown_us": sb.table(us, ratio), "step_to_floor": ratio["Kinematics.step"],
+               "load_1min": [load_before[0], os.getloadavg()[0]]}
+    print(json.dumps(figures))
+
+
 def main() -> None:
     if len(sys.argv) == 4 and sys.argv[1] == "--worker":
         worker(Path(sys.argv[2]), Path(sys.argv[3]))
@@ -396,6 +425,11 @@ def main() -> None:
                     help="alternating old/new rounds (and face / predictor rounds with --all-models)")
     ap.add_argument("--all-models", action="store_true", help="with --run: every model's step (issue 8)")
     ap.add_argument("--steps", type=int, default=3000, help="--all-models: steps per model")
+    ap.add_argument("--keep", type=Path, default=None,
+                    help="train the stand-in model into this folder once and reuse it in later runs")
+    ap.add_argument("--breakdown", action="store_true",
+                    help="only where the step's distance from its floor goes, this tree's code "
+                         "(streaming_breakdown.py)")
     args = ap.parse_args()
     import torch
 
@@ -405,7 +439,11 @@ def main() -> None:
         if args.run is not None and not (args.run / "models").is_dir():
             raise SystemExit(f"{args.run}/models not found: run `ctrkin reproduce --out {args.run}` first")
         old_src = baseline_tree(args.baseline)
-        model, joints = run_model(args.run) if args.run is not None else stand_in_model(folder, old_src)
+        model, joints = (run_model(args.run) if args.run is not None
+                         else stand_in_model(args.keep or folder, old_src))
+        if args.breakdown:
+            breakdown(model, np.ascontiguousarray(joints[:3000], dtype=np.float64), args.rounds)
+            return
         figures: dict[str, Any] = {}
         if args.all_models and args.run is not None:
             figures.update(reproduction_table(args.run, args.steps, args.rounds))

@@ -192,7 +192,8 @@ class Kinematics:
         start_joints: (S, 2N) or (2N,), a follow IK only: the robot's joints at the start of each of
         the S sequences (default: those of the nearest training target).
         """
-        self._accepts("predict", options)
+        if options:
+            self._accepts("predict", options)
         return self.predictor.predict(data, sequence_id, strict, **options)
 
     def reset(self, joints: np.ndarray | None = None, **options: Any) -> None:

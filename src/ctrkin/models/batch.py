@@ -6,17 +6,83 @@ large matrix products: the input projection of the first LSTM is computed once p
 window position), and position 0 of every chain needs no recurrent product (zero state). For the
 paper's IB = 2 this halves the LSTM work of running nn.LSTM on (T, IB, F) windows, and avoids its
 per-call overhead. Equal to `net(windows)` up to float32 round-off (tested).
+
+A network whose per-step layers are one LSTM (the paper's L128|D64) keeps torch for the products (float32
+BLAS) and does each position's gates and cell update in one float32 numba pass (`_lstm_position`),
+in chunks of FUSED_CHUNK rows with buffers each thread keeps: about ten torch operations over the
+gate values, each a pass over memory, and fresh buffers' page faults cost more than the products at
+mid-size batches (issue 26; docs/learned_kinematics.md: Against the floor).
 """
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
 
+import numba
 import numpy as np
 import torch
 from torch import nn
 
 from ctrkin.models.seqnet import SeqNet
+
+# ln 2 in two float32 parts (Cody-Waite: k·ln2_hi is exact for |k| ≤ 126) and 1/ln 2
+_LN2_HI, _LN2_LO = np.float32(0.693359375), np.float32(-2.12194440e-4)
+_INV_LN2 = np.float32(1.4426950408889634)
+_F32 = np.float32
+FUSED_CHUNK = 256      # rows per chunk of the one-LSTM pass: its gate buffers (0.5 MB) stay in L2
+
+
+@numba.njit(cache=True, fastmath=True, error_model="numpy")
+def _sigmoid32(x: np.ndarray, bits: np.ndarray, two_k: np.ndarray) -> None:
+    """x <- 1 / (1 + exp(−x)) in float32, in place on a 1-D array, in loops LLVM vectorises (the
+    float64 kernel's method, ctrkin.models.engine._sigmoid_inplace): exp by Cody-Waite reduction to
+    |r| ≤ ln2/2, a degree-6 Taylor polynomial (relative error < 1e-7, float32 round-off) and 2^k
+    built in the exponent bits (k within ±126: σ is 0 or 1 to float32 beyond). bits: int32 scratch at
+    least x's size, two_k: its float32 view (made once by the caller: a view made here per call cost
+    more than the arithmetic). error_model="numpy": no per-division zero check (1 + e^−x ≥ 1)."""
+    n = x.size
+    for j in range(n):
+        v = min(max(-x[j], _F32(-87.0)), _F32(87.0))
+        k = np.floor(v * _INV_LN2 + _F32(0.5))
+        r = (v - k * _LN2_HI) - k * _LN2_LO
+        x[j] = _F32(1.0) + r * (_F32(1.0) + r * (_F32(1 / 2) + r * (_F32(1 / 6) + r * (_F32(1 / 24) + r * (
+            _F32(1 / 120) + r * _F32(1 / 720))))))
+        bits[j] = (np.int32(k) + np.int32(127)) << np.int32(23)
+    for j in range(n):
+        x[j] = _F32(1.0) / (_F32(1.0) + x[j] * two_k[j])
+
+
+@numba.njit(cache=True, fastmath=True, error_model="numpy")
+def _lstm_position(rec: np.ndarray, gx: np.ndarray, first: bool, c: np.ndarray, out: np.ndarray,
+                   col: int) -> None:
+    """One LSTM position for n chains, elementwise in one pass per chain (float32): gates = gx (n, 4H)
+    (the input projections with the bias) + rec (n, 4H) (the recurrent products; not read if
+    `first`: zero state), gate order i, f, g, o with the g rows doubled (tanh(g) = 2σ(2g) − 1, as
+    `_scaled`); c (n, H) the cell states, updated; h (n, H) written to out[:, col:col + H]."""
+    n, four_h = gx.shape
+    hid = four_h // 4
+    g = np.empty(four_h, np.float32)
+    t = np.empty(hid, np.float32)
+    bits = np.empty(four_h, np.int32)
+    two_k = bits.view(np.float32)
+    for r in range(n):
+        if first:
+            for k in range(four_h):
+                g[k] = gx[r, k]
+        else:
+            for k in range(four_h):
+                g[k] = gx[r, k] + rec[r, k]
+        _sigmoid32(g, bits, two_k)
+        for u in range(hid):
+            cc = g[u] * (_F32(2.0) * g[2 * hid + u] - _F32(1.0))           # σ(i)·tanh(g)
+            if not first:
+                cc += g[hid + u] * c[r, u]                                  # + σ(f)·c
+            c[r, u] = cc
+            t[u] = _F32(2.0) * cc
+        _sigmoid32(t, bits, two_k)
+        for u in range(hid):
+            out[r, col + u] = g[3 * hid + u] * (_F32(2.0) * t[u] - _F32(1.0))   # σ(o)·tanh(c)
 
 
 def padded_rows(features: np.ndarray, bounds: list[tuple[int, int]], ib: int
@@ -104,17 +170,22 @@ def seqnet_predict(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: i
 def seqnet_trunk(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: int = 1024) -> torch.Tensor:
     """(T, trunk_width) trunk features (net.trunk of every window), by chains; arguments as
     `seqnet_predict`."""
-    parts = [h for _, h in _trunk_chunks(net, padded, starts, chunk)]
+    parts = [h.clone() for _, h in _trunk_chunks(net, padded, starts, chunk)]   # a chunk may be a buffer
     return torch.cat(parts) if parts else torch.zeros((0, net.trunk_width))
 
 
 def _trunk_chunks(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: int
                   ) -> Iterator[tuple[slice, torch.Tensor]]:
-    """Yield (slice of rows, trunk features (rows, W)) chunk by chunk."""
+    """Yield (slice of rows, trunk features (rows, W)) chunk by chunk; the features may be a view of
+    a buffer the next chunk overwrites (`_one_lstm`): use them before asking for the next."""
     ib = net.ib
     x_all = torch.from_numpy(np.ascontiguousarray(padded, dtype=np.float32))
     s_all = torch.from_numpy(np.asarray(starts, dtype=np.int64))
     weights = {id(m): _scaled_lstm_weights(m) for m in net.seq if isinstance(m, nn.LSTM)}
+    # one LSTM layer (the paper's L128|D64): its elementwise work in one numba pass per position
+    fused = weights[id(net.seq[0])] if len(net.seq) == 1 and isinstance(net.seq[0], nn.LSTM) else None
+    if fused is not None:
+        chunk = min(chunk, FUSED_CHUNK)
     done = 0
     while done < len(starts):
         lo = int(starts[done])
@@ -122,6 +193,11 @@ def _trunk_chunks(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: in
         n_here = int(np.searchsorted(starts, hi, side="left")) - done
         rows = x_all[lo:hi + ib - 1]
         n = hi - lo
+        if fused is not None:
+            h = _one_lstm(fused, rows, n, ib, net.pooling)          # this thread's buffer
+            yield slice(done, done + n_here), h if n_here == n else h[s_all[done:done + n_here] - lo]
+            done += n_here
+            continue
         inputs = [rows[k:k + n] for k in range(ib)]
         first = True
         for layer in net.seq:
@@ -141,3 +217,35 @@ def _trunk_chunks(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: in
         sel = s_all[done:done + n_here] - lo
         yield slice(done, done + n_here), h[sel]
         done += n_here
+
+
+def _one_lstm(weights: tuple[torch.Tensor, torch.Tensor, torch.Tensor], rows: torch.Tensor, n: int, ib: int,
+              pooling: str) -> torch.Tensor:
+    """The trunk features (n, IB·H | H) of the n chains starting at rows[0..n) (rows: (n + IB − 1, F))
+    of a network whose per-step layers are one LSTM: the products by torch (float32 BLAS), the gates
+    and cell updates by `_lstm_position` (one pass, instead of about ten torch operations over the
+    gate values: issue 26, B = 1,024), in buffers this thread keeps (valid until its next call)."""
+    w_ih, w_hh, bias = weights
+    hid = w_hh.shape[1]
+    gx = _scratch("gx", (n + ib - 1, 4 * hid))
+    torch.addmm(bias, rows, w_ih.t(), out=torch.from_numpy(gx))         # each row's projection once
+    window, c, rec = _scratch("window", (n, ib * hid)), _scratch("c", (n, hid)), _scratch("rec", (n, 4 * hid))
+    win_t, rec_t, w_hh_t = torch.from_numpy(window), torch.from_numpy(rec), w_hh.t()
+    for k in range(ib):
+        if k > 0:
+            torch.mm(win_t[:, (k - 1) * hid:k * hid], w_hh_t, out=rec_t)
+        _lstm_position(rec, gx[k:k + n], k == 0, c, window, k * hid)
+    return win_t if pooling == "flatten" else win_t[:, (ib - 1) * hid:]
+
+
+_SCRATCH = threading.local()
+
+
+def _scratch(name: str, shape: tuple[int, int]) -> np.ndarray:
+    """A float32 array of `shape` that this thread keeps between calls under `name` (one allocated
+    afresh each call cost its page faults: ~0.5 ms of a 1,024-row call)."""
+    size = shape[0] * shape[1]
+    buf = _SCRATCH.__dict__.get(name)
+    if buf is None or buf.size < size:
+        buf = _SCRATCH.__dict__[name] = np.empty(size, np.float32)
+    return buf[:size].reshape(shape)

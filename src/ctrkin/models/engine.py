@@ -29,13 +29,16 @@ from ctrkin.models.seqnet import UNKNOWN_STATE, SeqNet
 _LN2_HI, _LN2_LO, _INV_LN2 = 0.693147180369123816490, 1.90821492927058770002e-10, 1.4426950408889634
 
 
-@numba.njit(cache=True, fastmath=True)
+@numba.njit(cache=True, fastmath=True, error_model="numpy")
 def _sigmoid_inplace(x: np.ndarray, bits: np.ndarray) -> None:
     """x <- 1 / (1 + exp(-x)), elementwise on a 1-D array, in loops LLVM vectorises.
 
     numba's scalar np.exp calls libm one value at a time (no SVML here), which cost more than the
     matrix products; this exp uses Cody-Waite reduction, a degree-11 Taylor polynomial on |r| <= ln2/2
     (relative error < 1e-14) and 2^k built in the exponent bits. bits: int64 scratch of x's size.
+    error_model="numpy": numba's default checks each division for zero (Python's ZeroDivisionError),
+    a branch that keeps LLVM from vectorising the division loop (issue 26: the scalar divisions were
+    half the sigmoid's time); 1 + e^−x ≥ 1 is never zero, and a vector division rounds as a scalar one.
     """
     n = x.size
     for j in range(n):

@@ -37,7 +37,7 @@ from ctrkin.models.features import (
     window_index,
 )
 from ctrkin.models.frame import OuterFrame, local_tips_to_world
-from ctrkin.models.fused import DECLINED, Clip, FusedFK, Relay
+from ctrkin.models.fused import DECLINED, Clip, FusedFK, Relay, _fk_step
 from ctrkin.models.guards import FKGuard
 from ctrkin.models.motion import outer_motion, recorded_motion
 from ctrkin.models.onnx_graph import write_onnx
@@ -46,6 +46,7 @@ from ctrkin.models.predictor_base import BasePredictor
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle
 
+_F64 = np.dtype(np.float64)      # step's fast path: `is` on the dtype (numpy's builtin dtypes are singletons)
 FUSED_ROWS = 16      # predict runs the fused step on sequences up to this long (bench_streaming)
 MAX_ROW_THREADS = 8  # predict's fused buffers kept for this many threads (then made anew)
 
@@ -113,6 +114,8 @@ class FKPredictor(BasePredictor):
         clip = Clip(self._dcols, self._dlo, self._dhi)
         self._fused = (FusedFK.build(self.bundle, self._engine, self._guard, clip, self.frame, self._relay())
                        if self._use_fused else None)
+        self._fused_lag = self.frame is not None and self.frame.has_lag      # step() reads λ(β)
+        self._raw_shape = (self.layout.raw_width,)
 
     @property
     def fused(self) -> bool:
@@ -255,11 +258,25 @@ class FKPredictor(BasePredictor):
 
     def step(self, x: np.ndarray, check: bool = True, strict: bool = False) -> np.ndarray:
         """One step: joints x (2N,) (deg, mm) -> the (6,) tip pose."""
-        if (self._fused is not None and type(x) is np.ndarray and x.dtype == np.float64
-                and x.shape == (self.layout.raw_width,) and x.flags.c_contiguous):
-            y = self._fused_step(x)
-            if y is not None:
-                return y
+        fused = self._fused
+        if (fused is not None and type(x) is np.ndarray and x.dtype is _F64 and x.shape == self._raw_shape
+                and x.flags.c_contiguous):
+            # the fused step (ctrkin.models.fused) on this object's streaming state, inline: a control
+            # loop's every step takes this path, and each Python call and attribute costs (issue 26)
+            shift, prev = self._shift, self._prev
+            if prev is None or shift is None:          # a sequence's first step fixes its whole turns
+                shift = self._guard.step(x, None)[1]
+            engine = fused.engine                        # self._engine, typed
+            consts, state, ints = fused._bufs
+            gate_state, motion, outer_prev, branch = _fk_step(            # FusedFK.step, inline
+                x, shift, fused._none if prev is None else prev, consts, state, ints, prev is not None,
+                engine._fresh, engine.state, self._gate_state, self._outer_motion, self._outer_prev,
+                self._lag_at(x) if self._fused_lag else 0.0)
+            if gate_state != DECLINED:
+                self._shift, self._prev = shift, fused.prev
+                self._gate_state, self._outer_motion, self._outer_prev = gate_state, motion, outer_prev
+                engine._fresh, engine.state = False, branch
+                return fused._y.copy()
         raw = real_array(by_name(x, self.layout.raw_names, "joints"))
         if raw.shape != (self.layout.raw_width,):
             raise ModelError(f"step() expects shape ({self.layout.raw_width},), got {raw.shape}")
@@ -304,30 +321,10 @@ class FKPredictor(BasePredictor):
             feat[k] = 0.0 if self._prev is None else a0 - (self._prev[0] - self._prev[n - 1])
         return feat
 
-    def _fused_step(self, raw: np.ndarray) -> np.ndarray | None:
-        """The step in one numba call (ctrkin.models.fused) on this object's streaming state; None
-        where it declines (the reference path then raises with its message)."""
-        assert self._fused is not None and self._engine is not None
-        shift = self._shift
-        if self._prev is None or shift is None:       # a sequence's first step fixes its whole turns
-            shift = self._guard.step(raw, None)[1]
-        lag = self._lag_at(raw) if self.frame is not None and self.frame.has_lag else 0.0
-        y, st = self._fused.step(raw, shift, self._prev, self._gate_state, self._outer_motion,
-                                 self._outer_prev, lag)
-        if st.gate_state == DECLINED:
-            return None
-        self._shift, self._prev = shift, self._fused.prev
-        self._gate_state, self._outer_motion, self._outer_prev = st.gate_state, st.outer_motion, st.outer_prev
-        self._engine._fresh, self._engine.state = False, st.branch
-        return y
-
     def _fused_rows(self, raw: np.ndarray) -> np.ndarray | None:
         """predict's short path: the rows (T, 2N) of one sequence through the fused step on a FusedFK
         of its own (the stream is not touched); None where the fast checks fail (the batch path then
         answers, or raises with its message)."""
-        first = raw[0]
-        if not np.isfinite(first).all():
-            return None
         per_thread: dict[int, FusedFK | None] = self.__dict__.setdefault("_rows_fused", {})
         me = threading.get_ident()          # each thread its own buffers (threads may predict at once)
         rows = per_thread.get(me)
@@ -339,7 +336,7 @@ class FKPredictor(BasePredictor):
                 per_thread.clear()
             per_thread[me] = rows
         assert rows is not None
-        return rows.rows(np.ascontiguousarray(raw), self._guard.shift(first))
+        return rows.rows(np.ascontiguousarray(raw))
 
     def _motion_after(self, a_n: float) -> int:
         """m_N after the outer motor reaches a_n (deg) as the next step."""

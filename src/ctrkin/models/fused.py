@@ -33,7 +33,7 @@ from numba import njit
 
 from ctrkin.models.engine import StreamingEngine, _dense_rows, _lstm_rows, _push_history
 from ctrkin.models.frame import OuterFrame, pose_to_world
-from ctrkin.models.guards import MAX_ABS_ALPHA_DEG, FKGuard
+from ctrkin.models.guards import MAX_ABS_ALPHA_DEG, TURN_DEG, FKGuard
 from ctrkin.models.relay import GateTables, gate_step
 from ctrkin.models.seqnet import UNKNOWN_STATE
 from ctrkin.models.store import ModelBundle
@@ -60,16 +60,6 @@ class Relay(NamedTuple):
     band_deg: float
 
 
-class StepState(NamedTuple):
-    """What one fused step returns besides the pose: the fold gate's state (−1 at a start, −2: the
-    step was declined), the outer tube's last rotation m_N, its angle, and the network's branch state."""
-
-    gate_state: int
-    outer_motion: int
-    outer_prev: float
-    branch: float
-
-
 @njit(cache=True)
 def _joints_ok(raw: np.ndarray, shift: np.ndarray, n: int, lengths: np.ndarray, alpha_lo: np.ndarray,
                alpha_hi: np.ndarray) -> bool:
@@ -90,22 +80,29 @@ def _joints_ok(raw: np.ndarray, shift: np.ndarray, n: int, lengths: np.ndarray, 
     return True
 
 
-# The constants and the state of one model reach the kernel as three flat buffers and a directory
-# (`_Packed`): a numba call unboxes each array argument and types each tuple element, which for the
-# three dozen arrays of a step cost as much as the network's arithmetic (issue 26: 2.2 of 15 µs quiet,
-# 7.7 of 35 µs at load 7). Piece k of a buffer is buf[o:o + d0·d1·d2] as shape (d0[, d1[, d2]]), with
-# (o, d0, d1, d2) = directory[4k:4k + 4]; every view is C-contiguous, so the kernels run the same
-# specialisations (and give the same bits) as on the engine's own arrays.
+# The constants and the state of one model reach the kernel as three flat buffers (`_Packed`): a numba
+# call unboxes each array argument and types each tuple element, which for the three dozen arrays of a
+# step cost as much as the network's arithmetic (issue 26: 2.2 of 15 µs quiet, 7.7 of 35 µs at load
+# 7), and each array it allocates costs an allocation and a free. Piece k of a buffer is
+# buf[o:o + d0·d1·d2] as shape (d0[, d1[, d2]]), with (o, d0, d1, d2) = directory[4k:4k + 4]; every
+# view is C-contiguous, so the kernels run the same specialisations (and give the same bits) as on the
+# engine's own arrays. The int64 buffer starts with the model's settings (cfg) and the three
+# directories, then its own pieces.
 # constants (float64): guard, normalisation, network, gate tables, registration; head layer l's
 # weights at HEAD + 2l and biases at HEAD + 2l + 1
 (LENGTHS, ALPHA_LO, ALPHA_HI, XLO, XSPAN, CLIP_LO, CLIP_HI, YLO, YSPAN, W_IH, W_HH, BIAS, OUT_W, OUT_B,
- GATE_W0, GATE_W1, GATE_B0, GATE_B1, T_AXES, T_FORWARD, T_BACKWARD, ROT, TRANS, GATE_CONSTS, HEAD) = range(25)
-# the streaming state (float64, the engine's arrays are views of it); the int64 buffer: the gate
-# tables' start and size, the sigmoid's scratch
-H, C, H2, C2, G, T, HIST, X = range(8)
+ GATE_W0, GATE_W1, GATE_B0, GATE_B1, T_AXES, T_FORWARD, T_BACKWARD, ROT, TRANS, GATE_CONSTS, TRAIN_LO,
+ TRAIN_HI, HEAD) = range(27)
+# the streaming state (float64; the engine's arrays are views of it), the step's previous joints as
+# the network saw them, its result and its scratch (predict's rows: SHIFT, PREV_IN); head layer l's
+# output buffer at HEAD_OUT + l
+(H, C, H2, C2, G, T, HIST, X, PREV, Q, Y, LOCAL, YN, ZS, G1, G2, SHIFT, PREV_IN, HEAD_OUT) = range(19)
+# the int64 buffer's pieces: the gate tables' start and size, the sigmoid's scratch
 T_START, T_SIZE, BITS = range(3)
-# the model's settings, in the int64 directory after the pieces' entries (cfg of `_fk_step`)
-N_TUBES, PHASE, DELTA, FLATTEN, RELU_OUT, GATE_KIND, OUTER_FRAME, HAS_LAG, LAGGED_INPUTS, N_HEAD = range(10)
+# the model's settings at the int64 buffer's start, then where each directory starts (C_DIR, S_DIR,
+# I_DIR) and ends (END_DIR)
+(N_TUBES, PHASE, DELTA, FLATTEN, RELU_OUT, GATE_KIND, OUTER_FRAME, HAS_LAG, LAGGED_INPUTS, N_HEAD,
+ C_DIR, S_DIR, I_DIR, END_DIR, N_CFG) = range(15)
 
 
 # explicit signatures: one compiled version each, not one per piece number (numba would otherwise
@@ -129,31 +126,37 @@ def _v3(buf, where, k):
 
 
 @njit(cache=True)
-def _fk_step(raw, shift, prev, started, prev_out, consts, cwhere, state, swhere, ints, iwhere, cfg,
-             fresh, branch, gate_state, motion, outer_prev, lag, y):
-    """One FK step: joints raw (2N,) (deg, mm, as given) -> y (6,) tracker-frame pose. Returns
-    (gate state, m_N, αN, branch state) or a gate state DECLINED (nothing changed).
+def _fk_step(raw, shift, prev, consts, state, ints, started, fresh, branch, gate_state, motion, outer_prev,
+             lag):
+    """One FK step: joints raw (2N,) (deg, mm, as given) -> the (6,) tracker-frame pose in the state
+    buffer's piece Y. Returns (gate state, m_N, αN, branch state) or a gate state DECLINED (nothing
+    changed).
 
-    shift (2N,): the sequence's whole turns; prev (2N,): the previous shifted joints (started);
-    prev_out (2N,): receives this step's (as the network sees them). consts, state, ints: the flat
-    buffers, cwhere, swhere, iwhere their directories (module comment above); cfg (int64): N, phase,
-    delta, flatten, relu output, gate kind, outer frame, its lag, its lagged inputs, Dense layers.
+    shift (2N,): the sequence's whole turns; prev (2N,): the previous shifted joints (if `started`);
+    the state's piece PREV receives this step's (as the network sees them). consts, state, ints: the
+    flat buffers (module comment above); cfg (the start of ints): N, phase, delta, flatten, relu
+    output, gate kind, outer frame, its lag, its lagged inputs, Dense layers, the directories.
     The constants: the guard (lengths, α lo, α hi), normalisation (x lo, x span, clip lo, clip hi,
     y lo, y span), the LSTM (w_ih, w_hh, b: the StreamingEngine's), per Dense layer (B, out, in),
     (B, out) for B branches and the output layer likewise, the learned gate's two layers, the fold
     gate's GateTables and (c, κ, band), the outer frame's registration (rot, trans). The state: the
     LSTM chains h, c (scratch h2, c2, g, t, bits), the history hist and the input row x (1, F) of the
     StreamingEngine; fresh: the sequence's first step. lag: the outer frame's λ(β) (deg) here."""
-    n, gate_kind = cfg[N_TUBES], cfg[GATE_KIND]
-    phase, delta, flatten, relu_out = cfg[PHASE] != 0, cfg[DELTA] != 0, cfg[FLATTEN] != 0, cfg[RELU_OUT] != 0
-    outer_frame, has_lag, lagged_inputs = cfg[OUTER_FRAME] != 0, cfg[HAS_LAG] != 0, cfg[LAGGED_INPUTS] != 0
+    cwhere, swhere = ints[ints[C_DIR]:ints[S_DIR]], ints[ints[S_DIR]:ints[I_DIR]]
+    iwhere = ints[ints[I_DIR]:ints[END_DIR]]
+    n, gate_kind = ints[N_TUBES], ints[GATE_KIND]
+    phase, delta = ints[PHASE] != 0, ints[DELTA] != 0
+    flatten, relu_out = ints[FLATTEN] != 0, ints[RELU_OUT] != 0
+    outer_frame, has_lag, lagged_inputs = ints[OUTER_FRAME] != 0, ints[HAS_LAG] != 0, ints[LAGGED_INPUTS] != 0
     if not _joints_ok(raw, shift, n, _piece(consts, cwhere, LENGTHS), _piece(consts, cwhere, ALPHA_LO),
                       _piece(consts, cwhere, ALPHA_HI)):
         return DECLINED, motion, outer_prev, branch
     xlo, xspan = _piece(consts, cwhere, XLO), _piece(consts, cwhere, XSPAN)
     clip_lo, clip_hi = _piece(consts, cwhere, CLIP_LO), _piece(consts, cwhere, CLIP_HI)
     ylo, yspan = _piece(consts, cwhere, YLO), _piece(consts, cwhere, YSPAN)
-    q = raw - shift
+    q = _piece(state, swhere, Q)
+    for j in range(q.size):
+        q[j] = raw[j] - shift[j]
     a0_cmd = q[0] - q[n - 1]                    # the commanded α0: the fold gate's input
     # m_N from αN as given (FKPredictor._motion_after), followed by the fold gate or the lagged frame
     if gate_kind == GATE_FOLD or has_lag:
@@ -167,7 +170,7 @@ def _fk_step(raw, shift, prev, started, prev_out, consts, cwhere, state, swhere,
     # features (ctrkin.models.features: α, β, α0, [sin α0, cos α0], Δα0), clipped and normalised
     a0 = q[0] - q[n - 1]                                             # eq. (1)
     d_a0 = a0 - (prev[0] - prev[n - 1]) if started else 0.0          # eq. (2)
-    prev_out[:] = q
+    _piece(state, swhere, PREV)[:] = q
     x = _v2(state, swhere, X)
     f = x[0]
     f[: 2 * n] = q
@@ -201,25 +204,24 @@ def _fk_step(raw, shift, prev, started, prev_out, consts, cwhere, state, swhere,
     window = hist[ib - 1]
     z = window.reshape((1, window.size)) if flatten else window[ib - 1:]
     if gate_kind == GATE_LEARNED:                                    # StreamingEngine._head
-        gate_w0, gate_w1 = _v2(consts, cwhere, GATE_W0), _v2(consts, cwhere, GATE_W1)
-        zs = np.empty((1, z.shape[1] + 1))
+        zs, g1, g2 = _v2(state, swhere, ZS), _v2(state, swhere, G1), _v2(state, swhere, G2)
         zs[0, :-1] = z[0]
         zs[0, -1] = branch
-        g1 = np.empty((1, gate_w0.shape[0]))
-        g2 = np.empty((1, 1))
-        _dense_rows(zs, gate_w0, _piece(consts, cwhere, GATE_B0), g1, True)
-        _dense_rows(g1, gate_w1, _piece(consts, cwhere, GATE_B1), g2, False)
+        _dense_rows(zs, _v2(consts, cwhere, GATE_W0), _piece(consts, cwhere, GATE_B0), g1, True)
+        _dense_rows(g1, _v2(consts, cwhere, GATE_W1), _piece(consts, cwhere, GATE_B1), g2, False)
         branch = 1.0 if g2[0, 0] > 0 else 0.0
     head = int(branch) if gate_kind != GATE_NONE else 0
-    for layer in range(cfg[N_HEAD]):
+    for layer in range(ints[N_HEAD]):
         hw, hb = _v3(consts, cwhere, HEAD + 2 * layer), _v2(consts, cwhere, HEAD + 2 * layer + 1)
-        buf = np.empty((1, hw.shape[1]))
+        buf = _v2(state, swhere, HEAD_OUT + layer)
         _dense_rows(z, hw[head], hb[head], buf, True)
         z = buf
     out_w, out_b = _v3(consts, cwhere, OUT_W), _v2(consts, cwhere, OUT_B)
-    yn = np.empty((1, out_w.shape[1]))
+    yn = _v2(state, swhere, YN)
     _dense_rows(z, out_w[head], out_b[head], yn, relu_out)
-    local = yn[0] * yspan + ylo
+    local, y = _piece(state, swhere, LOCAL), _piece(state, swhere, Y)
+    for j in range(local.size):
+        local[j] = yn[0, j] * yspan[j] + ylo[j]
     if outer_frame:                              # at αN less the lag (FKPredictor._step_angle)
         pose_to_world(local, outer, _v2(consts, cwhere, ROT), _piece(consts, cwhere, TRANS), y)
     else:
@@ -231,17 +233,39 @@ def _fk_step(raw, shift, prev, started, prev_out, consts, cwhere, state, swhere,
 
 
 @njit(cache=True)
-def _fk_rows(rows, shift, prev, prev_out, consts, cwhere, state, swhere, ints, iwhere, cfg, out):
+def _first_shift(first, n, lo, hi, shift):
+    """FKGuard.shift in numba: shift (2N,) <- the whole turns (deg) that bring each α of a sequence's
+    first step `first` (2N,) into the trained range [lo, hi] (N,) (±inf: a sin/cos encoding)."""
+    shift[:] = 0.0
+    for i in range(n):
+        a = first[i]
+        if lo[i] <= a <= hi[i]:
+            continue
+        centre = 0.5 * (lo[i] + hi[i])
+        shift[i] = TURN_DEG * math.floor((a - centre) / TURN_DEG + 0.5)
+
+
+@njit(cache=True)
+def _fk_rows(rows, consts, state, ints, out):
     """Each row of one sequence rows (T, 2N) as a step from a sequence start (reset() defaults: no
     branch state, the outer tube at rest) -> out (T, 6), as `_fk_step` would give them one by one.
     Returns T, or the first declined row (its checks failed: nothing is to be trusted)."""
     gate_state, motion, outer_prev, branch = -1, 0, math.nan, UNKNOWN_STATE
+    cwhere, swhere = ints[ints[C_DIR]:ints[S_DIR]], ints[ints[S_DIR]:ints[I_DIR]]
+    for v in rows[0]:
+        if not math.isfinite(v):
+            return 0
+    shift, prev = _piece(state, swhere, SHIFT), _piece(state, swhere, PREV_IN)
+    _first_shift(rows[0], ints[N_TUBES], _piece(consts, cwhere, TRAIN_LO), _piece(consts, cwhere, TRAIN_HI),
+                 shift)
+    prev_out, y = _piece(state, swhere, PREV), _piece(state, swhere, Y)
     for r in range(rows.shape[0]):
         gate_state, motion, outer_prev, branch = _fk_step(
-            rows[r], shift, prev, r > 0, prev_out, consts, cwhere, state, swhere, ints, iwhere, cfg, r == 0,
-            branch, gate_state, motion, outer_prev, 0.0, out[r])
+            rows[r], shift, prev, consts, state, ints, r > 0, r == 0, branch, gate_state, motion, outer_prev,
+            0.0)
         if gate_state == DECLINED:
             return r
+        out[r] = y
         prev[:] = prev_out
     return rows.shape[0]
 
@@ -250,8 +274,9 @@ class _Packed:
     """Arrays laid end to end in one flat buffer of `dtype`, and the directory `where` (int64,
     4 entries per piece: offset, shape padded with 1s to three dimensions) that `_piece` reads."""
 
-    def __init__(self, arrays: list[np.ndarray], dtype: type) -> None:
-        where, offset = [], 0
+    def __init__(self, arrays: list[np.ndarray], dtype: type, head: int = 0) -> None:
+        """head: entries kept free at the buffer's start (the int64 buffer's settings and directories)."""
+        where, offset = [], head
         for a in arrays:
             shape = (*a.shape, 1, 1, 1)[:3]
             where.extend([offset, *shape])
@@ -280,6 +305,9 @@ class FusedFK:
         lo = np.full(n, -np.inf) if guard.periodic_only else np.asarray(guard._lo, float)
         hi = np.full(n, np.inf) if guard.periodic_only else np.asarray(guard._hi, float)
         self.guard = (np.asarray(bundle.robot.lengths, float), lo, hi)
+        # the trained α range, for predict's whole-turn shifts (FKGuard.shift)
+        self.trained = ((np.full(n, -np.inf), np.full(n, np.inf)) if guard.periodic_only
+                        else (np.asarray(guard.lo, float), np.asarray(guard.hi, float)))
         f = layout.n_inputs
         clip_lo, clip_hi = np.full(f, -np.inf), np.full(f, np.inf)
         clip_lo[clip.columns], clip_hi[clip.columns] = clip.lo, clip.hi
@@ -323,14 +351,29 @@ class FusedFK:
         w_ih, w_hh, b = self.lstm
         self.consts = _Packed([*self.guard, *self.norm, w_ih, w_hh, b, self.out_w, self.out_b, *self.gate_w,
                                *self.gate_b, self.tables[0], self.tables[3], self.tables[4], self.rot,
-                               self.trans, np.array(self.gate_consts, float),
+                               self.trans, np.array(self.gate_consts, float), *self.trained,
                                *(a for i in range(n_layers) for a in (self.head_w[i], self.head_b[i]))],
                               np.float64)
         e = self.engine
-        self.state = _Packed(self._engine_state(), np.float64)
-        self.ints = _Packed([self.tables[1], self.tables[2], e._bits[0]], np.int64)
+        n_out = self.out_w.shape[1]
+        width = e._hist.shape[2] * (e.ib if e.pooling == "flatten" else 1)
+        scratch = [np.zeros(len(self.prev)), np.zeros(len(self.prev)), np.zeros(6), np.zeros(n_out),
+                   np.zeros((1, n_out)), np.zeros((1, width + 1)), np.zeros((1, self.gate_w[0].shape[0])),
+                   np.zeros((1, 1)), np.zeros(len(self.prev)), np.zeros(len(self.prev)),
+                   *(np.zeros((1, self.head_w[i].shape[1])) for i in range(n_layers))]
+        self.state = _Packed([*self._engine_state(), *scratch], np.float64)
+        ints = [self.tables[1], self.tables[2], e._bits[0]]
+        c_dir = N_CFG
+        s_dir = c_dir + len(self.consts.where)
+        i_dir = s_dir + len(self.state.where)
+        end = i_dir + 4 * len(ints)
+        self.ints = _Packed(ints, np.int64, head=end)
+        self.ints.buf[:end] = [*self.cfg, n_layers, c_dir, s_dir, i_dir, end, *self.consts.where,
+                               *self.state.where, *self.ints.where]
         self._share_state()
-        self.config = np.array([*self.cfg, n_layers], dtype=np.int64)
+        # whether a step depends on nothing before the sequence's start (no branch state, no outer
+        # lag): then `rows` gives what `step` gives from a reset()
+        self.stateless = bool(self.cfg[GATE_KIND] == GATE_NONE and not self.cfg[HAS_LAG])
 
     def _engine_state(self) -> list[np.ndarray]:
         """The engine's state arrays, in the state buffer's order (H, C, H2, C2, G, T, HIST, X)."""
@@ -338,11 +381,15 @@ class FusedFK:
         return [e._h[0], e._c[0], e._h2[0], e._c2[0], e._g[0], e._t[0], e._hist, e._x]
 
     def _share_state(self) -> None:
-        """Point the engine's state arrays at views of the buffers (they hold the same values)."""
+        """Point the engine's state arrays at views of the buffers (they hold the same values), and
+        keep views of the step's previous joints and its result."""
         e = self.engine
         e._h[0], e._c[0], e._h2[0], e._c2[0], e._g[0], e._t[0], e._hist, e._x = (
             self.state.view(k, a.shape) for k, a in enumerate(self._engine_state()))
         e._bits[0] = self.ints.view(BITS, e._bits[0].shape)
+        self.prev = self.state.view(PREV, self.prev.shape)
+        self._y = self.state.view(Y, (6,))
+        self._bufs = (self.consts.buf, self.state.buf, self.ints.buf)
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         """After a deep copy or unpickling the engine's arrays are copies of their own, no longer views
@@ -364,31 +411,21 @@ class FusedFK:
         return cls(bundle, eng, guard, clip, frame, relay)
 
     def step(self, raw: np.ndarray, shift: np.ndarray, prev: np.ndarray | None, gate_state: int,
-             outer_motion: int, outer_prev: float, lag: float = 0.0) -> tuple[np.ndarray, StepState]:
+             outer_motion: int, outer_prev: float, lag: float = 0.0) -> tuple[np.ndarray, tuple[Any, ...]]:
         """One step: raw (2N,) joints as given, shift (2N,) the sequence's whole turns, prev the
         previous shifted joints (None at a start), the fold gate's state and m_N, lag the outer frame's
-        λ(β) (deg) -> the (6,) pose and the new state (gate_state DECLINED: nothing changed, take the
-        reference path)."""
-        y = np.empty(6)
-        res = _fk_step(raw, shift, self._none if prev is None else prev, prev is not None, self.prev,
-                       self.consts.buf, self.consts.where, self.state.buf, self.state.where, self.ints.buf,
-                       self.ints.where, self.config, self.engine._fresh, self.engine.state, gate_state,
-                       outer_motion, outer_prev, lag, y)
-        return y, StepState(*res)
+        λ(β) (deg) -> the (6,) pose and the new state (gate state, m_N, αN, branch state; DECLINED:
+        nothing changed, take the reference path)."""
+        consts, state, ints = self._bufs
+        e = self.engine
+        res = _fk_step(raw, shift, self._none if prev is None else prev, consts, state, ints,
+                       prev is not None, e._fresh, e.state, gate_state, outer_motion, outer_prev, lag)
+        return self._y.copy(), res
 
-    @property
-    def stateless(self) -> bool:
-        """Whether a step depends on nothing before the sequence's start (no branch state, no outer
-        lag): then `rows` gives what `step` gives from a reset()."""
-        return bool(self.config[GATE_KIND] == GATE_NONE and not self.config[HAS_LAG])
-
-    def rows(self, raw: np.ndarray, shift: np.ndarray) -> np.ndarray | None:
-        """The steps of one whole sequence raw (T, 2N) (as given; shift (2N,): its whole turns) from a
-        sequence start: (T, 6) poses equal to `step`'s, on this object's state (a model's own copy,
-        never the stream's: FKPredictor.predict); None where a row fails the fast checks. Only for a
-        `stateless` model."""
+    def rows(self, raw: np.ndarray) -> np.ndarray | None:
+        """The steps of one whole sequence raw (T, 2N) (as given, C-contiguous) from a sequence start,
+        shifted by the whole turns of its first step: (T, 6) poses equal to `step`'s, on this
+        object's state (a model's own copy, never the stream's: FKPredictor.predict); None where a
+        row fails the fast checks. Only for a `stateless` model."""
         out = np.empty((len(raw), 6))
-        prev = np.zeros(len(shift))
-        done = _fk_rows(raw, shift, prev, self.prev, self.consts.buf, self.consts.where, self.state.buf,
-                        self.state.where, self.ints.buf, self.ints.where, self.config, out)
-        return out if done == len(raw) else None
+        return out if _fk_rows(raw, *self._bufs, out) == len(raw) else None
