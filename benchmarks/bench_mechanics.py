@@ -15,6 +15,11 @@ the fixed 3 mm step of earlier versions (tip_tol=None, step=3, angle_step=0.15; 
 timclab_3mm_*). The friction step (issue 20: ≤ 5× the frictionless one): the paper robot's sweeps
 followed with μ = FRICTION_MU and without, alternately, ROUNDS times in one process, so the ratio
 (median of the rounds' ratios of median step times) holds under load (keys paper_friction_*).
+One integration pass with the variation (what a Newton iteration integrates) beside its floor, a
+bare RK4 pass of the same arithmetic on the same grid (benchmarks/bare_pass.py), alternating in
+this process, residuals checked bit for bit (keys pass_us, bare_pass_us, pass_ratio: TIMClab robot,
++15 mm sweep at α1 = 40°; paper_pass_*: paper robot, d = 12 mm at α1 = 40°).
+Times are this thread's CPU time (time.thread_time), so they hold on a loaded machine.
 Runs on one core. Ends with one JSON line of the headline figures (medians in µs, errors in mm).
 """
 
@@ -41,7 +46,13 @@ from ctrkin.mechanics.pointwise import NewtonResult, Problem, rk4_step
 from ctrkin.robots import timclab_robot
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bare_pass import bare_passes, bare_work, real_passes
 from mechanics.reference_tcm import reference_tip
+
+# Every time is this thread's CPU time: on the shared, loaded machine a wall clock also counts the
+# other processes that preempt this one (equal to the wall time on an idle machine).
+CLOCK = time.thread_time
 
 
 def random_configs(n: int, seed: int = 0) -> np.ndarray:
@@ -128,9 +139,9 @@ def bench_cold(robot: Robot, Q: np.ndarray, settings: SolverSettings) -> np.ndar
     times = np.empty(len(Q))
     stable = 0
     for i, q in enumerate(Q):
-        t0 = time.perf_counter()
+        t0 = CLOCK()
         eq = solve(robot, q, settings=settings)
-        times[i] = time.perf_counter() - t0
+        times[i] = CLOCK() - t0
         stable += eq.stable
     print(f"  cold solve ({len(Q)} random configurations, default guess): {stats(times)}; "
           f"{stable}/{len(Q)} stable")
@@ -146,17 +157,17 @@ def bench_warm(robot: Robot, sweeps: list[np.ndarray], labels: list[str],
         stamps: list[float] = []
 
         def stamp(_t: int, stamps: list[float] = stamps) -> None:
-            stamps.append(time.perf_counter())
+            stamps.append(CLOCK())
 
-        t0 = time.perf_counter()
+        t0 = CLOCK()
         traj = follow(robot, Qs, settings=settings, progress=stamp)
-        total = time.perf_counter() - t0
+        total = CLOCK() - t0
         step_times.extend(np.diff(stamps))
         prev = traj.equilibria[0]
         for q in Qs[1:n_warm]:  # the public warm-start path, timed one by one
-            t1 = time.perf_counter()
+            t1 = CLOCK()
             prev = solve(robot, q, guess=prev, settings=settings)
-            warm_times.append(time.perf_counter() - t1)
+            warm_times.append(CLOCK() - t1)
         print(f"  follow, 1° sweep {label} ({len(Qs)} steps, {traj.n_snaps} snaps): "
               f"{total / len(Qs) * 1e6:.1f} µs per step on average, snap search included")
     st, wt = np.array(step_times), np.array(warm_times)
@@ -174,7 +185,7 @@ def _step_times(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings
     times: list[float] = []
     for Qs in sweeps:
         stamps: list[float] = []
-        follow(robot, Qs, settings=settings, progress=lambda _t, s=stamps: s.append(time.perf_counter()))
+        follow(robot, Qs, settings=settings, progress=lambda _t, s=stamps: s.append(CLOCK()))
         times.extend(np.diff(stamps))
     return np.array(times)
 
@@ -195,6 +206,51 @@ def bench_friction(robot: Robot, sweeps: list[np.ndarray], settings: SolverSetti
           f"frictionless {np.median(f0) * 1e6:.1f} µs, friction {np.median(f1) * 1e6:.1f} µs, "
           f"ratio median {np.median(ratio):.2f} (rounds {', '.join(f'{v:.2f}' for v in ratio)})")
     return f0, f1, ratio
+
+
+PASS_REPS = 20      # passes per compiled call (well inside a scheduler time slice)
+PASS_ROUNDS = 301   # calls of each, alternating
+
+
+def bench_pass(robot: Robot, q: np.ndarray, settings: SolverSettings) -> tuple[float, float, int]:
+    """One integration pass with the variation (a Newton iteration's), at the equilibrium of q:
+    the library's (kernels._integrate) and the bare pass of the same arithmetic (bare_pass.py),
+    PASS_REPS passes per compiled call, PASS_ROUNDS calls of each alternating in this process,
+    timed in this thread's CPU time (time.thread_time: a call preempted by another process does not
+    count the other's time, so the figure holds on a loaded machine); medians.
+    The residuals, Jacobian and det H of the two must agree bit for bit (raises otherwise).
+    Returns (pass µs, bare pass µs, RK4 steps of the pass)."""
+    eq = solve(robot, q, settings=settings)
+    pb = eq.problem
+    a = pb.arrays
+    n = eq.x.shape[0]
+    common = (eq.x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid)
+    r0, j0, r1, j1 = np.empty(n), np.empty((n, n)), np.empty(n), np.empty((n, n))
+    work = bare_work(n)
+    d0 = real_passes(1, *common, r0, j0)  # compile both
+    d1 = bare_passes(1, *common, r1, j1, *work)
+    same = (np.array_equal(r0, r1) and np.array_equal(j0, j1)
+            and np.array_equal(np.float64(d0), np.float64(d1)))
+    if not same:
+        raise AssertionError(f"bare pass differs from the library's: residuals {r0} vs {r1}, "
+                             f"Jacobian {j0.ravel()} vs {j1.ravel()}, det H {d0} vs {d1}")
+    t_real, t_bare = np.empty(PASS_ROUNDS), np.empty(PASS_ROUNDS)
+    clock = CLOCK
+    for i in range(PASS_ROUNDS):
+        t0 = clock()
+        real_passes(PASS_REPS, *common, r0, j0)
+        t1 = clock()
+        bare_passes(PASS_REPS, *common, r1, j1, *work)
+        t2 = clock()
+        t_real[i] = (t1 - t0) / PASS_REPS
+        t_bare[i] = (t2 - t1) / PASS_REPS
+    p, b = float(np.median(t_real)), float(np.median(t_bare))
+    print(f"  one integration pass with the variation ({pb.n_rk4} RK4 steps, q = {np.round(q, 1).tolist()}): "
+          f"{p * 1e6:.2f} µs (min {t_real.min() * 1e6:.2f}); bare RK4 pass of the same arithmetic "
+          f"{b * 1e6:.2f} µs (min {t_bare.min() * 1e6:.2f}; residuals, Jacobian and det H "
+          f"bit-identical); ratio {p / b:.2f} (thread CPU time, medians of {PASS_ROUNDS} alternating "
+          "calls)")
+    return p * 1e6, b * 1e6, pb.n_rk4
 
 
 def bench_accuracy(robot: Robot, Q: np.ndarray, settings: SolverSettings) -> np.ndarray:
@@ -237,6 +293,8 @@ def main() -> None:
     step_sim, _ = bench_warm(robot, sim, ["d 20 → 2 mm", "d 2 → 20 mm"], settings, n_warm=0)
     passes_sim = passes_per_step(robot, sim, settings)
     err = bench_accuracy(robot, random_configs(args.n_ref, seed=1), settings)
+    p_us, b_us, _ = bench_pass(robot, sweeps[2][40], settings)
+    out |= {"paper_pass_us": p_us, "paper_bare_pass_us": b_us, "paper_pass_ratio": p_us / b_us}
     f0, f1, ratio = bench_friction(robot, sweeps, settings)
     passes_f = passes_per_step(dataclasses.replace(robot, friction=FRICTION_MU), sweeps, settings)
     out |= {"paper_friction_free_warm_us": np.median(f0) * 1e6,
@@ -257,6 +315,8 @@ def main() -> None:
     cold = bench_cold(robot, timclab_configs(args.n), settings)
     step, warm = bench_warm(robot, sweeps, ["flush", "+15 mm", "+30 mm"], settings)
     passes = passes_per_step(robot, sweeps, settings)
+    p_us, b_us, steps = bench_pass(robot, sweeps[1][40], settings)
+    out |= {"pass_us": p_us, "bare_pass_us": b_us, "pass_ratio": p_us / b_us, "pass_rk4_steps": steps}
     err_t = bench_accuracy(robot, timclab_configs(args.n_ref, seed=1), settings)
     out |= {"timclab_robot_cold_us": np.median(cold) * 1e6,
             "timclab_robot_warm_us": np.median(step) * 1e6,

@@ -153,7 +153,7 @@ def tangent_shoot(x, alpha, beta, extra, tips, rigid, k, rho, bounds, owner, kap
     for b in range(bounds.shape[0]):
         if owner[b] >= 0:
             db[b, n + 3 * n + owner[b]] = 1.0
-    w = rk4_work(nz, m, 0)
+    w = rk4_work(nz, m, 0)  # the step's stage derivatives and stage states (mechanics.rk4)
     no_body = np.empty(0)
     dux = np.empty(m)
     duy = np.empty(m)

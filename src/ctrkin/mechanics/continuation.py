@@ -148,8 +148,9 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     state = prev.friction_state      # friction state of the last accepted (sub)step
     modes = b"" if prev.contact is None else prev.contact.modes
     n = arr.lengths.shape[0]
-    turn = float(np.abs(q_to[:n] - q_from[:n]).max())
-    translating = bool(np.any(q_to[n:] != q_from[n:]))
+    # on Python floats: numpy's calls on two or three angles cost 10 µs a step (issue 26)
+    turn = max(abs(a - b) for a, b in zip(q_to[:n].tolist(), q_from[:n].tolist(), strict=True))
+    translating = not same_grid and q_to[n:].tolist() != q_from[n:].tolist()
     most = 1.0 if turn <= MAX_TURN_DEG else MAX_TURN_DEG / turn    # largest sub-step fraction
     t = 0.0
     dt = most
@@ -295,18 +296,21 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     if progress:
         progress(0)
     dq = np.diff(Qa, axis=0)
-    same = np.r_[False, False, _repeats(dq)]  # step t repeats step t − 1
-    rotation = np.r_[False, (dq[:, robot.n_tubes:] == 0.0).all(axis=1)]  # step t keeps β
+    # as Python lists: the loop reads them once a step (numpy's scalars cost more there)
+    same = [False, False, *_repeats(dq).tolist()]  # step t repeats step t − 1
+    rotation = [False, *(dq[:, robot.n_tubes:] == 0.0).all(axis=1).tolist()]  # step t keeps β
+    snapped = [bool(snaps[0])] + [False] * (n_steps - 1)
     for t in range(1, n_steps):
         k = 1  # states behind step t on one branch, reached by the joint increment of step t
-        while k < PATH_STATES and same[t - k + 1] and not snaps[t - k]:
+        while k < PATH_STATES and same[t - k + 1] and not snapped[t - k]:
             k += 1
         path = Predictor(xs[t - k:t]) if k > 1 else None
-        cur, snaps[t] = _advance(robot, cur, Qa[t], settings, path, bool(rotation[t]))
+        cur, snapped[t] = _advance(robot, cur, Qa[t], settings, path, rotation[t])
         eqs.append(cur)
         xs[t] = cur.x
         if progress:
             progress(t)
+    snaps[:] = snapped
     poses = tip_pose(np.array([e.tip_position for e in eqs]), np.array([e.tip_tangent for e in eqs]))
     n = robot.n_tubes
     return Trajectory(q=Qa, tip_poses=poses, snaps=snaps,

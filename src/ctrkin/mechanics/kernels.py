@@ -29,73 +29,6 @@ __all__ = ["S_TOL", "build_grid", "integrate_full", "newton", "prepare", "sane",
 
 
 @njit(cache=True, inline="always")
-def _bending(psi, kap, kapy, pres, k, vx, vy):
-    """(M1): backbone curvature (ux, uy) 1/mm and the bending stiffness sum of present tubes.
-    Also writes vx, vy = Rz(ψi) ûi, each present tube's precurvature in the backbone frame
-    (ûi = (κx, κy): (κ cos ψ, κ sin ψ) for planar precurvature), reused by the callers."""
-    ksum = 0.0
-    ux = 0.0
-    uy = 0.0
-    for i in range(k.shape[0]):
-        if pres[i] > 0.0:
-            c = math.cos(psi[i])
-            s = math.sin(psi[i])
-            ax = kap[i] * c - kapy[i] * s
-            ay = kap[i] * s + kapy[i] * c
-            vx[i] = ax
-            vy[i] = ay
-            ksum += k[i]
-            ux += k[i] * ax
-            uy += k[i] * ay
-    if ksum > 0.0:
-        ux /= ksum
-        uy /= ksum
-    return ux, uy, ksum
-
-
-@njit(cache=True, inline="always")
-def _deriv(y, phi, kap, kapy, pres, k, gj, dy, dphi, with_var, vx, vy):
-    """(M2) and its variation dΦ = A(y) Φ; writes into dy (2N,) and dphi (2N, N); returns the
-    backbone curvature (ux, uy) of (M1).
-
-    uiz' = (ki/GJi)(ux viy − uy vix) with vi = Rz(ψi) ûi;
-    ∂uiz'/∂ψj = (ki/GJi) [δij (u · vi) − kj (vi · vj) / Σk]."""
-    n = k.shape[0]
-    ux, uy, ksum = _bending(y, kap, kapy, pres, k, vx, vy)
-    for i in range(n):
-        if pres[i] > 0.0:
-            dy[i] = y[n + i]
-            dy[n + i] = k[i] / gj[i] * (ux * vy[i] - uy * vx[i])
-        else:
-            dy[i] = 0.0
-            dy[n + i] = 0.0
-    if not with_var:
-        return ux, uy
-    nc = phi.shape[1]
-    for i in range(n):
-        if pres[i] > 0.0:
-            for c in range(nc):
-                dphi[i, c] = phi[n + i, c]
-            for c in range(nc):
-                dphi[n + i, c] = 0.0
-            if kap[i] == 0.0 and kapy[i] == 0.0:
-                continue
-            a = k[i] / gj[i]
-            for j in range(n):  # row i of ∂uz'/∂ψ, one entry at a time, times row j of Φ
-                if pres[j] > 0.0 and (kap[j] != 0.0 or kapy[j] != 0.0):
-                    m = -a * k[j] * (vx[i] * vx[j] + vy[i] * vy[j]) / ksum
-                    if i == j:
-                        m += a * (ux * vx[i] + uy * vy[i])
-                    for c in range(nc):
-                        dphi[n + i, c] += m * phi[j, c]
-        else:
-            for c in range(nc):
-                dphi[i, c] = 0.0
-                dphi[n + i, c] = 0.0
-    return ux, uy
-
-
-@njit(cache=True, inline="always")
 def det(a):
     """Determinant of a square matrix (M, M): closed form for M ≤ 2 (the shooting Jacobian and H of
     two and three tubes), LU (np.linalg.det) above."""
@@ -120,6 +53,19 @@ def _relative_det(phi, gj):
         for r in range(n):
             acc += (phi[0, r] - phi[1, r]) * ((1.0 if r == 0 else 0.0) - gj[0] / gsum)
         return acc
+    if m == 2:  # three tubes: the 2 × 2 determinant in closed form, no work array per RK4 step
+        h00 = 0.0
+        h01 = 0.0
+        h10 = 0.0
+        h11 = 0.0
+        for r in range(n):
+            d0 = (1.0 if r == 0 else 0.0) - gj[0] / gsum
+            d1 = (1.0 if r == 1 else 0.0) - gj[1] / gsum
+            h00 += (phi[0, r] - phi[2, r]) * d0
+            h01 += (phi[0, r] - phi[2, r]) * d1
+            h10 += (phi[1, r] - phi[2, r]) * d0
+            h11 += (phi[1, r] - phi[2, r]) * d1
+        return h00 * h11 - h01 * h10
     h = np.empty((m, m))
     for i in range(m):
         for j in range(m):
@@ -195,7 +141,7 @@ def _init_state(x, alpha, beta, rigid, k, gj, y, phi, zb):
 @njit(cache=True, inline="always")
 def _body_deriv(zb, ux, uy, y, pres, k, gj, vx, vy, dzb):
     """(M3) and the elastic energy density Σ ½ ki |u − Rz(ψi) ûi|² + ½ GJi uiz², at backbone
-    curvature (ux, uy) and vx, vy = Rz(ψ) û (from _deriv at the same state y).
+    curvature (ux, uy) and vx, vy = Rz(ψ) û (from _rhs at the same state y).
     zb: p (3), R row-major (9), energy; R' = R [u]^ with u = (ux, uy, 0): columns c0' = −uy c2,
     c1' = ux c2, c2' = uy c0 − ux c1; p' = c2."""
     n = k.shape[0]
@@ -218,13 +164,64 @@ def _body_deriv(zb, ux, uy, y, pres, k, gj, vx, vy, dzb):
 
 @njit(cache=True, inline="always")
 def _rhs(y, phi, zb, p, with_var, with_body, dy, dphi, dzb):
-    """The TCM as an RK4 system (mechanics.rk4): (M2) and its variation always, (M3) and the energy
-    if with_body. p = (κx (N,), κy (N,), present (N,), k, gj, vx, vy): the stretch's precurvature
-    and tubes, the stiffnesses and two (N,) scratch arrays for Rz(ψ) û."""
-    kp, kpy, pr, k, gj, vx, vy = p
-    ux, uy = _deriv(y, phi, kp, kpy, pr, k, gj, dy, dphi, with_var, vx, vy)
+    """The TCM as an RK4 system (mechanics.rk4): (M1), (M2) and its variation dΦ = A(y) Φ always,
+    (M3) and the energy if with_body. p = (κx (N,), κy (N,), present (N,), k, gj, vx, vy): the
+    stretch's precurvature and tubes, the stiffnesses and two (N,) scratch arrays for vi = Rz(ψi) ûi
+    (ûi = (κx, κy): (κ cos ψ, κ sin ψ) for planar precurvature). Writes dy (2N,), dphi (2N, N).
+
+    uiz' = (ki/GJi)(ux viy − uy vix);  ∂uiz'/∂ψj = (ki/GJi) [δij (u · vi) − kj (vi · vj) / Σk].
+    One flat function: every array an inlined helper takes costs reference counting per call,
+    four calls per RK4 step (it made the pass 2-4× its bare arithmetic, issue 26)."""
+    kap, kapy, pres, k, gj, vx, vy = p
+    n = k.shape[0]
+    ksum = 0.0
+    ux = 0.0
+    uy = 0.0
+    for i in range(n):  # (M1)
+        if pres[i] > 0.0:
+            c = math.cos(y[i])
+            s = math.sin(y[i])
+            ax = kap[i] * c - kapy[i] * s
+            ay = kap[i] * s + kapy[i] * c
+            vx[i] = ax
+            vy[i] = ay
+            ksum += k[i]
+            ux += k[i] * ax
+            uy += k[i] * ay
+    if ksum > 0.0:
+        ux /= ksum
+        uy /= ksum
+    for i in range(n):  # (M2)
+        if pres[i] > 0.0:
+            dy[i] = y[n + i]
+            dy[n + i] = k[i] / gj[i] * (ux * vy[i] - uy * vx[i])
+        else:
+            dy[i] = 0.0
+            dy[n + i] = 0.0
+    if with_var:
+        nc = phi.shape[1]
+        for i in range(n):
+            if pres[i] > 0.0:
+                for c in range(nc):
+                    dphi[i, c] = phi[n + i, c]
+                for c in range(nc):
+                    dphi[n + i, c] = 0.0
+                if kap[i] == 0.0 and kapy[i] == 0.0:
+                    continue
+                a = k[i] / gj[i]
+                for j in range(n):  # row i of ∂uz'/∂ψ, one entry at a time, times row j of Φ
+                    if pres[j] > 0.0 and (kap[j] != 0.0 or kapy[j] != 0.0):
+                        m = -a * k[j] * (vx[i] * vx[j] + vy[i] * vy[j]) / ksum
+                        if i == j:
+                            m += a * (ux * vx[i] + uy * vy[i])
+                        for c in range(nc):
+                            dphi[n + i, c] += m * phi[j, c]
+            else:
+                for c in range(nc):
+                    dphi[i, c] = 0.0
+                    dphi[n + i, c] = 0.0
     if with_body:
-        _body_deriv(zb, ux, uy, y, pr, k, gj, vx, vy, dzb)
+        _body_deriv(zb, ux, uy, y, pres, k, gj, vx, vy, dzb)
 
 
 _rk4_step = rk4_stepper(_rhs)
@@ -295,7 +292,7 @@ def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, n
     nb = bounds.shape[0]
     _init_state(x, alpha, beta, rigid, k, gj, y, phi, zb)
     rk, vx, vy, phi_a = w
-    p_int = rk[13]  # a stage state of Φ, free between stretches
+    p_int = rk[4]  # a stage state of Φ, free between stretches
     done = np.zeros(n, dtype=np.bool_)
     min_tip = tips.min()
     min_det = np.inf
@@ -327,9 +324,9 @@ def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, n
         sampled = check and ns < nsample[seg]
         if sampled:
             phi_a[:, :] = phi
+        p = (kap[seg], kapy[seg], present[seg], k, gj, vx, vy)  # the stretch's system (_rhs)
         for st in range(ns):
-            _rk4_step(y, phi, zb, h, (kap[seg], kapy[seg], present[seg], k, gj, vx, vy), with_var,
-                      with_body, rk)
+            _rk4_step(y, phi, zb, h, p, with_var, with_body, rk)
             if check and a + (st + 1) * h <= min_tip + S_TOL:
                 d = _relative_det(phi, gj)
                 if d < min_det:

@@ -180,7 +180,7 @@ def with_alpha(pb: Problem, q: np.ndarray, state: FrictionState | object | None 
     transmission lengths and friction stations depend on β alone (kernels.prepare), so only α is
     new (a rotation step of a continuation needs no new grid). state: the friction state to solve
     for (default: pb's)."""
-    out = Problem(pb.arrays, q, np.radians(whole_turns_removed(q[:pb.alpha.shape[0]])), pb.beta,
+    out = Problem(pb.arrays, q, reduced_radians(q, pb.alpha.shape[0]), pb.beta,
                   pb.tips, pb.grid, pb.n_rk4, pb.stations, pb.cvar, pb.state)
     return out if state is _KEEP else with_state(out, state)  # type: ignore[arg-type]
 
@@ -204,6 +204,21 @@ def whole_turns_removed(alpha_deg: np.ndarray) -> np.ndarray:
     r = np.fmod(alpha_deg, 360.0)
     r = np.where(r > 180.0, r - 360.0, r)
     return np.where(r <= -180.0, r + 360.0, r)
+
+
+def reduced_radians(q: np.ndarray, n: int) -> np.ndarray:
+    """(n,) rad: np.radians(whole_turns_removed(q[:n])), bit for bit (the same C fmod, the same
+    ±360° and the same product by π/180 as numpy's radians), on Python floats: for the two or
+    three angles of a continuation step numpy's calls cost 5× more (issue 26)."""
+    out = []
+    for a in q[:n].tolist():
+        r = math.fmod(a, 360.0)
+        if r > 180.0:
+            r -= 360.0
+        if r <= -180.0:
+            r += 360.0
+        out.append(math.radians(r))
+    return np.array(out)
 
 
 @functools.lru_cache(maxsize=64)
@@ -434,11 +449,12 @@ def recover(pb: Problem, x: np.ndarray, settings: SolverSettings, work: list[int
 
 def twist_distance(a: np.ndarray, b: np.ndarray, lengths: np.ndarray) -> float:
     """Largest change of twist (rad) a change of base torsion a − b (rad/mm) makes over a tube.
-    A scalar loop: N ≤ a handful, and numpy's reductions cost 3× more on so few (every step)."""
+    A loop on Python floats: N ≤ a handful, and numpy's reductions (or its scalars) cost 3× more
+    on so few (every step)."""
     out = 0.0
-    for i in range(a.shape[0]):
-        out = max(out, abs((a[i] - b[i]) * lengths[i]))
-    return float(out)
+    for u, v, w in zip(a.tolist(), b.tolist(), lengths.tolist(), strict=True):
+        out = max(out, abs((u - v) * w))
+    return out
 
 
 def cold_solution(pb: Problem, settings: SolverSettings, work: list[int] | None = None

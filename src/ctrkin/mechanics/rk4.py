@@ -25,59 +25,52 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, inline="always")
-def _stage(y, phi, zb, f, dy, dphi, dzb, with_var, with_body, yt, pt, zt):
-    """Stage state: yt = y + f dy, pt = Φ + f dΦ (if with_var), zt = zb + f dzb (if with_body)."""
-    for j in range(y.shape[0]):
-        yt[j] = y[j] + f * dy[j]
-    if with_var:
-        for j in range(phi.shape[0]):
-            for c in range(phi.shape[1]):
-                pt[j, c] = phi[j, c] + f * dphi[j, c]
-    if with_body:
-        for j in range(zb.shape[0]):
-            zt[j] = zb[j] + f * dzb[j]
-
-
-@njit(cache=True, inline="always")
-def _update(y, phi, zb, h, k1, k2, k3, k4, q1, q2, q3, q4, b1, b2, b3, b4, with_var, with_body):
-    """y += h/6 (k1 + 2 k2 + 2 k3 + k4), likewise Φ and zb."""
-    h6 = h / 6.0
-    for j in range(y.shape[0]):
-        y[j] += h6 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-        if with_var:
-            for c in range(phi.shape[1]):
-                phi[j, c] += h6 * (q1[j, c] + 2.0 * q2[j, c] + 2.0 * q3[j, c] + q4[j, c])
-    if with_body:
-        for j in range(zb.shape[0]):
-            zb[j] += h6 * (b1[j] + 2.0 * b2[j] + 2.0 * b3[j] + b4[j])
-
-
 def rk4_stepper(rhs: Callable[..., Any]) -> Callable[..., None]:
     """The RK4 step of system `rhs` (module docstring): step(y, phi, zb, h, p, with_var, with_body, w)
     advances y, Φ (if with_var) and zb (if with_body) in place by h; w = rk4_work(...). The tangent
-    is differentiated stage by stage, so it is the exact derivative of the discrete map."""
+    is differentiated stage by stage, so it is the exact derivative of the discrete map.
+
+    The stage sums are loops in the step itself, not helpers: numba counts references of every
+    array an inlined helper takes, at each call, and in the TCM pass that reference counting cost
+    more than the arithmetic (issue 26)."""
 
     @njit(cache=True, inline="always")
     def step(y, phi, zb, h, p, with_var, with_body, w):
-        k1, k2, k3, k4, q1, q2, q3, q4, b1, b2, b3, b4, yt, pt, zt = w
-        rhs(y, phi, zb, p, with_var, with_body, k1, q1, b1)
-        _stage(y, phi, zb, 0.5 * h, k1, q1, b1, with_var, with_body, yt, pt, zt)
-        rhs(yt, pt, zt, p, with_var, with_body, k2, q2, b2)
-        _stage(y, phi, zb, 0.5 * h, k2, q2, b2, with_var, with_body, yt, pt, zt)
-        rhs(yt, pt, zt, p, with_var, with_body, k3, q3, b3)
-        _stage(y, phi, zb, h, k3, q3, b3, with_var, with_body, yt, pt, zt)
-        rhs(yt, pt, zt, p, with_var, with_body, k4, q4, b4)
-        _update(y, phi, zb, h, k1, k2, k3, k4, q1, q2, q3, q4, b1, b2, b3, b4, with_var, with_body)
+        ks, qs, bs, yt, pt, zt = w
+        n = y.shape[0]
+        m = phi.shape[1]
+        nb = zb.shape[0]
+        rhs(y, phi, zb, p, with_var, with_body, ks[0], qs[0], bs[0])
+        for s in range(1, 4):  # stage s from stage s − 1: yt = y + f k_s (f = h/2, h/2, h)
+            f = h if s == 3 else 0.5 * h
+            for j in range(n):
+                yt[j] = y[j] + f * ks[s - 1, j]
+            if with_var:
+                for j in range(n):
+                    for c in range(m):
+                        pt[j, c] = phi[j, c] + f * qs[s - 1, j, c]
+            if with_body:
+                for j in range(nb):
+                    zt[j] = zb[j] + f * bs[s - 1, j]
+            rhs(yt, pt, zt, p, with_var, with_body, ks[s], qs[s], bs[s])
+        h6 = h / 6.0  # y += h/6 (k1 + 2 k2 + 2 k3 + k4), likewise Φ and zb
+        for j in range(n):
+            y[j] += h6 * (ks[0, j] + 2.0 * ks[1, j] + 2.0 * ks[2, j] + ks[3, j])
+            if with_var:
+                for c in range(m):
+                    phi[j, c] += h6 * (qs[0, j, c] + 2.0 * qs[1, j, c] + 2.0 * qs[2, j, c]
+                                       + qs[3, j, c])
+        if with_body:
+            for j in range(nb):
+                zb[j] += h6 * (bs[0, j] + 2.0 * bs[1, j] + 2.0 * bs[2, j] + bs[3, j])
 
     return step
 
 
 @njit(cache=True)
 def rk4_work(n, m, nb):
-    """Work arrays of a step for y (n,), Φ (n, m), zb (nb,): the stage derivatives k1..k4, q1..q4,
-    b1..b4 and the stage states yt, pt, zt."""
-    return (np.empty(n), np.empty(n), np.empty(n), np.empty(n),
-            np.empty((n, m)), np.empty((n, m)), np.empty((n, m)), np.empty((n, m)),
-            np.empty(nb), np.empty(nb), np.empty(nb), np.empty(nb),
+    """Work arrays of a step for y (n,), Φ (n, m), zb (nb,): the stage derivatives (4, n),
+    (4, n, m), (4, nb) (rows k1..k4) and the stage states yt (n,), pt (n, m), zt (nb,). Six arrays,
+    not one per stage: every array a kernel unpacks costs reference counting at each RK4 step."""
+    return (np.empty((4, n)), np.empty((4, n, m)), np.empty((4, nb)),
             np.empty(n), np.empty((n, m)), np.empty(nb))
