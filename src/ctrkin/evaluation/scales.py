@@ -17,7 +17,8 @@ from ctrkin.virtual.config import SETTINGS_HELP, VirtualConfig
 class Budget:
     """Training budget of one role of model: epochs (max), early-stopping patience, batch size,
     learning rate and its schedule (TrainConfig.lr_schedule), smoothing of the val loss for early
-    stopping (TrainConfig.val_smoothing), Adam's fused kernel (TrainConfig.fused_adam)."""
+    stopping (TrainConfig.val_smoothing), Adam's fused kernel (TrainConfig.fused_adam), and the input
+    buffer IB (TrainConfig.ib: the memory the window gives; the grids set their own)."""
 
     epochs: int
     patience: int
@@ -26,6 +27,7 @@ class Budget:
     lr_schedule: LrSchedule = "constant"
     val_smoothing: float = 0.0
     fused_adam: bool = True
+    ib: int = 2
 
 
 @dataclass(frozen=True)
