@@ -40,8 +40,8 @@ def test_the_recommended_settings_are_those_reproduce_trains_and_reports():
         preset = RECOMMENDED[task]
         assert preset["model"] == REPORTED[task].name
         assert (preset["batch_size"], preset["lr"], preset["lr_schedule"], preset["base_epochs"],
-                preset["patience"]) == (budget.batch_size, budget.lr, budget.lr_schedule, budget.epochs,
-                                        budget.patience)
+                preset["patience"], preset.get("ib", 2)) == (budget.batch_size, budget.lr, budget.lr_schedule,
+                                                             budget.epochs, budget.patience, budget.ib)
 
 
 @pytest.mark.parametrize("task", ["fk", "ik"])

@@ -41,6 +41,7 @@ class Run:
 
 def plan_runs(scale: ReproScale) -> list[Run]:
     def cfg(budget: Budget, **kw: Any) -> TrainConfig:
+        kw = {"ib": budget.ib, **kw}          # the grids' own IB wins
         return TrainConfig(
             max_epochs=budget.epochs,
             patience=budget.patience,

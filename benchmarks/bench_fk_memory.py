@@ -1,0 +1,208 @@
+"""Benchmark: how much memory (input buffer IB, epochs) the recommended FK needs (issue 21, goal 1's
+FK; docs/learned_kinematics.md: Memory of the recommended FK).
+
+    python benchmarks/bench_fk_memory.py --data out/reproduce/data/paper --out /tmp/fkmem
+    python benchmarks/bench_fk_memory.py --data ... --out ... --arms ib2,ib4,ib8,ib2e160
+    python benchmarks/bench_fk_memory.py --repro out/gen/default-top --out ...  # + FK experiments
+
+Every arm is the snap-aware FK (`lstm_mlp_branch`) trained exactly as `ctrkin reproduce` trains it
+(ctrkin.evaluation.training_runs.plan_runs at `--scale`: the same split, seed, batch, learning rate
+and cosine schedule, one torch thread) through ctrkin.training.train, with only the input buffer
+and, for an arm `ibNeE`, the epoch budget changed. Each arm's model folder is `--out/<arm>`: a
+rerun reuses (or resumes) it. The arm to adopt is the one with the lowest validation RMSE; the
+test column is reported, never used to choose.
+
+Columns: epochs run and the best one, position RMSE vs the virtual robot's true pose on the
+training / validation / test rows (mm; the model's own metrics.json), test RMSE vs the measurement,
+training seconds, the median streaming step (Kinematics.step, one thread, µs, along a held-out
+sequence), and the load average while the arm trained. With `--repro` (a reproduction folder: its
+data/paper is the training data) also the reproduction's FK experiments on each arm's model, as
+`ctrkin reproduce` and benchmarks/bench_generalisation.py score them against the truth: snap
+precision / recall within ±2 steps on the held-out sweeps and on the snap turns (the worse of the two
+rotation directions, ctrkin.evaluation.snapping), and the position RMSE along mid-turn reversals
+recorded on the same virtual robot (bench_generalisation.reversals). Ends with one JSON line of the
+figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import re
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from ctrkin.data.dataset import Dataset
+from ctrkin.evaluation.datasets import registered_truth
+from ctrkin.evaluation.scales import get_scale
+from ctrkin.evaluation.snapping import azimuth_series, glitch_window, rotation_direction, snap_report
+from ctrkin.evaluation.table import FK_BRANCH
+from ctrkin.evaluation.training_runs import plan_runs
+from ctrkin.inference import Kinematics
+from ctrkin.training.config import TrainConfig
+from ctrkin.training.data import data_signature, split_rows, split_signature
+from ctrkin.training.engine import setup_differences, train
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))   # the benchmark beside this one
+from bench_generalisation import ROBOTS, reversals
+
+ARM = re.compile(r"^ib(\d+)(?:e(\d+))?$")       # ib8: IB 8 at the scale's epochs; ib2e160: 160 epochs
+
+
+def arm_config(scale: str, arm: str) -> TrainConfig:
+    """The reproduction's snap-aware FK configuration at `scale` with the arm's IB (and epochs)."""
+    m = ARM.match(arm)
+    if m is None:
+        raise ValueError(f"arm {arm!r} is not ibN or ibNeE (e.g. ib8, ib2e160)")
+    base = next(r.config for r in plan_runs(get_scale(scale)) if r.name == FK_BRANCH)
+    cfg = replace(base, ib=int(m.group(1)), threads=1, device="cpu")
+    if m.group(2) is not None:
+        epochs = int(m.group(2))
+        cfg = replace(cfg, max_epochs=epochs, patience=max(cfg.patience, epochs))
+    return cfg
+
+
+def step_cost_us(kin: Kinematics, joints: np.ndarray, repeats: int = 3) -> float:
+    """Median µs of Kinematics.step over `joints` (T, 2N), streamed `repeats` times from a reset."""
+    torch.set_num_threads(1)
+    times: list[float] = []
+    clock = time.perf_counter_ns
+    for _ in range(repeats):
+        kin.reset()
+        for q in joints:
+            t0 = clock()
+            kin.step(q)
+            times.append((clock() - t0) / 1e3)
+    return float(np.median(times[len(joints):]))      # the first pass warms the compiled step
+
+
+def snap_scores(kin: Kinematics, ds: Dataset) -> dict[str, Any]:
+    """Snap precision / recall of the model's T(L) against the truth's along ds, the worse of the two
+    directions (as ctrkin.evaluation.experiments_fk scores the sweeps and snap turns), and the number
+    of true snap events."""
+    b, joints, n = ds.sequence_bounds(), ds.joints(), ds.n_tubes
+    pred = np.asarray(kin.predict(ds), float)
+    az_pred = azimuth_series(pred, joints, n, b)
+    az_true = azimuth_series(registered_truth(ds), joints, n, b)
+    keep = ~glitch_window(ds.frame["outlier"].to_numpy(), b)
+    rep = snap_report(az_pred, az_true, b, rotation_direction(joints, n, b), keep)
+
+    def worst(key: str, pick: Any) -> float | None:          # a direction without a snap does not count
+        vals = [rep[d][key] for d in ("forward", "backward") if not math.isnan(rep[d][key])]
+        return pick(vals) if vals else None
+
+    return {"precision": worst("precision", min), "recall": worst("recall", min),
+            "magnitude_deg": worst("magnitude_error_deg", max), "snaps": int(rep["n_reference"])}
+
+
+def experiments(kin: Kinematics, folder: Path, repro: Path, case: str) -> dict[str, Any]:
+    """The FK experiments of the module docstring on the model in `folder`."""
+    out: dict[str, Any] = {}
+    for name in ("sweeps", "snap-turns"):
+        out[name] = snap_scores(kin, Dataset.load(repro / "data" / name))
+    c = ROBOTS[case]
+    out["reversals"] = reversals(kin.robot, c, folder)
+    return out
+
+
+def finished(ds: Dataset, cfg: TrainConfig, folder: Path) -> bool:
+    """Whether `folder` holds a finished model of `cfg` on this data and split (then an arm reads its
+    metrics instead of resuming it: a resume re-tabulates the fold gate and re-evaluates)."""
+    if not (folder / "metrics.json").is_file():
+        return False
+    saved = json.loads((folder / "config.json").read_text())
+    _, rows = split_rows(ds, cfg)
+    return not setup_differences(saved["train"], saved["data"].get("signature"),
+                                 saved["data"].get("split_signature"), cfg, data_signature(ds),
+                                 split_signature(rows), ignore=("threads", "device"))
+
+
+def run_arm(ds: Dataset, scale: str, arm: str, out: Path, stream: np.ndarray, repro: Path | None = None,
+            case: str = "default-top") -> dict[str, Any]:
+    cfg = arm_config(scale, arm)
+    load0 = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    reused = finished(ds, cfg, out / arm)
+    if not reused:
+        train(ds, cfg, out / arm, progress=False, log=None)
+    wall = time.perf_counter() - t0
+    kin = Kinematics.load(out / arm)
+    m = kin.metrics
+    row: dict[str, Any] = {"ib": cfg.ib, "max_epochs": m["training"]["max_epochs"],
+                           "epochs": m["training"]["epochs"], "best_epoch": m["training"]["best_epoch"],
+                           "verdict": m["training"]["fit"]["verdict"],
+                           "train_seconds": m["training"]["seconds"], "wall_seconds": wall, "reused": reused,
+                           "load": (load0 + os.getloadavg()[0]) / 2}
+    for part in ("train", "val", "test"):
+        row[part] = m[part]["vs_true"]["position_mm_rmse"]
+        row[f"{part}_measured"] = m[part]["vs_measured"]["position_mm_rmse"]
+    row["step_us"] = step_cost_us(kin, stream)
+    if repro is not None:
+        row |= experiments(kin, out / arm, repro, case)
+    return row
+
+
+def _f(x: float | None) -> str:
+    return "–" if x is None else f"{x:.2f}"
+
+
+def main(argv: list[str] | None = None) -> dict[str, Any]:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--data", type=Path, default=None, help="a reproduction's paper dataset folder "
+                    "(its split.json is the split), e.g. out/reproduce/data/paper (default: --repro's)")
+    ap.add_argument("--repro", type=Path, default=None, help="a reproduction folder: its paper data, and "
+                    "the FK experiments on its sweeps and snap turns and along reversals")
+    ap.add_argument("--case", default="default-top", choices=sorted(ROBOTS), help="the robot and effects "
+                    "of --repro (bench_generalisation.ROBOTS), for the reversals")
+    ap.add_argument("--out", type=Path, required=True, help="folder of the arms' model folders")
+    ap.add_argument("--arms", default="ib2,ib4,ib8", help="comma-separated ibN or ibNeE")
+    ap.add_argument("--scale", default="quick", help="the reproduction scale whose recipe the arms use")
+    args = ap.parse_args(argv)
+    arms = [a.strip() for a in args.arms.split(",") if a.strip()]
+    bad = [a for a in arms if ARM.match(a) is None]
+    if bad:
+        ap.error(f"arms {bad} are not ibN or ibNeE (e.g. ib8, ib2e160)")
+    if args.data is None and args.repro is None:
+        ap.error("give --data or --repro")
+    data = args.data if args.data is not None else args.repro / "data" / "paper"
+    ds = Dataset.load(data)
+    if ds.split is None or not ds.has_truth:
+        ap.error(f"{data} needs a split.json and true pose columns (a virtual robot's reproduction "
+                 "data)")
+    test_seq = ds.frame["sequence_id"].to_numpy()[ds.get_split().test]
+    first = ds.frame["sequence_id"].to_numpy() == test_seq[0]
+    stream = ds.joints()[first][:2000]
+    print(f"snap-aware FK memory on {data} ({len(ds.frame)} rows), the {args.scale} reproduction's "
+          f"recipe; streaming step timed along {len(stream)} held-out steps", flush=True)
+    print(f"{'arm':9s} {'epochs':>6s} {'best':>5s} {'train':>6s} {'val':>6s} {'test':>6s} {'test m.':>7s} "
+          f"{'s':>6s} {'step µs':>7s} {'load':>5s}   (position RMSE vs truth, mm)", flush=True)
+    rows: dict[str, Any] = {}
+    for arm in arms:
+        r = rows[arm] = run_arm(ds, args.scale, arm, args.out, stream, args.repro, args.case)
+        print(f"{arm:9s} {r['epochs']:6d} {r['best_epoch']:5d} {r['train']:6.3f} {r['val']:6.3f} "
+              f"{r['test']:6.3f} {r['test_measured']:7.3f} {r['train_seconds']:6.0f} {r['step_us']:7.1f} "
+              f"{r['load']:5.1f}   {r['verdict']}", flush=True)
+        if args.repro is not None:
+            sw, tu, rv = r["sweeps"], r["snap-turns"], r["reversals"]
+            print(f"{'':9s} sweeps P/R {_f(sw['precision'])}/{_f(sw['recall'])} ({sw['snaps']} snaps), "
+                  f"snap turns P/R {_f(tu['precision'])}/{_f(tu['recall'])} ({tu['snaps']}), magnitude "
+                  f"{_f(sw['magnitude_deg'])}/{_f(tu['magnitude_deg'])}°, reversals "
+                  f"{rv['reversal_rmse_true_mm']:.2f} mm RMSE ({rv['reversal_max_true_mm']:.1f} max)",
+                  flush=True)
+    best = min(rows, key=lambda a: rows[a]["val"])
+    print(f"lowest validation RMSE: {best} ({rows[best]['val']:.3f} mm)")
+    report = {"data": str(data), "scale": args.scale, "arms": rows, "chosen_by_val": best}
+    print(json.dumps(report, default=float))
+    return report
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,37 @@
+"""The reproduction's training runs: the recommended FK trains with its scale's input buffer (issue
+21: the memory chosen on validation data, benchmarks/bench_fk_memory.py), the grids with their own,
+and a results.json written before budgets had an IB reads back with the paper's IB 2."""
+
+from __future__ import annotations
+
+from ctrkin.evaluation.scales import SCALES, ReproScale
+from ctrkin.evaluation.table import FK_BRANCH, FK_PAPER
+from ctrkin.evaluation.training_runs import plan_runs
+from tests.benchmark_scripts import load_benchmark
+
+
+def test_each_run_takes_its_budgets_input_buffer_and_the_grids_their_own() -> None:
+    for scale in SCALES.values():
+        runs = {r.name: r.config for r in plan_runs(scale)}
+        assert runs[FK_BRANCH].ib == scale.branch.ib
+        assert runs[FK_PAPER].ib == scale.main.ib == 2          # the paper's model stays the paper's
+        assert [runs[f"grid_fk_ib{ib}"].ib for ib in scale.ib_grid] == list(scale.ib_grid)
+        assert {runs[f"grid_fk_ib{ib}_S1"].ib for ib in scale.structure_ibs} == set(scale.structure_ibs)
+
+
+def test_a_scale_saved_before_budgets_had_an_input_buffer_reads_back_with_ib_2() -> None:
+    d = SCALES["quick"].to_dict()
+    for role in ("main", "branch", "follow", "compare", "grid"):
+        del d[role]["ib"]
+    assert ReproScale.from_dict(d).branch.ib == 2
+
+
+def test_the_memory_benchmarks_arms_are_the_reproductions_recipe_with_their_ib_and_epochs() -> None:
+    bench = load_benchmark("bench_fk_memory")
+    quick = {r.name: r.config for r in plan_runs(SCALES["quick"])}[FK_BRANCH]
+    ib4 = bench.arm_config("quick", "ib4")
+    assert (ib4.ib, ib4.max_epochs, ib4.threads) == (4, quick.max_epochs, 1)
+    same = {"ib": quick.ib, "threads": quick.threads, "device": quick.device}
+    assert ib4.to_dict() | same == quick.to_dict()
+    long = bench.arm_config("quick", "ib2e160")
+    assert (long.ib, long.max_epochs, long.patience) == (2, 160, 160)
