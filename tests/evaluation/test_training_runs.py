@@ -1,5 +1,5 @@
 """The reproduction's training runs: the recommended FK trains with its scale's input buffer (issue
-21: the memory chosen on validation data, benchmarks/bench_fk_memory.py), the grids with their own,
+21: FK_MEMORY_IB, benchmarks/bench_fk_memory.py), the grids with their own,
 and a results.json written before budgets had an IB reads back with the paper's IB 2."""
 
 from __future__ import annotations

@@ -6,13 +6,13 @@
     ctrkin train --task fk --model mlp --ib 3 --data data/quick --out models/fk_mlp
     ctrkin train --task fk --model lstm_mlp --structure S3 --ib 3 --data data/quick --out models/s3
     ctrkin train --task fk --model lstm_mlp_no_delta --data data/quick --out models/no_delta   # Fig. 5b
-    ctrkin train --task fk --model lstm_mlp_branch --ib 8 --epochs 80 --patience 80 --batch-size 256 \
+    ctrkin train --task fk --model lstm_mlp_branch --epochs 80 --patience 80 --batch-size 256 \
         --lr 2e-3 --lr-schedule cosine --data data/quick --out models/fk_branch   # snap-aware FK
     ctrkin train --task fk --batch-size 1024 --lr 5.66e-3 --val-smoothing 0.5 --threads 1 \
         --data data/quick --out models/fk_fast     # ~5x the samples/s of batch 32 (lr: sqrt rule)
 
 Without --model, the recommended model of the task is trained with its settings (batch size,
-learning rate and schedule, epochs, patience, and the FK's input buffer IB 8:
+learning rate and schedule, epochs, patience, and the FK's input buffer:
 ctrkin.training.config.RECOMMENDED, those of `ctrkin reproduce --scale quick`); any of them given on
 the command line wins.
 

@@ -89,8 +89,8 @@ SCALES = {
     ),
     # the README's main job, ~12 minutes on two cores: 4 levels × 18 outer angles × 721 samples;
     # the snap-aware FK gets a fixed cosine schedule (no early stopping: the gate keeps improving
-    # after the pose loss flattens) and a window of FK_MEMORY_IB steps (issue 21: the memory the
-    # hysteresis needs, chosen on validation data). Adam's default kernel: the same weights, bit for
+    # after the pose loss flattens) and a window of FK_MEMORY_IB steps (issue 21: IB 8 measured and
+    # not adopted, training.config). Adam's default kernel: the same weights, bit for
     # bit, as before issue 11 (the fused one rounds differently, and a run stopped early lands elsewhere).
     "quick": ReproScale(
         "quick", "quick", PAPER_SIZES["quick"].levels_mm, PAPER_SIZES["quick"].outer_step_deg,

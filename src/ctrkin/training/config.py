@@ -39,11 +39,11 @@ PATIENCE_STEPS = 1_000     # early stopping's least optimiser steps without an i
 # snap-aware FK and the follow IK, docs/reproduction.md) with the settings `reproduce --scale quick`
 # trains them with (ctrkin.evaluation.scales, tested equal); a setting given on the command line wins.
 # The follow IK's budget is in epochs (min_steps 0): it draws its perturbations anew every epoch and
-# rolls itself out at fixed fractions of them. The snap-aware FK sees a window of FK_MEMORY_IB steps:
-# at the top of the published friction range the torsional hysteresis loops are 35-77° of base
-# rotation wide, and on validation data IB 8 beat IB 2 and 4 (benchmarks/bench_fk_memory.py,
-# docs/learned_kinematics.md: Memory of the recommended FK); the paper's own models keep IB 2.
-FK_MEMORY_IB = 8
+# rolls itself out at fixed fractions of them. The snap-aware FK sees a window of FK_MEMORY_IB steps.
+# IB 8 was measured against 2 (benchmarks/bench_fk_memory.py, docs/learned_kinematics.md: Memory of
+# the recommended FK): better on the validation rows of the top-of-range robot, worse along mid-turn
+# reversals and in snap magnitude, ×3.6 the training time and ×3-4.6 the streaming step; kept at 2.
+FK_MEMORY_IB = 2
 RECOMMENDED: dict[str, dict[str, Any]] = {
     "fk": {"model": "lstm_mlp_branch", "batch_size": 256, "lr": 2e-3, "lr_schedule": "cosine",
            "base_epochs": 80, "patience": 80, "ib": FK_MEMORY_IB},
@@ -80,7 +80,7 @@ class TrainConfig:
         "Model options, e.g. {'structure': 'S3'} (`ctrkin train --structure S3`, `--option KEY=VALUE`)."))
     ib: int = field(default=2, metadata=_help(
         "Input buffer: the current step and IB-1 previous ones (1..5 in the paper, 2 the final model; the "
-        "recommended FK: FK_MEMORY_IB = 8)."))
+        "recommended FK: FK_MEMORY_IB)."))
     delta: bool = field(default=True, metadata=_help(
         "The directional feature Δα0 (FK) or the pose deltas (IK); --no-delta drops it (Fig. 5b)."))
     angle_encoding: AngleEncoding = field(default="minmax", metadata=_help(
