@@ -53,12 +53,12 @@ TINY: dict[tuple[str, ...], list[str]] = {
 
 # commands not run (matched by their first words), and why
 SKIP: dict[str, str] = {
-    "ctrkin reproduce --scale quick": "the README's main job, ~12 minutes on two cores",
+    "ctrkin reproduce --scale quick": "the README's main job, ~36 minutes on two cores",
     "ctrkin reproduce --scale full": "the paper's data size and training, ≈ 22 min on two cores",
     "ctrkin reproduce --scale tiny": "90 s (warm numba cache) to 147 s (cold) on the two-core dev "
     "machine, this test's whole budget; the same tiny pipeline runs in tests/evaluation/"
     "test_reproduce.py, the command's arguments in tests/cli/test_reproduce_cli.py",
-    "ctrkin reproduce --robot my_robot.toml": "a quick reproduction on the user's robot, ~12 minutes; "
+    "ctrkin reproduce --robot my_robot.toml": "a quick reproduction on the user's robot, ~12-36 minutes; "
     "a three-tube robot file with --set runs through the same command at tiny scale in "
     "tests/evaluation/test_reproduce_other_robots.py",
     "ctrkin collect --rig examples/rigs/paper.toml": "drives the paper's EPOS4 motors and reads its "

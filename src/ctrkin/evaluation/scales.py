@@ -87,7 +87,8 @@ SCALES = {
         grid=Budget(12, 4, 1024, scaled_lr(1024), val_smoothing=0.5),
         grid_sequences=None,
     ),
-    # the README's main job, ~12 minutes on two cores: 4 levels × 18 outer angles × 721 samples;
+    # the README's main job, ~36 minutes on two cores at the defaults (~12 at the central values):
+    # 4 levels × 18 outer angles × 721 samples;
     # the snap-aware FK gets a fixed cosine schedule (no early stopping: the gate keeps improving
     # after the pose loss flattens) and a window of FK_MEMORY_IB steps (issue 21: IB 8 measured and
     # not adopted, training.config). Adam's default kernel: the same weights, bit for
@@ -137,9 +138,9 @@ class ReproduceConfig:
     """What a reproduction runs on (`ctrkin reproduce` has one option per field, ctrkin.cli.from_config)."""
 
     scale: Scale = field(default="quick", metadata=_help(
-        "quick: ~12 min on 2 cores; full: the paper's protocol (~208k samples), batch 1024 with early "
-        "stopping (the paper: batch 32, up to 500 epochs), ~30 min on 2 cores; tiny: a smoke test of "
-        "every step."))
+        "quick: ~36 min on 2 cores on the default robot (~12 at the central values); full: the paper's "
+        "protocol (~208k samples), batch 1024 with early stopping (the paper: batch 32, up to 500 epochs), "
+        "~30 min on 2 cores at the central values; tiny: a smoke test of every step."))
     robot: str = field(default="paper", metadata=_help(
         "Built-in robot name (paper, timclab) or path to a robot TOML file."))
     robot_seed: int = field(default=0, metadata=_help("The virtual hardware draw."))
