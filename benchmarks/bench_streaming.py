@@ -6,6 +6,7 @@ floor) and ONNX Runtime on one thread, the old code beside the new in one run.
     python benchmarks/bench_streaming.py --run out/reproduce   # the reproduction's fk_lstm_mlp
     python benchmarks/bench_streaming.py --run out/reproduce --all-models   # + the issue 8 table
     python benchmarks/bench_streaming.py --breakdown           # where the step's distance from its floor goes
+    python benchmarks/bench_streaming.py --breakdown-predict 1024   # where a batch predict call's time goes
 
 The model: the paper's LSTM-MLP FK (L128|D64, IB 2, 85,376 multiply-adds a step) of a reproduction
 (`--run`, made by code both trees read), or, without one, the same network trained for one epoch on
@@ -26,7 +27,9 @@ rows; the new code runs these rows through the fused step), `predict_torch_call_
 at B = 32..256 (the batch path by chains in torch).
 Prints a table with `uptime` and ends with one JSON line. `--breakdown`: only this tree's step, its
 layers peeled off one at a time and the kernel's pieces alone, against the floor
-(benchmarks/streaming_breakdown.py). `--keep DIR`: the stand-in model trained into DIR once and reused.
+(benchmarks/streaming_breakdown.py). `--breakdown-predict B`: only this tree's `predict` on B rows, split
+into its pieces (benchmarks/predict_breakdown.py). `--keep DIR`: the stand-in model trained into DIR
+once and reused.
 """
 
 from __future__ import annotations
@@ -414,6 +417,23 @@ def breakdown(model: Path, xs: np.ndarray, rounds: int) -> None:
     print(json.dumps(figures))
 
 
+def predict_breakdown(model: Path, joints: np.ndarray, b: int, rounds: int) -> None:
+    """A predict call of b rows split into its pieces (predict_breakdown.py): a table and one JSON line."""
+    from ctrkin.inference import Kinematics
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import predict_breakdown as pb
+
+    kin = Kinematics.load(model)
+    rows = np.ascontiguousarray(np.tile(joints, (-(-b // len(joints)), 1))[:b])
+    load_before = os.getloadavg()
+    us = pb.measure(pb.variants(kin, rows), rounds)
+    print("load:", subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip())
+    figures = {"predict_breakdown_us": pb.table(us, b), "batch": b,
+               "load_1min": [load_before[0], os.getloadavg()[0]]}
+    print(json.dumps(figures))
+
+
 def main() -> None:
     if len(sys.argv) == 4 and sys.argv[1] == "--worker":
         worker(Path(sys.argv[2]), Path(sys.argv[3]))
@@ -430,6 +450,9 @@ def main() -> None:
     ap.add_argument("--breakdown", action="store_true",
                     help="only where the step's distance from its floor goes, this tree's code "
                          "(streaming_breakdown.py)")
+    ap.add_argument("--breakdown-predict", type=int, default=None, metavar="B",
+                    help="only where a predict call of B rows spends its time, this tree's code "
+                         "(predict_breakdown.py)")
     args = ap.parse_args()
     import torch
 
@@ -443,6 +466,10 @@ def main() -> None:
                          else stand_in_model(args.keep or folder, old_src))
         if args.breakdown:
             breakdown(model, np.ascontiguousarray(joints[:3000], dtype=np.float64), args.rounds)
+            return
+        if args.breakdown_predict is not None:
+            predict_breakdown(model, np.ascontiguousarray(joints, dtype=np.float64), args.breakdown_predict,
+                              args.rounds)
             return
         figures: dict[str, Any] = {}
         if args.all_models and args.run is not None:
