@@ -85,6 +85,65 @@ def _lstm_position(rec: np.ndarray, gx: np.ndarray, first: bool, c: np.ndarray, 
             out[r, col + u] = g[3 * hid + u] * (_F32(2.0) * t[u] - _F32(1.0))   # σ(o)·tanh(c)
 
 
+@numba.njit(cache=True)
+def fk_padded_rows(raw: np.ndarray, starts: np.ndarray, ib: int, n: int, phase: bool, delta: bool,
+                   lo: np.ndarray, span: np.ndarray, dlo: float, dhi: float) -> tuple[np.ndarray, np.ndarray]:
+    """`padded_rows` of an FK model's normalised features in one pass, float32: raw (T, 2N) the joints
+    the network sees (deg, mm), starts (S + 1,) the sequences' first rows and T; the paper's features
+    (eq. 1, 2: α1..αN, β1..βN, α0, [sin α0, cos α0 with phase], [Δα0 clipped to [dlo, dhi]]), each
+    column (x − lo) / span (MinMax.transform). The same float64 arithmetic as sequence_features,
+    clip_deltas and MinMax.transform, rounded once to float32. Returns (padded (T + (IB−1)·S, F),
+    window starts (T,))."""
+    t_rows = raw.shape[0]
+    n_seq = starts.size - 1
+    f = lo.size
+    out = np.empty((t_rows + (ib - 1) * n_seq, f), np.float32)
+    win = np.empty(t_rows, np.int64)
+    feat = np.empty(f)
+    pos = 0
+    for s in range(n_seq):
+        a, b = starts[s], starts[s + 1]
+        for t in range(a, b):
+            for j in range(2 * n):
+                feat[j] = raw[t, j]
+            a0 = raw[t, 0] - raw[t, n - 1]                                   # eq. (1)
+            feat[2 * n] = a0
+            k = 2 * n + 1
+            if phase:
+                r = np.radians(a0)
+                feat[k], feat[k + 1] = np.sin(r), np.cos(r)
+                k += 2
+            if delta:
+                p = t - 1 if t > a else t
+                d = a0 - (raw[p, 0] - raw[p, n - 1])                         # eq. (2)
+                feat[k] = min(max(d, dlo), dhi)
+            row = pos + (t - a) + ib - 1
+            for j in range(f):
+                out[row, j] = (feat[j] - lo[j]) / span[j]
+            if t == a:                                                       # the start's padding
+                for q in range(ib - 1):
+                    out[pos + q] = out[row]
+            win[t] = pos + (t - a)
+        pos += b - a + ib - 1
+    return out, win
+
+
+@numba.njit(cache=True)
+def fk_poses(yn: np.ndarray, lo: np.ndarray, span: np.ndarray) -> np.ndarray:
+    """(T, 6) float64 poses of the network's normalised outputs yn (T, 6): yn · span + lo
+    (MinMax.inverse) and the quaternion (q0, qx, qy) rescaled to unit length (features.postprocess),
+    in one pass."""
+    y = np.empty((yn.shape[0], 6))
+    for t in range(yn.shape[0]):
+        for j in range(6):
+            y[t, j] = np.float64(yn[t, j]) * span[j] + lo[j]
+        nq = np.sqrt(y[t, 3] * y[t, 3] + y[t, 4] * y[t, 4] + y[t, 5] * y[t, 5])
+        if nq > 1e-12:
+            for j in range(3, 6):
+                y[t, j] /= nq
+    return y
+
+
 def padded_rows(features: np.ndarray, bounds: list[tuple[int, int]], ib: int
                 ) -> tuple[np.ndarray, np.ndarray]:
     """features (T, F) -> padded (T + (IB−1)·S, F), each sequence preceded by IB−1 copies of its first

@@ -25,7 +25,7 @@ import numpy as np
 
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import ModelError
-from ctrkin.models.batch import padded_rows, seqnet_predict
+from ctrkin.models.batch import fk_padded_rows, fk_poses, padded_rows, seqnet_predict
 from ctrkin.models.engine import StreamingEngine
 from ctrkin.models.features import (
     by_name,
@@ -71,6 +71,11 @@ class FKPredictor(BasePredictor):
         self._use_fused = fused
         self._fused: FusedFK | None = None
         self._rebuild_fused()
+        # predict by chains with features and poses each in one numba pass (batch.fk_padded_rows,
+        # batch.fk_poses): the paper's FK features on a SeqNet whose outputs need no family's hook
+        self._chains_fast = (seqnet is not None and self._fast and self.layout.family is None
+                             and self.layout.n_outputs == 6
+                             and type(self)._batch_outputs is FKPredictor._batch_outputs)
 
     # --- hooks of a model with a branch state (ctrkin.families.snap_aware) -------------------------
     def _batch_outputs(self, feats: np.ndarray, bounds: list[tuple[int, int]], data: Dataset | np.ndarray,
@@ -162,10 +167,30 @@ class FKPredictor(BasePredictor):
                 return y
         raw, bounds = self.raw_inputs(data, sequence_id)
         net_raw, angles = self._network_joints(data, raw, bounds)
-        feats = self._x_norm.transform(self.clip_deltas(sequence_features(self.layout, net_raw, bounds)))
-        yn = self._batch_outputs(feats, bounds, data, raw, options)
-        y = postprocess(self.layout, self._y_norm.inverse(yn))
+        starts = self._sequence_starts(bounds, len(raw))
+        if starts is not None:
+            assert self._seqnet is not None
+            x = self._x_norm
+            d = (float(self._dlo[0]), float(self._dhi[0])) if len(self._dcols) else (0.0, 0.0)
+            padded, windows = fk_padded_rows(net_raw, starts, self.ib, self.layout.n_tubes,
+                                             self.layout.angle_encoding == "phase", self.layout.delta,
+                                             x.lo, x.span, *d)
+            y = fk_poses(seqnet_predict(self._seqnet, padded, windows), self._y_norm.lo, self._y_norm.span)
+        else:
+            feats = self._x_norm.transform(self.clip_deltas(sequence_features(self.layout, net_raw, bounds)))
+            yn = self._batch_outputs(feats, bounds, data, raw, options)
+            y = postprocess(self.layout, self._y_norm.inverse(yn))
         return y if self.frame is None or angles is None else self.frame.to_world(y, angles)
+
+    def _sequence_starts(self, bounds: list[tuple[int, int]], rows: int) -> np.ndarray | None:
+        """(S + 1,) the first rows of the sequences `bounds` and the row count, where predict's
+        one-pass features apply (`_chains_fast`, sequences that tile the rows); None otherwise."""
+        if not self._chains_fast or not bounds or bounds[0][0] != 0 or bounds[-1][1] != rows:
+            return None
+        starts = np.array([a for a, _ in bounds] + [rows], dtype=np.int64)
+        if any(b != starts[k + 1] for k, (_, b) in enumerate(bounds)):
+            return None
+        return starts
 
     def _recorded_motion(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]]
                          ) -> tuple[np.ndarray, np.ndarray | None]:
