@@ -21,10 +21,11 @@ Figures: `fk_step_us` (Kinematics.step, one sequence of test joints), `fk_floor_
 float32 beside it; each worker times its steps and the floor in alternating blocks of 50 calls, and
 `*_step_to_floor` is the median of the rounds' step / floor ratios, which load does not move much),
 `onnx_step_us` (the exported graph on one window), predictions/s of `predict` on one sequence of B
-rows for B = 1, 32, 1024, 65,536, and ONNX Runtime's on B windows; `predict_call_overhead_us`: the
-intercept of a least-squares line through predict's times at B = 1..16 (the cost of a call beyond its
-rows; the new code runs these rows through the fused step), `predict_torch_call_overhead_us` the same
-at B = 32..256 (the batch path by chains in torch).
+rows for B = 1, 32, 1024, 65,536, and ONNX Runtime's on B windows (a third worker, in the same
+alternating rounds; `*_to_onnx_b*`: the median of the rounds' ratios of predictions/s);
+`predict_call_overhead_us`: the intercept of a least-squares line through predict's times at B = 1..16
+(the cost of a call beyond its rows; the new code runs these rows through the fused step),
+`predict_torch_call_overhead_us` the same at B = 32..256 (the batch path by chains in torch).
 Prints a table with `uptime` and ends with one JSON line. `--breakdown`: only this tree's step, its
 layers peeled off one at a time and the kernel's pieces alone, against the floor
 (benchmarks/streaming_breakdown.py). `--breakdown-predict B`: only this tree's `predict` on B rows, split
@@ -105,6 +106,32 @@ def _predict_us(kin: Any, rows: np.ndarray, calls: int) -> float:
     return float(np.median(ns)) / 1e3
 
 
+def onnx_worker(model: Path, inputs: Path) -> None:
+    """ONNX Runtime (one thread) on the exported graph, as `worker` answers: "predict B" the median
+    time (µs) of one run on B windows (3000 runs at B = 1: the step's figure)."""
+    import onnxruntime as ort
+
+    from ctrkin.inference import Kinematics, export_onnx
+
+    kin = Kinematics.load(model)
+    path = export_onnx(kin, inputs.parent / "fk.onnx")
+    opts = ort.SessionOptions()
+    opts.intra_op_num_threads = opts.inter_op_num_threads = 1
+    sess = ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
+    windows = kin.feature_windows(np.load(inputs)["long"]).astype(np.float32)
+    print(json.dumps({"ready": "onnxruntime " + ort.__version__}), flush=True)
+    for line in sys.stdin:
+        b = int(line.split()[1])
+        feed = {"window": np.ascontiguousarray(windows[:b])}
+        sess.run(None, feed)
+        ns = np.empty(CALLS[b] if b > 1 else 3000)
+        for k in range(len(ns)):
+            t0 = time.perf_counter_ns()
+            sess.run(None, feed)
+            ns[k] = time.perf_counter_ns() - t0
+        print(json.dumps(float(np.median(ns)) / 1e3), flush=True)
+
+
 def worker(model: Path, inputs: Path) -> None:
     """Answer one JSON line per request line on stdin: "step" or "predict B"."""
     import torch
@@ -132,12 +159,12 @@ def worker(model: Path, inputs: Path) -> None:
 class Worker:
     """A worker process on one source tree (None: the installed ctrkin)."""
 
-    def __init__(self, src: Path | None, model: Path, inputs: Path) -> None:
+    def __init__(self, src: Path | None, model: Path, inputs: Path, kind: str = "--worker") -> None:
         env = dict(os.environ)
         if src is not None:
             env["PYTHONPATH"] = str(src)
         env["OMP_NUM_THREADS"] = "1"
-        self.proc = subprocess.Popen([sys.executable, __file__, "--worker", str(model), str(inputs)],
+        self.proc = subprocess.Popen([sys.executable, __file__, kind, str(model), str(inputs)],
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
         self.where = self._read()["ready"]
 
@@ -244,34 +271,6 @@ def floor_us(model: Path, dtype: type, calls: int = 1000) -> tuple[float, int]:
     return float(np.median(ns)) / 1e3, macs
 
 
-def onnx_figures(model: Path, long: np.ndarray, folder: Path) -> dict[str, float]:
-    """ONNX Runtime (one thread) on the exported graph: one window (µs) and predictions/s at BATCHES."""
-    import onnxruntime as ort
-
-    from ctrkin.inference import Kinematics, export_onnx
-
-    kin = Kinematics.load(model)
-    path = export_onnx(kin, folder / "fk.onnx")
-    opts = ort.SessionOptions()
-    opts.intra_op_num_threads = opts.inter_op_num_threads = 1
-    sess = ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
-    windows = kin.feature_windows(long).astype(np.float32)
-    out: dict[str, float] = {}
-    for b in BATCHES:
-        feed = {"window": np.ascontiguousarray(windows[:b])}
-        sess.run(None, feed)
-        ns = np.empty(CALLS[b] if b > 1 else 3000)
-        for k in range(len(ns)):
-            t0 = time.perf_counter_ns()
-            sess.run(None, feed)
-            ns[k] = time.perf_counter_ns() - t0
-        us = float(np.median(ns)) / 1e3
-        out[f"onnx_predictions_per_s_b{b}"] = b / us * 1e6
-        if b == 1:
-            out["onnx_step_us"] = us
-    return out
-
-
 # --- the driver ------------------------------------------------------------------------------------
 STAND_IN = """
 import sys
@@ -309,23 +308,37 @@ def compare(model: Path, joints: np.ndarray, rounds: int, old_src: Path, folder:
     long = np.tile(joints, (reps, 1))[:max(BATCHES)]          # one valid sequence of 65,536 rows
     np.savez(folder / "inputs.npz", steps=steps, long=long)
     workers = {"old": Worker(old_src, model, folder / "inputs.npz"),
-               "new": Worker(REPO / "src", model, folder / "inputs.npz")}
+               "new": Worker(REPO / "src", model, folder / "inputs.npz"),
+               "onnx": Worker(REPO / "src", model, folder / "inputs.npz", "--onnx-worker")}
     requests = ["step", "floor 32",
                 *(f"predict {b}" for b in sorted({*FITS[""], *FITS["torch_"], *BATCHES}))]
     answers: dict[str, dict[str, list[float]]] = {w: {r: [] for r in requests} for w in workers}
+    onnx_requests = {f"predict {b}" for b in BATCHES}
     try:
         for r in range(rounds):
-            order = ("old", "new") if r % 2 == 0 else ("new", "old")
+            order = ("old", "new", "onnx") if r % 2 == 0 else ("onnx", "new", "old")
             for request in requests:
                 for w in order:
                     if request.startswith("floor") and w == "old":
                         continue                    # the floor: measured once a round, beside the steps
+                    if w == "onnx" and request not in onnx_requests:
+                        continue
                     answers[w][request].append(workers[w].ask(request))
     finally:
         for w in workers.values():
             w.close()
     figures: dict[str, Any] = {}
-    for w, got in answers.items():
+    onnx = {k: float(np.median(v)) for k, v in answers["onnx"].items() if v}
+    for b in BATCHES:
+        figures[f"onnx_predictions_per_s_b{b}"] = b / onnx[f"predict {b}"] * 1e6
+    figures["onnx_step_us"] = onnx["predict 1"]
+    onnx_rounds = answers["onnx"]
+    for w in ("old", "new"):             # predictions/s over ONNX Runtime's, round by round (median)
+        for b in BATCHES:
+            pair = np.array(onnx_rounds[f"predict {b}"]) / np.array(answers[w][f"predict {b}"])
+            figures[f"{w}_to_onnx_b{b}"] = float(np.median(pair))
+    for w in ("old", "new"):
+        got = answers[w]
         pairs = np.array(got.pop("step"))                        # (rounds, 2): step, floor
         med = {k: float(np.median(v)) for k, v in got.items() if v}
         figures[f"{w}_step_to_floor"] = float(np.median(pairs[:, 0] / pairs[:, 1]))   # round by round
@@ -341,7 +354,6 @@ def compare(model: Path, joints: np.ndarray, rounds: int, old_src: Path, folder:
     figures["fk_floor_us"] = figures["new_fk_floor_us"]
     figures["fk_floor_f32_us"] = float(np.median(answers["new"]["floor 32"]))
     figures["multiply_adds"] = floor_us(model, np.float64, calls=1)[1]
-    figures.update(onnx_figures(model, long, folder))
     figures["fk_step_us"] = figures["new_fk_step_us"]
     figures["predict_call_overhead_us"] = figures["new_predict_call_overhead_us"]
     figures["baseline"] = workers["old"].where
@@ -365,6 +377,9 @@ def print_table(f: dict[str, Any], rev: str, load: str) -> None:
     for b in BATCHES:
         print(f"{f'predictions/s, B = {b:,}':34s} {f[f'old_predictions_per_s_b{b}']:14,.0f} "
               f"{f[f'new_predictions_per_s_b{b}']:12,.0f} {f[f'onnx_predictions_per_s_b{b}']:14,.0f}")
+    for b in BATCHES:
+        print(f"{f'  ÷ ONNX Runtime, B = {b:,} (by round)':34s} {f[f'old_to_onnx_b{b}']:14.2f} "
+              f"{f[f'new_to_onnx_b{b}']:12.2f}")
 
 
 def reproduction_table(run: Path, steps: int, rounds: int) -> dict[str, float]:
@@ -435,8 +450,8 @@ def predict_breakdown(model: Path, joints: np.ndarray, b: int, rounds: int) -> N
 
 
 def main() -> None:
-    if len(sys.argv) == 4 and sys.argv[1] == "--worker":
-        worker(Path(sys.argv[2]), Path(sys.argv[3]))
+    if len(sys.argv) == 4 and sys.argv[1] in ("--worker", "--onnx-worker"):
+        (worker if sys.argv[1] == "--worker" else onnx_worker)(Path(sys.argv[2]), Path(sys.argv[3]))
         return
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--run", type=Path, default=None, help="a `ctrkin reproduce` folder (default: stand-in)")
