@@ -220,9 +220,50 @@ def seqnet_predict(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: i
     """padded: (P, F) normalised features with sequence-start padding; starts: (T,) window starts.
     Returns (T, O) normalised outputs, equal to net(windows)."""
     out = np.empty((len(starts), net.n_outputs), dtype=np.float32)
+    head = _one_dense_head(net)
     for sl, h in _trunk_chunks(net, padded, starts, chunk):
-        out[sl] = net.head_out(h).numpy()
+        if head is None:
+            out[sl] = net.head_out(h).numpy()
+            continue
+        w1t, b1, w2, b2 = head                          # Dense + ReLU by torch, the output layer here
+        hid = _scratch("hid", (h.shape[0], w1t.shape[1]))
+        torch.addmm(b1, h, w1t, out=torch.from_numpy(hid))
+        _relu_dense(hid, w2, b2, net.output_activation == "relu", out[sl])
     return out
+
+
+def _one_dense_head(net: SeqNet) -> tuple[torch.Tensor, torch.Tensor, np.ndarray, np.ndarray] | None:
+    """(W1ᵀ (in, H1) contiguous, b1, W2 (O, H1), b2) of a SeqNet's head of one Dense layer (the paper's
+    D64), kept on the net while its parameters are unchanged; None for any other head or a net whose
+    head_out differs (a state-carrying net)."""
+    if type(net).head_out is not SeqNet.head_out or len(net.head) != 1:
+        return None
+    dense = net.head[0]
+    assert isinstance(dense, nn.Linear)
+    key = tuple(p._version for p in net.parameters())
+    cached = net.__dict__.get("_ctrkin_head")
+    if cached is None or cached[0] != key:
+        out = net.out
+        head = (dense.weight.detach().t().contiguous(), dense.bias.detach().clone(),
+                np.ascontiguousarray(out.weight.detach().numpy()),
+                np.ascontiguousarray(out.bias.detach().numpy()))
+        cached = net.__dict__["_ctrkin_head"] = (key, head)
+    return cached[1]
+
+
+@numba.njit(cache=True, fastmath=True)
+def _relu_dense(hid: np.ndarray, w: np.ndarray, b: np.ndarray, relu_out: bool, out: np.ndarray) -> None:
+    """out (n, O) = act(W · ReLU(hid) + b) per row (eq. 6, 7): hid (n, H1) the Dense layer's
+    pre-activations, w (O, H1), act ReLU if relu_out (the output activation) else identity."""
+    n, h1 = hid.shape
+    for r in range(n):
+        for j in range(h1):
+            hid[r, j] = max(hid[r, j], np.float32(0.0))
+        for o in range(w.shape[0]):
+            s = b[o]
+            for j in range(h1):
+                s += w[o, j] * hid[r, j]
+            out[r, o] = max(s, np.float32(0.0)) if relu_out else s
 
 
 @torch.inference_mode()
