@@ -7,20 +7,22 @@ alone, on the inputs the call itself gives that piece (computed once before the 
     the face               Kinematics.predict less FKPredictor.predict
     inputs and guards      raw_inputs: check_raw, the joint checks, the whole-turn shifts, the range check
     frame angles           the outer frame's angle per row (m_N, λ(β)) and the network's joints
-    features               sequence_features (eq. 1, 2)
-    clip + normalise       the step changes clipped, x_norm.transform
-    padding                padded_rows: each sequence's start padded, the window starts
+    features … padding     batch.fk_padded_rows: features (eq. 1, 2), the step changes clipped,
+                           x_norm.transform, each sequence's start padded, float32, in one numba pass
     the network            seqnet_predict, as a whole, and split into its chunks' pieces:
-      to float32             the padded rows as a float32 tensor
-      input projection       W_ih x + b of every padded row
-      recurrent products     W_hh h of position 1..IB−1
+      input projection       W_ih x + b of every padded row (torch)
+      recurrent products     W_hh h of position 1..IB−1 (torch)
       gates and cells        the numba pass over the gate values (`_lstm_position`)
-      head and output        Dense + ReLU, output layer, output activation, copy out
-    de-normalise           y_norm.inverse
-    quaternion             postprocess (unit quaternions)
+      Dense layer            the head's Dense product (torch)
+      ReLU and output        ReLU, the output layer and its activation (`_relu_dense`)
+    poses                  batch.fk_poses: y_norm.inverse and unit quaternions in one numba pass
     to the tracker frame   frame.to_world
 
-every variant in alternating blocks of BLOCK calls (a load burst falls on every variant alike), each
+(Before issue 26's B = 1,024 pass, commit 4d79f9b, the features, clipping, normalisation, padding,
+float32 conversion, de-normalisation and quaternion were separate numpy passes, and the head ran
+torch's head_out: that commit's version of this script times those pieces.)
+
+every variant in the thread's CPU time, in alternating blocks of BLOCK calls (a load burst falls on every variant alike), each
 figure the median over rounds of the rounds' medians. The pieces' sum need not equal the whole: each
 piece alone finds the caches warmer than it does inside the call.
 """
@@ -38,7 +40,10 @@ BLOCK = 5            # calls per variant per block
 
 
 def _timer(fn: Callable[[], Any]) -> Callable[[], float]:
-    clock = time.perf_counter_ns
+    """A timer of one call of fn in the thread's CPU time (ns): on this shared machine a call of
+    milliseconds is often descheduled mid-way, which the wall clock's median counts against long
+    calls more than against their short pieces."""
+    clock = time.thread_time_ns
 
     def timed() -> float:
         t0 = clock()
@@ -52,30 +57,39 @@ def variants(kin: Any, rows: np.ndarray) -> dict[str, Callable[[], float]]:
     """The timed pieces (module docstring) of `kin.predict(rows)`: rows (B, 2N) one sequence of joints;
     a model whose network is a SeqNet with one LSTM layer (the fused batch pass)."""
     from ctrkin.models import batch
-    from ctrkin.models.features import postprocess, sequence_features
 
     pred = kin.predictor
     net = pred._seqnet
-    if net is None or len(net.seq) != 1 or not isinstance(net.seq[0], torch.nn.LSTM):
+    if net is None or len(net.seq) != 1 or not isinstance(net.seq[0], torch.nn.LSTM) or not pred._chains_fast:
         raise SystemExit("--breakdown-predict needs an FK model whose network is one LSTM layer and a head")
     raw, bounds = pred.raw_inputs(rows, None)
     net_raw, angles = pred._network_joints(rows, raw, bounds)
-    feats = sequence_features(pred.layout, net_raw, bounds)
-    xn = pred._x_norm.transform(pred.clip_deltas(feats.copy()))
-    padded, starts = batch.padded_rows(xn, bounds, pred.ib)
-    yn = batch.seqnet_predict(net, padded, starts)
-    y = pred._y_norm.inverse(yn)
-    yp = postprocess(pred.layout, y)
-    x32 = torch.from_numpy(np.ascontiguousarray(padded, dtype=np.float32))
-    weights = batch._scaled_lstm_weights(net.seq[0])
-    w_ih, w_hh, bias = weights
-    hid, ib, n_rows = w_hh.shape[1], net.ib, len(starts)
+    starts = pred._sequence_starts(bounds, len(raw))
+    x, d = pred._x_norm, (float(pred._dlo[0]), float(pred._dhi[0]))
+    layout = pred.layout
+
+    def features() -> tuple[np.ndarray, np.ndarray]:
+        phase = layout.angle_encoding == "phase"
+        return batch.fk_padded_rows(net_raw, starts, pred.ib, layout.n_tubes, phase, layout.delta,
+                                    x.lo, x.span, *d)
+
+    padded, wins = features()
+    yn = batch.seqnet_predict(net, padded, wins)
+    yp = batch.fk_poses(yn, pred._y_norm.lo, pred._y_norm.span)
+    x32 = torch.from_numpy(padded)
+    w_ih, w_hh, bias = batch._scaled_lstm_weights(net.seq[0])
+    head = batch._one_dense_head(net)
+    assert head is not None
+    w1t, b1, w2, b2 = head
+    hid, ib, n_rows = w_hh.shape[1], net.ib, len(wins)
     chunk = batch.FUSED_CHUNK
     spans = [(lo, min(lo + chunk, n_rows)) for lo in range(0, n_rows, chunk)]
     gx = {lo: torch.addmm(bias, x32[lo:hi + ib - 1], w_ih.t()).numpy() for lo, hi in spans}
     window = np.ascontiguousarray(np.random.default_rng(0).random((chunk, ib * hid)), np.float32)
     rec, c = np.empty((chunk, 4 * hid), np.float32), np.zeros((chunk, hid), np.float32)
+    dense = np.empty((chunk, w1t.shape[1]), np.float32)
     out = np.empty((n_rows, net.n_outputs), np.float32)
+    relu_out = net.output_activation == "relu"
 
     def projection() -> None:
         for lo, hi in spans:
@@ -94,10 +108,15 @@ def variants(kin: Any, rows: np.ndarray) -> dict[str, Callable[[], float]]:
             for k in range(ib):
                 batch._lstm_position(rec[:hi - lo], gx[lo][k:k + hi - lo], k == 0, c[:hi - lo], w, k * hid)
 
-    def head() -> None:
+    def dense_layer() -> None:
         with torch.inference_mode():
             for lo, hi in spans:
-                out[lo:hi] = net.head_out(torch.from_numpy(window[:hi - lo])).numpy()
+                d_out = torch.from_numpy(dense[:hi - lo])
+                torch.addmm(b1, torch.from_numpy(window[:hi - lo]), w1t, out=d_out)
+
+    def relu_output() -> None:
+        for lo, hi in spans:
+            batch._relu_dense(dense[:hi - lo], w2, b2, relu_out, out[lo:hi])
 
     frame = pred.frame
     framed = frame is not None and angles is not None
@@ -107,17 +126,14 @@ def variants(kin: Any, rows: np.ndarray) -> dict[str, Callable[[], float]]:
         "FKPredictor.predict": _timer(lambda: pred.predict(rows)),
         "inputs and guards": _timer(lambda: pred.raw_inputs(rows, None)),
         "frame angles": _timer(lambda: pred._network_joints(rows, raw, bounds)),
-        "features": _timer(lambda: sequence_features(pred.layout, net_raw, bounds)),
-        "clip + normalise": _timer(lambda: pred._x_norm.transform(pred.clip_deltas(feats.copy()))),
-        "padding": _timer(lambda: batch.padded_rows(xn, bounds, pred.ib)),
-        "the network": _timer(lambda: batch.seqnet_predict(net, padded, starts)),
-        "  to float32": _timer(lambda: torch.from_numpy(np.ascontiguousarray(padded, dtype=np.float32))),
+        "features … padding (one pass)": _timer(features),
+        "the network": _timer(lambda: batch.seqnet_predict(net, padded, wins)),
         "  input projection": _timer(projection),
         "  recurrent products": _timer(recurrent),
         "  gates and cells": _timer(gates),
-        "  head and output": _timer(head),
-        "de-normalise": _timer(lambda: pred._y_norm.inverse(yn)),
-        "quaternion": _timer(lambda: postprocess(pred.layout, y)),
+        "  Dense layer": _timer(dense_layer),
+        "  ReLU and output": _timer(relu_output),
+        "poses (one pass)": _timer(lambda: batch.fk_poses(yn, pred._y_norm.lo, pred._y_norm.span)),
         "to the tracker frame": _timer(to_world),
     }
 

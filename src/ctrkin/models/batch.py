@@ -17,7 +17,8 @@ mid-size batches (issue 26; docs/learned_kinematics.md: Against the floor).
 from __future__ import annotations
 
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from typing import TypeVar, cast
 
 import numba
 import numpy as np
@@ -30,6 +31,7 @@ from ctrkin.models.seqnet import SeqNet
 _LN2_HI, _LN2_LO = np.float32(0.693359375), np.float32(-2.12194440e-4)
 _INV_LN2 = np.float32(1.4426950408889634)
 _F32 = np.float32
+_T = TypeVar("_T")
 FUSED_CHUNK = 256      # rows per chunk of the one-LSTM pass: its gate buffers (0.5 MB) stay in L2
 
 
@@ -162,15 +164,34 @@ def padded_rows(features: np.ndarray, bounds: list[tuple[int, int]], ib: int
 def _scaled_lstm_weights(layer: nn.LSTM) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """(W_ih, W_hh, b) with the cell-candidate rows doubled, so one in-place sigmoid over all four
     gates also gives tanh(g) = 2·σ(2g) − 1 (fewer passes over memory than sigmoid + tanh). Kept on
-    the layer while its parameters are unchanged (their version counters): building them cost
-    ~30 µs of a predict call."""
-    key = tuple(p._version for p in layer.parameters())
-    cached = layer.__dict__.get("_ctrkin_scaled")
+    the layer while its parameters are unchanged (`_kept`): building them cost ~30 µs of a predict
+    call."""
+    return _kept(layer, "_ctrkin_scaled", [getattr(layer, n) for n in _LSTM_PARAMS], lambda: _scaled(layer))
+
+
+def _pass_weights(layer: nn.LSTM) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(W_ihᵀ, W_hhᵀ, b) of `_scaled_lstm_weights` as the one-LSTM pass multiplies them, kept with
+    them (each torch call costs microseconds: transposes made per chunk add up)."""
+    scaled = _scaled_lstm_weights(layer)                 # the same tuple while it is kept
+    cached = layer.__dict__.get("_ctrkin_pass")
+    if cached is None or cached[0] is not scaled:
+        cached = layer.__dict__["_ctrkin_pass"] = (scaled, (scaled[0].t(), scaled[1].t(), scaled[2]))
+    return cast(tuple[torch.Tensor, torch.Tensor, torch.Tensor], cached[1])
+
+
+_LSTM_PARAMS = ("weight_ih_l0", "weight_hh_l0", "bias_ih_l0", "bias_hh_l0")
+
+
+def _kept(owner: nn.Module, name: str, params: list[torch.Tensor], build: Callable[[], _T]) -> _T:
+    """build(), made once and kept on `owner` under `name` while `params` are the same tensors at
+    the same versions (an optimiser's in-place step or a new tensor makes it again)."""
+    key = tuple((id(p), p._version) for p in params)
+    cached = owner.__dict__.get(name)
     if cached is not None and cached[0] == key:
-        return cached[1]
-    weights = _scaled(layer)
-    layer.__dict__["_ctrkin_scaled"] = (key, weights)
-    return weights
+        return cast(_T, cached[1])
+    value = build()
+    owner.__dict__[name] = (key, value)
+    return value
 
 
 def _scaled(layer: nn.LSTM) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -221,14 +242,15 @@ def seqnet_predict(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: i
     Returns (T, O) normalised outputs, equal to net(windows)."""
     out = np.empty((len(starts), net.n_outputs), dtype=np.float32)
     head = _one_dense_head(net)
+    relu_out = net.output_activation == "relu"
     for sl, h in _trunk_chunks(net, padded, starts, chunk):
         if head is None:
             out[sl] = net.head_out(h).numpy()
             continue
         w1t, b1, w2, b2 = head                          # Dense + ReLU by torch, the output layer here
-        hid = _scratch("hid", (h.shape[0], w1t.shape[1]))
-        torch.addmm(b1, h, w1t, out=torch.from_numpy(hid))
-        _relu_dense(hid, w2, b2, net.output_activation == "relu", out[sl])
+        hid, hid_t = _scratch_t("hid", (h.shape[0], w1t.shape[1]))
+        torch.addmm(b1, h, w1t, out=hid_t)
+        _relu_dense(hid, w2, b2, relu_out, out[sl])
     return out
 
 
@@ -238,17 +260,12 @@ def _one_dense_head(net: SeqNet) -> tuple[torch.Tensor, torch.Tensor, np.ndarray
     head_out differs (a state-carrying net)."""
     if type(net).head_out is not SeqNet.head_out or len(net.head) != 1:
         return None
-    dense = net.head[0]
+    dense, out = net.head[0], net.out
     assert isinstance(dense, nn.Linear)
-    key = tuple(p._version for p in net.parameters())
-    cached = net.__dict__.get("_ctrkin_head")
-    if cached is None or cached[0] != key:
-        out = net.out
-        head = (dense.weight.detach().t().contiguous(), dense.bias.detach().clone(),
-                np.ascontiguousarray(out.weight.detach().numpy()),
-                np.ascontiguousarray(out.bias.detach().numpy()))
-        cached = net.__dict__["_ctrkin_head"] = (key, head)
-    return cached[1]
+    return _kept(net, "_ctrkin_head", [dense.weight, dense.bias, out.weight, out.bias],
+                 lambda: (dense.weight.detach().t().contiguous(), dense.bias.detach().clone(),
+                          np.ascontiguousarray(out.weight.detach().numpy()),
+                          np.ascontiguousarray(out.bias.detach().numpy())))
 
 
 @numba.njit(cache=True, fastmath=True)
@@ -281,9 +298,10 @@ def _trunk_chunks(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: in
     ib = net.ib
     x_all = torch.from_numpy(np.ascontiguousarray(padded, dtype=np.float32))
     s_all = torch.from_numpy(np.asarray(starts, dtype=np.int64))
-    weights = {id(m): _scaled_lstm_weights(m) for m in net.seq if isinstance(m, nn.LSTM)}
     # one LSTM layer (the paper's L128|D64): its elementwise work in one numba pass per position
-    fused = weights[id(net.seq[0])] if len(net.seq) == 1 and isinstance(net.seq[0], nn.LSTM) else None
+    fused = net.seq[0] if len(net.seq) == 1 and isinstance(net.seq[0], nn.LSTM) else None
+    weights = {} if fused is not None else {id(m): _scaled_lstm_weights(m) for m in net.seq
+                                            if isinstance(m, nn.LSTM)}
     if fused is not None:
         chunk = min(chunk, FUSED_CHUNK)
     done = 0
@@ -319,23 +337,26 @@ def _trunk_chunks(net: SeqNet, padded: np.ndarray, starts: np.ndarray, chunk: in
         done += n_here
 
 
-def _one_lstm(weights: tuple[torch.Tensor, torch.Tensor, torch.Tensor], rows: torch.Tensor, n: int, ib: int,
-              pooling: str) -> torch.Tensor:
+def _one_lstm(layer: nn.LSTM, rows: torch.Tensor, n: int, ib: int, pooling: str) -> torch.Tensor:
     """The trunk features (n, IB·H | H) of the n chains starting at rows[0..n) (rows: (n + IB − 1, F))
     of a network whose per-step layers are one LSTM: the products by torch (float32 BLAS), the gates
     and cell updates by `_lstm_position` (one pass, instead of about ten torch operations over the
     gate values: issue 26, B = 1,024), in buffers this thread keeps (valid until its next call)."""
-    w_ih, w_hh, bias = weights
-    hid = w_hh.shape[1]
-    gx = _scratch("gx", (n + ib - 1, 4 * hid))
-    torch.addmm(bias, rows, w_ih.t(), out=torch.from_numpy(gx))         # each row's projection once
-    window, c, rec = _scratch("window", (n, ib * hid)), _scratch("c", (n, hid)), _scratch("rec", (n, 4 * hid))
-    win_t, rec_t, w_hh_t = torch.from_numpy(window), torch.from_numpy(rec), w_hh.t()
+    w_ih_t, w_hh_t, bias = _pass_weights(layer)
+    hid = w_hh_t.shape[0]
+    gx, gx_t = _scratch_t("gx", (n + ib - 1, 4 * hid))
+    torch.addmm(bias, rows, w_ih_t, out=gx_t)                          # each row's projection once
+    window, win_t = _scratch_t("window", (n, ib * hid))
+    rec, rec_t = _scratch_t("rec", (n, 4 * hid))
+    c = _scratch("c", (n, hid))
     for k in range(ib):
         if k > 0:
-            torch.mm(win_t[:, (k - 1) * hid:k * hid], w_hh_t, out=rec_t)
+            h_prev = _scratch_t("window", (n, ib * hid), ((k - 1) * hid, k * hid))[1]
+            torch.mm(h_prev, w_hh_t, out=rec_t)
         _lstm_position(rec, gx[k:k + n], k == 0, c, window, k * hid)
-    return win_t if pooling == "flatten" else win_t[:, (ib - 1) * hid:]
+    if pooling == "flatten":
+        return win_t
+    return _scratch_t("window", (n, ib * hid), ((ib - 1) * hid, ib * hid))[1]
 
 
 _SCRATCH = threading.local()
@@ -349,3 +370,24 @@ def _scratch(name: str, shape: tuple[int, int]) -> np.ndarray:
     if buf is None or buf.size < size:
         buf = _SCRATCH.__dict__[name] = np.empty(size, np.float32)
     return buf[:size].reshape(shape)
+
+
+MAX_VIEWS = 64     # torch views of the scratch buffers kept per thread (then made anew)
+
+
+def _scratch_t(name: str, shape: tuple[int, int], cols: tuple[int, int] | None = None
+               ) -> tuple[np.ndarray, torch.Tensor]:
+    """`_scratch(name, shape)` and a torch tensor on it (of its columns cols[0]:cols[1], if given),
+    kept while the buffer is: a torch call or view costs microseconds, and a chunk of the one-LSTM
+    pass asks for about ten."""
+    views = _SCRATCH.__dict__.setdefault("views", {})
+    key = (name, shape, cols)
+    got = views.get(key)
+    arr = _scratch(name, shape)
+    if got is not None and got[2] is _SCRATCH.__dict__[name]:
+        return got[0], got[1]
+    if len(views) >= MAX_VIEWS:
+        views.clear()
+    tensor = torch.from_numpy(arr if cols is None else arr[:, cols[0]:cols[1]])
+    views[key] = (arr, tensor, _SCRATCH.__dict__[name])
+    return arr, tensor
