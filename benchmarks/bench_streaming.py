@@ -28,9 +28,9 @@ alternating rounds; `*_to_onnx_b*`: the median of the rounds' ratios of predicti
 `predict_torch_call_overhead_us` the same at B = 32..256 (the batch path by chains in torch).
 Prints a table with `uptime` and ends with one JSON line. `--breakdown`: only this tree's step, its
 layers peeled off one at a time and the kernel's pieces alone, against the floor
-(benchmarks/streaming_breakdown.py). `--breakdown-predict B`: only this tree's `predict` on B rows, split
-into its pieces (benchmarks/predict_breakdown.py). `--keep DIR`: the stand-in model trained into DIR
-once and reused.
+(benchmarks/streaming_breakdown.py). `--breakdown-predict B`: only `predict` on B rows, split into
+its pieces, the baseline's tree and this one (benchmarks/predict_breakdown.py). `--keep DIR`: the
+stand-in model trained into DIR once and reused.
 """
 
 from __future__ import annotations
@@ -432,17 +432,41 @@ def breakdown(model: Path, xs: np.ndarray, rounds: int) -> None:
     print(json.dumps(figures))
 
 
-def predict_breakdown(model: Path, joints: np.ndarray, b: int, rounds: int) -> None:
-    """A predict call of b rows split into its pieces (predict_breakdown.py): a table and one JSON line."""
+def predict_breakdown_worker(model: Path, inputs: Path, b: int, rounds: int) -> None:
+    """This process's tree: a predict call of b rows split into its pieces (predict_breakdown.py),
+    one JSON line of µs by piece."""
+    import torch
+
     from ctrkin.inference import Kinematics
 
+    torch.set_num_threads(1)
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import predict_breakdown as pb
 
-    kin = Kinematics.load(model)
+    joints = np.load(inputs)["long"]
     rows = np.ascontiguousarray(np.tile(joints, (-(-b // len(joints)), 1))[:b])
+    print(json.dumps(pb.measure(pb.variants(Kinematics.load(model), rows), rounds)), flush=True)
+
+
+def predict_breakdown(model: Path, joints: np.ndarray, b: int, rounds: int, old_src: Path, folder: Path
+                      ) -> None:
+    """A predict call of b rows split into its pieces, the old tree's and this one's, each in a worker
+    process, twice in alternation (predict_breakdown.py): a table and one JSON line."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import predict_breakdown as pb
+
+    np.savez(folder / "inputs.npz", long=joints)
     load_before = os.getloadavg()
-    us = pb.measure(pb.variants(kin, rows), rounds)
+    runs: dict[str, list[dict[str, float]]] = {"old": [], "new": []}
+    for order in (("old", "new"), ("new", "old")):
+        for w in order:
+            src = old_src if w == "old" else REPO / "src"
+            env = {**os.environ, "PYTHONPATH": str(src), "OMP_NUM_THREADS": "1"}
+            out = subprocess.run([sys.executable, __file__, "--predict-breakdown-worker", str(model),
+                                  str(folder / "inputs.npz"), str(b), str(rounds)],
+                                 env=env, check=True, capture_output=True, text=True).stdout
+            runs[w].append(json.loads(out.strip().splitlines()[-1]))
+    us = {w: {k: float(np.median([r[k] for r in got])) for k in got[0]} for w, got in runs.items()}
     print("load:", subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip())
     figures = {"predict_breakdown_us": pb.table(us, b), "batch": b,
                "load_1min": [load_before[0], os.getloadavg()[0]]}
@@ -452,6 +476,9 @@ def predict_breakdown(model: Path, joints: np.ndarray, b: int, rounds: int) -> N
 def main() -> None:
     if len(sys.argv) == 4 and sys.argv[1] in ("--worker", "--onnx-worker"):
         (worker if sys.argv[1] == "--worker" else onnx_worker)(Path(sys.argv[2]), Path(sys.argv[3]))
+        return
+    if len(sys.argv) == 6 and sys.argv[1] == "--predict-breakdown-worker":
+        predict_breakdown_worker(Path(sys.argv[2]), Path(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5]))
         return
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--run", type=Path, default=None, help="a `ctrkin reproduce` folder (default: stand-in)")
@@ -466,8 +493,8 @@ def main() -> None:
                     help="only where the step's distance from its floor goes, this tree's code "
                          "(streaming_breakdown.py)")
     ap.add_argument("--breakdown-predict", type=int, default=None, metavar="B",
-                    help="only where a predict call of B rows spends its time, this tree's code "
-                         "(predict_breakdown.py)")
+                    help="only where a predict call of B rows spends its time, the baseline's code "
+                         "and this tree's (predict_breakdown.py)")
     args = ap.parse_args()
     import torch
 
@@ -484,7 +511,7 @@ def main() -> None:
             return
         if args.breakdown_predict is not None:
             predict_breakdown(model, np.ascontiguousarray(joints, dtype=np.float64), args.breakdown_predict,
-                              args.rounds)
+                              args.rounds, old_src, folder)
             return
         figures: dict[str, Any] = {}
         if args.all_models and args.run is not None:

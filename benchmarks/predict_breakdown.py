@@ -1,10 +1,10 @@
 """Where a batch `predict` call's time goes (issue 26, goal 2: B = 1,024 against ONNX Runtime), by
-measurement: `python benchmarks/bench_streaming.py --breakdown-predict 1024` (this tree's code only).
+measurement: `python benchmarks/bench_streaming.py --breakdown-predict 1024` (the baseline's tree and
+this one, each in a worker process, twice in alternation).
 
 `Kinematics.predict` on one sequence of B joints is timed whole, and beside it each of its pieces
 alone, on the inputs the call itself gives that piece (computed once before the timing):
 
-    the face               Kinematics.predict less FKPredictor.predict
     inputs and guards      raw_inputs: check_raw, the joint checks, the whole-turn shifts, the range check
     frame angles           the outer frame's angle per row (m_N, λ(β)) and the network's joints
     features … padding     batch.fk_padded_rows: features (eq. 1, 2), the step changes clipped,
@@ -18,14 +18,15 @@ alone, on the inputs the call itself gives that piece (computed once before the 
     poses                  batch.fk_poses: y_norm.inverse and unit quaternions in one numba pass
     to the tracker frame   frame.to_world
 
-(Before issue 26's B = 1,024 pass, commit 4d79f9b, the features, clipping, normalisation, padding,
-float32 conversion, de-normalisation and quaternion were separate numpy passes, and the head ran
-torch's head_out: that commit's version of this script times those pieces.)
+A tree from before this pass (no batch.fk_padded_rows; main dbab9a8) had separate numpy passes where
+the one-pass rows are (features, clip + normalise, padding, to float32; de-normalise, quaternion) and
+torch's head_out for the head: `_old_variants` times those.
 
-every variant in the thread's CPU time, in alternating blocks of BLOCK calls (a load burst falls on every variant alike), each
+Every variant in the thread's CPU time (on this shared machine a call of milliseconds is often
+descheduled, which the wall clock's median counts against long calls more than against their short
+pieces), in alternating blocks of BLOCK calls (a load burst falls on every variant alike), each
 figure the median over rounds of the rounds' medians. The pieces' sum need not equal the whole: each
-piece alone finds the caches warmer than it does inside the call.
-"""
+piece alone finds the caches warmer than it does inside the call."""
 
 from __future__ import annotations
 
@@ -40,9 +41,7 @@ BLOCK = 5            # calls per variant per block
 
 
 def _timer(fn: Callable[[], Any]) -> Callable[[], float]:
-    """A timer of one call of fn in the thread's CPU time (ns): on this shared machine a call of
-    milliseconds is often descheduled mid-way, which the wall clock's median counts against long
-    calls more than against their short pieces."""
+    """A timer of one call of fn in the thread's CPU time (ns; module docstring)."""
     clock = time.thread_time_ns
 
     def timed() -> float:
@@ -55,8 +54,12 @@ def _timer(fn: Callable[[], Any]) -> Callable[[], float]:
 
 def variants(kin: Any, rows: np.ndarray) -> dict[str, Callable[[], float]]:
     """The timed pieces (module docstring) of `kin.predict(rows)`: rows (B, 2N) one sequence of joints;
-    a model whose network is a SeqNet with one LSTM layer (the fused batch pass)."""
+    a model whose network is a SeqNet with one LSTM layer (the fused batch pass). A tree from before
+    this pass (no batch.fk_padded_rows) gets its own pieces (`_old_variants`)."""
     from ctrkin.models import batch
+
+    if not hasattr(batch, "fk_padded_rows"):
+        return _old_variants(kin, rows)
 
     pred = kin.predictor
     net = pred._seqnet
@@ -123,7 +126,6 @@ def variants(kin: Any, rows: np.ndarray) -> dict[str, Callable[[], float]]:
     to_world = (lambda: frame.to_world(yp, angles)) if framed else (lambda: None)
     return {
         "Kinematics.predict": _timer(lambda: kin.predict(rows)),
-        "FKPredictor.predict": _timer(lambda: pred.predict(rows)),
         "inputs and guards": _timer(lambda: pred.raw_inputs(rows, None)),
         "frame angles": _timer(lambda: pred._network_joints(rows, raw, bounds)),
         "features … padding (one pass)": _timer(features),
@@ -134,6 +136,79 @@ def variants(kin: Any, rows: np.ndarray) -> dict[str, Callable[[], float]]:
         "  Dense layer": _timer(dense_layer),
         "  ReLU and output": _timer(relu_output),
         "poses (one pass)": _timer(lambda: batch.fk_poses(yn, pred._y_norm.lo, pred._y_norm.span)),
+        "to the tracker frame": _timer(to_world),
+    }
+
+
+def _old_variants(kin: Any, rows: np.ndarray) -> dict[str, Callable[[], float]]:
+    """The pieces of predict before this pass (its numpy passes, torch's head_out): `variants` on a
+    tree without batch.fk_padded_rows (bench_streaming.py --breakdown-predict B, the baseline's column)."""
+    from ctrkin.models import batch
+    from ctrkin.models.features import postprocess, sequence_features
+
+    pred = kin.predictor
+    net = pred._seqnet
+    if net is None or len(net.seq) != 1 or not isinstance(net.seq[0], torch.nn.LSTM):
+        raise SystemExit("--breakdown-predict needs an FK model whose network is one LSTM layer and a head")
+    raw, bounds = pred.raw_inputs(rows, None)
+    net_raw, angles = pred._network_joints(rows, raw, bounds)
+    feats = sequence_features(pred.layout, net_raw, bounds)
+    xn = pred._x_norm.transform(pred.clip_deltas(feats.copy()))
+    padded, starts = batch.padded_rows(xn, bounds, pred.ib)
+    yn = batch.seqnet_predict(net, padded, starts)
+    y = pred._y_norm.inverse(yn)
+    yp = postprocess(pred.layout, y)
+    x32 = torch.from_numpy(np.ascontiguousarray(padded, dtype=np.float32))
+    weights = batch._scaled_lstm_weights(net.seq[0])
+    w_ih, w_hh, bias = weights
+    hid, ib, n_rows = w_hh.shape[1], net.ib, len(starts)
+    chunk = batch.FUSED_CHUNK
+    spans = [(lo, min(lo + chunk, n_rows)) for lo in range(0, n_rows, chunk)]
+    gx = {lo: torch.addmm(bias, x32[lo:hi + ib - 1], w_ih.t()).numpy() for lo, hi in spans}
+    window = np.ascontiguousarray(np.random.default_rng(0).random((chunk, ib * hid)), np.float32)
+    rec, c = np.empty((chunk, 4 * hid), np.float32), np.zeros((chunk, hid), np.float32)
+    out = np.empty((n_rows, net.n_outputs), np.float32)
+
+    def projection() -> None:
+        for lo, hi in spans:
+            g = batch._scratch("bd_gx", (hi - lo + ib - 1, 4 * hid))
+            torch.addmm(bias, x32[lo:hi + ib - 1], w_ih.t(), out=torch.from_numpy(g))
+
+    def recurrent() -> None:
+        for lo, hi in spans:
+            win_t, rec_t = torch.from_numpy(window[:hi - lo]), torch.from_numpy(rec[:hi - lo])
+            for k in range(1, ib):
+                torch.mm(win_t[:, (k - 1) * hid:k * hid], w_hh.t(), out=rec_t)
+
+    def gates() -> None:
+        for lo, hi in spans:
+            w = window[:hi - lo]
+            for k in range(ib):
+                batch._lstm_position(rec[:hi - lo], gx[lo][k:k + hi - lo], k == 0, c[:hi - lo], w, k * hid)
+
+    def head() -> None:
+        with torch.inference_mode():
+            for lo, hi in spans:
+                out[lo:hi] = net.head_out(torch.from_numpy(window[:hi - lo])).numpy()
+
+    frame = pred.frame
+    framed = frame is not None and angles is not None
+    to_world = (lambda: frame.to_world(yp, angles)) if framed else (lambda: None)
+    return {
+        "Kinematics.predict": _timer(lambda: kin.predict(rows)),
+        "inputs and guards": _timer(lambda: pred.raw_inputs(rows, None)),
+        "frame angles": _timer(lambda: pred._network_joints(rows, raw, bounds)),
+        "features": _timer(lambda: sequence_features(pred.layout, net_raw, bounds)),
+        "clip + normalise": _timer(lambda: pred._x_norm.transform(pred.clip_deltas(feats.copy()))),
+        "padding": _timer(lambda: batch.padded_rows(xn, bounds, pred.ib)),
+        "the network": _timer(lambda: batch.seqnet_predict(net, padded, starts)),
+        "  to float32": _timer(lambda: torch.from_numpy(np.ascontiguousarray(padded, dtype=np.float32))),
+        "  input projection": _timer(projection),
+        "  recurrent products": _timer(recurrent),
+        "  gates and cells": _timer(gates),
+        "  head and output": _timer(head),
+        "de-normalise": _timer(lambda: pred._y_norm.inverse(yn)),
+        "quaternion": _timer(lambda: postprocess(pred.layout, y)),
         "to the tracker frame": _timer(to_world),
     }
 
@@ -156,18 +231,36 @@ def measure(timers: dict[str, Callable[[], float]], rounds: int) -> dict[str, fl
     return {n: float(np.median(v)) for n, v in per_round.items()}
 
 
-def table(us: dict[str, float], b: int) -> dict[str, float]:
-    """Print the split (the face as a difference, every other row as timed) and return its figures."""
-    whole = us["Kinematics.predict"]
-    rows = {"Kinematics.predict (the call as timed)": whole,
-            "  the face": whole - us["FKPredictor.predict"]}
-    whole_calls = ("Kinematics.predict", "FKPredictor.predict")
-    rows.update({f"  {k}": v for k, v in us.items() if k not in whole_calls})
-    outside = sum(v for k, v in us.items()
-                  if not k.startswith("  ") and k not in (*whole_calls, "the network"))
-    rows["  outside the network (sum of its rows)"] = outside + rows["  the face"]
-    print(f"predict breakdown, B = {b:,} {'':20s} {'µs':>9s} {'share':>7s}")
-    for label, v in rows.items():
-        print(f"{label:48s} {v:9.1f} {v / whole:7.1%}")
-    print(f"{'predictions/s (the call as timed)':48s} {b / whole * 1e6:9,.0f}")
-    return {k.strip(): v for k, v in rows.items()}
+ORDER = ("Kinematics.predict (the call as timed)", "inputs and guards", "frame angles", "features",
+         "clip + normalise", "padding", "features … padding (one pass)", "the network", "to float32",
+         "input projection", "recurrent products", "gates and cells", "head and output", "Dense layer",
+         "ReLU and output", "de-normalise", "quaternion", "poses (one pass)", "to the tracker frame",
+         "outside the network (sum of its rows)", "predictions/s (the call as timed)")
+NETWORK = ("to float32", "input projection", "recurrent products", "gates and cells", "head and output",
+           "Dense layer", "ReLU and output")
+
+
+def table(us: dict[str, dict[str, float]], b: int) -> dict[str, dict[str, float]]:
+    """Print the split of each tree (columns; `us`: tree -> piece -> µs) and return its figures."""
+    rows: dict[str, dict[str, float]] = {}
+    for tree, timed in us.items():
+        got = {k.strip(): v for k, v in timed.items()}
+        whole = got["Kinematics.predict"]
+        mine = {"Kinematics.predict (the call as timed)": whole, **got}
+        del mine["Kinematics.predict"]
+        mine["outside the network (sum of its rows)"] = sum(
+            v for k, v in got.items() if k not in ("Kinematics.predict", "the network", *NETWORK))
+        mine["predictions/s (the call as timed)"] = b / whole * 1e6
+        rows[tree] = mine
+    labels = sorted({k for mine in rows.values() for k in mine}, key=ORDER.index)
+    print(f"predict breakdown, B = {b:,}, thread CPU µs (share)"
+          + "".join(f" {tree:>18s}" for tree in rows))
+    for label in labels:
+        cells = []
+        for mine in rows.values():
+            v, whole = mine.get(label), mine["Kinematics.predict (the call as timed)"]
+            cells.append("" if v is None else f"{v:,.0f}" if label.startswith("pred")
+                         else f"{v:9.1f} ({v / whole:5.1%})")
+        indent = "    " if label in NETWORK else "" if label.startswith(("Kin", "pred")) else "  "
+        print(f"{indent + label:48s}" + "".join(f" {c:>18s}" for c in cells))
+    return rows
