@@ -11,12 +11,22 @@ rounds (each round resumes its run from the checkpoint), so both see the same lo
 on a shared machine. samples/s = training samples x epochs / training seconds (validation included,
 one thread). Held-out error: position RMSE on the test sequences against the truth as the tracker
 sees it without noise (and against the measurement). Prints a table and ends with one JSON line.
+
+    OMP_NUM_THREADS=1 python benchmarks/bench_training.py data/paper-quick --profile 5
+
+`--profile EPOCHS`: instead, where an epoch's time goes: each loop trains EPOCHS epochs under
+cProfile (one thread, no early stop), and the table splits the epochs' time by the functions the
+engine calls (the recipe's forward and loss, backward, the optimiser's step, zero_grad, the rest of
+the epoch loop: the shuffle's gather, batch views, the loss sum; the validation loss; checkpoints),
+in ms per epoch and share (cProfile's own cost inflates the Python-heavy rows).
 """
 
 from __future__ import annotations
 
 import argparse
+import cProfile
 import json
+import pstats
 import tempfile
 import time
 from pathlib import Path
@@ -51,6 +61,40 @@ def run(ds: Dataset, cfgs: dict[str, TrainConfig], out: Path, rounds: int) -> di
     return metrics
 
 
+PIECES = (("forward + loss (recipe.loss)", "recipe.py", "loss"), ("backward", "_tensor.py", "backward"),
+          ("optimiser step (Adam)", "adam.py", "step"), ("zero_grad", "optimizer.py", "zero_grad"),
+          ("validation loss", "recipe.py", "val_loss"), ("checkpoints", "engine.py", "_checkpoint"),
+          ("epoch tensors (recipe)", "recipe.py", "epoch_tensors"))
+LOOPS = (("engine.py", "_epoch_gathered"), ("engine.py", "_epoch"))
+
+
+def _cumulative(stats: dict[Any, Any], file: str, func: str) -> float:
+    """Seconds of cProfile's cumulative time in the functions `func` of files ending in `file`."""
+    return float(sum(v[3] for (f, _, fn), v in stats.items() if fn == func and f.endswith(file)))
+
+
+def profile(ds: Dataset, cfgs: dict[str, TrainConfig], out: Path, epochs: int) -> dict[str, dict[str, float]]:
+    """ms per epoch of each piece (PIECES; "rest of the epoch loop": the loop's time less its calls)
+    of each config trained `epochs` epochs under cProfile."""
+    figures: dict[str, dict[str, float]] = {}
+    for name, cfg in cfgs.items():
+        run_cfg = TrainConfig.from_dict({**cfg.to_dict(), "max_epochs": epochs, "max_seconds": None,
+                                         "patience": epochs + 1})
+        prof = cProfile.Profile()
+        prof.enable()
+        train(ds, run_cfg, out / name, progress=False)
+        prof.disable()
+        stats = pstats.Stats(prof).stats        # type: ignore[attr-defined]
+        got = {label: _cumulative(stats, file, func) / epochs * 1e3 for label, file, func in PIECES}
+        loop = sum(_cumulative(stats, file, func) for file, func in LOOPS) / epochs * 1e3
+        inner = sum(got[k] for k in ("forward + loss (recipe.loss)", "backward", "optimiser step (Adam)",
+                                     "zero_grad"))
+        got["rest of the epoch loop (gather, views, loss sum)"] = loop - inner
+        got["the epochs (engine.epochs)"] = _cumulative(stats, "engine.py", "epochs") / epochs * 1e3
+        figures[name] = got
+    return figures
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("data", type=Path, help="a paper-protocol dataset (ctrkin collect --protocol paper)")
@@ -59,9 +103,22 @@ def main() -> None:
     ap.add_argument("--batch", type=int, default=1024, help="batch size of the new recipe")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--out", type=Path, default=None, help="model folders (default: a temporary folder)")
+    ap.add_argument("--profile", type=int, default=None, metavar="EPOCHS",
+                    help="where an epoch's time goes instead (module docstring)")
     args = ap.parse_args()
     ds = Dataset.load(args.data)
     cfgs = configs(args.batch, args.seconds, args.threads)
+    if args.profile is not None:
+        with tempfile.TemporaryDirectory() as tmp:
+            prof = profile(ds, cfgs, args.out or Path(tmp), args.profile)
+        whole = {n: p["the epochs (engine.epochs)"] for n, p in prof.items()}
+        print(f"ms per epoch ({args.profile} epochs under cProfile, {args.threads} thread(s))"
+              + "".join(f" {n + ' (batch ' + str(cfgs[n].batch_size) + ')':>22s}" for n in prof))
+        for label in prof["new"]:
+            print(f"{label:50s}" + "".join(f" {p[label]:12.1f} ({p[label] / whole[n]:5.1%})"
+                                           for n, p in prof.items()))
+        print(json.dumps({"profile_ms_per_epoch": prof}))
+        return
     with tempfile.TemporaryDirectory() as tmp:
         m = run(ds, cfgs, args.out or Path(tmp), args.rounds)
     rows = {}

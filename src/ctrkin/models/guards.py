@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from ctrkin.data.schema import QUAT_NORM_TOL
 from ctrkin.errors import JointError, ModelError
@@ -38,8 +39,9 @@ class FKGuard:
         if not self.periodic_only:
             self.lo = np.asarray(x_norm.lo, float)[cols]
             self.hi = np.asarray(x_norm.hi, float)[cols]
-            self._lo = (self.lo - RANGE_SLACK_DEG).tolist()     # scalar bounds of the fast path
-            self._hi = (self.hi + RANGE_SLACK_DEG).tolist()
+            self._lo_arr, self._hi_arr = self.lo - RANGE_SLACK_DEG, self.hi + RANGE_SLACK_DEG
+            self._lo = self._lo_arr.tolist()     # scalar bounds of the fast path
+            self._hi = self._hi_arr.tolist()
 
     def check(self, raw: np.ndarray) -> None:
         """Raise JointError for joints the robot cannot take or absurd angles. raw: (T, 2N) or (2N,)."""
@@ -73,6 +75,8 @@ class FKGuard:
         if self.periodic_only:
             return
         alpha = np.atleast_2d(shifted)[:, : self.n]
+        if _alphas_within(alpha, self._lo_arr, self._hi_arr):    # one pass where every step passes
+            return
         bad = (alpha < self.lo - RANGE_SLACK_DEG) | (alpha > self.hi + RANGE_SLACK_DEG)
         if bad.any():
             r, i = (int(v[0]) for v in np.nonzero(bad))
@@ -124,11 +128,23 @@ def check_joints(robot: Robot, raw: np.ndarray) -> np.ndarray:
     in batch and streaming, a follow IK's start joints. Returns them as a float array."""
     q = robot.check_joints(raw)
     alpha = np.atleast_2d(q)[:, : robot.n_tubes]
-    if np.abs(alpha).max(initial=0.0) > MAX_ABS_ALPHA_DEG:
+    bound = np.full(robot.n_tubes, MAX_ABS_ALPHA_DEG)
+    if not _alphas_within(alpha, -bound, bound):
         r = int(np.argmax(np.abs(alpha).max(axis=1)))
         raise JointError(f"rotation {alpha[r].tolist()} deg at row {r} exceeds ±{MAX_ABS_ALPHA_DEG:g} deg; "
                          "wrap the angles (α mod 360 is the same joint)")
     return q
+
+
+@njit(cache=True)
+def _alphas_within(alpha: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> bool:
+    """Whether every α of alpha (T, N) deg lies in [lo, hi] (N,) (NaN does not): the checks' one pass
+    where every row passes (a 1,024-row predict spent ~0.15 ms in numpy's temporaries here)."""
+    for t in range(alpha.shape[0]):
+        for i in range(alpha.shape[1]):
+            if not lo[i] <= alpha[t, i] <= hi[i]:
+                return False
+    return True
 
 
 def check_poses(raw: np.ndarray) -> None:
