@@ -3,6 +3,7 @@ three-tube robot of the public C++ TCM of TIMClab-CAMI (issue 11, `ctrkin.robots
 
     python benchmarks/bench_mechanics.py            # 1,000 cold solves, 2×721 warm steps, accuracy
     python benchmarks/bench_mechanics.py --n 200    # quicker
+    python benchmarks/bench_mechanics.py --breakdown  # where the paper robot's warm step goes
 
 Prints, per robot: cold solve from the default guess (paper: median ≤ 1 ms goal, the paper's TCM took
 1.47 s a point; TIMClab: ≤ 100 µs), warm continuation step inside `follow` and the public warm path
@@ -271,14 +272,35 @@ def warm_up(robot: Robot, q: np.ndarray, settings: SolverSettings,
     follow(robot, sweep(), settings=settings)
 
 
+def breakdown(settings: SolverSettings) -> None:
+    """`--breakdown`: the paper robot's warm step inside follow, uninstrumented and split into
+    its parts (warm_breakdown.py); prints `uptime` and ends with the JSON line of its figures."""
+    import warm_breakdown
+
+    robot = paper_robot()
+    print(f"paper robot (2 tubes), load: {os.getloadavg()[0]:.2f} (1-minute load average)")
+    warm_up(robot, np.array([0, 0, -10, -5.0]), settings, lambda: rotation_sweep(2, 20.0, step_deg=30.0))
+    ds = (4.0, 8.0, 12.0, 16.0, 20.0)
+    sweeps = [rotation_sweep(2, d) for d in ds]
+    step, _ = bench_warm(robot, sweeps, [f"at d = {d:4.1f} mm" for d in ds], settings, n_warm=0)
+    figures = warm_breakdown.breakdown(robot, sweeps, settings, float(np.median(step) * 1e6))
+    print(json.dumps({"paper_warm_us": float(f"{np.median(step) * 1e6:.4g}")}
+                     | {k: float(f"{v:.4g}") for k, v in figures.items()}))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--n", type=int, default=1000, help="random configurations for cold solves")
     ap.add_argument("--n-ref", type=int, default=40, help="configurations checked against the reference")
     ap.add_argument("--step", type=float, default=None, help="largest RK4 step (mm), default: the settings'")
+    ap.add_argument("--breakdown", action="store_true",
+                    help="only the paper robot's warm step, split into its parts (warm_breakdown.py)")
     args = ap.parse_args()
     settings = SolverSettings() if args.step is None else SolverSettings(step=args.step)
     out: dict[str, float] = {}
+    if args.breakdown:
+        breakdown(settings)
+        return
 
     robot = paper_robot()
     print("paper robot (2 tubes)")
