@@ -207,23 +207,43 @@ def bare_passes(reps, x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, pre
     return d
 
 
-@njit
-def real_passes(reps, x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
-                nsample, r, jac):
-    """reps library passes in one call, as kernels.newton makes them (work arrays allocated once
-    per solve, the variation on, no body, no records, no contact); returns the last min det H."""
-    n = k.shape[0]
-    y = np.empty(2 * n)
-    phi = np.empty((2 * n, n))
-    zb = np.empty(kernels.NB)
-    w = kernels._work(n)
-    rs, ps, qs, us = np.empty(1), np.empty((1, 3)), np.empty((1, 1)), np.empty((1, 1))
-    d = 0.0
-    for _ in range(reps):
-        d = kernels._integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present,
-                               nsteps, nsample, True, False, y, phi, zb, w, r, jac, False, rs, ps,
-                               qs, us, None, None, None, None, None)
-    return d
+try:  # the library's pass as a Newton solve makes it: flat (issue 26), or _integrate before it
+    from ctrkin.mechanics.passes import flat_pass, flat_work
+except ImportError:  # an older tree (bench_mechanics --baseline)
+    flat_pass = None
+
+if flat_pass is not None:
+    @njit
+    def real_passes(reps, x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
+                    nsample, r, jac):
+        """reps library passes in one call, as kernels.newton makes them without contact effects
+        (passes.flat_pass, its work allocated once per solve, the variation on, no body); returns
+        the last min det H."""
+        fw = flat_work(k.shape[0])
+        d = 0.0
+        for _ in range(reps):
+            d = flat_pass(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
+                          nsample, True, False, fw, r, jac)
+        return d
+else:
+    @njit
+    def real_passes(reps, x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
+                    nsample, r, jac):
+        """reps library passes in one call, as kernels.newton makes them (work arrays allocated
+        once per solve, the variation on, no body, no records, no contact); returns the last min
+        det H."""
+        n = k.shape[0]
+        y = np.empty(2 * n)
+        phi = np.empty((2 * n, n))
+        zb = np.empty(kernels.NB)
+        w = kernels._work(n)
+        rs, ps, qs, us = np.empty(1), np.empty((1, 3)), np.empty((1, 1)), np.empty((1, 1))
+        d = 0.0
+        for _ in range(reps):
+            d = kernels._integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present,
+                                   nsteps, nsample, True, False, y, phi, zb, w, r, jac, False, rs,
+                                   ps, qs, us, None, None, None, None, None)
+        return d
 
 
 def bare_work(n: int) -> tuple[np.ndarray, ...]:

@@ -1,26 +1,31 @@
 """Where a warm continuation step's time goes (issue 26, goal 1), by measurement:
-`python benchmarks/bench_mechanics.py --breakdown` (the current tree's code only).
+`python benchmarks/bench_mechanics.py --breakdown` (this tree's code, or an older tree's with
+PYTHONPATH=<its src>: the parts it lacks read 0).
 
 The paper robot's 1° sweeps (bench_mechanics' warm figure) are followed with the parts of a step
 wrapped in timers, each adding its own time to a bucket of the step it runs in:
 
-    the Newton kernel      the compiled solve (its passes, allocations, Newton logic) and numba's
-                           dispatch of its arguments, as a call from Python
+    the kernel calls       the compiled code as called from Python, numba's dispatch of the
+                           arguments included: the warm step (mechanics.warm.warm_step: α, the
+                           Newton solve, the acceptance test) and the general path's Newton solves
+                           (kernels.newton: passes, allocation, Newton logic)
+    the warm step's Python continuation._warm less its kernel: output arrays, Problem, Equilibrium
     the Newton wrapper     pointwise.newton less the kernel: contact arrays, NewtonResult
     the problem            continuation._problem_at: with_alpha (α in radians, a Problem)
     the equilibrium        pointwise.equilibrium: an Equilibrium of the result
-    the rest               follow's and _advance's Python: predictor, acceptance checks, flags
+    the rest               follow's and _advance's Python: predictor, checks, flags, the timers
 
-Inside the kernel call, numba's dispatch is measured apart (a compiled function that does nothing,
-called with the same arguments) and so are the integration passes (passes per step, counted, times
-one library pass with the variation and one final pass, each timed inside one compiled call, as
-bench_pass does). Each timer costs the step about a microsecond (the instrumented total is printed
-beside the uninstrumented median). Thread CPU time; medians over the steps, and means (the parts of
+Inside the kernel calls, numba's dispatch is measured apart (a compiled function that does nothing,
+called with warm_step's 27 arguments) and so are the integration passes (passes per step, counted,
+times one pass with the variation and one final pass as a Newton solve makes them, each timed
+inside one compiled call). The timers' own cost is measured (an empty function, timed the same
+way) and taken out of the rest. Thread CPU time; medians over the steps, and means (the parts of
 the mean add up to the mean total).
 """
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Callable
 from typing import Any
@@ -32,33 +37,53 @@ from ctrkin import Robot, SolverSettings, follow, solve
 from ctrkin.mechanics import continuation, kernels, pointwise
 
 CLOCK = time.thread_time
-BUCKETS = ("kernel", "wrapper", "problem", "equilibrium")
+BUCKETS = ("kernel", "warm", "wrapper", "problem", "equilibrium")
 
 
 @njit(cache=True)
-def _nothing(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
-             tol, max_iter, max_step, x_out, body_out, cst=None, cpr=None, cvar=None, cprm=None,
-             cout=None):
-    """kernels.newton's signature, doing nothing: its call time is numba's dispatch."""
+def _nothing(q, q_from, guess, x_prev, det_prev, lengths, beta, tips, rigid, k, gj, bounds, kap,
+             kapy, present, nsteps, nsample, tol, max_iter, max_step, max_turn, jump, slack, rate,
+             alpha, x_out, body_out):
+    """warm.warm_step's signature, doing nothing: its call time is numba's dispatch."""
     return True, 0, 0.0, 1.0, 1.0, 2
 
 
-@njit(cache=True)
-def _final_passes(reps, x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
-                  nsample):
-    """reps final passes (backbone and energy, no variation), as kernels.newton makes them."""
-    n = k.shape[0]
-    y = np.empty(2 * n)
-    phi = np.empty((2 * n, n))
-    zb = np.empty(kernels.NB)
-    w = kernels._work(n)
-    r, jac = np.empty(n), np.empty((n, n))
-    rs, ps, qs, us = np.empty(1), np.empty((1, 3)), np.empty((1, 1)), np.empty((1, 1))
-    for _ in range(reps):
-        kernels._integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
-                           nsample, False, True, y, phi, zb, w, r, jac, False, rs, ps, qs, us,
-                           None, None, None, None, None)
-    return zb[12]
+def _passes_fn() -> Any:
+    """A compiled loop of R passes as a Newton solve makes them: passes.flat_pass where this tree
+    has it, else kernels._integrate (the code before it)."""
+    try:
+        from ctrkin.mechanics.passes import flat_pass, flat_work
+    except ImportError:
+        flat_pass = None
+
+    if flat_pass is not None:
+        @njit
+        def passes(reps, with_var, with_body, x, alpha, beta, tips, rigid, k, gj, bounds, kap,
+                   kapy, present, nsteps, nsample):
+            n = k.shape[0]
+            fw = flat_work(n)
+            r, jac = np.empty(n), np.empty((n, n))
+            d = 0.0
+            for _ in range(reps):
+                d = flat_pass(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present,
+                              nsteps, nsample, with_var, with_body, fw, r, jac)
+            return d
+        return passes
+
+    @njit
+    def passes_old(reps, with_var, with_body, x, alpha, beta, tips, rigid, k, gj, bounds, kap,
+                   kapy, present, nsteps, nsample):
+        n = k.shape[0]
+        y, phi, zb, w = np.empty(2 * n), np.empty((2 * n, n)), np.empty(kernels.NB), kernels._work(n)
+        r, jac = np.empty(n), np.empty((n, n))
+        rs, ps, qs, us = np.empty(1), np.empty((1, 3)), np.empty((1, 1)), np.empty((1, 1))
+        d = 0.0
+        for _ in range(reps):
+            d = kernels._integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present,
+                                   nsteps, nsample, with_var, with_body, y, phi, zb, w, r, jac,
+                                   False, rs, ps, qs, us, None, None, None, None, None)
+        return d
+    return passes_old
 
 
 def _timed(fn: Callable[..., Any], acc: dict[str, float], key: str,
@@ -78,13 +103,14 @@ def _timed(fn: Callable[..., Any], acc: dict[str, float], key: str,
 
 
 def _dispatch_us(robot: Robot, q: np.ndarray, settings: SolverSettings, reps: int = 2000) -> float:
-    """Median µs of a call of _nothing with kernels.newton's arguments (a warm step's)."""
+    """Median µs of a call of _nothing with a warm step's arguments."""
     eq = solve(robot, q, settings=settings)
     pb = eq.problem
     a = pb.arrays
-    args = (eq.x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid, settings.tol,
-            settings.max_iter, settings.max_step, np.empty(2), np.empty(7),
-            *pointwise.contact_arrays(pb))
+    n = eq.x.shape[0]
+    args = (eq.q, eq.q, eq.x, eq.x, 1.0, a.lengths, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid,
+            settings.tol, settings.max_iter, settings.max_step, 30.0, 0.35, 0.05, 0.5, np.empty(n),
+            np.empty(n), np.empty(7))
     _nothing(*args)
     t = np.empty(reps)
     for i in range(reps):
@@ -94,25 +120,34 @@ def _dispatch_us(robot: Robot, q: np.ndarray, settings: SolverSettings, reps: in
     return float(np.median(t) * 1e6)
 
 
+def _timer_us(reps: int = 2000) -> float:
+    """Median µs a _timed wrapper adds to a call (its clock reads and bookkeeping)."""
+    acc = {"x": 0.0}
+    f = _timed(lambda: None, acc, "x")
+    t = np.empty(reps)
+    for i in range(reps):
+        t0 = CLOCK()
+        f()
+        t[i] = CLOCK() - t0
+    return float(np.median(t) * 1e6)
+
+
 def _pass_us(robot: Robot, q: np.ndarray, settings: SolverSettings) -> tuple[float, float]:
     """µs of one pass with the variation and of one final pass at q's equilibrium (medians of 201
     calls of 20 passes each, alternating)."""
-    from bare_pass import real_passes
-
     eq = solve(robot, q, settings=settings)
     pb = eq.problem
     a = pb.arrays
-    n = eq.x.shape[0]
     common = (eq.x, pb.alpha, pb.beta, pb.tips, a.rigid, a.k, a.gj, *pb.grid)
-    r, j = np.empty(n), np.empty((n, n))
-    real_passes(1, *common, r, j)
-    _final_passes(1, *common)
+    passes = _passes_fn()
+    passes(1, True, False, *common)
+    passes(1, False, True, *common)
     tv, tf = np.empty(201), np.empty(201)
     for i in range(201):
         t0 = CLOCK()
-        real_passes(20, *common, r, j)
+        passes(20, True, False, *common)
         t1 = CLOCK()
-        _final_passes(20, *common)
+        passes(20, False, True, *common)
         t2 = CLOCK()
         tv[i], tf[i] = (t1 - t0) / 20, (t2 - t1) / 20
     return float(np.median(tv) * 1e6), float(np.median(tf) * 1e6)
@@ -122,69 +157,88 @@ def breakdown(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings,
               plain_us: float) -> dict[str, float]:
     """Print the table of a warm step's parts (module docstring) and return its figures (µs);
     plain_us: the uninstrumented median step (bench_warm's)."""
-    acc = dict.fromkeys((*BUCKETS, "calls", "passes"), 0.0)
-    saved = (kernels.newton, continuation.newton, continuation._problem_at,
-             continuation.equilibrium)
-    real_kernel = kernels.newton
+    counters = ("calls", "passes", "timed")
+    acc = dict.fromkeys((*BUCKETS, *counters), 0.0)
+    warm = getattr(continuation, "warm", None)  # the compiled warm step, where this tree has one
+    saved = [(kernels, "newton"), (continuation, "newton"), (continuation, "_problem_at"),
+             (continuation, "equilibrium")] + ([(warm, "warm_step"), (continuation, "_warm")]
+                                                if warm is not None else [])
+    originals = [getattr(m, name) for m, name in saved]
 
-    def kernel(*args: Any) -> Any:
-        out = real_kernel(*args)
-        acc["calls"] += 1
-        acc["passes"] += out[5]
-        return out
+    def counted(fn: Callable[..., Any], passes_at: int | None) -> Callable[..., Any]:
+        def call(*args: Any) -> Any:
+            out = fn(*args)
+            acc["calls"] += passes_at is not None
+            acc["passes"] += out[passes_at] if passes_at is not None else 0
+            acc["timed"] += 1
+            return out
+        return call
 
-    kernels.newton = _timed(kernel, acc, "kernel")
-    continuation.newton = _timed(pointwise.newton, acc, "wrapper", ("kernel",))
-    continuation._problem_at = _timed(continuation._problem_at, acc, "problem")
-    continuation.equilibrium = _timed(continuation.equilibrium, acc, "equilibrium", ("kernel",))
-    rows: dict[str, list[float]] = {k: [] for k in ("total", *BUCKETS, "calls", "passes")}
+    kernels.newton = _timed(counted(kernels.newton, 5), acc, "kernel")
+    continuation.newton = _timed(counted(pointwise.newton, None), acc, "wrapper", ("kernel",))
+    continuation._problem_at = _timed(counted(continuation._problem_at, None), acc, "problem")
+    continuation.equilibrium = _timed(counted(continuation.equilibrium, None), acc, "equilibrium",
+                                      ("kernel",))
+    if warm is not None:
+        warm.warm_step = _timed(counted(warm.warm_step, 5), acc, "kernel")
+        continuation._warm = _timed(counted(continuation._warm, None), acc, "warm", ("kernel",))
+    rows: dict[str, list[float]] = {k: [] for k in ("total", *BUCKETS, *counters)}
     try:
         for Qs in sweeps:
             marks: list[tuple[float, dict[str, float]]] = []
 
-            def mark(_t: int) -> None:
+            def mark(_t: int, marks: list[tuple[float, dict[str, float]]] = marks) -> None:
                 marks.append((CLOCK(), dict(acc)))
 
             follow(robot, Qs, settings=settings, progress=mark)
-            for (t0, a0), (t1, a1) in zip(marks[:-1], marks[1:], strict=True):
+            for (t0, a0), (t1, a1) in itertools.pairwise(marks):
                 rows["total"].append(t1 - t0)
-                for k in (*BUCKETS, "calls", "passes"):
+                for k in (*BUCKETS, *counters):
                     rows[k].append(a1[k] - a0[k])
     finally:
-        (kernels.newton, continuation.newton, continuation._problem_at,
-         continuation.equilibrium) = saved
+        for (m, name), fn in zip(saved, originals, strict=True):
+            setattr(m, name, fn)
     r = {k: np.array(v) for k, v in rows.items()}
     q = sweeps[len(sweeps) // 2][40]
     disp = _dispatch_us(robot, q, settings)
+    timer = _timer_us()
     var_us, fin_us = _pass_us(robot, q, settings)
     calls, passes = r["calls"].mean(), r["passes"].mean()
-    kernel_mean = r["kernel"].mean() * 1e6
+    us = {k: r[k] * 1e6 for k in ("total", *BUCKETS)}
+    kernel_mean = us["kernel"].mean()
     pass_mean = (passes - calls) * var_us + calls * fin_us  # one final pass per converged solve
-    rest = r["total"] - sum(r[k] for k in BUCKETS)
-    lines = [
+    rest = us["total"] - sum(us[k] for k in BUCKETS) - r["timed"] * timer
+    total_mean = us["total"].mean() - r["timed"].mean() * timer
+
+    def row(name: str, v: np.ndarray) -> tuple[str, float, float]:
+        return name, float(np.median(v)), float(v.mean())
+
+    lines: list[tuple[str, float | None, float]] = [
         ("step, uninstrumented (bench_warm's median)", plain_us, plain_us),
-        ("step, instrumented", np.median(r["total"]) * 1e6, r["total"].mean() * 1e6),
-        ("  Newton kernel call", np.median(r["kernel"]) * 1e6, kernel_mean),
+        ("step, instrumented, less the timers' own cost", float(np.median(us["total"] - r["timed"] * timer)),
+         total_mean),
+        row("  the kernel calls", us["kernel"]),
         (f"    numba dispatch ({calls:.2f} calls × {disp:.2f})", calls * disp, calls * disp),
         (f"    integration passes ({passes - calls:.2f} × {var_us:.2f} with the variation, "
          f"{calls:.2f} × {fin_us:.2f} final)", None, pass_mean),
-        ("    the kernel's own (allocation, Newton logic)", None, kernel_mean - calls * disp - pass_mean),
-        ("  Newton wrapper (pointwise.newton)", np.median(r["wrapper"]) * 1e6, r["wrapper"].mean() * 1e6),
-        ("  problem (with_alpha)", np.median(r["problem"]) * 1e6, r["problem"].mean() * 1e6),
-        ("  equilibrium", np.median(r["equilibrium"]) * 1e6, r["equilibrium"].mean() * 1e6),
-        ("  the rest (follow, _advance: predictor, checks, timers)", np.median(rest) * 1e6,
-         rest.mean() * 1e6),
+        ("    the kernels' own (allocation, Newton logic, acceptance)", None,
+         kernel_mean - calls * disp - pass_mean),
+        row("  the warm step's Python (continuation._warm: arrays, Problem, Equilibrium)", us["warm"]),
+        row("  Newton wrapper (pointwise.newton)", us["wrapper"]),
+        row("  problem (_problem_at: with_alpha)", us["problem"]),
+        row("  equilibrium (pointwise.equilibrium)", us["equilibrium"]),
+        row("  the rest (follow, _advance: predictor, checks, flags)", rest),
     ]
-    print(f"  where a warm step goes ({len(r['total'])} steps; thread CPU µs):")
+    print(f"  where a warm step goes ({len(us['total'])} steps; thread CPU µs; timers "
+          f"{r['timed'].mean():.2f} a step × {timer:.2f} µs taken out):")
     print(f"    {'part':<78} {'median':>8} {'mean':>8}")
     for name, med, mean in lines:
         ms = "" if med is None else f"{med:8.2f}"
         print(f"    {name:<78} {ms:>8} {mean:8.2f}")
-    python_mean = r["total"].mean() * 1e6 - kernel_mean
-    print(f"  Python around the kernel: {python_mean:.2f} µs of the instrumented mean "
-          f"{r['total'].mean() * 1e6:.2f} ({python_mean / (r['total'].mean() * 1e6):.0%}); inside "
-          f"the kernel call: {kernel_mean:.2f}")
-    return {"breakdown_step_us": float(np.median(r["total"]) * 1e6),
+    python_mean = total_mean - kernel_mean
+    print(f"  Python around the kernels: {python_mean:.2f} µs of the instrumented mean "
+          f"{total_mean:.2f} ({python_mean / total_mean:.0%}); the kernel calls: {kernel_mean:.2f}")
+    return {"breakdown_step_us": float(np.median(us["total"] - r["timed"] * timer)),
             "breakdown_kernel_us": kernel_mean, "breakdown_python_us": python_mean,
             "breakdown_dispatch_us": calls * disp, "breakdown_passes_us": pass_mean,
             "breakdown_pass_var_us": var_us, "breakdown_pass_final_us": fin_us}

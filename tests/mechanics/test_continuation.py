@@ -10,7 +10,7 @@ import pytest
 from ctrkin import Robot, SolverSettings, Tube, follow, paper_robot, solve
 from ctrkin.acquisition.trajectories import rotation_sweep
 from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
-from ctrkin.mechanics import continuation, kernels
+from ctrkin.mechanics import continuation, kernels, warm
 from ctrkin.mechanics.continuation import Predictor
 from ctrkin.mechanics.pointwise import prepare, with_alpha
 
@@ -181,9 +181,16 @@ def test_parabola_starts_newton_within_reach_of_the_final_pass() -> None:
 
 
 def _passes_per_step(monkeypatch, Q: np.ndarray, path_states: int) -> tuple[list[float], object]:
-    """Integration passes of every Newton solve in follow(Q), with PATH_STATES = path_states."""
+    """Integration passes of every Newton solve in follow(Q), with PATH_STATES = path_states: those
+of the general path (continuation.newton) and of the compiled warm step (mechanics.warm)."""
     passes: list[float] = []
     inner = continuation.newton
+    inner_warm = warm.warm_step
+
+    def counting_warm(*args):
+        out = inner_warm(*args)
+        passes.append(out[5])
+        return out
 
     def counting(pb, x0, settings, work=None):
         w = [0]
@@ -195,6 +202,7 @@ def _passes_per_step(monkeypatch, Q: np.ndarray, path_states: int) -> tuple[list
 
     with monkeypatch.context() as m:
         m.setattr(continuation, "newton", counting)
+        m.setattr(warm, "warm_step", counting_warm)
         m.setattr(continuation, "PATH_STATES", path_states)
         traj = follow(ROBOT, Q)
     return passes, traj

@@ -43,6 +43,7 @@ import numpy as np
 
 from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 from ctrkin.geometry import tip_azimuth, tip_pose
+from ctrkin.mechanics import warm
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
 from ctrkin.mechanics.friction import SLIP, FrictionState
 from ctrkin.mechanics.pointwise import (
@@ -141,6 +142,10 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     same_grid: q_to has the translations β of prev.q and prev was solved with these settings, so
     every sub-step keeps prev's grid (`with_alpha`).
     """
+    if same_grid and prev.problem.stations is None:  # the common step, one compiled call
+        done = _warm(prev, q_to, prev.x if path is None else path.at(1.0), settings)
+        if done is not None:
+            return done, False
     q_from = prev.q
     arr = prev.problem.arrays
     x = prev.x
@@ -201,6 +206,29 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
                 state, modes = _after(*rest, state)
     assert last is not None
     return equilibrium(*last, state), snapped
+
+
+def _warm(prev: Equilibrium, q_to: np.ndarray, guess: np.ndarray, settings: SolverSettings
+          ) -> Equilibrium | None:
+    """The step from `prev` to q_to (same β, no contact effects) as one compiled call
+    (mechanics.warm): the equilibrium if _advance's first try, the whole step from `guess`, is
+    accepted, else None (the caller then takes the general path, which repeats that try)."""
+    pb0 = prev.problem
+    a = pb0.arrays
+    n = a.lengths.shape[0]
+    alpha, x, body = np.empty(n), np.empty(n), np.empty(7)
+    try:
+        acc, it, rn, det_j, det_h, _ = warm.warm_step(
+            q_to, prev.q, guess, prev.x, prev.stability, a.lengths, pb0.beta, pb0.tips, a.rigid,
+            a.k, a.gj, *pb0.grid, settings.tol, settings.max_iter, settings.max_step, MAX_TURN_DEG,
+            JUMP_RAD, DET_SLACK, DET_RATE, alpha, x, body)
+    except (ZeroDivisionError, OverflowError, FloatingPointError):
+        return None  # the general path meets the same and says so
+    if not acc:
+        return None
+    pb = Problem(a, q_to, alpha, pb0.beta, pb0.tips, pb0.grid, pb0.n_rk4)
+    # what pointwise.equilibrium makes of a converged NewtonResult without contact effects
+    return Equilibrium(q_to, x, body[:3], body[3:6], True, det_j, det_h, float(body[6]), rn, it, pb)
 
 
 def _problem_at(robot: Robot, prev: Equilibrium, q: np.ndarray, settings: SolverSettings,
