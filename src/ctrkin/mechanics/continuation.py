@@ -30,6 +30,11 @@ none converge on the whole step or a quarter of it, 2 at 1/16). Newton from the 
 has failed and that search finds the same branch at the smallest one (no fold: no snap), the rest
 of the step is taken from the search as well, where it finds a stable equilibrium within a step's
 twist (JUMP_RAD); sub-stepping on would need a search per 1/256 of the step and spend the budget.
+
+The common step, a rotation (β kept, so the grid is the previous step's) of a robot without contact
+effects whose first try is accepted, runs as one compiled call (`_warm`, mechanics.warm.warm_step:
+α, the Newton solve, the acceptance test); any other step, or a first try that is not accepted,
+takes the general path below from the start, so the decisions and the snaps are its own.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ robot without contact effects and Newton from the predicted state lands on a sta
 that continues the branch.
 
 `warm_step` does in one call what `continuation._advance` does in Python for that step's first
-try: α in radians with whole turns removed (pointwise.reduced_radians, the same bits), the damped
+try: α in radians with whole turns removed (grid.reduced_radians, the same bits), the damped
 Newton solve (kernels.newton, its passes flat: mechanics.passes) and the acceptance test of a
 continuation step (stable; a twist change within `jump`; det J continuous: |det J − det J_prev| ≤
 slack + rate · det J_prev). Where the test fails (a fold near, a large step) the caller takes the
@@ -16,23 +16,10 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
+from ctrkin.mechanics.grid import reduced_radians
 from ctrkin.mechanics.kernels import newton
-
-
-@njit(cache=True)
-def reduced_radians(q, alpha):
-    """alpha (N,) = q[:N] (deg) less whole turns, in radians: pointwise.reduced_radians, bit for
-    bit (fmod, exact in floating point, one ±360°, the product by π/180)."""
-    for i in range(alpha.shape[0]):
-        r = np.fmod(q[i], 360.0)
-        if r > 180.0:
-            r -= 360.0
-        if r <= -180.0:
-            r += 360.0
-        alpha[i] = math.radians(r)
 
 
 @njit(cache=True)
@@ -42,7 +29,7 @@ def warm_step(q, q_from, guess, x_prev, det_prev, lengths, beta, tips, rigid, k,
     """One warm step from joints q_from to q (2N,) (deg, mm) on the grid of the previous step (its
     β), without contact effects. guess (N,) rad/mm: Newton's start (the predicted state); x_prev
     (N,) rad/mm and det_prev: the previous equilibrium's state and det J; lengths (N,) mm; the rest
-    of the problem as kernels.newton takes it. Writes alpha (N,) rad (reduced_radians), x_out (N,),
+    of the problem as kernels.newton takes it. Writes alpha (N,) rad (grid.reduced_radians), x_out (N,),
     body_out (7,) (kernels.newton). Returns (accepted, iterations, |r|∞, det J, min det H, passes):
     accepted when no α turns by more than max_turn (deg: continuation.MAX_TURN_DEG, the step is
     then one try) and Newton converged to a stable equilibrium with max_i |Δxi| Li ≤ jump (rad)
