@@ -8,7 +8,10 @@ floating-point order, so its residuals, Jacobian and det H are bit for bit those
 What it leaves out is everything around the arithmetic: no allocation (the caller passes every
 array), no tuples of arrays, no optional body, records or contact stations, one function with
 flat loops. It supports one to three tubes (det H in closed form) and is a measuring stick for
-benchmarks/bench_mechanics.py, not library code.
+benchmarks/bench_mechanics.py, not library code. It still hands row views and arrays to an
+inlined right-hand side, which numba pays for in reference counting; the library's Newton pass
+(mechanics.passes.flat_pass, issue 26) no longer does and is faster than it: `real_passes` times
+that pass.
 
 `real_passes` / `bare_passes` run R passes inside one compiled call, so the figure is the pass
 itself, not the Python call around it (a Newton solve runs its passes inside one kernel call).

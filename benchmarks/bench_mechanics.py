@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import hashlib
 import json
 import os
 import subprocess
@@ -56,6 +57,17 @@ from mechanics.reference_tcm import reference_tip
 warm = getattr(continuation, "warm", None)  # the compiled warm step (None in a tree before it)
 REPO = Path(__file__).resolve().parents[1]
 BASELINE = "dbab9a8"  # main before the compiled warm step (issue 26)
+
+# What every solve of the run gave (tip poses, snap flags, stability, base states, in run order):
+# its digest ends the JSON line (`results_sha`), so that --baseline shows whether old and new code
+# computed the same numbers, bit for bit.
+RESULTS = hashlib.sha256()
+
+
+def record(*arrays: np.ndarray) -> None:
+    for a in arrays:
+        RESULTS.update(np.ascontiguousarray(a).tobytes())
+
 
 # Every time is this thread's CPU time: on the shared, loaded machine a wall clock also counts the
 # other processes that preempt this one (equal to the wall time on an idle machine).
@@ -162,6 +174,7 @@ def bench_cold(robot: Robot, Q: np.ndarray, settings: SolverSettings) -> np.ndar
         eq = solve(robot, q, settings=settings)
         times[i] = CLOCK() - t0
         stable += eq.stable
+        record(eq.tip_pose, eq.x, np.array([eq.stability, eq.conjugate]))
     print(f"  cold solve ({len(Q)} random configurations, default guess): {stats(times)}; "
           f"{stable}/{len(Q)} stable")
     return times
@@ -182,6 +195,8 @@ def bench_warm(robot: Robot, sweeps: list[np.ndarray], labels: list[str],
         traj = follow(robot, Qs, settings=settings, progress=stamp)
         total = CLOCK() - t0
         step_times.extend(np.diff(stamps))
+        record(traj.tip_poses, traj.snaps, traj.stable, np.array([e.x for e in traj.equilibria]),
+               np.array([e.stability for e in traj.equilibria]))
         prev = traj.equilibria[0]
         for q in Qs[1:n_warm]:  # the public warm-start path, timed one by one
             t1 = CLOCK()
@@ -350,6 +365,7 @@ def compare(args: argparse.Namespace) -> None:
             print(f"round {rnd + 1} {side}: paper warm {runs[side][-1]['paper_warm_us']:.1f} µs, "
                   f"TIMClab warm {runs[side][-1]['timclab_robot_warm_us']:.1f} µs (load "
                   f"{loads[-1]:.2f})", flush=True)
+    shas = {side: {r.pop("results_sha", "") for r in rs} for side, rs in runs.items()}
     med = {side: {k: float(np.median([r[k] for r in rs])) for k in rs[0]} for side, rs in runs.items()}
     print(f"\nold = {args.baseline}, new = this tree; medians of {args.rounds} rounds, thread CPU "
           f"time; 1-minute load {min(loads):.2f}–{max(loads):.2f}")
@@ -362,7 +378,12 @@ def compare(args: argparse.Namespace) -> None:
         print(f"  {side}: TIMClab warm {m['timclab_robot_warm_us'] / CPP_WARM_US:.2f}× and cold "
               f"{m['timclab_robot_cold_us'] / CPP_COLD_US:.2f}× the C++ code's {CPP_WARM_US:.0f} / "
               f"{CPP_COLD_US:.0f} µs (issue 11; goals ≤ 0.3× / ≤ 0.5×)")
-    print(json.dumps({"baseline": args.baseline, "load_min": min(loads), "load_max": max(loads)}
+    same = len(shas["old"] | shas["new"]) == 1 and "" not in shas["old"]
+    print(f"  results (tip poses, snaps, stability, states of every solve; `results_sha`): "
+          f"{'bit for bit the same' if same else 'DIFFER'} (old {sorted(shas['old'])}, new "
+          f"{sorted(shas['new'])})")
+    print(json.dumps({"baseline": args.baseline, "load_min": min(loads), "load_max": max(loads),
+                      "results_same": same}
                      | {side: {k: float(f"{v:.4g}") for k, v in m.items()} for side, m in med.items()}))
 
 
@@ -439,7 +460,8 @@ def main() -> None:
     err_f = bench_accuracy(robot, timclab_configs(args.n_ref, seed=1), fixed)
     out |= {"timclab_3mm_cold_us": np.median(cold) * 1e6, "timclab_3mm_warm_us": np.median(step) * 1e6,
             "timclab_3mm_warm_solve_us": np.median(warm) * 1e6, "timclab_3mm_max_tip_error_mm": err_f.max()}
-    print(json.dumps({k: float(f"{v:.4g}") for k, v in out.items()}))
+    print(json.dumps({k: float(f"{v:.4g}") for k, v in out.items()}
+                     | {"results_sha": RESULTS.hexdigest()[:16]}))
 
 
 if __name__ == "__main__":
