@@ -8,7 +8,10 @@ floating-point order, so its residuals, Jacobian and det H are bit for bit those
 What it leaves out is everything around the arithmetic: no allocation (the caller passes every
 array), no tuples of arrays, no optional body, records or contact stations, one function with
 flat loops. It supports one to three tubes (det H in closed form) and is a measuring stick for
-benchmarks/bench_mechanics.py, not library code.
+benchmarks/bench_mechanics.py, not library code. It still hands row views and arrays to an
+inlined right-hand side, which numba pays for in reference counting; the library's Newton pass
+(mechanics.passes.flat_pass, issue 26) no longer does and is faster than it: `real_passes` times
+that pass.
 
 `real_passes` / `bare_passes` run R passes inside one compiled call, so the figure is the pass
 itself, not the Python call around it (a Newton solve runs its passes inside one kernel call).
@@ -207,23 +210,43 @@ def bare_passes(reps, x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, pre
     return d
 
 
-@njit
-def real_passes(reps, x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
-                nsample, r, jac):
-    """reps library passes in one call, as kernels.newton makes them (work arrays allocated once
-    per solve, the variation on, no body, no records, no contact); returns the last min det H."""
-    n = k.shape[0]
-    y = np.empty(2 * n)
-    phi = np.empty((2 * n, n))
-    zb = np.empty(kernels.NB)
-    w = kernels._work(n)
-    rs, ps, qs, us = np.empty(1), np.empty((1, 3)), np.empty((1, 1)), np.empty((1, 1))
-    d = 0.0
-    for _ in range(reps):
-        d = kernels._integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present,
-                               nsteps, nsample, True, False, y, phi, zb, w, r, jac, False, rs, ps,
-                               qs, us, None, None, None, None, None)
-    return d
+try:  # the library's pass as a Newton solve makes it: flat (issue 26), or _integrate before it
+    from ctrkin.mechanics.passes import flat_pass, flat_work
+except ImportError:  # an older tree (bench_mechanics --baseline)
+    flat_pass = None
+
+if flat_pass is not None:
+    @njit
+    def real_passes(reps, x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
+                    nsample, r, jac):
+        """reps library passes in one call, as kernels.newton makes them without contact effects
+        (passes.flat_pass, its work allocated once per solve, the variation on, no body); returns
+        the last min det H."""
+        fw = flat_work(k.shape[0])
+        d = 0.0
+        for _ in range(reps):
+            d = flat_pass(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
+                          nsample, True, False, fw, r, jac)
+        return d
+else:
+    @njit
+    def real_passes(reps, x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
+                    nsample, r, jac):
+        """reps library passes in one call, as kernels.newton makes them (work arrays allocated
+        once per solve, the variation on, no body, no records, no contact); returns the last min
+        det H."""
+        n = k.shape[0]
+        y = np.empty(2 * n)
+        phi = np.empty((2 * n, n))
+        zb = np.empty(kernels.NB)
+        w = kernels._work(n)
+        rs, ps, qs, us = np.empty(1), np.empty((1, 3)), np.empty((1, 1)), np.empty((1, 1))
+        d = 0.0
+        for _ in range(reps):
+            d = kernels._integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present,
+                                   nsteps, nsample, True, False, y, phi, zb, w, r, jac, False, rs,
+                                   ps, qs, us, None, None, None, None, None)
+        return d
 
 
 def bare_work(n: int) -> tuple[np.ndarray, ...]:

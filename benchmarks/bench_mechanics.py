@@ -3,6 +3,8 @@ three-tube robot of the public C++ TCM of TIMClab-CAMI (issue 11, `ctrkin.robots
 
     python benchmarks/bench_mechanics.py            # 1,000 cold solves, 2×721 warm steps, accuracy
     python benchmarks/bench_mechanics.py --n 200    # quicker
+    python benchmarks/bench_mechanics.py --breakdown  # where the paper robot's warm step goes
+    python benchmarks/bench_mechanics.py --n 200 --n-ref 5 --baseline dbab9a8   # old and new
 
 Prints, per robot: cold solve from the default guess (paper: median ≤ 1 ms goal, the paper's TCM took
 1.47 s a point; TIMClab: ≤ 100 µs), warm continuation step inside `follow` and the public warm path
@@ -27,8 +29,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import hashlib
 import json
 import os
+import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -49,6 +53,21 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bare_pass import bare_passes, bare_work, real_passes
 from mechanics.reference_tcm import reference_tip
+
+warm = getattr(continuation, "warm", None)  # the compiled warm step (None in a tree before it)
+REPO = Path(__file__).resolve().parents[1]
+BASELINE = "dbab9a8"  # main before the compiled warm step (issue 26)
+
+# What every solve of the run gave (tip poses, snap flags, stability, base states, in run order):
+# its digest ends the JSON line (`results_sha`), so that --baseline shows whether old and new code
+# computed the same numbers, bit for bit.
+RESULTS = hashlib.sha256()
+
+
+def record(*arrays: np.ndarray) -> None:
+    for a in arrays:
+        RESULTS.update(np.ascontiguousarray(a).tobytes())
+
 
 # Every time is this thread's CPU time: on the shared, loaded machine a wall clock also counts the
 # other processes that preempt this one (equal to the wall time on an idle machine).
@@ -101,7 +120,8 @@ def simultaneous_sweeps() -> list[np.ndarray]:
 
 def passes_per_step(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings) -> np.ndarray:
     """Integration passes of each step of follow (all its Newton solves: sub-steps and fold
-    searches included), counted in an untimed run through a wrapper around its Newton solve."""
+    searches included), counted in an untimed run through wrappers around its Newton solve and
+    its compiled warm step (mechanics.warm, where there is one)."""
     inner = continuation.newton
     count = [0]
 
@@ -114,9 +134,18 @@ def passes_per_step(robot: Robot, sweeps: list[np.ndarray], settings: SolverSett
             work[0] += w[0]
         return sol
 
+    inner_warm = None if warm is None else warm.warm_step
+
+    def counting_warm(*args: object) -> tuple[bool, int, float, float, float, int]:
+        out = inner_warm(*args)  # type: ignore[misc]
+        count[0] += out[5]
+        return out
+
     per: list[int] = []
     marks: list[int] = []
     continuation.newton = counting
+    if warm is not None:
+        warm.warm_step = counting_warm
     try:
         for Qs in sweeps:
             marks.clear()
@@ -124,6 +153,8 @@ def passes_per_step(robot: Robot, sweeps: list[np.ndarray], settings: SolverSett
             per.extend(np.diff(marks))
     finally:
         continuation.newton = inner
+        if warm is not None:
+            warm.warm_step = inner_warm
     p = np.array(per)
     print(f"  integration passes per warm step: median {np.median(p):.0f}, mean {p.mean():.2f} "
           f"({np.mean(p <= 2):.0%} of steps in one pass with the variation and the final one)")
@@ -143,6 +174,7 @@ def bench_cold(robot: Robot, Q: np.ndarray, settings: SolverSettings) -> np.ndar
         eq = solve(robot, q, settings=settings)
         times[i] = CLOCK() - t0
         stable += eq.stable
+        record(eq.tip_pose, eq.x, np.array([eq.stability, eq.conjugate]))
     print(f"  cold solve ({len(Q)} random configurations, default guess): {stats(times)}; "
           f"{stable}/{len(Q)} stable")
     return times
@@ -163,6 +195,8 @@ def bench_warm(robot: Robot, sweeps: list[np.ndarray], labels: list[str],
         traj = follow(robot, Qs, settings=settings, progress=stamp)
         total = CLOCK() - t0
         step_times.extend(np.diff(stamps))
+        record(traj.tip_poses, traj.snaps, traj.stable, np.array([e.x for e in traj.equilibria]),
+               np.array([e.stability for e in traj.equilibria]))
         prev = traj.equilibria[0]
         for q in Qs[1:n_warm]:  # the public warm-start path, timed one by one
             t1 = CLOCK()
@@ -271,14 +305,108 @@ def warm_up(robot: Robot, q: np.ndarray, settings: SolverSettings,
     follow(robot, sweep(), settings=settings)
 
 
+def breakdown(settings: SolverSettings) -> None:
+    """`--breakdown`: the paper robot's warm step inside follow, uninstrumented and split into
+    its parts (warm_breakdown.py); prints `uptime` and ends with the JSON line of its figures."""
+    import warm_breakdown
+
+    robot = paper_robot()
+    print(f"paper robot (2 tubes), load: {os.getloadavg()[0]:.2f} (1-minute load average)")
+    warm_up(robot, np.array([0, 0, -10, -5.0]), settings, lambda: rotation_sweep(2, 20.0, step_deg=30.0))
+    ds = (4.0, 8.0, 12.0, 16.0, 20.0)
+    sweeps = [rotation_sweep(2, d) for d in ds]
+    step, _ = bench_warm(robot, sweeps, [f"at d = {d:4.1f} mm" for d in ds], settings, n_warm=0)
+    figures = warm_breakdown.breakdown(robot, sweeps, settings, float(np.median(step) * 1e6))
+    print(json.dumps({"paper_warm_us": float(f"{np.median(step) * 1e6:.4g}")}
+                     | {k: float(f"{v:.4g}") for k, v in figures.items()}))
+
+
+COMPARED = (("paper_warm_us", "paper warm step inside follow (µs)"),
+            ("paper_warm_solve_us", "paper solve(q, guess=previous) (µs)"),
+            ("paper_cold_us", "paper cold solve (µs)"),
+            ("paper_warm_simultaneous_us", "paper warm step, rotating and translating (µs)"),
+            ("paper_pass_us", "paper pass with the variation (µs)"),
+            ("paper_bare_pass_us", "paper bare pass, bare_pass.py (µs)"),
+            ("paper_friction_warm_us", "paper warm step, friction μ = 0.2 (µs)"),
+            ("paper_friction_ratio", "friction step ÷ frictionless step"),
+            ("paper_warm_passes_mean", "paper passes per warm step (mean)"),
+            ("timclab_robot_warm_us", "TIMClab warm step inside follow (µs)"),
+            ("timclab_robot_warm_solve_us", "TIMClab solve(q, guess=previous) (µs)"),
+            ("timclab_robot_cold_us", "TIMClab cold solve (µs)"),
+            ("pass_us", "TIMClab pass with the variation (µs)"),
+            ("bare_pass_us", "TIMClab bare pass, bare_pass.py (µs)"),
+            ("timclab_3mm_warm_us", "TIMClab warm step, fixed 3 mm step (µs)"),
+            ("timclab_3mm_cold_us", "TIMClab cold solve, fixed 3 mm step (µs)"),
+            ("paper_max_tip_error_mm", "paper max tip error vs DOP853 (mm)"),
+            ("timclab_max_tip_error_mm", "TIMClab max tip error vs DOP853 (mm)"))
+CPP_WARM_US, CPP_COLD_US = 84.0, 118.0  # the C++ TCM of TIMClab-CAMI, issue 11 (not on this machine)
+
+
+def compare(args: argparse.Namespace) -> None:
+    """`--baseline REV`: this benchmark run whole, `--rounds` times alternating, on REV's src
+    (git archive, bench_streaming.baseline_tree) and on this tree's, each a process of its own
+    (same arguments); prints the medians over rounds of each side's figures with `uptime`, the
+    TIMClab figures against the C++ code's, and one JSON line {"old": …, "new": …}."""
+    from bench_streaming import baseline_tree
+
+    trees = {"old": baseline_tree(args.baseline), "new": REPO / "src"}
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--n", str(args.n), "--n-ref", str(args.n_ref)]
+    if args.step is not None:
+        cmd += ["--step", str(args.step)]
+    runs: dict[str, list[dict[str, float]]] = {"old": [], "new": []}
+    loads = []
+    for rnd in range(args.rounds):
+        for side in ("old", "new"):
+            env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+                [str(trees[side]), *filter(None, [os.environ.get("PYTHONPATH")])]))
+            loads.append(os.getloadavg()[0])
+            out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout
+            runs[side].append(json.loads(out.strip().splitlines()[-1]))
+            print(f"round {rnd + 1} {side}: paper warm {runs[side][-1]['paper_warm_us']:.1f} µs, "
+                  f"TIMClab warm {runs[side][-1]['timclab_robot_warm_us']:.1f} µs (load "
+                  f"{loads[-1]:.2f})", flush=True)
+    shas = {side: {r.pop("results_sha", "") for r in rs} for side, rs in runs.items()}
+    med = {side: {k: float(np.median([r[k] for r in rs])) for k in rs[0]} for side, rs in runs.items()}
+    print(f"\nold = {args.baseline}, new = this tree; medians of {args.rounds} rounds, thread CPU "
+          f"time; 1-minute load {min(loads):.2f}–{max(loads):.2f}")
+    print(f"  {'figure':<50} {'old':>10} {'new':>10} {'new/old':>8}")
+    for key, label in COMPARED:
+        o, n = med["old"].get(key, float("nan")), med["new"].get(key, float("nan"))
+        print(f"  {label:<50} {o:10.4g} {n:10.4g} {n / o:8.2f}")
+    for side in ("old", "new"):
+        m = med[side]
+        print(f"  {side}: TIMClab warm {m['timclab_robot_warm_us'] / CPP_WARM_US:.2f}× and cold "
+              f"{m['timclab_robot_cold_us'] / CPP_COLD_US:.2f}× the C++ code's {CPP_WARM_US:.0f} / "
+              f"{CPP_COLD_US:.0f} µs (issue 11; goals ≤ 0.3× / ≤ 0.5×)")
+    same = len(shas["old"] | shas["new"]) == 1 and "" not in shas["old"]
+    print(f"  results (tip poses, snaps, stability, states of every solve; `results_sha`): "
+          f"{'bit for bit the same' if same else 'DIFFER'} (old {sorted(shas['old'])}, new "
+          f"{sorted(shas['new'])})")
+    print(json.dumps({"baseline": args.baseline, "load_min": min(loads), "load_max": max(loads),
+                      "results_same": same}
+                     | {side: {k: float(f"{v:.4g}") for k, v in m.items()} for side, m in med.items()}))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--n", type=int, default=1000, help="random configurations for cold solves")
     ap.add_argument("--n-ref", type=int, default=40, help="configurations checked against the reference")
     ap.add_argument("--step", type=float, default=None, help="largest RK4 step (mm), default: the settings'")
+    ap.add_argument("--baseline", default=None, metavar="REV",
+                    help=f"old and new: run this benchmark on REV's code (e.g. {BASELINE}, main before "
+                         "the compiled warm step) and on this tree's, alternating (compare())")
+    ap.add_argument("--rounds", type=int, default=2, help="--baseline: rounds of old and new")
+    ap.add_argument("--breakdown", action="store_true",
+                    help="only the paper robot's warm step, split into its parts (warm_breakdown.py)")
     args = ap.parse_args()
     settings = SolverSettings() if args.step is None else SolverSettings(step=args.step)
     out: dict[str, float] = {}
+    if args.breakdown:
+        breakdown(settings)
+        return
+    if args.baseline:
+        compare(args)
+        return
 
     robot = paper_robot()
     print("paper robot (2 tubes)")
@@ -332,7 +460,8 @@ def main() -> None:
     err_f = bench_accuracy(robot, timclab_configs(args.n_ref, seed=1), fixed)
     out |= {"timclab_3mm_cold_us": np.median(cold) * 1e6, "timclab_3mm_warm_us": np.median(step) * 1e6,
             "timclab_3mm_warm_solve_us": np.median(warm) * 1e6, "timclab_3mm_max_tip_error_mm": err_f.max()}
-    print(json.dumps({k: float(f"{v:.4g}") for k, v in out.items()}))
+    print(json.dumps({k: float(f"{v:.4g}") for k, v in out.items()}
+                     | {"results_sha": RESULTS.hexdigest()[:16]}))
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -10,9 +11,9 @@ import pytest
 from ctrkin import Robot, SolverSettings, Tube, follow, paper_robot, solve
 from ctrkin.acquisition.trajectories import rotation_sweep
 from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
-from ctrkin.mechanics import continuation, kernels
+from ctrkin.mechanics import continuation, kernels, warm
 from ctrkin.mechanics.continuation import Predictor
-from ctrkin.mechanics.pointwise import prepare, with_alpha
+from ctrkin.mechanics.pointwise import Equilibrium, equilibrium, newton, prepare, with_alpha
 
 ROBOT = paper_robot()
 
@@ -181,9 +182,16 @@ def test_parabola_starts_newton_within_reach_of_the_final_pass() -> None:
 
 
 def _passes_per_step(monkeypatch, Q: np.ndarray, path_states: int) -> tuple[list[float], object]:
-    """Integration passes of every Newton solve in follow(Q), with PATH_STATES = path_states."""
+    """Integration passes of every Newton solve in follow(Q), with PATH_STATES = path_states: those
+of the general path (continuation.newton) and of the compiled warm step (mechanics.warm)."""
     passes: list[float] = []
     inner = continuation.newton
+    inner_warm = warm.warm_step
+
+    def counting_warm(*args):
+        out = inner_warm(*args)
+        passes.append(out[5])
+        return out
 
     def counting(pb, x0, settings, work=None):
         w = [0]
@@ -195,6 +203,7 @@ def _passes_per_step(monkeypatch, Q: np.ndarray, path_states: int) -> tuple[list
 
     with monkeypatch.context() as m:
         m.setattr(continuation, "newton", counting)
+        m.setattr(warm, "warm_step", counting_warm)
         m.setattr(continuation, "PATH_STATES", path_states)
         traj = follow(ROBOT, Q)
     return passes, traj
@@ -282,3 +291,39 @@ def test_solve_from_the_previous_equilibrium_recovers_after_a_snap() -> None:
         assert prev.converged and prev.stable
         tips.append(prev.tip_position)
     np.testing.assert_allclose(np.array(tips), traj.tip_positions, atol=1e-6)
+
+
+def test_compiled_warm_step_is_the_general_step() -> None:
+    """continuation._warm (one compiled call, mechanics.warm) gives the Equilibrium the general
+    path gives for the same step, field by field and bit for bit (every dataclass field: one
+    added to Equilibrium or Problem and not to _warm fails here)."""
+    Q = rotation_sweep(2, 16.0)[:60]
+    traj = follow(ROBOT, Q)
+    settings = SolverSettings()
+    for t in range(1, len(Q)):
+        prev = traj.equilibria[t - 1]
+        fast = continuation._warm(prev, Q[t], prev.x, settings)
+        assert fast is not None
+        pb = with_alpha(prev.problem, Q[t])
+        slow = equilibrium(pb, newton(pb, prev.x, settings))
+        for f in dataclasses.fields(Equilibrium):
+            u, v = getattr(fast, f.name), getattr(slow, f.name)
+            if f.name == "problem":
+                for g in dataclasses.fields(type(u)):
+                    _assert_same(getattr(u, g.name), getattr(v, g.name), g.name)
+            else:
+                _assert_same(u, v, f.name)
+
+
+def _assert_same(u: object, v: object, name: str) -> None:
+    """Equal bit for bit: arrays, tuples of arrays, numbers (NaN equal to NaN), objects."""
+    if isinstance(u, tuple):
+        assert isinstance(v, tuple) and len(u) == len(v), name
+        for a, b in zip(u, v, strict=True):
+            _assert_same(a, b, name)
+    elif isinstance(u, np.ndarray):
+        np.testing.assert_array_equal(u, v, err_msg=name)
+    elif isinstance(u, float):
+        assert u == v or (math.isnan(u) and math.isnan(v)), name
+    else:
+        assert u is v or u == v, name

@@ -54,8 +54,25 @@ class RobotArrays:
         return self.k.shape[0] * (self.sec_len.shape[1] + 1) + 1
 
 
-@functools.lru_cache(maxsize=64)
+_BY_ID: dict[int, tuple[Robot, RobotArrays]] = {}
+
+
 def robot_arrays(robot: Robot) -> RobotArrays:
+    """The kernel-ready arrays of robot: one RobotArrays per robot description (equal robots share
+    it). Looked up by the object first: hashing a Robot hashes every tube's fields, ~5 µs a solve
+    (issue 26); the entry holds the robot, so its id is not reused while it is there."""
+    hit = _BY_ID.get(id(robot))
+    if hit is not None and hit[0] is robot:
+        return hit[1]
+    arr = _arrays(robot)
+    if len(_BY_ID) >= 64:
+        _BY_ID.clear()
+    _BY_ID[id(robot)] = (robot, arr)
+    return arr
+
+
+@functools.lru_cache(maxsize=64)
+def _arrays(robot: Robot) -> RobotArrays:
     n = robot.n_tubes
     s_max = max(len(t.sections) for t in robot.tubes) or 1
     sec_len = np.zeros((n, s_max))

@@ -30,6 +30,11 @@ none converge on the whole step or a quarter of it, 2 at 1/16). Newton from the 
 has failed and that search finds the same branch at the smallest one (no fold: no snap), the rest
 of the step is taken from the search as well, where it finds a stable equilibrium within a step's
 twist (JUMP_RAD); sub-stepping on would need a search per 1/256 of the step and spend the budget.
+
+The common step, a rotation (β kept, so the grid is the previous step's) of a robot without contact
+effects whose first try is accepted, runs as one compiled call (`_warm`, mechanics.warm.warm_step:
+α, the Newton solve, the acceptance test); any other step, or a first try that is not accepted,
+takes the general path below from the start, so the decisions and the snaps are its own.
 """
 
 from __future__ import annotations
@@ -37,12 +42,13 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 
 from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 from ctrkin.geometry import tip_azimuth, tip_pose
+from ctrkin.mechanics import warm
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
 from ctrkin.mechanics.friction import SLIP, FrictionState
 from ctrkin.mechanics.pointwise import (
@@ -71,6 +77,7 @@ MIN_FRACTION = 1.0 / 256  # smallest sub-step, as a fraction of one trajectory s
 # largest turn of any α in one sub-step (deg): the end of a longer step can look like its start (a
 # whole turn brings the branch back), so a step of 340° or 720° crossed folds unseen (issue 27)
 MAX_TURN_DEG = 30.0
+_T = TypeVar("_T")
 PATH_STATES = 3  # states of the previous steps the predictor extrapolates through (a parabola)
 
 
@@ -141,6 +148,10 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
     same_grid: q_to has the translations β of prev.q and prev was solved with these settings, so
     every sub-step keeps prev's grid (`with_alpha`).
     """
+    if same_grid and prev.problem.stations is None:  # the common step, one compiled call
+        done = _warm(prev, q_to, prev.x if path is None else path.at(1.0), settings)
+        if done is not None:
+            return done, False
     q_from = prev.q
     arr = prev.problem.arrays
     x = prev.x
@@ -201,6 +212,42 @@ def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: Solver
                 state, modes = _after(*rest, state)
     assert last is not None
     return equilibrium(*last, state), snapped
+
+
+def _warm(prev: Equilibrium, q_to: np.ndarray, guess: np.ndarray, settings: SolverSettings
+          ) -> Equilibrium | None:
+    """The step from `prev` to q_to (same β, no contact effects) as one compiled call
+    (mechanics.warm): the equilibrium if _advance's first try, the whole step from `guess`, is
+    accepted, else None (the caller then takes the general path, which repeats that try)."""
+    pb0 = prev.problem
+    a = pb0.arrays
+    n = a.lengths.shape[0]
+    alpha, x, body = np.empty(n), np.empty(n), np.empty(7)
+    try:
+        acc, it, rn, det_j, det_h, _ = warm.warm_step(
+            q_to, prev.q, guess, prev.x, prev.stability, a.lengths, pb0.beta, pb0.tips, a.rigid,
+            a.k, a.gj, *pb0.grid, settings.tol, settings.max_iter, settings.max_step, MAX_TURN_DEG,
+            JUMP_RAD, DET_SLACK, DET_RATE, alpha, x, body)
+    except (ZeroDivisionError, OverflowError, FloatingPointError):
+        return None  # the general path meets the same and says so
+    if not acc:
+        return None
+    # what with_alpha and pointwise.equilibrium make of it (a converged NewtonResult, no contact)
+    pb = _made(Problem, arrays=a, q=q_to, alpha=alpha, beta=pb0.beta, tips=pb0.tips, grid=pb0.grid,
+               n_rk4=pb0.n_rk4, stations=None, cvar=None, state=None)
+    return _made(Equilibrium, q=q_to, x=x, tip_position=body[:3], tip_tangent=body[3:6],
+                 converged=True, stability=det_j, conjugate=det_h, energy=float(body[6]),
+                 residual=rn, iterations=it, problem=pb, contact=None)
+
+
+def _made(cls: type[_T], **fields: object) -> _T:
+    """An instance of the frozen dataclass cls with these fields (every one of them), made without
+    its __init__: a frozen __init__ sets each field through object.__setattr__, and a warm step's
+    Problem and Equilibrium took ~3 µs of the step that way (issue 26). The instance is the same:
+    its __dict__ holds every field."""
+    obj = object.__new__(cls)
+    obj.__dict__.update(fields)
+    return obj
 
 
 def _problem_at(robot: Robot, prev: Equilibrium, q: np.ndarray, settings: SolverSettings,

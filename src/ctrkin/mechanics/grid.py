@@ -102,13 +102,30 @@ def build_grid(beta, tube_len, sec_len, sec_kap, sec_kapy, n_sec, h_max):
 
 
 @njit(cache=True)
+def reduced_radians(q, alpha):
+    """alpha (N,) = q[:N] (deg) less whole turns, in (−π, π] rad: np.radians of
+    pointwise.whole_turns_removed, bit for bit (fmod is exact in floating point, then one ±360°,
+    then the product by π/180). The equilibrium depends on α only through its angle, and sin and
+    cos of a huge angle lose every digit."""
+    for i in range(alpha.shape[0]):
+        r = np.fmod(q[i], 360.0)
+        if r > 180.0:
+            r -= 360.0
+        if r <= -180.0:
+            r += 360.0
+        alpha[i] = math.radians(r)
+
+
+@njit(cache=True)
 def prepare(q, tube_len, extra, sec_len, sec_kap, sec_kapy, n_sec, h_max):
-    """Kernel inputs at joints q (2N,) (deg, mm): α (N,) rad, the transmission's twisting length
-    as β − extra (N,) mm (M4), tips β + L (N,) mm, the grid of build_grid (its first six arrays:
-    bounds, kap, kapy, present, nsteps, nsample) and the breakpoint codes."""
+    """Kernel inputs at joints q (2N,) (deg, mm): α (N,) rad less whole turns (reduced_radians),
+    the transmission's twisting length as β − extra (N,) mm (M4), tips β + L (N,) mm, the grid of
+    build_grid (its first six arrays: bounds, kap, kapy, present, nsteps, nsample) and the
+    breakpoint codes."""
     n = tube_len.shape[0]
     beta = q[n:].copy()
-    alpha = np.radians(q[:n])
+    alpha = np.empty(n)
+    reduced_radians(q, alpha)
     bounds, kap, kapy, present, nsteps, nsample, code = build_grid(
         beta, tube_len, sec_len, sec_kap, sec_kapy, n_sec, h_max)
     return alpha, beta - extra, beta + tube_len, (bounds, kap, kapy, present, nsteps, nsample), code

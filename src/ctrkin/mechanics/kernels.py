@@ -19,70 +19,24 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
 from ctrkin.mechanics.contact import apply_stations, contact_work
 from ctrkin.mechanics.grid import S_TOL, build_grid, prepare
+from ctrkin.mechanics.passes import NB, det, flat_pass, flat_work, straight_min_det
+from ctrkin.mechanics.passes import relative_det as _relative_det
 from ctrkin.mechanics.rk4 import rk4_stepper, rk4_work
 
 __all__ = ["S_TOL", "build_grid", "integrate_full", "newton", "prepare", "sane", "shoot"]
 
 
-@njit(cache=True, inline="always")
-def det(a):
-    """Determinant of a square matrix (M, M): closed form for M ≤ 2 (the shooting Jacobian and H of
-    two and three tubes), LU (np.linalg.det) above."""
-    n = a.shape[0]
-    if n == 1:
-        return a[0, 0]
-    if n == 2:
-        return a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
-    return np.linalg.det(a)
-
-
-@njit(cache=True, inline="always")
-def _relative_det(phi, gj):
-    """det H(s): relative angles ψi − ψN (i < N) as functions of the relative base twist rates
-    yj = xj − xN under zero net torque Σ GJ x = 0 (x = D y). On a straight robot det H > 0 for
-    s > 0; a sign change along s is a conjugate point (Jacobi condition), i.e. instability."""
-    n = gj.shape[0]
-    m = n - 1
-    gsum = gj.sum()
-    if m == 1:
-        acc = 0.0
-        for r in range(n):
-            acc += (phi[0, r] - phi[1, r]) * ((1.0 if r == 0 else 0.0) - gj[0] / gsum)
-        return acc
-    if m == 2:  # three tubes: the 2 × 2 determinant in closed form, no work array per RK4 step
-        h00 = 0.0
-        h01 = 0.0
-        h10 = 0.0
-        h11 = 0.0
-        for r in range(n):
-            d0 = (1.0 if r == 0 else 0.0) - gj[0] / gsum
-            d1 = (1.0 if r == 1 else 0.0) - gj[1] / gsum
-            h00 += (phi[0, r] - phi[2, r]) * d0
-            h01 += (phi[0, r] - phi[2, r]) * d1
-            h10 += (phi[1, r] - phi[2, r]) * d0
-            h11 += (phi[1, r] - phi[2, r]) * d1
-        return h00 * h11 - h01 * h10
-    h = np.empty((m, m))
-    for i in range(m):
-        for j in range(m):
-            acc = 0.0
-            for r in range(n):
-                d = (1.0 if r == j else 0.0) - gj[j] / gsum
-                acc += (phi[i, r] - phi[n - 1, r]) * d
-            h[i, j] = acc
-    return det(h)
-
-
 @njit(cache=True)
-def _solve_linear(a, b, out):
-    """Gaussian elimination with partial pivoting on copies; False if (near-)singular."""
-    n = b.shape[0]
-    m = a.copy()
-    v = b.copy()
+def _solve_linear(a, v, out, m):
+    """Solve a out = v by Gaussian elimination with partial pivoting, on m (N, N), a copy of a, and
+    on v in place; False if (near-)singular."""
+    n = v.shape[0]
+    m[:, :] = a
     scale = 0.0
     for i in range(n):
         for j in range(n):
@@ -115,9 +69,6 @@ def _solve_linear(a, b, out):
             acc -= m[row, j] * out[j]
         out[row] = acc / m[row, row]
     return True
-
-
-NB = 13  # body state: p (3) mm, R row-major (9), elastic energy (1) N·mm
 
 
 @njit(cache=True)
@@ -235,45 +186,6 @@ def _work(n):
 
 
 @njit(cache=True)
-def _det_between(phi_a, phi_b, f, gj, p_int):
-    """det H at Φ = Φa + f (Φb − Φa) (Φ is affine in s on a straight stretch)."""
-    for u in range(phi_a.shape[0]):
-        for c in range(phi_a.shape[1]):
-            p_int[u, c] = phi_a[u, c] + f * (phi_b[u, c] - phi_a[u, c])
-    return _relative_det(p_int, gj)
-
-
-@njit(cache=True)
-def _straight_min_det(phi_a, phi_b, gj, m, p_int):
-    """Min of det H over the interior sample points f = j/m, 0 < j < m, of a straight stretch taken
-    in one step (the end point is checked by the caller). det H is a polynomial of degree N − 1 in
-    f: two tubes, linear (min at j = 1 or m); three, quadratic (also the points beside its vertex);
-    more, every point."""
-    n = gj.shape[0]
-    best = np.inf
-    if m < 2:
-        return best
-    if n == 2:
-        return _det_between(phi_a, phi_b, 1.0 / m, gj, p_int)
-    if n == 3:
-        d0 = _det_between(phi_a, phi_b, 0.0, gj, p_int)
-        dh = _det_between(phi_a, phi_b, 0.5, gj, p_int)
-        d1 = _det_between(phi_a, phi_b, 1.0, gj, p_int)
-        c2 = 2.0 * (d1 - 2.0 * dh + d0)  # d(f) = d0 + c1 f + c2 f²
-        c1 = d1 - d0 - c2
-        best = _det_between(phi_a, phi_b, 1.0 / m, gj, p_int)
-        if c2 > 0.0:
-            j0 = math.floor(-c1 / (2.0 * c2) * m)
-            for j in (j0, j0 + 1):
-                if 1 < j < m:
-                    best = min(best, _det_between(phi_a, phi_b, j / m, gj, p_int))
-        return best
-    for j in range(1, m):
-        best = min(best, _det_between(phi_a, phi_b, j / m, gj, p_int))
-    return best
-
-
-@njit(cache=True)
 def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
                with_var, with_body, y, phi, zb, w, r, jac,
                record, s_rec, p_rec, psi_rec, uz_rec, cst, cpr, cvar, cprm, cout):
@@ -341,7 +253,7 @@ def _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, n
                     psi_rec[rec, i] = y[i] if on else np.nan
                     uz_rec[rec, i] = y[n + i] if on else np.nan
         if sampled and b <= min_tip + S_TOL:
-            d = _straight_min_det(phi_a, phi, gj, nsample[seg], p_int)
+            d = straight_min_det(phi_a, phi, gj, nsample[seg], p_int)
             if d < min_det:
                 min_det = d
         if cst is not None:   # friction torques at the breakpoint, before the tips' residuals
@@ -386,6 +298,73 @@ def _tip(zb, out):
     out[6] = zb[12]
 
 
+def _pass(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
+          with_var, with_body, work, r, jac, zb, cst, cpr, cvar, cprm, cout):
+    """One pass of a Newton solve into r, jac and (with_body) zb (NB,), chosen when numba compiles
+    the solve (overload below): passes.flat_pass without contact effects (cst None, work =
+    passes.flat_work), _integrate with them (work = _newton_work's)."""
+    raise NotImplementedError("compiled only (numba overload)")
+
+
+def _newton_work(n, cst):
+    """The work of a Newton solve's passes (overload below): passes.flat_work(n) without contact
+    effects (cst None), else _integrate's y (2N,), Φ (2N, N), _work(n) and its unused records."""
+    raise NotImplementedError("compiled only (numba overload)")
+
+
+def _no_contact(cst):
+    return isinstance(cst, (types.NoneType, types.Omitted))
+
+
+@overload(_pass)
+def _pass_impl(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
+               with_var, with_body, work, r, jac, zb, cst, cpr, cvar, cprm, cout):
+    if _no_contact(cst):
+        def flat(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
+                 with_var, with_body, work, r, jac, zb, cst, cpr, cvar, cprm, cout):
+            md = flat_pass(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
+                           nsample, with_var, with_body, work, r, jac)
+            if with_body:
+                zs = work[2]
+                for j in range(NB):
+                    zb[j] = zs[0, j]
+            return md
+        return flat
+
+    def general(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
+                with_var, with_body, work, r, jac, zb, cst, cpr, cvar, cprm, cout):
+        y, phi, w, rs, ps, qs, us = work
+        return _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
+                          nsample, with_var, with_body, y, phi, zb, w, r, jac, False, rs, ps, qs,
+                          us, cst, cpr, cvar, cprm, cout)
+    return general
+
+
+@overload(_newton_work)
+def _newton_work_impl(n, cst):
+    if _no_contact(cst):
+        return lambda n, cst: flat_work(n)
+
+    def general(n, cst):
+        rec = np.empty(6)
+        return (np.empty(2 * n), np.empty((2 * n, n)), _work(n), rec[0:1], rec[1:4].reshape((1, 3)),
+                rec[4:5].reshape((1, 1)), rec[5:6].reshape((1, 1)))
+    return general
+
+
+@njit(cache=True, inline="always")
+def _inf_norm(v):
+    """max |vi| of a vector (NaN if any is), np.abs(v).max() without its temporary."""
+    out = 0.0
+    for e in v:
+        a = abs(e)
+        if a > out:
+            out = a
+        elif a != a:
+            return math.nan
+    return out
+
+
 # A full Newton step from residual |r| lands near C |r|² (quadratic convergence); C is measured on
 # the iteration's own steps (|r₊| / |r|²), and taken as C0 (mm/rad) before the first. A step
 # predicted to land below tol is run as the final pass: without the variation, with the backbone
@@ -413,29 +392,36 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nste
     (rad/mm). cst, cpr, cvar, cprm, cout: the contact arrays (mechanics.contact.apply_stations)
     or None; the outputs cout are those of the last pass, at the root when converged. The friction
     elements make the residual piecewise smooth (stick and slip): Newton on it is semismooth, its
-    Jacobian that of the active branch of each element.
+    Jacobian that of the active branch of each element. Without them every pass is
+    passes.flat_pass, and the solve allocates two arrays (its vectors, the passes' work).
     """
+    work = _newton_work(x0.shape[0], cst)
+    return _newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
+                   nsample, tol, max_iter, max_step, x_out, body_out, work, cst, cpr, cvar, cprm,
+                   cout)
+
+
+@njit(cache=True)
+def _newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
+            tol, max_iter, max_step, x_out, body_out, work, cst, cpr, cvar, cprm, cout):
+    """newton with the passes' work arrays given (its docstring)."""
     n = x0.shape[0]
     x_out[:] = x0
     for v in x0:
         if not math.isfinite(v):  # nothing to integrate from
             return False, 0, math.inf, math.nan, math.nan, 0
-    x = x0.copy()
-    r = np.empty(n)
-    jac = np.empty((n, n))
-    dx = np.empty(n)
-    xt = np.empty(n)
-    rt = np.empty(n)
-    jt = np.empty((n, n))
-    y = np.empty(2 * n)
-    phi = np.empty((2 * n, n))
-    zb = np.empty(NB)
-    w = _work(n)
-    rs, ps, qs, us = np.empty(1), np.empty((1, 3)), np.empty((1, 1)), np.empty((1, 1))
-    mdet = _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
-                      nsample, True, False, y, phi, zb, w, r, jac, False, rs, ps, qs, us,
-                      cst, cpr, cvar, cprm, cout)
-    rn = np.abs(r).max()
+    nn = n * n
+    buf = np.empty(6 * n + 3 * nn + NB)  # the solve's vectors, one allocation
+    x, r, dx, xt, rt, mr = buf[:n], buf[n:2 * n], buf[2 * n:3 * n], buf[3 * n:4 * n], \
+        buf[4 * n:5 * n], buf[5 * n:6 * n]
+    jac = buf[6 * n:6 * n + nn].reshape((n, n))
+    jt = buf[6 * n + nn:6 * n + 2 * nn].reshape((n, n))
+    mj = buf[6 * n + 2 * nn:6 * n + 3 * nn].reshape((n, n))
+    zb = buf[6 * n + 3 * nn:]
+    x[:] = x0
+    mdet = _pass(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
+                 True, False, work, r, jac, zb, cst, cpr, cvar, cprm, cout)
+    rn = _inf_norm(r)
     it = 0
     shoots = 1
     have_body = False
@@ -443,9 +429,11 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nste
     converged = rn < tol
     while not converged and it < max_iter:
         it += 1
-        if not _solve_linear(jac, -r, dx):
+        for i in range(n):
+            mr[i] = -r[i]
+        if not _solve_linear(jac, mr, dx, mj):
             break
-        big = np.abs(dx).max()
+        big = _inf_norm(dx)
         full = big <= max_step
         if not full:
             dx *= max_step / big
@@ -456,21 +444,19 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nste
             for i in range(n):
                 xt[i] = x[i] + t * dx[i]
             if final:
-                _integrate(xt, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
-                           nsample, False, True, y, phi, zb, w, rt, jt, False, rs, ps, qs, us,
-                           cst, cpr, cvar, cprm, cout)
+                _pass(xt, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
+                      nsample, False, True, work, rt, jt, zb, cst, cpr, cvar, cprm, cout)
                 shoots += 1
                 final = False
-                rnt = np.abs(rt).max()
+                rnt = _inf_norm(rt)
                 if rnt < tol:
                     have_body = True
                     accepted = True
                     break
-            md = _integrate(xt, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
-                            nsample, True, False, y, phi, zb, w, rt, jt, False, rs, ps, qs, us,
-                            cst, cpr, cvar, cprm, cout)
+            md = _pass(xt, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps,
+                       nsample, True, False, work, rt, jt, zb, cst, cpr, cvar, cprm, cout)
             shoots += 1
-            rnt = np.abs(rt).max()
+            rnt = _inf_norm(rt)
             if rnt < (1.0 - 1e-4 * t) * rn or rnt < tol:
                 accepted = True
                 break
@@ -491,9 +477,8 @@ def newton(x0, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nste
         mdet = md
         converged = rn < tol
     if converged and not have_body:
-        _integrate(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
-                   False, True, y, phi, zb, w, rt, jt, False, rs, ps, qs, us, cst, cpr, cvar, cprm,
-                   cout)
+        _pass(x, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
+              False, True, work, rt, jt, zb, cst, cpr, cvar, cprm, cout)
         shoots += 1
     if converged:
         _tip(zb, body_out)

@@ -152,10 +152,8 @@ def prepare(robot: Robot, q: np.ndarray, settings: SolverSettings, checked: bool
     if arr is None:
         arr = robot_arrays(robot)
     h = rk4_step(arr, settings)
-    n = arr.lengths.shape[0]
-    qk = qa.copy()
-    qk[:n] = whole_turns_removed(qa[:n])
-    alpha, beta, tips, grid, code = kernels.prepare(qk, arr.lengths, arr.extra, arr.sec_len,
+    # α less whole turns (whole_turns_removed, in the kernel: numpy's calls on N angles cost more)
+    alpha, beta, tips, grid, code = kernels.prepare(qa, arr.lengths, arr.extra, arr.sec_len,
                                                     arr.sec_kap, arr.sec_kapy, arr.n_sec, h)
     n_rk4 = int(grid[5].sum())  # the steps the stretches would take if none were straight
     if n_rk4 > settings.max_rk4_steps:
