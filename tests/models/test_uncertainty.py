@@ -140,6 +140,10 @@ def test_ik_stream_with_joints_equals_batch_and_round_trips(tmp_path):
     back = Uncertainty.load(tmp_path)
     assert back is not None and back.inputs == "pose+joints" and np.array_equal(back.parts, unc.parts)
     assert np.allclose(back.ood_scores(seq, [(0, len(seq))]), batch, atol=0)
+    three = np.hstack([rng.normal(0, 1, (40, 6)), np.cumsum(rng.uniform(-3, 3, (40, 6)), axis=0)])  # N = 3
+    unc3 = Uncertainty.fit("ik", 3, three, [(0, 40)], three[:20], [(0, 20)], np.zeros((20, 6)), split="fine")
+    st3 = unc3.stream()
+    assert np.allclose([st3.step(r[:6], r[6:]) for r in three], unc3.ood_scores(three, [(0, 40)]), atol=1e-12)
 
 
 def test_bad_level_refused():

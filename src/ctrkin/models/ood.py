@@ -75,9 +75,9 @@ def _joint_changes(n: int, q: np.ndarray) -> np.ndarray:
     return np.hstack([wrap_deg(np.diff(rel, axis=0)), np.diff(q[:, n:], axis=0)])
 
 
-def _history(changes: np.ndarray, length: int, dim: int, bounds: list[tuple[int, int]],
-             per_run: list[np.ndarray]) -> np.ndarray:
-    """(T, HISTORY·dim): the last HISTORY changes of each row (zero before its run's start)."""
+def _history(length: int, dim: int, bounds: list[tuple[int, int]], per_run: list[np.ndarray]) -> np.ndarray:
+    """(T, HISTORY·dim): the last HISTORY changes of each row (zero before its run's start), from each
+    run's changes (b − a − 1, dim)."""
     hist = np.zeros((length, HISTORY * dim))
     for (a, b), d in zip(bounds, per_run, strict=True):
         for h in range(HISTORY):
@@ -95,12 +95,12 @@ def sequence_features(inputs: str, n_tubes: int, x: np.ndarray, bounds: list[tup
     if inputs in ("pose", "pose+joints"):
         p = x[:, :POSE]
         blocks_cfg.append(p)
-        blocks_hist.append(_history(p, len(x), POSE, bounds, [np.diff(p[a:b], axis=0) for a, b in bounds]))
+        blocks_hist.append(_history(len(x), POSE, bounds, [np.diff(p[a:b], axis=0) for a, b in bounds]))
     if inputs in ("joints", "pose+joints"):
         q = x[:, POSE:] if inputs == "pose+joints" else x
         blocks_cfg.append(_joint_config(n, q))
         changes = [_joint_changes(n, q[a:b]) for a, b in bounds]
-        blocks_hist.append(_history(q, len(x), 2 * n - 1, bounds, changes))
+        blocks_hist.append(_history(len(x), 2 * n - 1, bounds, changes))
     return np.hstack(blocks_cfg + blocks_hist)
 
 
