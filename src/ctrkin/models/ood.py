@@ -1,5 +1,5 @@
 """The out-of-distribution score's features and kernels (ctrkin.models.uncertainty; docs/planning.md:
-Out of distribution).
+Uncertainty).
 
 A model's scored input is one of three kinds (`INPUTS`):
 
