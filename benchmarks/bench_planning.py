@@ -47,8 +47,8 @@ out-of-distribution score, streaming cost), and the closed-loop controller on th
 Prints the tables and ends with one JSON line of the issue's keys (within_1mm_fraction: the planner
 with feedback on the virtual robot, over the reachable targets; within_1mm_fraction_nominal: the
 planner on its own model, all targets; coverage_90: the one furthest
-from 0.9 over robots and tasks; ood_auroc: the least), the learned half's figures under "learned",
-the virtual robot's per method under "virtual".
+from 0.9 over robots and tasks; ood_auroc: the least over robots, FK and IK), the learned half's
+figures under "learned", the virtual robot's per method under "virtual".
 """
 
 from __future__ import annotations

@@ -24,8 +24,10 @@ holds many independent stretches of the region (rows of one walk are correlated)
   rows of walks (a) beyond the trained d range (15-35 % of its span above it: joint ranges),
   (b) in the held-back corner (each joint within its trained range: unseen combinations),
   (c) in the region with 4× larger steps, and with the rotation reversing every step (unseen
-  histories). Streaming cost: Kinematics.step against step_uncertain on a held-out walk, alternating
-  blocks, medians.
+  histories). The IK's score takes the target pose and the robot's joints when it was asked (the
+  recorded joints of the row before; ctrkin.models.ood). Streaming cost: Kinematics.step against
+  step_uncertain on a held-out walk (the IK's joints: its own previous answers), alternating blocks,
+  medians.
 - Control: ctrkin.control.Controller on the FK, closed around the same virtual robot (another seed of
   tracker noise): a 2 mm-radius circle at 4 s a turn (3.1 mm/s) from a start in the middle of the
   training region (α0 = 90°, d and the outer retraction mid-range: no joint at a stop),
@@ -264,13 +266,13 @@ def run(quick: bool, seed: int = 0, robots: tuple[str, ...] = ROBOTS) -> dict[st
 
 def summary(res: dict[str, Any]) -> dict[str, Any]:
     """The goal-4 keys: coverage the furthest from 0.9 over robots and tasks; ood_auroc the least over
-    robots of the FK's (the OOD kinds are kinds of joints: unseen ranges, combinations, histories of
-    the joints, which are the FK's inputs; the IK's inputs are poses, its AUROC is beside it); the
-    control figures."""
+    robots and tasks (the IK's score takes the robot's joints beside the pose, ctrkin.models.ood), the
+    FK's and the IK's least beside it; the control figures."""
     studies = [v for k, v in res.items() if k != "control"]
     return {"coverage_90": max((s[t]["coverage_90"] for s in studies for t in ("fk", "ik")),
                                key=lambda c: abs(c - 0.9)),
-            "ood_auroc": min(s["fk"]["ood_auroc"] for s in studies),
+            "ood_auroc": min(s[t]["ood_auroc"] for s in studies for t in ("fk", "ik")),
+            "ood_auroc_fk": min(s["fk"]["ood_auroc"] for s in studies),
             "ood_auroc_ik": min(s["ik"]["ood_auroc"] for s in studies),
             "stream_cost_ratio": max(s[t]["stream"]["ratio"] for s in studies for t in ("fk", "ik")),
             "control_hz": res["control"]["control_hz"],

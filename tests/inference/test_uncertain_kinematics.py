@@ -41,9 +41,12 @@ def test_calibrated_model_saved_loaded_and_streamed(model_dirs, sweeps, tmp_path
     kin = Kinematics.load(folder)
     assert kin.uncertainty is not None and kin.uncertainty.radius == unc.radius
     x = (sweeps.joints() if name == "fk" else sweeps.poses())[test_rows]
-    batch = kin.predict_uncertain(x)
+    # an IK scores the robot's joints beside the pose: those when each pose was asked (the row before;
+    # the sequence's first row its own, where the robot starts)
+    q = {"joints": sweeps.joints()[np.r_[test_rows[0], test_rows[:-1]]]} if name == "ik" else {}
+    batch = kin.predict_uncertain(x, **q)
     kin.reset()
-    steps = [kin.step_uncertain(v) for v in x]
+    steps = [kin.step_uncertain(v, joints=None if name == "fk" else q["joints"][t]) for t, v in enumerate(x)]
     assert np.allclose([s.ood_score for s in steps], batch.ood_score, atol=1e-9)
     assert np.allclose(batch.ood_score, ood_scores(unc, kin, sweeps, test_rows), atol=1e-9)
     assert np.array_equal(steps[0].half_width, unc.half_widths())

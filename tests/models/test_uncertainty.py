@@ -61,7 +61,7 @@ def test_fk_intervals_cover_exchangeable_errors():
 def test_ik_box_scales_by_joint_and_wraps_angles():
     rng = np.random.default_rng(1)
     x, b = _walks(rng, 4, 40)
-    pose_x = rng.normal(0, 1, (len(x), 6))
+    pose_x = np.hstack([rng.normal(0, 1, (len(x), 6)), x])          # the target pose and the joints
     err = rng.normal(0, 1, (len(x), 4)) * np.array([5.0, 5.0, 0.2, 0.2])
     unc = Uncertainty.fit("ik", 2, pose_x, b, pose_x, b, err)
     assert unc.joint_scale[0] > 10 * unc.joint_scale[2]          # deg against mm
@@ -98,7 +98,52 @@ def test_stream_equals_batch_and_file_round_trip(tmp_path):
     assert back is not None and back.radius == unc.radius and back.threshold == unc.threshold
     assert np.array_equal(back.reference, unc.reference)
     assert Uncertainty.load(tmp_path / "nothing") is None
-    assert sequence_features("fk", 2, seq, [(0, len(seq))]).shape[1] == 2 + 2 + HISTORY * 3
+    assert sequence_features("joints", 2, seq, [(0, len(seq))]).shape[1] == 2 + 2 + HISTORY * 3
+
+
+def test_ik_score_sees_joint_histories_the_pose_cannot():
+    # the same poses with the joints walking, and with the inner tube also jumping back and forth by 12°
+    # every step (the training walks' steps are ≤ 3° a tube): the joint-aware score flags that history,
+    # which the poses do not show
+    rng = np.random.default_rng(4)
+    x, b = _walks(rng, 40, 60)
+    cal_x, cal_b = _walks(rng, 20, 60)
+    held, hb = _walks(rng, 20, 60)
+    rev = held.copy()
+    rev[:, 0] += np.tile(np.r_[0.0, 12.0], len(rev) // 2)
+    poses = {k: rng.uniform(-1, 1, (len(v), 6)) for k, v in (("x", x), ("cal", cal_x), ("held", held))}
+    err = np.zeros((len(cal_x), 4))
+    unc = Uncertainty.fit("ik", 2, np.hstack([poses["x"], x]), b, np.hstack([poses["cal"], cal_x]), cal_b,
+                          err)
+    assert unc.inputs == "pose+joints" and len(unc.parts) == 5          # pose, joints, their histories
+    inside = unc.ood_scores(np.hstack([poses["held"], held]), hb)
+    outside = unc.ood_scores(np.hstack([poses["held"], rev]), hb)
+    assert np.median(outside) > np.quantile(inside, 0.99)
+    with pytest.raises(ModelError, match="columns"):
+        Uncertainty.fit("ik", 2, poses["x"], b, poses["cal"], cal_b, err)   # pose+joints needs the joints
+
+
+def test_ik_stream_with_joints_equals_batch_and_round_trips(tmp_path):
+    rng = np.random.default_rng(5)
+    q, b = _walks(rng, 4, 30)
+    x = np.hstack([rng.normal(0, 1, (len(q), 6)), q])
+    for split in ("blocks", "config-history", "fine"):
+        unc = Uncertainty.fit("ik", 2, x, b, x[:60], [(0, 30), (30, 60)], rng.normal(0, 1, (60, 4)),
+                              split=split)
+        seq = x[30:60]
+        st = unc.stream()
+        batch = unc.ood_scores(seq, [(0, len(seq))])
+        assert np.allclose([st.step(r[:6], r[6:]) for r in seq], batch, atol=1e-12)
+        with pytest.raises(ModelError, match="joints"):
+            st.step(seq[0, :6])
+    unc.save(tmp_path)
+    back = Uncertainty.load(tmp_path)
+    assert back is not None and back.inputs == "pose+joints" and np.array_equal(back.parts, unc.parts)
+    assert np.allclose(back.ood_scores(seq, [(0, len(seq))]), batch, atol=0)
+    three = np.hstack([rng.normal(0, 1, (40, 6)), np.cumsum(rng.uniform(-3, 3, (40, 6)), axis=0)])  # N = 3
+    unc3 = Uncertainty.fit("ik", 3, three, [(0, 40)], three[:20], [(0, 20)], np.zeros((20, 6)), split="fine")
+    st3 = unc3.stream()
+    assert np.allclose([st3.step(r[:6], r[6:]) for r in three], unc3.ood_scores(three, [(0, 40)]), atol=1e-12)
 
 
 def test_bad_level_refused():

@@ -39,6 +39,7 @@ from ctrkin.errors import ModelError
 from ctrkin.families.registry import open_folder, predictor, refused_options
 from ctrkin.models.features import FeatureLayout
 from ctrkin.models.ik import IKResult, IKStep
+from ctrkin.models.ood import joints_before
 from ctrkin.models.predictor import Opened, Predictor
 from ctrkin.models.predictor_base import check_robot, robot_differences
 from ctrkin.models.store import ModelBundle, ModelConfig, read_json
@@ -72,6 +73,7 @@ class Kinematics:
         self._owner_thread: threading.Thread | None = None
         self.uncertainty: Uncertainty | None = None     # calibrated (ctrkin.inference.uncertainty)
         self._unc_stream: UncertainStream | None = None
+        self._unc_joints: np.ndarray | None = None       # an IK's: the robot's joints, for its OOD score
 
     @classmethod
     def load(cls, path: str | Path, fused: bool = True) -> Kinematics:
@@ -96,7 +98,8 @@ class Kinematics:
 
     def __getstate__(self) -> dict[str, Any]:
         """A copy or an unpickled Kinematics holds no thread's stream."""
-        return {**self.__dict__, "_owner": None, "_owner_thread": None, "_unc_stream": None}
+        return {**self.__dict__, "_owner": None, "_owner_thread": None, "_unc_stream": None,
+                "_unc_joints": None}
 
     def hand_over(self) -> None:
         """The calling thread continues the current sequence (its steps run on another thread from
@@ -217,6 +220,7 @@ class Kinematics:
         self._owner = self._owner_thread = None          # the next step's thread takes the new sequence
         if self._unc_stream is not None:
             self._unc_stream.reset()
+        self._unc_joints = None if joints is None else np.array(joints, dtype=np.float64).reshape(-1)
 
     def step(self, x: np.ndarray, check: bool = True, strict: bool = False) -> Any:
         """One step of the current sequence. x: (2N,) joints (FK) or (6,) target pose (IK).
@@ -237,21 +241,56 @@ class Kinematics:
         return self.uncertainty
 
     def predict_uncertain(self, data: Dataset | np.ndarray, sequence_id: np.ndarray | None = None,
-                          **options: Any) -> Any:
+                          joints: np.ndarray | None = None, **options: Any) -> Any:
         """`predict` with the calibrated uncertainty: an UncertainPrediction (value: predict's answer;
-        half_width: the level's interval, FK (3,) mm, IK (2N,) deg, mm; ood_score, ood (T,))."""
+        half_width: the level's interval, FK (3,) mm, IK (2N,) deg, mm; ood_score, ood (T,)).
+        joints: an IK's only, (T, 2N) the robot's joints when each target was asked, for its OOD score;
+        default: a Dataset's recorded joints of the row before (a sequence's first row its own), else
+        the IK's own answers of the row before (the first row: its start_joints, else its own answer)
+        as a loop that executes each answer stands; step_uncertain gives the same scores."""
         unc = self._calibrated()
         raw, bounds = self.predictor.raw_inputs(data, sequence_id)  # type: ignore[attr-defined]
-        return with_uncertainty(unc, self.predict(data, sequence_id, **options), raw, bounds)
+        value = self.predict(data, sequence_id, **options)
+        if unc.scores_joints:
+            asked = self._asked_joints(data, value, bounds, joints, options.get("start_joints"))
+            raw = np.hstack([raw, asked])
+        return with_uncertainty(unc, value, raw, bounds)
 
-    def step_uncertain(self, x: np.ndarray, check: bool = True, strict: bool = False) -> Any:
+    def _asked_joints(self, data: Dataset | np.ndarray, value: IKResult, bounds: list[tuple[int, int]],
+                      joints: np.ndarray | None, start_joints: np.ndarray | None) -> np.ndarray:
+        """(T, 2N) the robot's joints when each target was asked (predict_uncertain)."""
+        n2 = 2 * self.robot.n_tubes
+        if joints is not None:
+            q = np.asarray(joints, dtype=np.float64)
+            if q.shape != (len(value.joints), n2):
+                raise ModelError(f"joints must have shape ({len(value.joints)}, {n2}): the robot's joints "
+                                 f"when each target was asked, got {q.shape}")
+            return q
+        if isinstance(data, Dataset):
+            return joints_before(data.joints(), bounds)
+        starts: list[np.ndarray | None] | None = None
+        if start_joints is not None:
+            arr = np.asarray(start_joints, dtype=np.float64)
+            starts = list(np.broadcast_to(arr, (len(bounds), n2)) if arr.ndim == 1 else arr)
+        return joints_before(value.joints, bounds, starts)
+
+    def step_uncertain(self, x: np.ndarray, check: bool = True, strict: bool = False,
+                       joints: np.ndarray | None = None) -> Any:
         """`step` with the calibrated uncertainty: an UncertainStep (value: step's answer, half_width,
-        ood_score, ood); the score equals predict_uncertain's on the same sequence."""
+        ood_score, ood); the score equals predict_uncertain's on the same sequence. joints: an IK's
+        only, (2N,) the robot's joints now (the encoders), for its OOD score; default: the previous
+        step's answer (a loop that executes each), at a sequence's start reset's joints, else this
+        step's answer."""
         unc = self._calibrated()
         if self._unc_stream is None:
             self._unc_stream = unc.stream()
         value = self.step(x, check, strict)
-        score = self._unc_stream.step(x)
+        if self.task == "ik":
+            asked = joints if joints is not None else self._unc_joints
+            score = self._unc_stream.step(x, value.joints if asked is None else asked)
+            self._unc_joints = np.array(value.joints, dtype=np.float64)
+        else:
+            score = self._unc_stream.step(x)
         return UncertainStep(value, self._unc_stream.half_widths, score, score > unc.threshold, unc.level)
 
     def _accepts(self, method: str, options: dict[str, Any]) -> None:

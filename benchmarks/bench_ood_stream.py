@@ -1,0 +1,107 @@
+"""The OOD score's streaming step against a baseline revision's (issue 24, goal 2: the step cost
+with uncertainty ≤ 3× without): what the joint-aware IK score's generalised parts cost the FK.
+
+    python benchmarks/bench_ood_stream.py                      # against main before the change (dbab9a8)
+    python benchmarks/bench_ood_stream.py --baseline REV
+
+The baseline's `ctrkin/models/uncertainty.py` is loaded from its `git archive` (benchmarks/
+bench_streaming.py's tree) beside this tree's, in one process: the same synthetic walks of a
+two-tube robot (40 of 60 steps to train on, 20 to calibrate; 1,000 reference rows), both scores
+checked equal, then `UncertainStream.step` of each timed in alternating rounds (the load falls on
+both alike): medians over rounds of the best of 3 × 300 calls, µs. Also this tree's IK score
+(pose and joints, four parts) on the same walks with random poses beside them. Prints `uptime`
+and ends with one JSON line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+import timeit
+from types import ModuleType
+
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+
+import numpy as np
+
+from bench_streaming import baseline_tree  # benchmarks/, beside this file
+from ctrkin.models import uncertainty as new
+
+BASELINE = "dbab9a8"          # main before the IK's score took the joints
+
+
+def module_of(src: str, rev: str) -> ModuleType:
+    """The baseline's uncertainty module, under a name of its own."""
+    name = f"uncertainty_{rev}"
+    spec = importlib.util.spec_from_file_location(name, f"{src}/ctrkin/models/uncertainty.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def walks(rng: np.random.Generator, count: int, steps: int) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """Random joint walks (count·steps, 4) of a two-tube robot (α 3° steps, β 0.1 mm) and their runs."""
+    rows, bounds = [], []
+    for k in range(count):
+        a = np.cumsum(rng.uniform(-3, 3, (steps, 2)), axis=0) + rng.uniform(-180, 180, 2)
+        d = np.clip(rng.uniform(4, 12) + np.cumsum(rng.uniform(-0.1, 0.1, steps)), 4, 12)
+        rows.append(np.column_stack([a, -d - 2, np.full(steps, -2.0)]))
+        bounds.append((k * steps, (k + 1) * steps))
+    return np.vstack(rows), bounds
+
+
+def best_us(step: object, x: np.ndarray) -> float:
+    return min(timeit.repeat(lambda: step(x), number=300, repeat=3)) / 300 * 1e6  # type: ignore[operator]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--baseline", default=BASELINE)
+    ap.add_argument("--rounds", type=int, default=20)
+    args = ap.parse_args()
+    old = module_of(str(baseline_tree(args.baseline)), args.baseline)
+    rng = np.random.default_rng(0)
+    x, b = walks(rng, 40, 60)
+    cx, cb = walks(rng, 20, 60)
+    err = rng.normal(0, 0.3, (len(cx), 3))
+    streams = {"baseline FK": old.Uncertainty.fit("fk", 2, x, b, cx, cb, err).stream(),
+               "this FK": new.Uncertainty.fit("fk", 2, x, b, cx, cb, err).stream()}
+    seq = x[:60]
+    a = [streams["baseline FK"].step(q) for q in seq]
+    c = [streams["this FK"].step(q) for q in seq]
+    if not np.allclose(a, c, atol=1e-9):
+        raise SystemExit("the two FK scores differ: not the same score, no comparison")
+    poses = rng.normal(0, 1, (len(x), 6)), rng.normal(0, 1, (len(cx), 6))
+    ik = new.Uncertainty.fit("ik", 2, np.hstack([poses[0], x]), b, np.hstack([poses[1], cx]), cb,
+                             np.zeros((len(cx), 4))).stream()
+    times: dict[str, list[float]] = {k: [] for k in (*streams, "this IK (pose + joints)")}
+    row = np.hstack([poses[0][10], x[10]])
+    for _ in range(args.rounds):
+        for name, st in streams.items():
+            st.reset()
+            for q in seq[:3]:
+                st.step(q)
+            times[name].append(best_us(st.step, seq[10]))
+        ik.reset()
+        for q, p in zip(seq[:3], poses[0][:3], strict=True):
+            ik.step(p, q)
+        times["this IK (pose + joints)"].append(best_us(lambda r: ik.step(r[:6], r[6:]), row))
+    med = {k: float(np.median(v)) for k, v in times.items()}
+    load = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    print(f"OOD score, one streamed step (µs, median of {args.rounds} rounds; baseline {args.baseline}); "
+          f"{load}")
+    for k, v in med.items():
+        print(f"  {k:26s} {v:7.2f}")
+    print(f"  this FK − baseline FK      {med['this FK'] - med['baseline FK']:+7.2f}")
+    print(json.dumps({"baseline": args.baseline, "step_us": med,
+                      "fk_extra_us": med["this FK"] - med["baseline FK"], "uptime": load}))
+
+
+if __name__ == "__main__":
+    main()
