@@ -39,7 +39,9 @@ ctrkin.training.train, whose layouts have no extra columns) with the engine's ow
 learning-rate and early-stopping functions.
 
 Prints a table (arm, seed, epochs, train / val / test position RMSE vs truth in mm, sweeps RMSE,
-reversals RMSE / max, training seconds, load) and ends with one JSON line of the figures.
+reversals RMSE / max, training seconds, the network's streaming step in µs (torch, one thread, the
+network alone: a window arm runs IB LSTM updates from zero per prediction, a state arm one update from
+its carried state), load) and ends with one JSON line of the figures.
 """
 
 from __future__ import annotations
@@ -73,7 +75,7 @@ from ctrkin.training.engine import _early_stopping, _epoch_gathered, _learning_r
 from ctrkin.virtual.truth import virtual_from_meta
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))   # the benchmarks beside this one
-from memory_state import train_state
+from memory_state import network_step_us, train_state
 
 ANGLE_WIDTHS = (2.0, 5.0, 15.0, 45.0, 90.0)     # deg: half widths of the α1, αN play operators
 SLIDE_WIDTHS = (0.05, 0.2, 1.0)                 # mm: of d = βN − β1
@@ -171,8 +173,9 @@ def train_window(ds: Dataset, cfg: TrainConfig, extra: np.ndarray | None) -> tup
     net.load_state_dict(best)
     net.eval()
     metrics = rec.evaluate(bundle)
+    window = torch.from_numpy(rec.X[:1])
     return ({"inputs": n_in, "epochs": state["epoch"], "best_epoch": state["best_epoch"], "seconds": seconds,
-             "load": os.getloadavg()[0],
+             "load": os.getloadavg()[0], "step_us": network_step_us(lambda: net(window)),
              **{part: metrics[part]["vs_true"]["position_mm_rmse"] for part in ("train", "val", "test")
                 if part in metrics}},
             window_predict(rec, net, extra is not None))
@@ -257,8 +260,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
           f"{[f'{h.name} ({int(h.keep.sum())} rows)' for h in sets]} ({time.perf_counter() - t0:.0f} s)",
           flush=True)
     print(f"{'arm':10s} {'seed':>4s} {'inputs':>6s} {'epochs':>6s} {'best':>5s} {'train':>7s} {'val':>7s} "
-          f"{'test':>7s} {'sweeps':>7s} {'rev':>6s} {'revmax':>6s} {'s':>6s} {'load':>5s}   "
-          f"(position RMSE vs truth, mm)", flush=True)
+          f"{'test':>7s} {'sweeps':>7s} {'rev':>6s} {'revmax':>6s} {'s':>6s} {'µs':>5s} {'load':>5s}   "
+          f"(position RMSE vs truth, mm; s: training; µs: the network's streaming step)", flush=True)
     out: dict[str, list[dict[str, Any]]] = {}
     for seed in seeds:
         for arm in arms:
@@ -274,7 +277,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             print(f"{arm:10s} {seed:4d} {r['inputs']:6d} {r['epochs']:6d} {r['best_epoch']:5d} "
                   + " ".join(f"{r.get(k, math.nan):7.3f}" for k in ("train", "val", "test", "sweeps_rmse"))
                   + f" {r.get('reversals_rmse', math.nan):6.2f} {r.get('reversals_max', math.nan):6.2f}"
-                  f" {r['seconds']:6.0f} {r['load']:5.1f}", flush=True)
+                  f" {r['seconds']:6.0f} {r['step_us']:5.0f} {r['load']:5.1f}", flush=True)
     report = {"data": str(args.data), "recipe": {"model": base.model, "options": base.options, "lr": base.lr,
                                                  "batch_size": base.batch_size, "max_epochs": base.max_epochs,
                                                  "patience": base.patience, "seeds": seeds},

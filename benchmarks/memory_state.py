@@ -145,6 +145,28 @@ class StateModel:
         return postprocess(self.layout, self.y_norm.inverse(yn))
 
 
+def network_step_us(step: Callable[[], object], n: int = 300) -> float:
+    """Median µs of one streaming step of a network alone (torch, no grad, the calling thread count;
+    no features, normalisation or checks): `step` makes one prediction."""
+    times = []
+    with torch.inference_mode():
+        for _ in range(n):
+            t0 = time.perf_counter()
+            step()
+            times.append(time.perf_counter() - t0)
+    return float(np.median(times) * 1e6)
+
+
+def state_step_us(net: StateNet, n_inputs: int) -> float:
+    """network_step_us of a state net: one LSTM update from the carried state, then the head."""
+    x = torch.full((1, n_inputs), 0.5)
+    carried: list[State | None] = [None]
+
+    def step() -> None:
+        _, carried[0] = net.step(x, carried[0])
+    return network_step_us(step)
+
+
 def _cuts(n: int, first: int) -> np.ndarray:
     """Piece edges (K + 1,) of n steps: the first piece `first` steps long, the rest CHUNK."""
     return np.unique(np.r_[0, np.arange(min(first, n), n, CHUNK), n])
@@ -241,7 +263,8 @@ def train_state(ds: Dataset, cfg: TrainConfig, lags: Callable[[Dataset], np.ndar
     truth = recorded_tracker_view(ds) if cfg.pose_source == "measured" else None
     truth = ds.poses(true=True) if truth is None else truth
     result: dict[str, Any] = {"inputs": feats.shape[1], "epochs": st["epoch"], "best_epoch": st["best_epoch"],
-                              "seconds": seconds, "load": os.getloadavg()[0]}
+                              "seconds": seconds, "load": os.getloadavg()[0],
+                              "step_us": state_step_us(net, feats.shape[1])}
     for part in ("train", "val", "test"):
         if len(rows[part]):
             r = rows[part]
