@@ -56,6 +56,7 @@ from ctrkin.acquisition.plan import Plan, Run, Segment
 from ctrkin.acquisition.protocols import config
 from ctrkin.acquisition.ranges import ProtocolRanges
 from ctrkin.acquisition.recorder import record
+from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.datasets import registered_truth
 from ctrkin.metrics import position_error
 from ctrkin.robots import load_robot
@@ -137,17 +138,23 @@ def reversals_plan(robot: Robot) -> Plan:
                  "d_mm": d})
 
 
+def reversal_data(robot: Robot, virtual: VirtualRobot) -> tuple[Dataset, np.ndarray, np.ndarray]:
+    """The mid-turn reversals recorded on a virtual robot of the nominal `robot`: the dataset (one
+    run per outer pose, from rest), its noise-free tracker view of the truth (T, 6) and the (T,) rows
+    to score (not glitches)."""
+    ds = record(reversals_plan(robot), virtual, seed=REVERSAL_SEED, workers=1, progress=False)
+    return ds, registered_truth(ds, virtual), ~ds.frame["outlier"].to_numpy()
+
+
 def reversals(robot: Robot, case: Case, fk_folder: Path) -> dict[str, float]:
     """FK along mid-turn reversals: position RMSE / max (mm) of the recommended FK against the
     noise-free truth, on the reproduction's virtual robot (same hardware seed and effects)."""
     from ctrkin.inference import Kinematics
 
     virtual = VirtualRobot(robot, VirtualConfig(**case.settings), seed=case.seed)
-    ds = record(reversals_plan(robot), virtual, seed=REVERSAL_SEED, workers=1, progress=False)
-    truth = registered_truth(ds, virtual)
+    ds, truth, keep = reversal_data(robot, virtual)
     fk = Kinematics.load(fk_folder)
     pred = np.asarray(fk.predict(ds), float)
-    keep = ~ds.frame["outlier"].to_numpy()
     e = position_error(pred[keep], truth[keep])
     return {"reversal_rmse_true_mm": float(np.sqrt(np.mean(e ** 2))), "reversal_max_true_mm": float(e.max()),
             "reversal_samples": int(keep.sum())}

@@ -4,6 +4,7 @@ the robot).
 
     python benchmarks/bench_memory.py --data out/reproduce/data/paper
     python benchmarks/bench_memory.py --data ... --arms ib2,ib2+play --max-epochs 20
+    python benchmarks/bench_memory.py --data ... --arms state,state+play,ib2,ib2+play,ib8 --seed 0,1
 
 With friction between the tubes at the top of its range the tip's state after a reversal depends on
 how far each tube has turned since (hysteresis loops tens of degrees of base rotation wide), which a
@@ -18,6 +19,16 @@ the held-out (test) sequences against the virtual robot's true pose:
              enters them, so a robot computes them the same way
   ib8        the paper's features in windows of 8 (a longer memory without a model of it)
   ib8+play   both
+  state      an LSTM whose state is carried over each whole recorded run from its first step, the
+             paper's per-step features as inputs, trained by stateful truncated backpropagation
+             through time (benchmarks/memory_state.py): a memory that does not depend on a window
+  state+play the same with the play lags among its inputs
+
+Every arm is also scored where the paper protocol never records: on the held-out sweeps (the
+dataset folder `sweeps` beside --data, the inner tube slid between levels) and along the mid-turn
+reversals of bench_generalisation.py, recorded here on the virtual robot the data was recorded on
+(rebuilt from its meta.json); position RMSE (and max) against the noise-free truth. A memory that
+wins on the held-out paper rows but loses along the reversals is not a win (IB 8, bench_fk_memory.py).
 
 The recipe is the paper's LSTM-MLP (ctrkin.models.recipe.WindowRecipe; structure "paper"): Adam,
 MAE, min-max on the training rows, early stopping on the validation loss, with the settings of
@@ -27,8 +38,10 @@ differ between arms; each arm starts from the same seed. Training runs here (not
 ctrkin.training.train, whose layouts have no extra columns) with the engine's own epoch,
 learning-rate and early-stopping functions.
 
-Prints a table (arm, epochs, train / val / test position RMSE vs truth in mm, seconds, load) and
-ends with one JSON line of the figures.
+Prints a table (arm, seed, epochs, train / val / test position RMSE vs truth in mm, sweeps RMSE,
+reversals RMSE / max, training seconds, the network's streaming step in µs (torch, one thread, the
+network alone: a window arm runs IB LSTM updates from zero per prediction, a state arm one update from
+its carried state), load) and ends with one JSON line of the figures.
 """
 
 from __future__ import annotations
@@ -37,8 +50,10 @@ import argparse
 import json
 import math
 import os
+import sys
 import time
-from dataclasses import replace
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -46,18 +61,26 @@ import numpy as np
 import torch
 
 from ctrkin.data.dataset import Dataset
+from ctrkin.evaluation.datasets import registered_truth
 from ctrkin.families.registry import build_model
 from ctrkin.families.snap_aware.play import dataset_lags
+from ctrkin.metrics import position_error
+from ctrkin.models.features import delta_columns, postprocess, sequence_features, windows
 from ctrkin.models.normalize import MinMax
-from ctrkin.models.recipe import Prepared, TrainingData, WindowRecipe
+from ctrkin.models.recipe import Prepared, TrainingData, WindowRecipe, predict_windows
 from ctrkin.models.store import ModelBundle
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.data import split_rows
 from ctrkin.training.engine import _early_stopping, _epoch_gathered, _learning_rate, _optimizer
+from ctrkin.virtual.truth import virtual_from_meta
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))   # the benchmarks beside this one
+from memory_state import network_step_us, train_state
 
 ANGLE_WIDTHS = (2.0, 5.0, 15.0, 45.0, 90.0)     # deg: half widths of the α1, αN play operators
 SLIDE_WIDTHS = (0.05, 0.2, 1.0)                 # mm: of d = βN − β1
-ARMS = {"ib2": (2, False), "ib2+play": (2, True), "ib8": (8, False), "ib8+play": (8, True)}
+ARMS = {"ib2": (2, False), "ib2+play": (2, True), "ib8": (8, False), "ib8+play": (8, True),
+        "state": (0, False), "state+play": (0, True)}        # IB 0: the state carried over the run
 # the quick reproduction's paper LSTM-MLP (its models/fk_lstm_mlp/config.json)
 QUICK_RECIPE = {"model": "lstm_mlp", "options": {"structure": "paper"}, "lr": 1e-3, "batch_size": 64,
                 "max_epochs": 150, "patience": 15, "min_steps": 10000, "patience_steps": 1000,
@@ -83,8 +106,6 @@ class MemoryRecipe(WindowRecipe):
         prepared = super().prepare(data)
         if self.extra is None:
             return prepared
-        from ctrkin.models.features import sequence_features, windows
-
         net_in = self.raw_in if self.frame is None else self.frame.network_joints(self.raw_in, self.outer_deg)
         feats = np.concatenate([sequence_features(self.layout, net_in, self.bounds), self.extra], axis=1)
         self.x_norm = MinMax.fit(feats[self.rows["train"]])
@@ -93,8 +114,34 @@ class MemoryRecipe(WindowRecipe):
         return replace(prepared, x_norm=self.x_norm)
 
 
+Predict = Callable[[Dataset], np.ndarray]      # a trained arm: a dataset -> (T, 6) poses, tracker frame
+
+
 def train_arm(ds: Dataset, cfg: TrainConfig, extra: np.ndarray | None) -> dict[str, Any]:
-    """Train one arm (module docstring) and return its epochs, seconds and RMSE vs truth per part."""
+    """Train one window arm (module docstring) and return its epochs, seconds and RMSE vs truth per part."""
+    return train_window(ds, cfg, extra)[0]
+
+
+def window_predict(rec: MemoryRecipe, net: torch.nn.Module, play: bool) -> Predict:
+    """A trained window arm on another dataset: its features (and play lags), the training's min-max,
+    Δα0 clipped to its training range (as `evaluate` and `Kinematics.predict` clip it), windows of IB
+    steps within each sequence."""
+    def predict(ds: Dataset) -> np.ndarray:
+        bounds = ds.sequence_bounds()
+        feats = sequence_features(rec.layout, ds.joints(), bounds)
+        if play:
+            feats = np.concatenate([feats, play_columns(ds)], axis=1)
+        x = rec.x_norm.transform(feats)
+        dcols = delta_columns(rec.layout)
+        x[:, dcols] = np.clip(x[:, dcols], 0.0, 1.0)
+        X = windows(x, bounds, rec.layout.ib).astype(np.float32)
+        yn = predict_windows(net, X, np.arange(len(X)))
+        return postprocess(rec.layout, rec.y_norm.inverse(yn))
+    return predict
+
+
+def train_window(ds: Dataset, cfg: TrainConfig, extra: np.ndarray | None) -> tuple[dict[str, Any], Predict]:
+    """train_arm's figures and the trained arm as a Predict."""
     torch.set_num_threads(cfg.threads)
     split, rows = split_rows(ds, cfg)
     n_train = len(rows["train"])
@@ -126,10 +173,48 @@ def train_arm(ds: Dataset, cfg: TrainConfig, extra: np.ndarray | None) -> dict[s
     net.load_state_dict(best)
     net.eval()
     metrics = rec.evaluate(bundle)
-    return {"inputs": n_in, "epochs": state["epoch"], "best_epoch": state["best_epoch"], "seconds": seconds,
-            "load": os.getloadavg()[0],
-            **{part: metrics[part]["vs_true"]["position_mm_rmse"] for part in ("train", "val", "test")
-               if part in metrics}}
+    window = torch.from_numpy(rec.X[:1])
+    return ({"inputs": n_in, "epochs": state["epoch"], "best_epoch": state["best_epoch"], "seconds": seconds,
+             "load": os.getloadavg()[0], "step_us": network_step_us(lambda: net(window)),
+             **{part: metrics[part]["vs_true"]["position_mm_rmse"] for part in ("train", "val", "test")
+                if part in metrics}},
+            window_predict(rec, net, extra is not None))
+
+
+@dataclass(frozen=True)
+class HeldOut:
+    """Recorded data outside the paper protocol: the dataset, its noise-free tracker view of the
+    truth (T, 6), the rows scored (not glitches)."""
+
+    name: str
+    ds: Dataset
+    truth: np.ndarray
+    keep: np.ndarray
+
+
+def held_out_sets(data: Path, ds: Dataset, reversals: bool) -> list[HeldOut]:
+    """The sweeps beside `data` (if recorded) and, with `reversals`, the mid-turn reversals recorded
+    on the virtual robot `ds` was recorded on."""
+    sets = []
+    sweeps = data.parent / "sweeps"
+    if (sweeps / "meta.json").is_file():
+        sw = Dataset.load(sweeps)
+        sets.append(HeldOut("sweeps", sw, registered_truth(sw), ~sw.frame["outlier"].to_numpy()))
+    if reversals:
+        from bench_generalisation import reversal_data
+
+        rev, truth, keep = reversal_data(ds.robot, virtual_from_meta(ds))
+        sets.append(HeldOut("reversals", rev, truth, keep))
+    return sets
+
+
+def score(predict: Predict, sets: list[HeldOut]) -> dict[str, float]:
+    """Position RMSE and max (mm) vs truth of a trained arm on each held-out set."""
+    out = {}
+    for h in sets:
+        e = position_error(np.asarray(predict(h.ds), float)[h.keep], h.truth[h.keep])
+        out[f"{h.name}_rmse"], out[f"{h.name}_max"] = float(np.sqrt(np.mean(e ** 2))), float(e.max())
+    return out
 
 
 def recipe_config(path: Path | None, max_epochs: int | None) -> TrainConfig:
@@ -150,7 +235,10 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     "settings every arm uses (default: the quick reproduction's paper LSTM-MLP)")
     ap.add_argument("--arms", default="ib2,ib2+play,ib8", help=f"comma-separated, of {sorted(ARMS)}")
     ap.add_argument("--max-epochs", type=int, default=None, help="cap every arm's epochs (a smoke run)")
-    ap.add_argument("--seed", type=int, default=None, help="the arms' training seed (default: the recipe's)")
+    ap.add_argument("--seed", default=None, help="the arms' training seeds, comma-separated, each arm "
+                    "trained once per seed (default: the recipe's)")
+    ap.add_argument("--no-reversals", action="store_true", help="do not record and score the mid-turn "
+                    "reversals (the sweeps beside --data are still scored)")
     args = ap.parse_args(argv)
     arms = [a.strip() for a in args.arms.split(",") if a.strip()]
     unknown = sorted(set(arms) - set(ARMS))
@@ -162,27 +250,39 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     if not ds.has_truth:
         ap.error(f"{args.data} has no true pose columns (a virtual robot's data is needed)")
     base = recipe_config(args.recipe, args.max_epochs)
-    if args.seed is not None:
-        base = replace(base, seed=args.seed)
+    seeds = [base.seed] if args.seed is None else [int(s) for s in str(args.seed).split(",") if s.strip()]
     lags = play_columns(ds)
-    out: dict[str, Any] = {}
+    t0 = time.perf_counter()
+    sets = held_out_sets(args.data, ds, not args.no_reversals)
     print(f"memory features on {args.data}: {len(ds.frame)} rows, recipe {base.model} {base.options} "
           f"lr {base.lr} batch {base.batch_size} max_epochs {base.max_epochs} patience {base.patience} "
-          f"seed {base.seed}; "
-          f"play widths {ANGLE_WIDTHS} deg, {SLIDE_WIDTHS} mm", flush=True)
-    print(f"{'arm':10s} {'inputs':>6s} {'epochs':>6s} {'best':>5s} {'train':>7s} {'val':>7s} {'test':>7s} "
-          f"{'s':>6s} {'load':>5s}   (position RMSE vs truth, mm)", flush=True)
-    for arm in arms:
-        ib, play = ARMS[arm]
-        r = train_arm(ds, replace(base, ib=ib), lags if play else None)
-        out[arm] = r
-        print(f"{arm:10s} {r['inputs']:6d} {r['epochs']:6d} {r['best_epoch']:5d} "
-              f"{r.get('train', math.nan):7.3f} {r.get('val', math.nan):7.3f} {r.get('test', math.nan):7.3f} "
-              f"{r['seconds']:6.0f} {r['load']:5.1f}", flush=True)
+          f"seeds {seeds}; play widths {ANGLE_WIDTHS} deg, {SLIDE_WIDTHS} mm; held out beyond the protocol: "
+          f"{[f'{h.name} ({int(h.keep.sum())} rows)' for h in sets]} ({time.perf_counter() - t0:.0f} s)",
+          flush=True)
+    print(f"{'arm':10s} {'seed':>4s} {'inputs':>6s} {'epochs':>6s} {'best':>5s} {'train':>7s} {'val':>7s} "
+          f"{'test':>7s} {'sweeps':>7s} {'rev':>6s} {'revmax':>6s} {'s':>6s} {'µs':>5s} {'load':>5s}   "
+          f"(position RMSE vs truth, mm; s: training; µs: the network's streaming step)", flush=True)
+    out: dict[str, list[dict[str, Any]]] = {}
+    for seed in seeds:
+        for arm in arms:
+            ib, play = ARMS[arm]
+            cfg = replace(base, seed=seed, ib=max(ib, 1))
+            if arm.startswith("state"):
+                r, model = train_state(ds, cfg, play_columns if play else None)
+                predict: Predict = model.predict
+            else:
+                r, predict = train_window(ds, cfg, lags if play else None)
+            r = {"seed": seed, **r, **score(predict, sets)}
+            out.setdefault(arm, []).append(r)
+            print(f"{arm:10s} {seed:4d} {r['inputs']:6d} {r['epochs']:6d} {r['best_epoch']:5d} "
+                  + " ".join(f"{r.get(k, math.nan):7.3f}" for k in ("train", "val", "test", "sweeps_rmse"))
+                  + f" {r.get('reversals_rmse', math.nan):6.2f} {r.get('reversals_max', math.nan):6.2f}"
+                  f" {r['seconds']:6.0f} {r['step_us']:5.0f} {r['load']:5.1f}", flush=True)
     report = {"data": str(args.data), "recipe": {"model": base.model, "options": base.options, "lr": base.lr,
                                                  "batch_size": base.batch_size, "max_epochs": base.max_epochs,
-                                                 "patience": base.patience, "seed": base.seed},
-              "angle_widths_deg": ANGLE_WIDTHS, "slide_widths_mm": SLIDE_WIDTHS, "arms": out}
+                                                 "patience": base.patience, "seeds": seeds},
+              "angle_widths_deg": ANGLE_WIDTHS, "slide_widths_mm": SLIDE_WIDTHS,
+              "held_out": {h.name: int(h.keep.sum()) for h in sets}, "arms": out}
     print(json.dumps(report, default=float))
     return report
 

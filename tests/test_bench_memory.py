@@ -52,3 +52,45 @@ def test_one_arm_trains_and_reports_rmse_vs_truth(bench, sweeps) -> None:
     r = bench.train_arm(sweeps, cfg, bench.play_columns(sweeps))
     assert r["inputs"] == 6 + 13 and r["epochs"] == 1
     assert all(np.isfinite(r[p]) and r[p] > 0 for p in ("train", "val", "test"))
+
+
+@pytest.fixture(scope="module")
+def state_mod(bench):
+    import sys
+
+    return sys.modules["memory_state"]      # imported by bench_memory from beside it
+
+
+def test_the_state_is_carried_along_a_run_and_reset_at_the_next(state_mod) -> None:
+    import torch
+
+    torch.manual_seed(0)
+    net = state_mod.StateNet(5, 3, hidden=8, head=4)
+    X = np.random.default_rng(0).uniform(0, 1, (23, 5)).astype(np.float32)
+    runs = [(0, 9), (9, 23)]
+    whole = state_mod.predict_runs(net, X, runs)
+    # streaming one step at a time, the state from zero at each run's first step, gives the same poses
+    stream = []
+    with torch.inference_mode():
+        for a, b in runs:
+            state = None
+            for t in range(a, b):
+                y, state = net.step(torch.from_numpy(X[t:t + 1]), state)
+                stream.append(y.numpy()[0])
+    np.testing.assert_allclose(np.array(stream), whole, atol=1e-6)
+    # a run's poses do not depend on the run before it; within a run the state carries the past
+    Y = X.copy()
+    Y[:3] += 0.5
+    changed = state_mod.predict_runs(net, Y, runs)
+    np.testing.assert_allclose(changed[9:], whole[9:], atol=1e-6)
+    assert np.abs(changed[5:9] - whole[5:9]).max() > 1e-6
+
+
+def test_one_state_arm_trains_and_predicts_as_it_scores(bench, state_mod, sweeps) -> None:
+    cfg = bench.recipe_config(None, 1)
+    r, model = state_mod.train_state(sweeps, cfg, bench.play_columns)
+    assert r["inputs"] == 6 + 13 and r["epochs"] == 1
+    assert all(np.isfinite(r[p]) and r[p] > 0 for p in ("train", "val", "test"))
+    assert state_mod.run_bounds(sweeps) == sweeps.sequence_bounds()     # no `run` column: each sequence
+    pred = model.predict(sweeps)
+    assert pred.shape == (len(sweeps.frame), 6) and np.all(np.isfinite(pred))
