@@ -6,7 +6,7 @@ floor) and ONNX Runtime on one thread, the old code beside the new in one run.
     python benchmarks/bench_streaming.py --run out/reproduce   # the reproduction's fk_lstm_mlp
     python benchmarks/bench_streaming.py --run out/reproduce --all-models   # + the issue 8 table
     python benchmarks/bench_streaming.py --breakdown           # where the step's distance from its floor goes
-    python benchmarks/bench_streaming.py --breakdown-predict 1024   # where a batch predict call's time goes
+    python benchmarks/bench_streaming.py --breakdown-predict 1024 --baseline dbab9a8 # predict call's pieces
 
 The model: the paper's LSTM-MLP FK (L128|D64, IB 2, 85,376 multiply-adds a step) of a reproduction
 (`--run`, made by code both trees read), or, without one, the same network trained for one epoch on
@@ -29,8 +29,8 @@ alternating rounds; `*_to_onnx_b*`: the median of the rounds' ratios of predicti
 Prints a table with `uptime` and ends with one JSON line. `--breakdown`: only this tree's step, its
 layers peeled off one at a time and the kernel's pieces alone, against the floor
 (benchmarks/streaming_breakdown.py). `--breakdown-predict B`: only `predict` on B rows, split into
-its pieces, the baseline's tree and this one (benchmarks/predict_breakdown.py). `--keep DIR`: the
-stand-in model trained into DIR once and reused.
+its pieces, the baseline's tree (one with the fused pass: dbab9a8 or later) and this one
+(benchmarks/predict_breakdown.py). `--keep DIR`: the stand-in model trained into DIR once and reused.
 """
 
 from __future__ import annotations
@@ -462,10 +462,12 @@ def predict_breakdown(model: Path, joints: np.ndarray, b: int, rounds: int, old_
         for w in order:
             src = old_src if w == "old" else REPO / "src"
             env = {**os.environ, "PYTHONPATH": str(src), "OMP_NUM_THREADS": "1"}
-            out = subprocess.run([sys.executable, __file__, "--predict-breakdown-worker", str(model),
-                                  str(folder / "inputs.npz"), str(b), str(rounds)],
-                                 env=env, check=True, capture_output=True, text=True).stdout
-            runs[w].append(json.loads(out.strip().splitlines()[-1]))
+            done = subprocess.run([sys.executable, __file__, "--predict-breakdown-worker", str(model),
+                                   str(folder / "inputs.npz"), str(b), str(rounds)],
+                                  env=env, capture_output=True, text=True)
+            if done.returncode != 0:
+                raise SystemExit(f"the {w} tree's breakdown worker failed ({src}):\n{done.stderr}")
+            runs[w].append(json.loads(done.stdout.strip().splitlines()[-1]))
     us = {w: {k: float(np.median([r[k] for r in got])) for k in got[0]} for w, got in runs.items()}
     print("load:", subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip())
     figures = {"predict_breakdown_us": pb.table(us, b), "batch": b,

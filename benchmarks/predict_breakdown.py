@@ -52,6 +52,42 @@ def _timer(fn: Callable[[], Any]) -> Callable[[], float]:
     return timed
 
 
+def _lstm_pieces(batch: Any, net: Any, x32: torch.Tensor, w_ih: torch.Tensor, w_hh: torch.Tensor,
+                 bias: torch.Tensor, n_rows: int) -> tuple[list[tuple[int, int]], np.ndarray,
+                                                      dict[str, Callable[[], None]]]:
+    """The one-LSTM pass's pieces as both trees run them, chunk by chunk (batch.FUSED_CHUNK rows):
+    the chunks' spans, the window buffer (chunk, IB·H) the head reads, and the input projection,
+    recurrent products and gates/cells as callables."""
+    if not hasattr(batch, "FUSED_CHUNK"):
+        raise SystemExit("--breakdown-predict splits the fused batch pass: its --baseline must have it "
+                         "(dbab9a8 or later)")
+    hid, ib = w_hh.shape[1], net.ib
+    chunk = batch.FUSED_CHUNK
+    spans = [(lo, min(lo + chunk, n_rows)) for lo in range(0, n_rows, chunk)]
+    gx = {lo: torch.addmm(bias, x32[lo:hi + ib - 1], w_ih.t()).numpy() for lo, hi in spans}
+    window = np.ascontiguousarray(np.random.default_rng(0).random((chunk, ib * hid)), np.float32)
+    rec, c = np.empty((chunk, 4 * hid), np.float32), np.zeros((chunk, hid), np.float32)
+
+    def projection() -> None:
+        for lo, hi in spans:
+            g = batch._scratch("bd_gx", (hi - lo + ib - 1, 4 * hid))
+            torch.addmm(bias, x32[lo:hi + ib - 1], w_ih.t(), out=torch.from_numpy(g))
+
+    def recurrent() -> None:
+        for lo, hi in spans:
+            win_t, rec_t = torch.from_numpy(window[:hi - lo]), torch.from_numpy(rec[:hi - lo])
+            for k in range(1, ib):
+                torch.mm(win_t[:, (k - 1) * hid:k * hid], w_hh.t(), out=rec_t)
+
+    def gates() -> None:
+        for lo, hi in spans:
+            w = window[:hi - lo]
+            for k in range(ib):
+                batch._lstm_position(rec[:hi - lo], gx[lo][k:k + hi - lo], k == 0, c[:hi - lo], w, k * hid)
+
+    return spans, window, {"projection": projection, "recurrent": recurrent, "gates": gates}
+
+
 def variants(kin: Any, rows: np.ndarray) -> dict[str, Callable[[], float]]:
     """The timed pieces (module docstring) of `kin.predict(rows)`: rows (B, 2N) one sequence of joints;
     a model whose network is a SeqNet with one LSTM layer (the fused batch pass). A tree from before
@@ -84,32 +120,11 @@ def variants(kin: Any, rows: np.ndarray) -> dict[str, Callable[[], float]]:
     head = batch._one_dense_head(net)
     assert head is not None
     w1t, b1, w2, b2 = head
-    hid, ib, n_rows = w_hh.shape[1], net.ib, len(wins)
-    chunk = batch.FUSED_CHUNK
-    spans = [(lo, min(lo + chunk, n_rows)) for lo in range(0, n_rows, chunk)]
-    gx = {lo: torch.addmm(bias, x32[lo:hi + ib - 1], w_ih.t()).numpy() for lo, hi in spans}
-    window = np.ascontiguousarray(np.random.default_rng(0).random((chunk, ib * hid)), np.float32)
-    rec, c = np.empty((chunk, 4 * hid), np.float32), np.zeros((chunk, hid), np.float32)
-    dense = np.empty((chunk, w1t.shape[1]), np.float32)
+    n_rows = len(wins)
+    spans, window, lstm_pieces = _lstm_pieces(batch, net, x32, w_ih, w_hh, bias, n_rows)
+    dense = np.empty((window.shape[0], w1t.shape[1]), np.float32)
     out = np.empty((n_rows, net.n_outputs), np.float32)
     relu_out = net.output_activation == "relu"
-
-    def projection() -> None:
-        for lo, hi in spans:
-            g = batch._scratch("bd_gx", (hi - lo + ib - 1, 4 * hid))
-            torch.addmm(bias, x32[lo:hi + ib - 1], w_ih.t(), out=torch.from_numpy(g))
-
-    def recurrent() -> None:
-        for lo, hi in spans:
-            win_t, rec_t = torch.from_numpy(window[:hi - lo]), torch.from_numpy(rec[:hi - lo])
-            for k in range(1, ib):
-                torch.mm(win_t[:, (k - 1) * hid:k * hid], w_hh.t(), out=rec_t)
-
-    def gates() -> None:
-        for lo, hi in spans:
-            w = window[:hi - lo]
-            for k in range(ib):
-                batch._lstm_position(rec[:hi - lo], gx[lo][k:k + hi - lo], k == 0, c[:hi - lo], w, k * hid)
 
     def dense_layer() -> None:
         with torch.inference_mode():
@@ -130,9 +145,9 @@ def variants(kin: Any, rows: np.ndarray) -> dict[str, Callable[[], float]]:
         "frame angles": _timer(lambda: pred._network_joints(rows, raw, bounds)),
         "features … padding (one pass)": _timer(features),
         "the network": _timer(lambda: batch.seqnet_predict(net, padded, wins)),
-        "  input projection": _timer(projection),
-        "  recurrent products": _timer(recurrent),
-        "  gates and cells": _timer(gates),
+        "  input projection": _timer(lstm_pieces["projection"]),
+        "  recurrent products": _timer(lstm_pieces["recurrent"]),
+        "  gates and cells": _timer(lstm_pieces["gates"]),
         "  Dense layer": _timer(dense_layer),
         "  ReLU and output": _timer(relu_output),
         "poses (one pass)": _timer(lambda: batch.fk_poses(yn, pred._y_norm.lo, pred._y_norm.span)),
@@ -161,30 +176,9 @@ def _old_variants(kin: Any, rows: np.ndarray) -> dict[str, Callable[[], float]]:
     x32 = torch.from_numpy(np.ascontiguousarray(padded, dtype=np.float32))
     weights = batch._scaled_lstm_weights(net.seq[0])
     w_ih, w_hh, bias = weights
-    hid, ib, n_rows = w_hh.shape[1], net.ib, len(starts)
-    chunk = batch.FUSED_CHUNK
-    spans = [(lo, min(lo + chunk, n_rows)) for lo in range(0, n_rows, chunk)]
-    gx = {lo: torch.addmm(bias, x32[lo:hi + ib - 1], w_ih.t()).numpy() for lo, hi in spans}
-    window = np.ascontiguousarray(np.random.default_rng(0).random((chunk, ib * hid)), np.float32)
-    rec, c = np.empty((chunk, 4 * hid), np.float32), np.zeros((chunk, hid), np.float32)
+    n_rows = len(starts)
+    spans, window, lstm_pieces = _lstm_pieces(batch, net, x32, w_ih, w_hh, bias, n_rows)
     out = np.empty((n_rows, net.n_outputs), np.float32)
-
-    def projection() -> None:
-        for lo, hi in spans:
-            g = batch._scratch("bd_gx", (hi - lo + ib - 1, 4 * hid))
-            torch.addmm(bias, x32[lo:hi + ib - 1], w_ih.t(), out=torch.from_numpy(g))
-
-    def recurrent() -> None:
-        for lo, hi in spans:
-            win_t, rec_t = torch.from_numpy(window[:hi - lo]), torch.from_numpy(rec[:hi - lo])
-            for k in range(1, ib):
-                torch.mm(win_t[:, (k - 1) * hid:k * hid], w_hh.t(), out=rec_t)
-
-    def gates() -> None:
-        for lo, hi in spans:
-            w = window[:hi - lo]
-            for k in range(ib):
-                batch._lstm_position(rec[:hi - lo], gx[lo][k:k + hi - lo], k == 0, c[:hi - lo], w, k * hid)
 
     def head() -> None:
         with torch.inference_mode():
@@ -203,9 +197,9 @@ def _old_variants(kin: Any, rows: np.ndarray) -> dict[str, Callable[[], float]]:
         "padding": _timer(lambda: batch.padded_rows(xn, bounds, pred.ib)),
         "the network": _timer(lambda: batch.seqnet_predict(net, padded, starts)),
         "  to float32": _timer(lambda: torch.from_numpy(np.ascontiguousarray(padded, dtype=np.float32))),
-        "  input projection": _timer(projection),
-        "  recurrent products": _timer(recurrent),
-        "  gates and cells": _timer(gates),
+        "  input projection": _timer(lstm_pieces["projection"]),
+        "  recurrent products": _timer(lstm_pieces["recurrent"]),
+        "  gates and cells": _timer(lstm_pieces["gates"]),
         "  head and output": _timer(head),
         "de-normalise": _timer(lambda: pred._y_norm.inverse(yn)),
         "quaternion": _timer(lambda: postprocess(pred.layout, y)),
