@@ -25,6 +25,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from ctrkin.models.feature_row import paper_feature_row
 from ctrkin.models.seqnet import SeqNet
 
 # ln 2 in two float32 parts (Cody-Waite: k·ln2_hi is exact for |k| ≤ 126) and 1/ln 2
@@ -102,23 +103,15 @@ def fk_padded_rows(raw: np.ndarray, starts: np.ndarray, ib: int, n: int, phase: 
     out = np.empty((t_rows + (ib - 1) * n_seq, f), np.float32)
     win = np.empty(t_rows, np.int64)
     feat = np.empty(f)
+    kd = 2 * n + 3 if phase else 2 * n + 1                                 # Δα0's column
     pos = 0
     for s in range(n_seq):
         a, b = starts[s], starts[s + 1]
         for t in range(a, b):
-            for j in range(2 * n):
-                feat[j] = raw[t, j]
-            a0 = raw[t, 0] - raw[t, n - 1]                                   # eq. (1)
-            feat[2 * n] = a0
-            k = 2 * n + 1
-            if phase:
-                r = np.radians(a0)
-                feat[k], feat[k + 1] = np.sin(r), np.cos(r)
-                k += 2
+            p = t - 1 if t > a else t
+            paper_feature_row(raw[t], n, raw[p, 0] - raw[p, n - 1], t > a, phase, delta, feat)
             if delta:
-                p = t - 1 if t > a else t
-                d = a0 - (raw[p, 0] - raw[p, n - 1])                         # eq. (2)
-                feat[k] = min(max(d, dlo), dhi)
+                feat[kd] = min(max(feat[kd], dlo), dhi)
             row = pos + (t - a) + ib - 1
             for j in range(f):
                 out[row, j] = (feat[j] - lo[j]) / span[j]

@@ -32,6 +32,7 @@ import numpy as np
 from numba import njit
 
 from ctrkin.models.engine import StreamingEngine, _dense_rows, _lstm_rows, _push_history
+from ctrkin.models.feature_row import paper_feature_row
 from ctrkin.models.frame import OuterFrame, pose_to_world
 from ctrkin.models.guards import MAX_ABS_ALPHA_DEG, TURN_DEG, FKGuard
 from ctrkin.models.relay import GateTables, gate_step
@@ -168,20 +169,11 @@ def _fk_step(raw, shift, prev, consts, state, ints, started, fresh, branch, gate
     if lagged_inputs:                           # the network sees it as αN (OuterFrame.network_joints)
         q[n - 1] = outer
     # features (ctrkin.models.features: α, β, α0, [sin α0, cos α0], Δα0), clipped and normalised
-    a0 = q[0] - q[n - 1]                                             # eq. (1)
-    d_a0 = a0 - (prev[0] - prev[n - 1]) if started else 0.0          # eq. (2)
-    _piece(state, swhere, PREV)[:] = q
     x = _v2(state, swhere, X)
     f = x[0]
-    f[: 2 * n] = q
-    f[2 * n] = a0
-    k = 2 * n + 1
-    if phase:
-        r = math.radians(a0)
-        f[k], f[k + 1] = math.sin(r), math.cos(r)
-        k += 2
-    if delta:
-        f[k] = d_a0
+    prev_a0 = prev[0] - prev[n - 1] if started else 0.0
+    paper_feature_row(q, n, prev_a0, started, phase, delta, f)
+    _piece(state, swhere, PREV)[:] = q
     for j in range(f.size):
         f[j] = (min(max(f[j], clip_lo[j]), clip_hi[j]) - xlo[j]) / xspan[j]
     if gate_kind == GATE_FOLD:          # the relay on the shifted joints (SnapAwarePredictor._fold_step)
