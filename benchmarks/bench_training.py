@@ -37,12 +37,15 @@ from ctrkin.training import TrainConfig, train
 from ctrkin.training.config import scaled_lr
 
 
-def configs(batch: int, seconds: float, threads: int) -> dict[str, TrainConfig]:
-    """old: the paper's recipe on the loop up to issue 11; new: the current loop and recipe."""
+def configs(batch: int, seconds: float, threads: int, nn_lstm: bool = False) -> dict[str, TrainConfig]:
+    """old: the paper's recipe on the loop up to issue 11; new: the current loop and recipe; with
+    nn_lstm also "lstm": the new one with torch's nn.LSTM (fused_lstm off, the loop before issue 26)."""
     common = {"task": "fk", "threads": threads, "max_epochs": 10_000, "max_seconds": seconds}
+    new = {"loop": "epoch", "batch_size": batch, "lr": scaled_lr(batch), "val_smoothing": 0.5, **common}
     return {
         "old": TrainConfig(loop="batch", batch_size=32, lr=1e-3, **common),
-        "new": TrainConfig(loop="epoch", batch_size=batch, lr=scaled_lr(batch), val_smoothing=0.5, **common),
+        "new": TrainConfig(**new),
+        **({"lstm": TrainConfig(**new, fused_lstm=False)} if nn_lstm else {}),
     }
 
 
@@ -102,12 +105,14 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=4, help="alternating slices of the budget")
     ap.add_argument("--batch", type=int, default=1024, help="batch size of the new recipe")
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--nn-lstm", action="store_true",
+                    help="also the new recipe with torch's nn.LSTM (row 'lstm': --no-fused-lstm)")
     ap.add_argument("--out", type=Path, default=None, help="model folders (default: a temporary folder)")
     ap.add_argument("--profile", type=int, default=None, metavar="EPOCHS",
                     help="where an epoch's time goes instead (module docstring)")
     args = ap.parse_args()
     ds = Dataset.load(args.data)
-    cfgs = configs(args.batch, args.seconds, args.threads)
+    cfgs = configs(args.batch, args.seconds, args.threads, args.nn_lstm)
     if args.profile is not None:
         with tempfile.TemporaryDirectory() as tmp:
             prof = profile(ds, cfgs, args.out or Path(tmp), args.profile)
@@ -137,11 +142,12 @@ def main() -> None:
     for name, r in rows.items():
         print(f"{name:4s} {r['batch']:5d} {r['lr']:8.2e} {r['epochs']:6d} {r['best']:4d} {r['seconds']:7.0f} "
               f"{r['samples_per_s']:9.0f} {r['mm_true']:11.3f} {r['mm_meas']:10.3f} {r['deg_true']:12.2f}")
-    print(f"speed-up {rows['new']['samples_per_s'] / rows['old']['samples_per_s']:.2f}x samples/s")
-    print(json.dumps({"samples_per_s_old": round(rows["old"]["samples_per_s"], 1),
-                      "samples_per_s_new": round(rows["new"]["samples_per_s"], 1),
-                      "heldout_mm_old": round(rows["old"]["mm_true"], 4),
-                      "heldout_mm_new": round(rows["new"]["mm_true"], 4)}))
+    print(f"speed-up {rows['new']['samples_per_s'] / rows['old']['samples_per_s']:.2f}x samples/s"
+          + (f" (nn.LSTM: {rows['lstm']['samples_per_s'] / rows['old']['samples_per_s']:.2f}x)" if "lstm" in rows
+             else ""))
+    print(json.dumps({f"{key}_{name}": round(rows[name][field], digits) for name in rows
+                      for key, field, digits in (("samples_per_s", "samples_per_s", 1),
+                                                 ("heldout_mm", "mm_true", 4))}))
 
 
 if __name__ == "__main__":

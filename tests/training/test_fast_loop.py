@@ -17,12 +17,12 @@ SMALL = {"structure": "L16|D16"}
 
 
 def test_epoch_loop_follows_the_batch_loop(quick_ds, tmp_path):
-    """Same permutation and batches: bit-identical with Adam's default kernel, equal up to rounding
-    with the fused one."""
+    """Same permutation and batches: bit-identical with Adam's default kernel and torch's LSTM, equal
+    up to rounding with the fused kernel and the fused window LSTM."""
     nets = {}
     for name, loop, fused in (("batch", "batch", True), ("epoch", "epoch", False), ("fused", "epoch", True)):
-        cfg = TrainConfig(task="fk", loop=loop, fused_adam=fused, max_epochs=2, patience=2, threads=1,
-                          batch_size=64, options=SMALL)
+        cfg = TrainConfig(task="fk", loop=loop, fused_adam=fused, fused_lstm=fused, max_epochs=2, patience=2,
+                          threads=1, batch_size=64, options=SMALL)
         res = train(quick_ds, cfg, tmp_path / name, progress=False)
         nets[name] = torch.load(tmp_path / name / "weights.pt", weights_only=True)
         assert res.metrics["training"]["samples_per_s"] > 0

@@ -17,7 +17,8 @@ from ctrkin.virtual.config import SETTINGS_HELP, VirtualConfig
 class Budget:
     """Training budget of one role of model: epochs (max), early-stopping patience, batch size,
     learning rate and its schedule (TrainConfig.lr_schedule), smoothing of the val loss for early
-    stopping (TrainConfig.val_smoothing), Adam's fused kernel (TrainConfig.fused_adam), and the input
+    stopping (TrainConfig.val_smoothing), Adam's fused kernel (TrainConfig.fused_adam; with it the fused
+    window LSTM, TrainConfig.fused_lstm: off, a budget trains the weights it did before), and the input
     buffer IB (TrainConfig.ib: the memory the window gives; the grids set their own)."""
 
     epochs: int

@@ -50,6 +50,7 @@ def plan_runs(scale: ReproScale) -> list[Run]:
             lr_schedule=budget.lr_schedule,
             val_smoothing=budget.val_smoothing,
             fused_adam=budget.fused_adam,
+            fused_lstm=budget.fused_adam,     # a budget that keeps its old weights keeps nn.LSTM too
             split="dataset",
             **kw,
         )

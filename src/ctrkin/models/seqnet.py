@@ -75,7 +75,13 @@ class SeqNet(KinematicsNet):
 
     x: (B, IB, F) normalised features -> (B, O) normalised outputs. Each LSTM starts from zero state
     on every window (the buffer is the model's only memory, as in the paper).
+
+    fused_lstm: where gradients are recorded, a one-layer LSTM on float32 CPU windows runs as
+    ctrkin.models.window_lstm (the same values within float32 round-off, a fused backward); the
+    training engine sets it from TrainConfig.fused_lstm. Off: torch's nn.LSTM everywhere.
     """
+
+    fused_lstm: bool = False
 
     def __init__(self, n_inputs: int, n_outputs: int, ib: int, structure: str = "paper",
                  pooling: str = "flatten", output_activation: str = "relu") -> None:
@@ -105,10 +111,18 @@ class SeqNet(KinematicsNet):
         h = x
         for layer in self.seq:
             if isinstance(layer, nn.LSTM):
-                h, _ = layer(h)                              # eq. (3), (4)
+                h = self._lstm(layer, h)                     # eq. (3), (4)
             else:
                 h = torch.relu(layer(h))
         return h.flatten(1) if self.pooling == "flatten" else h[:, -1]   # eq. (5)
+
+    def _lstm(self, layer: nn.LSTM, h: torch.Tensor) -> torch.Tensor:
+        """layer(h)[0]: the fused window LSTM where `fused_lstm` applies, else torch's."""
+        if self.fused_lstm and torch.is_grad_enabled():
+            from ctrkin.models.window_lstm import fits, window_lstm     # it imports batch, which imports this
+            if fits(layer, h):
+                return window_lstm(layer, h)
+        return layer(h)[0]
 
     def head_out(self, h: torch.Tensor, state: torch.Tensor | None = None) -> torch.Tensor:
         """h: (B, trunk_width) -> (B, O): Dense ReLU layers and the output (state: BranchNet only)."""

@@ -32,6 +32,7 @@ from ctrkin.errors import ModelError
 from ctrkin.families.registry import build_net, recipe
 from ctrkin.models.recipe import Recipe, TrainingData
 from ctrkin.models.store import CONFIG, ModelBundle, read_json, write_json
+from ctrkin.models.window_lstm import use_window_lstm
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.curves import plot_curves, read_history
 from ctrkin.training.data import data_signature, split_rows, split_signature
@@ -272,6 +273,7 @@ class _Run:
         run_epoch = _epoch_gathered if cfg.loop == "epoch" else _epoch
         bar = (progress_bar(total=self.max_epochs, desc=f"train {cfg.task} {cfg.model}",
                             initial=state["epoch"]) if progress else tqdm(disable=True))
+        use_window_lstm(net, cfg.loop == "epoch" and cfg.fused_lstm)    # for the epochs only: not in export
         try:
             while not state["done"] and state["epoch"] < self.max_epochs:
                 t0 = time.perf_counter()
@@ -298,6 +300,7 @@ class _Run:
                 bar.set_postfix(train=f"{train_loss:.4g}", val=f"{val_loss:.4g}", best=state["best_epoch"])
         finally:
             bar.close()
+            use_window_lstm(net, False)
 
     def _on_device(self, tensors: tuple[torch.Tensor, torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
         """An epoch's (X, Y) on the training device (copied once while the recipe returns the same
