@@ -1,7 +1,7 @@
 """The fused window LSTM (ctrkin.models.window_lstm, issue 26 goal 3) against torch's nn.LSTM: the
 same outputs and the same gradients (weights, biases, inputs) within float32 round-off, at every
 input buffer the paper uses; the pool of buffers does not mix one forward with another; SeqNet uses
-it only where it may (gradients recorded, CPU float32, fused_lstm on)."""
+it only where it may (CPU float32, fused_lstm on)."""
 
 from __future__ import annotations
 
@@ -63,6 +63,16 @@ def test_pooled_buffers_do_not_mix_forwards():
         torch.testing.assert_close(layer.weight_hh_l0.grad, want[2], rtol=RTOL, atol=ATOL)
 
 
+def test_buffers_made_in_inference_mode_serve_a_training_step():
+    torch.manual_seed(3)
+    layer = nn.LSTM(7, 16, batch_first=True)
+    x = torch.rand(32, 2, 7)
+    with torch.inference_mode():
+        window_lstm(layer, x)                           # pools its buffers
+    window_lstm(layer, x).sum().backward()
+    assert layer.weight_hh_l0.grad is not None
+
+
 def test_a_second_backward_through_the_same_graph_is_refused():
     layer = nn.LSTM(7, 16, batch_first=True)
     out = window_lstm(layer, torch.rand(8, 2, 7)).sum()
@@ -83,14 +93,14 @@ def test_seqnet_uses_it_only_where_it_may(monkeypatch):
     ref = net(x)
     assert calls == []                                   # off by default
     use_window_lstm(net, True)
-    with torch.no_grad():
-        torch.testing.assert_close(net(x), ref)         # no gradients: torch's LSTM
-    assert calls == []
-    out = net(x)
+    with torch.inference_mode():                         # validation: the forward alone
+        torch.testing.assert_close(net(x), ref, rtol=RTOL, atol=ATOL)
     assert calls == [1]
+    out = net(x)
+    assert calls == [1, 1]
     torch.testing.assert_close(out, ref, rtol=RTOL, atol=ATOL)
     assert not fits(net.seq[0], x.double())              # float64, CUDA, stacked layers: nn.LSTM
     assert not fits(nn.LSTM(7, 8, num_layers=2, batch_first=True), x)
     use_window_lstm(net, False)
     net(x)
-    assert calls == [1]
+    assert calls == [1, 1]

@@ -76,9 +76,10 @@ class SeqNet(KinematicsNet):
     x: (B, IB, F) normalised features -> (B, O) normalised outputs. Each LSTM starts from zero state
     on every window (the buffer is the model's only memory, as in the paper).
 
-    fused_lstm: where gradients are recorded, a one-layer LSTM on float32 CPU windows runs as
-    ctrkin.models.window_lstm (the same values within float32 round-off, a fused backward); the
-    training engine sets it from TrainConfig.fused_lstm. Off: torch's nn.LSTM everywhere.
+    fused_lstm: a one-layer LSTM on float32 CPU windows runs as ctrkin.models.window_lstm (the same
+    values within float32 round-off, a fused backward); the training engine sets it from
+    TrainConfig.fused_lstm for its epochs (training steps and validation loss) and unsets it after.
+    Off: torch's nn.LSTM.
     """
 
     fused_lstm: bool = False
@@ -118,7 +119,7 @@ class SeqNet(KinematicsNet):
 
     def _lstm(self, layer: nn.LSTM, h: torch.Tensor) -> torch.Tensor:
         """layer(h)[0]: the fused window LSTM where `fused_lstm` applies, else torch's."""
-        if self.fused_lstm and torch.is_grad_enabled():
+        if self.fused_lstm:
             from ctrkin.models.window_lstm import fits, window_lstm     # it imports batch, which imports this
             if fits(layer, h):
                 return window_lstm(layer, h)
