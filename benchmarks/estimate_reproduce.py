@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import heapq
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import torch
@@ -24,6 +25,7 @@ from ctrkin.evaluation.training_runs import plan_runs
 from ctrkin.families.registry import build_net, recipe
 from ctrkin.models.recipe import TrainingData
 from ctrkin.models.store import ModelBundle
+from ctrkin.models.window_lstm import use_window_lstm
 from ctrkin.training.data import split_rows
 from ctrkin.training.engine import _epoch_gathered, _optimizer
 
@@ -34,18 +36,23 @@ def main() -> None:
     ap.add_argument("--scale", default="full")
     ap.add_argument("--rows", type=int, default=20_000, help="training rows timed per run")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--fused-lstm", choices=("budget", "on", "off"), default="budget",
+                    help="the fused window LSTM (TrainConfig.fused_lstm) as each budget sets it, or forced")
     args = ap.parse_args()
     torch.set_num_threads(1)
     ds = Dataset.load(args.data)
     costs = []
     for run in plan_runs(get_scale(args.scale)):
         cfg = run.config
+        if args.fused_lstm != "budget":
+            cfg = replace(cfg, fused_lstm=args.fused_lstm == "on")
         rec = recipe(cfg)                      # the family's: its features, loss and validation
         split, rows = split_rows(ds, cfg)
         prepared = rec.prepare(TrainingData(ds, cfg, split, rows))
         bundle = ModelBundle.create(cfg.to_dict(), prepared.layout, prepared.x_norm, prepared.y_norm,
                                     ds.robot, {}, frame=prepared.frame, build=build_net)
         net = bundle.net
+        use_window_lstm(net, cfg.loop == "epoch" and cfg.fused_lstm)      # as the engine's epochs
         opt, gen = _optimizer(net, cfg), torch.Generator().manual_seed(0)
         X, Y = rec.epoch_tensors(0, bundle)
         n_train = len(X)

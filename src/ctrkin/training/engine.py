@@ -276,7 +276,7 @@ class _Run:
         use_window_lstm(net, cfg.loop == "epoch" and cfg.fused_lstm)    # for the epochs only: not in export
         try:
             while not state["done"] and state["epoch"] < self.max_epochs:
-                t0 = time.perf_counter()
+                t0, cpu0 = time.perf_counter(), time.process_time()
                 for group in self.opt.param_groups:
                     group["lr"] = _learning_rate(cfg, state["epoch"], self.max_epochs)
                 X, Y = self._on_device(rec.epoch_tensors(state["epoch"], self.bundle))
@@ -284,6 +284,8 @@ class _Run:
                 self._sync()
                 val_loss = rec.val_loss(self.cpu_net)
                 state["seconds"] += time.perf_counter() - t0
+                # CPU time of all the process's threads: per-core throughput, less exposed to other jobs
+                state["cpu_seconds"] = state.get("cpu_seconds", 0.0) + time.process_time() - cpu0
                 state["epoch"] += 1
                 state["history"].append({"epoch": state["epoch"], "train_loss": train_loss,
                                          "val_loss": val_loss, "seconds": state["seconds"]})
@@ -356,6 +358,9 @@ class _Run:
                                "steps_per_epoch": steps, "steps": steps * state["epoch"], "fit": fit,
                                "samples_per_s": self.train_rows * state["epoch"]
                                / max(state["seconds"], 1e-9),
+                               "cpu_seconds": state.get("cpu_seconds", 0.0),
+                               "samples_per_cpu_s": self.train_rows * state["epoch"]
+                               / max(state.get("cpu_seconds", 0.0), 1e-9),
                                "threads": cfg.threads, "parameters": sum(p.numel() for p in net.parameters())}
         write_json(build / "metrics.json", metrics)
         _write_history(build / "history.csv", state["history"])
