@@ -10,7 +10,8 @@ Both runs get the same training-time budget (`TrainConfig.max_seconds`), spent i
 rounds (each round resumes its run from the checkpoint), so both see the same load from other jobs
 on a shared machine. samples/s = training samples x epochs / training seconds (validation included,
 one thread); per CPU s: the same over the process's CPU time in those epochs (what one core does
-when it gets the core; less exposed to other jobs' load than wall time). Held-out error: position RMSE on the test sequences against the truth as the tracker
+when it gets the core; less exposed to other jobs' load than wall time). Held-out error: position
+RMSE on the test sequences against the truth as the tracker
 sees it without noise (and against the measurement). Prints a table and ends with one JSON line.
 
     OMP_NUM_THREADS=1 python benchmarks/bench_training.py data/paper-quick --profile 5
@@ -38,10 +39,11 @@ from ctrkin.training import TrainConfig, train
 from ctrkin.training.config import scaled_lr
 
 
-def configs(batch: int, seconds: float, threads: int, nn_lstm: bool = False) -> dict[str, TrainConfig]:
+def configs(batch: int, seconds: float, threads: int, nn_lstm: bool = False, seed: int = 0
+            ) -> dict[str, TrainConfig]:
     """old: the paper's recipe on the loop up to issue 11; new: the current loop and recipe; with
     nn_lstm also "lstm": the new one with torch's nn.LSTM (fused_lstm off, the loop before issue 26)."""
-    common = {"task": "fk", "threads": threads, "max_epochs": 10_000, "max_seconds": seconds}
+    common = {"task": "fk", "threads": threads, "max_epochs": 10_000, "max_seconds": seconds, "seed": seed}
     new = {"loop": "epoch", "batch_size": batch, "lr": scaled_lr(batch), "val_smoothing": 0.5, **common}
     return {
         "old": TrainConfig(loop="batch", batch_size=32, lr=1e-3, **common),
@@ -106,6 +108,7 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=4, help="alternating slices of the budget")
     ap.add_argument("--batch", type=int, default=1024, help="batch size of the new recipe")
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--seed", type=int, default=0, help="TrainConfig.seed of every run (weights, batches)")
     ap.add_argument("--nn-lstm", action="store_true",
                     help="also the new recipe with torch's nn.LSTM (row 'lstm': --no-fused-lstm)")
     ap.add_argument("--out", type=Path, default=None, help="model folders (default: a temporary folder)")
@@ -113,7 +116,7 @@ def main() -> None:
                     help="where an epoch's time goes instead (module docstring)")
     args = ap.parse_args()
     ds = Dataset.load(args.data)
-    cfgs = configs(args.batch, args.seconds, args.threads, args.nn_lstm)
+    cfgs = configs(args.batch, args.seconds, args.threads, args.nn_lstm, args.seed)
     if args.profile is not None:
         with tempfile.TemporaryDirectory() as tmp:
             prof = profile(ds, cfgs, args.out or Path(tmp), args.profile)
@@ -143,7 +146,8 @@ def main() -> None:
     print(head)
     for name, r in rows.items():
         print(f"{name:4s} {r['batch']:5d} {r['lr']:8.2e} {r['epochs']:6d} {r['best']:4d} {r['seconds']:7.0f} "
-              f"{r['samples_per_s']:9.0f} {r['samples_per_cpu_s']:7.0f} {r['mm_true']:11.3f} {r['mm_meas']:10.3f} {r['deg_true']:12.2f}")
+              f"{r['samples_per_s']:9.0f} {r['samples_per_cpu_s']:7.0f} {r['mm_true']:11.3f} "
+              f"{r['mm_meas']:10.3f} {r['deg_true']:12.2f}")
     for key, label in (("samples_per_s", "samples/s"), ("samples_per_cpu_s", "samples per CPU s")):
         print(f"speed-up {rows['new'][key] / rows['old'][key]:.2f}x {label}"
               + (f" (nn.LSTM: {rows['lstm'][key] / rows['old'][key]:.2f}x)" if "lstm" in rows else ""))

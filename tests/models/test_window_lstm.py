@@ -37,7 +37,7 @@ def test_outputs_and_gradients_equal_nn_lstm(ib):
     out, grads = _grads(layer, x, weight, fused=True)
     torch.testing.assert_close(out, ref, rtol=RTOL, atol=ATOL)
     assert len(grads) == len(ref_grads) == 5
-    for got, want in zip(grads, ref_grads):
+    for got, want in zip(grads, ref_grads, strict=True):
         torch.testing.assert_close(got, want, rtol=RTOL, atol=ATOL * max(1.0, float(want.abs().max())))
 
 

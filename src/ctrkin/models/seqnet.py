@@ -120,7 +120,9 @@ class SeqNet(KinematicsNet):
     def _lstm(self, layer: nn.LSTM, h: torch.Tensor) -> torch.Tensor:
         """layer(h)[0]: the fused window LSTM where `fused_lstm` applies, else torch's."""
         if self.fused_lstm:
-            from ctrkin.models.window_lstm import fits, window_lstm     # it imports batch, which imports this
+            # imported here: window_lstm imports batch, which imports this module
+            from ctrkin.models.window_lstm import fits, window_lstm
+
             if fits(layer, h):
                 return window_lstm(layer, h)
         return layer(h)[0]

@@ -151,7 +151,8 @@ class _WindowLSTM(torch.autograd.Function):
         xt = x.transpose(0, 1).reshape(ib * n, nf)                       # position-major rows
         torch.addmm(b_ih + b_hh, xt, w_ih.t(), out=ws.gx.view(ib * n, 4 * hid))
         h = torch.empty(n, ib, hid)
-        a_np, c_np, tc_np, h_np, gx_np = ws.acts.numpy(), ws.c.numpy(), ws.tc.numpy(), h.numpy(), ws.gx.numpy()
+        a_np, c_np, tc_np, gx_np = ws.acts.numpy(), ws.c.numpy(), ws.tc.numpy(), ws.gx.numpy()
+        h_np = h.numpy()
         rec, w_hh_t = ws.rec, w_hh.t()
         for t in range(ib):
             if t:
