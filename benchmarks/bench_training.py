@@ -1,10 +1,13 @@
 """Training throughput and accuracy at matched wall time: the loop up to issue 11 (per-batch gathers,
 plain Adam, the paper's batch 32 and lr 1e-3) against the current one (whole-epoch gather, fused
-Adam, a larger batch with the square-root learning-rate rule, early stopping on a smoothed val loss),
-both training the default FK model (the paper's LSTM-MLP) in one run.
+Adam, the fused window LSTM of issue 26, a larger batch with the square-root learning-rate rule,
+early stopping on a smoothed val loss), both training the default FK model (the paper's LSTM-MLP) in
+one run; `--nn-lstm` adds the current recipe on torch's nn.LSTM (`--no-fused-lstm`, the loop before
+issue 26) as a third run, `--seed` seeds all of them.
 
     ctrkin collect --protocol paper --scale quick --out data/paper-quick
     OMP_NUM_THREADS=1 python benchmarks/bench_training.py data/paper-quick --seconds 240
+    OMP_NUM_THREADS=1 python benchmarks/bench_training.py data/paper-quick --seconds 120 --rounds 3 --nn-lstm
 
 Both runs get the same training-time budget (`TrainConfig.max_seconds`), spent in alternating
 rounds (each round resumes its run from the checkpoint), so both see the same load from other jobs

@@ -69,3 +69,25 @@ def test_wall_clock_budget_stops_and_resumes(quick_ds, tmp_path):
 def test_new_options_are_validated(key, value):
     with pytest.raises(ModelError, match=key):
         TrainConfig(**{key: value})
+
+
+def test_the_fused_lstm_is_on_for_the_epochs_only(quick_ds, tmp_path, monkeypatch):
+    """The engine turns the window LSTM on for its epochs and off after them (the export, the
+    evaluation and the saved network see torch's nn.LSTM); the batch loop and --no-fused-lstm never
+    turn it on."""
+    from ctrkin.training import engine
+
+    seen: list[tuple[bool, bool]] = []
+    real = engine.use_window_lstm
+
+    def spy(net, on):
+        seen.append((on, any(getattr(m, "fused_lstm", False) for m in net.modules())))
+        real(net, on)
+
+    monkeypatch.setattr(engine, "use_window_lstm", spy)
+    for name, loop, fused in (("on", "epoch", True), ("off", "epoch", False), ("batch", "batch", True)):
+        seen.clear()
+        cfg = TrainConfig(task="fk", loop=loop, fused_lstm=fused, max_epochs=1, patience=1, threads=1,
+                          batch_size=256, options=SMALL)
+        train(quick_ds, cfg, tmp_path / name, progress=False)
+        assert seen == [(name == "on", False), (False, name == "on")], name
