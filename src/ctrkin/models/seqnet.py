@@ -76,10 +76,11 @@ class SeqNet(KinematicsNet):
     x: (B, IB, F) normalised features -> (B, O) normalised outputs. Each LSTM starts from zero state
     on every window (the buffer is the model's only memory, as in the paper).
 
-    fused_lstm: a one-layer LSTM on float32 CPU windows runs as ctrkin.models.window_lstm (the same
-    values within float32 round-off, a fused backward); the training engine sets it from
-    TrainConfig.fused_lstm for its epochs (training steps and validation loss) and unsets it after.
-    Off: torch's nn.LSTM.
+    fused_lstm: where gradients are recorded (training steps), a one-layer LSTM on float32 CPU windows
+    runs as ctrkin.models.window_lstm (the same values within float32 round-off, a fused backward);
+    the training engine sets it from TrainConfig.fused_lstm for its epochs and unsets it after. Off,
+    and without gradients (validation: nn.LSTM's forward alone was faster, 55 vs 75 ms on 7,800
+    windows): torch's nn.LSTM.
     """
 
     fused_lstm: bool = False
@@ -119,7 +120,7 @@ class SeqNet(KinematicsNet):
 
     def _lstm(self, layer: nn.LSTM, h: torch.Tensor) -> torch.Tensor:
         """layer(h)[0]: the fused window LSTM where `fused_lstm` applies, else torch's."""
-        if self.fused_lstm:
+        if self.fused_lstm and torch.is_grad_enabled():
             # imported here: window_lstm imports batch, which imports this module
             from ctrkin.models.window_lstm import fits, window_lstm
 
