@@ -138,7 +138,7 @@ class TrainConfig:
     fused_lstm: bool = field(default=True, metadata=_help(
         "The epoch loop trains a one-layer LSTM over its windows with ctrkin.models.window_lstm (the "
         "gate math fused, no recurrent product at the zero-state position: a batch-1024 step of the "
-        "paper's FK 1.3-1.4x faster; equal to torch's nn.LSTM within float32 round-off); "
+        "paper's FK ~1.3x faster; equal to torch's nn.LSTM within float32 round-off); "
         "--no-fused-lstm: torch's nn.LSTM (with --no-fused-adam the epoch loop is then bit-identical "
         "to the batch loop)."))
     val_smoothing: float = field(default=0.0, metadata=_help(
