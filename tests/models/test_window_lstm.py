@@ -39,6 +39,7 @@ def test_outputs_and_gradients_equal_nn_lstm(ib):
     assert len(grads) == len(ref_grads) == 5
     for got, want in zip(grads, ref_grads, strict=True):
         torch.testing.assert_close(got, want, rtol=RTOL, atol=ATOL * max(1.0, float(want.abs().max())))
+    assert layer.bias_ih_l0.grad is not layer.bias_hh_l0.grad     # equal values, two tensors
 
 
 def test_pooled_buffers_do_not_mix_forwards():

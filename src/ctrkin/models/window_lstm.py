@@ -159,7 +159,7 @@ class _WindowLSTM(torch.autograd.Function):
                 torch.mm(h[:, t - 1], w_hh_t, out=rec)
             _forward_position(gx_np[t], rec.numpy(), t == 0, c_np[max(t - 1, 0)], a_np[t], c_np[t],
                               tc_np[t], h_np[:, t])
-        if not any(ctx.needs_input_grad):           # no backward will come (validation)
+        if not any(ctx.needs_input_grad):           # no backward will come
             _give_back(ws)
             return h
         ctx.ws = ws
@@ -194,7 +194,8 @@ class _WindowLSTM(torch.autograd.Function):
                 dw_hh.addmm_(da[t].t(), h[:, t - 1])
         db = flat.sum(0) if need[3] or need[4] else None
         _give_back(ws)
-        return dx, dw_ih, dw_hh, db if need[3] else None, db if need[4] else None
+        db_hh = db.clone() if need[3] and need[4] and db is not None else db   # two .grad, never one tensor
+        return dx, dw_ih, dw_hh, db if need[3] else None, db_hh if need[4] else None
 
 
 def fits(layer: nn.Module, x: torch.Tensor) -> bool:
