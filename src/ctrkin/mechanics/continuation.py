@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple, TypeVar
 
 import numpy as np
@@ -85,7 +85,8 @@ PATH_STATES = 3  # states of the previous steps the predictor extrapolates throu
 class Trajectory:
     """Result of `follow`. tip_poses (T, 6); snaps (T,) bool: a fold was crossed on the way into
     step t; azimuth (T,) deg: T(L), the tip azimuth about z from the outer tube's base rotation
-    (unwrapped); stable, converged (T,) bool; equilibria: the T Equilibrium objects."""
+    (unwrapped); stable, converged (T,) bool; equilibria: the T Equilibrium objects (made on first
+    access where a compiled run of steps solved them, `_Steps`)."""
 
     q: np.ndarray
     tip_poses: np.ndarray
@@ -93,7 +94,11 @@ class Trajectory:
     azimuth: np.ndarray
     stable: np.ndarray
     converged: np.ndarray
-    equilibria: list[Equilibrium]
+    _steps: _Steps = field(repr=False)
+
+    @functools.cached_property
+    def equilibria(self) -> list[Equilibrium]:
+        return self._steps.equilibria()
 
     @property
     def tip_positions(self) -> np.ndarray:
@@ -102,6 +107,54 @@ class Trajectory:
     @property
     def n_snaps(self) -> int:
         return int(self.snaps.sum())
+
+
+class _Steps:
+    """The equilibria of a `follow`: those of the general path as made (eqs[t]), and those of the
+    compiled runs of steps (warm.warm_run) as its output arrays, made into Equilibrium objects on
+    first access, field by field what continuation._warm makes of the same step (tested): q = Q[t],
+    x = xs[t], α, the body and the statistics; the grid, β and tips of base[t], the problem of the
+    step before the run. On the paper robot's sweeps making them took ~2 µs a step, 15 % of the
+    step (issue 26), and most callers read only the trajectory's arrays."""
+
+    def __init__(self, Q: np.ndarray, n: int) -> None:
+        T = Q.shape[0]
+        self.Q = Q
+        self.eqs: list[Equilibrium | None] = [None] * T
+        self.base: list[Problem | None] = [None] * T
+        self.xs = np.empty((T, n))
+        self.alpha = np.empty((T, n))
+        self.body = np.empty((T, 7))
+        self.stats = np.empty((T, 3))
+        self.counts = np.zeros((T, 2), dtype=np.int64)
+        self.done = np.zeros(1, dtype=np.int64)
+
+    def put(self, t: int, eq: Equilibrium) -> None:
+        """Step t solved by the general path."""
+        self.eqs[t] = eq
+        self.xs[t] = eq.x
+        self.body[t, :3] = eq.tip_position
+        self.body[t, 3:6] = eq.tip_tangent
+
+    def at(self, t: int) -> Equilibrium:
+        eq = self.eqs[t]
+        if eq is None:
+            pb0 = self.base[t]
+            assert pb0 is not None
+            q = self.Q[t]
+            pb = _made(Problem, arrays=pb0.arrays, q=q, alpha=self.alpha[t], beta=pb0.beta,
+                       tips=pb0.tips, grid=pb0.grid, n_rk4=pb0.n_rk4, stations=None, cvar=None,
+                       state=None)
+            body, st = self.body[t], self.stats[t].tolist()
+            eq = _made(Equilibrium, q=q, x=self.xs[t], tip_position=body[:3],
+                       tip_tangent=body[3:6], converged=True, stability=st[1], conjugate=st[2],
+                       energy=float(body[6]), residual=st[0], iterations=int(self.counts[t, 0]),
+                       problem=pb, contact=None)
+            self.eqs[t] = eq
+        return eq
+
+    def equilibria(self) -> list[Equilibrium]:
+        return [self.at(t) for t in range(len(self.eqs))]
 
 
 @functools.lru_cache(maxsize=256)
@@ -126,8 +179,11 @@ class Predictor(NamedTuple):
     xs: np.ndarray
 
     def at(self, tau: float) -> np.ndarray:
-        """x(τ) (N,) rad/mm, τ in steps from the latest state."""
-        return _lagrange(tau, self.xs.shape[0]).dot(self.xs)
+        """x(τ) (N,) rad/mm, τ in steps from the latest state (warm.extrapolate: the compiled run
+        of steps computes it the same way)."""
+        out = np.empty(self.xs.shape[1])
+        warm.extrapolate(_lagrange(tau, self.xs.shape[0]), self.xs, out)
+        return out
 
 
 def _repeats(dq: np.ndarray) -> np.ndarray:
@@ -140,15 +196,18 @@ def _repeats(dq: np.ndarray) -> np.ndarray:
 
 
 def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: SolverSettings,
-             path: Predictor | None = None, same_grid: bool = False) -> tuple[Equilibrium, bool]:
+             path: Predictor | None = None, same_grid: bool = False, compiled: bool = True
+             ) -> tuple[Equilibrium, bool]:
     """Continue from equilibrium `prev` to joints q_to. Returns (equilibrium, snapped).
 
     path: the states of the previous steps taken with the same joint increment (`Predictor`);
     Newton then starts from the current state moved along the extrapolated branch instead of from x.
     same_grid: q_to has the translations β of prev.q and prev was solved with these settings, so
-    every sub-step keeps prev's grid (`with_alpha`).
+    every sub-step keeps prev's grid (`with_alpha`). compiled: try the common step's compiled call
+    first (False where follow's compiled run of steps has just tried it: the same try, the same
+    outcome).
     """
-    if same_grid and prev.problem.stations is None:  # the common step, one compiled call
+    if compiled and same_grid and prev.problem.stations is None:  # the common step, one call
         done = _warm(prev, q_to, prev.x if path is None else path.at(1.0), settings)
         if done is not None:
             return done, False
@@ -323,7 +382,9 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     """Follow joint trajectory Q (T, 2N) (deg, mm) by continuation.
 
     start: the equilibrium the robot is in before Q[0] (continued to Q[0]); without it Q[0] is
-    solved point-wise. progress: called with the step index after each step.
+    solved point-wise. progress: called with the step index after each step, once per step and in
+    order; the steps of a compiled run (consecutive rotation steps solved in one call,
+    mechanics.warm.warm_run) are reported one after the other when the run returns.
     """
     Qa = robot.check_joints(np.atleast_2d(np.array(Q, dtype=float)))  # a copy: equilibria keep rows
     n_steps = Qa.shape[0]
@@ -331,36 +392,82 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
         raise JointError(f"follow needs at least one joint row, got Q of shape {Qa.shape}")
     if start is not None:
         _check_start(robot, start)
-    eqs: list[Equilibrium] = []
-    xs = np.empty((n_steps, robot.n_tubes))  # eqs[t].x, for the predictor
+    n = robot.n_tubes
+    steps = _Steps(Qa, n)
+    xs = steps.xs  # eqs[t].x, for the predictor
     snaps = np.zeros(n_steps, dtype=bool)
     if start is None:
         cur = solve(robot, Qa[0], settings=settings)
     else:
         cur, snaps[0] = _advance(robot, start, Qa[0], settings)
-    eqs.append(cur)
-    xs[0] = cur.x
+    steps.put(0, cur)
     if progress:
         progress(0)
     dq = np.diff(Qa, axis=0)
+    same_a = np.r_[False, False, _repeats(dq)]  # step t repeats step t − 1
+    rotation_a = np.r_[False, (dq[:, n:] == 0.0).all(axis=1)]  # step t keeps β
     # as Python lists: the loop reads them once a step (numpy's scalars cost more there)
-    same = [False, False, *_repeats(dq).tolist()]  # step t repeats step t − 1
-    rotation = [False, *(dq[:, robot.n_tubes:] == 0.0).all(axis=1).tolist()]  # step t keeps β
-    snapped = [bool(snaps[0])] + [False] * (n_steps - 1)
-    for t in range(1, n_steps):
+    same, rotation = same_a.tolist(), rotation_a.tolist()
+    t = 1
+    while t < n_steps:
+        if rotation[t] and cur.problem.stations is None:
+            # a run of rotation steps in one compiled call, up to one that is not accepted
+            m = _warm_run(steps, t, cur, rotation_a, same_a, snaps, settings)
+            if m:
+                if progress:
+                    for i in range(t, t + m):
+                        progress(i)
+                t += m
+                cur = steps.at(t - 1)
+                if t == n_steps:
+                    break
         k = 1  # states behind step t on one branch, reached by the joint increment of step t
-        while k < PATH_STATES and same[t - k + 1] and not snapped[t - k]:
+        while k < PATH_STATES and same[t - k + 1] and not snaps[t - k]:
             k += 1
         path = Predictor(xs[t - k:t]) if k > 1 else None
-        cur, snapped[t] = _advance(robot, cur, Qa[t], settings, path, rotation[t])
-        eqs.append(cur)
-        xs[t] = cur.x
+        # the run has tried step t where it is a rotation step: _advance need not try it again
+        cur, snaps[t] = _advance(robot, cur, Qa[t], settings, path, rotation[t], compiled=False)
+        steps.put(t, cur)
         if progress:
             progress(t)
-    snaps[:] = snapped
-    poses = tip_pose(np.array([e.tip_position for e in eqs]), np.array([e.tip_tangent for e in eqs]))
-    n = robot.n_tubes
+        t += 1
+    body = steps.body
+    poses = tip_pose(body[:, :3].copy(), body[:, 3:6].copy())
+    converged, stable = np.ones(n_steps, dtype=bool), np.ones(n_steps, dtype=bool)
+    for i, e in enumerate(steps.eqs):  # the steps of the compiled runs are stable equilibria
+        if e is not None:
+            converged[i], stable[i] = e.converged, e.stable
     return Trajectory(q=Qa, tip_poses=poses, snaps=snaps,
-                      azimuth=tip_azimuth(poses[:, :3], Qa[:, n - 1]),
-                      stable=np.array([e.stable for e in eqs]),
-                      converged=np.array([e.converged for e in eqs]), equilibria=eqs)
+                      azimuth=tip_azimuth(poses[:, :3], Qa[:, n - 1]), stable=stable,
+                      converged=converged, _steps=steps)
+
+
+def _warm_run(steps: _Steps, t: int, prev: Equilibrium, rotation: np.ndarray, same: np.ndarray,
+              snaps: np.ndarray, settings: SolverSettings) -> int:
+    """Steps t, t + 1, … from `prev` (step t − 1, no contact effects) as one compiled call
+    (warm.warm_run): each the compiled step of _advance (`_warm`), with follow's predictor, up to
+    the first that is not a rotation or not accepted. Returns the number of steps accepted; their
+    outputs are in `steps`, their equilibria made when read (_Steps.at)."""
+    pb0 = prev.problem
+    a = pb0.arrays
+    try:
+        m = warm.warm_run(
+            steps.Q, t, rotation, same, snaps, steps.xs, prev.stability, _weights(PATH_STATES),
+            PATH_STATES, a.lengths, pb0.beta, pb0.tips, a.rigid, a.k, a.gj, *pb0.grid,
+            settings.tol, settings.max_iter, settings.max_step, MAX_TURN_DEG, JUMP_RAD, DET_SLACK,
+            DET_RATE, steps.alpha, steps.body, steps.stats, steps.counts, steps.done)
+    except (ZeroDivisionError, OverflowError, FloatingPointError):
+        m = int(steps.done[0])  # the general path meets the same at the next step and says so
+    steps.base[t:t + m] = [pb0] * m
+    return m
+
+
+@functools.lru_cache(maxsize=8)
+def _weights(k: int) -> np.ndarray:
+    """(k + 1, k): row j ≥ 2, the predictor's Lagrange weights at τ = 1 through j states
+    (_lagrange(1, j)); rows 0 and 1 unused."""
+    w = np.zeros((k + 1, k))
+    for j in range(2, k + 1):
+        w[j, :j] = _lagrange(1.0, j)
+    w.setflags(write=False)
+    return w

@@ -16,10 +16,14 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+import numpy as np
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
 
 from ctrkin.mechanics.grid import reduced_radians
-from ctrkin.mechanics.kernels import newton
+from ctrkin.mechanics.kernels import _newton, newton
+from ctrkin.mechanics.passes import flat_work
 
 
 @njit(cache=True)
@@ -52,3 +56,93 @@ def warm_step(q, q_from, guess, x_prev, det_prev, lengths, beta, tips, rigid, k,
             twist = max(twist, abs((x_out[i] - x_prev[i]) * lengths[i]))
         accepted = twist <= jump and abs(det_j - det_prev) <= slack + rate * det_prev
     return accepted, it, rn, det_j, det_h, passes
+
+
+@intrinsic
+def _fma(typingctx, a, b, c):
+    """a b + c rounded once (LLVM's llvm.fma.f64: the FMA instruction, or an exact software
+    fallback where the CPU has none)."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        d = ir.DoubleType()
+        fn = builder.module.declare_intrinsic("llvm.fma", [d], ir.FunctionType(d, [d, d, d]))
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+@njit(cache=True)
+def extrapolate(w, xs, out):
+    """out (N,) = Σj w[j] xs[j] (xs (k, N)): the predictor's polynomial at τ from its Lagrange
+    weights (continuation.Predictor), each term added by one fused multiply-add, j in order, from
+    0. That is the order and the rounding of numpy's w.dot(xs) on this machine's OpenBLAS (its
+    Haswell dgemv) for N ≤ 3 (tested against it), and one definition for the compiled run of steps
+    and the general path alike on any machine and N."""
+    for i in range(xs.shape[1]):
+        acc = 0.0
+        for j in range(xs.shape[0]):
+            acc = _fma(w[j], xs[j, i], acc)  # type: ignore[call-arg]  # (the typing context is numba's)
+        out[i] = acc
+
+
+@njit(cache=True)
+def warm_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_states, lengths, beta,
+             tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample, tol, max_iter,
+             max_step, max_turn, jump, slack, rate, alpha, body, stats, counts, done):
+    """Consecutive warm steps of `follow` from step `start` in one compiled call: each what
+    warm_step does for one (continuation._advance's first try: same grid, no contact effects),
+    with `follow`'s predictor, until a step is not a rotation (rotation[t] False), is not
+    accepted or the path ends. Returns the number m of steps accepted: start … start + m − 1.
+
+    Q (T, 2N) joints; rotation, same, snapped (T,) bool: step t keeps β, repeats step t − 1's
+    increment, snapped on its way in (continuation.follow's flags); xs (T, N): the states, rows
+    before `start` given, the accepted ones written; det_prev: det J of step start − 1; weights
+    (path_states + 1, path_states): row k, the predictor's Lagrange weights at τ = 1 through k
+    states (continuation._lagrange(1, k)); the problem on the grid of step start − 1 as
+    kernels.newton takes it; max_turn, jump, slack, rate: warm_step's. Writes, per accepted step
+    t: alpha[t] (N,) rad, xs[t], body[t] (7,) (kernels._tip), stats[t] = (|r|∞, det J, min det H),
+    counts[t] = (iterations, passes), and done[0] = the steps accepted so far (read where the
+    run raised: ZeroDivisionError and the like, as warm_step). counts[t, 1] is written for the
+    step that is not accepted as well (its passes, spent)."""
+    n = xs.shape[1]
+    work = flat_work(n)
+    guess = np.empty(n)
+    det = det_prev
+    t = start
+    done[0] = 0
+    while t < Q.shape[0] and rotation[t]:
+        m = 1  # states behind step t on one branch (follow's loop)
+        while m < path_states and same[t - m + 1] and not snapped[t - m]:
+            m += 1
+        if m > 1:
+            extrapolate(weights[m], xs[t - m:t], guess)
+        else:
+            guess[:] = xs[t - 1]
+        q, q_from = Q[t], Q[t - 1]
+        turn = 0.0
+        for i in range(n):
+            turn = max(turn, abs(q[i] - q_from[i]))
+        if not turn <= max_turn:
+            break
+        reduced_radians(q, alpha[t])
+        conv, it, rn, det_j, det_h, passes = _newton(
+            guess, alpha[t], beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
+            tol, max_iter, max_step, xs[t], body[t], work, None, None, None, None, None)
+        counts[t, 1] = passes
+        accepted = conv and det_j > 0.0 and det_h > 0.0
+        if accepted:
+            twist = 0.0
+            for i in range(n):
+                twist = max(twist, abs((xs[t, i] - xs[t - 1, i]) * lengths[i]))
+            accepted = twist <= jump and abs(det_j - det) <= slack + rate * det
+        if not accepted:
+            break
+        stats[t, 0] = rn
+        stats[t, 1] = det_j
+        stats[t, 2] = det_h
+        counts[t, 0] = it
+        det = det_j
+        t += 1
+        done[0] = t - start
+    return t - start
