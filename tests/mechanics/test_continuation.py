@@ -388,3 +388,36 @@ def test_predictor_extrapolates_as_a_dot_product(rng) -> None:
             out = np.empty(5)
             warm.extrapolate(w, xs, out)
             np.testing.assert_allclose(out, w.dot(xs), rtol=1e-14, atol=1e-18)
+
+
+def _assert_same_deep(u: object, v: object, name: str) -> None:
+    """_assert_same, into dataclasses (Problem, ContactReport, FrictionState, Stations) field by
+    field."""
+    if dataclasses.is_dataclass(u) and not isinstance(u, type):
+        assert type(u) is type(v), name
+        for f in dataclasses.fields(u):
+            _assert_same_deep(getattr(u, f.name), getattr(v, f.name), f"{name}.{f.name}")
+    else:
+        _assert_same(u, v, name)
+
+
+@pytest.mark.parametrize("d", [12.0, 20.0])
+def test_friction_runs_are_the_general_path(monkeypatch, d: float) -> None:
+    """With friction (μ = 0.2, the virtual robot's) follow's compiled runs (warm.friction_run) give
+    what the general path gives, step by step and bit for bit: the equilibria with their problems
+    (stations, gathered state, the state solved for) and contact reports (outputs, the state after),
+    the snaps, poses and flags; the path turns back and translates, so runs start from states
+    the general path left."""
+    rough = dataclasses.replace(ROBOT, friction=0.2)
+    sweep = rotation_sweep(2, d)
+    slide = np.c_[np.full(6, sweep[-1, 0]), np.zeros(6), np.linspace(-d, -d + 5.0, 6), np.zeros(6)]
+    Q = np.r_[sweep, slide, np.c_[np.linspace(0.0, 90.0, 91), np.zeros(91),
+                                  np.full(91, -d + 5.0), np.zeros(91)]]
+    fast = follow(rough, Q)
+    with monkeypatch.context() as m:
+        m.setattr(continuation, "_friction_run", lambda *args: 0)
+        slow = follow(rough, Q)
+    for f in ("q", "tip_poses", "snaps", "azimuth", "stable", "converged"):
+        np.testing.assert_array_equal(getattr(fast, f), getattr(slow, f), err_msg=f)
+    for t, (u, v) in enumerate(zip(fast.equilibria, slow.equilibria, strict=True)):
+        _assert_same_deep(u, v, f"step {t}")

@@ -42,7 +42,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import NamedTuple, TypeVar
+from typing import NamedTuple
 
 import numpy as np
 
@@ -50,13 +50,14 @@ from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 from ctrkin.geometry import tip_azimuth, tip_pose
 from ctrkin.mechanics import warm
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
-from ctrkin.mechanics.friction import SLIP, FrictionState
+from ctrkin.mechanics.friction import N_OUT, SLIP, ContactReport, FrictionState
 from ctrkin.mechanics.pointwise import (
     Equilibrium,
     NewtonResult,
     Problem,
     equilibrium,
     friction_after,
+    made,
     newton,
     prepare,
     recover,
@@ -77,7 +78,6 @@ MIN_FRACTION = 1.0 / 256  # smallest sub-step, as a fraction of one trajectory s
 # largest turn of any α in one sub-step (deg): the end of a longer step can look like its start (a
 # whole turn brings the branch back), so a step of 340° or 720° crossed folds unseen (issue 27)
 MAX_TURN_DEG = 30.0
-_T = TypeVar("_T")
 PATH_STATES = 3  # states of the previous steps the predictor extrapolates through (a parabola)
 
 
@@ -128,6 +128,9 @@ class _Steps:
         self.stats = np.empty((T, 3))
         self.counts = np.zeros((T, 2), dtype=np.int64)
         self.done = np.zeros(1, dtype=np.int64)
+        self.runs: list[_ContactRun | None] = [None] * T  # the friction run of step t, if any
+        self.states: dict[int, FrictionState] = {}   # the friction states made so far
+        self.last_run: _ContactRun | None = None
 
     def put(self, t: int, eq: Equilibrium) -> None:
         """Step t solved by the general path."""
@@ -142,16 +145,32 @@ class _Steps:
             pb0 = self.base[t]
             assert pb0 is not None
             q = self.Q[t]
-            pb = _made(Problem, arrays=pb0.arrays, q=q, alpha=self.alpha[t], beta=pb0.beta,
+            pb = made(Problem, arrays=pb0.arrays, q=q, alpha=self.alpha[t], beta=pb0.beta,
                        tips=pb0.tips, grid=pb0.grid, n_rk4=pb0.n_rk4, stations=None, cvar=None,
                        state=None)
+            contact = None
+            run = self.runs[t]
+            if run is not None:  # what _problem_at, _after and pointwise.equilibrium make
+                assert pb0.stations is not None
+                pb.__dict__.update(stations=pb0.stations, cvar=run.cvar[t],
+                                   state=run.first if t == run.start else self.state(t - 1))
+                contact = ContactReport(pb0.stations, run.cout[t], self.state(t))
             body, st = self.body[t], self.stats[t].tolist()
-            eq = _made(Equilibrium, q=q, x=self.xs[t], tip_position=body[:3],
-                       tip_tangent=body[3:6], converged=True, stability=st[1], conjugate=st[2],
-                       energy=float(body[6]), residual=st[0], iterations=int(self.counts[t, 0]),
-                       problem=pb, contact=None)
+            eq = made(Equilibrium, q=q, x=self.xs[t], tip_position=body[:3],
+                      tip_tangent=body[3:6], converged=True, stability=st[1], conjugate=st[2],
+                      energy=float(body[6]), residual=st[0], iterations=int(self.counts[t, 0]),
+                      problem=pb, contact=contact)
             self.eqs[t] = eq
         return eq
+
+    def state(self, t: int) -> FrictionState:
+        """The friction state after step t of a friction run (one object per step)."""
+        out = self.states.get(t)
+        if out is None:
+            run = self.runs[t]
+            assert run is not None
+            out = self.states[t] = FrictionState(run.theta[t], self.Q[t])
+        return out
 
     def equilibria(self) -> list[Equilibrium]:
         return [self.at(t) for t in range(len(self.eqs))]
@@ -292,21 +311,11 @@ def _warm(prev: Equilibrium, q_to: np.ndarray, guess: np.ndarray, settings: Solv
     if not acc:
         return None
     # what with_alpha and pointwise.equilibrium make of it (a converged NewtonResult, no contact)
-    pb = _made(Problem, arrays=a, q=q_to, alpha=alpha, beta=pb0.beta, tips=pb0.tips, grid=pb0.grid,
+    pb = made(Problem, arrays=a, q=q_to, alpha=alpha, beta=pb0.beta, tips=pb0.tips, grid=pb0.grid,
                n_rk4=pb0.n_rk4, stations=None, cvar=None, state=None)
-    return _made(Equilibrium, q=q_to, x=x, tip_position=body[:3], tip_tangent=body[3:6],
+    return made(Equilibrium, q=q_to, x=x, tip_position=body[:3], tip_tangent=body[3:6],
                  converged=True, stability=det_j, conjugate=det_h, energy=float(body[6]),
                  residual=rn, iterations=it, problem=pb, contact=None)
-
-
-def _made(cls: type[_T], **fields: object) -> _T:
-    """An instance of the frozen dataclass cls with these fields (every one of them), made without
-    its __init__: a frozen __init__ sets each field through object.__setattr__, and a warm step's
-    Problem and Equilibrium took ~3 µs of the step that way (issue 26). The instance is the same:
-    its __dict__ holds every field."""
-    obj = object.__new__(cls)
-    obj.__dict__.update(fields)
-    return obj
 
 
 def _problem_at(robot: Robot, prev: Equilibrium, q: np.ndarray, settings: SolverSettings,
@@ -410,9 +419,12 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     same, rotation = same_a.tolist(), rotation_a.tolist()
     t = 1
     while t < n_steps:
-        if rotation[t] and cur.problem.stations is None:
-            # a run of rotation steps in one compiled call, up to one that is not accepted
-            m = _warm_run(steps, t, cur, rotation_a, same_a, snaps, settings)
+        run = None
+        if rotation[t]:  # a run of rotation steps in one compiled call, up to one not accepted
+            run = (_warm_run if cur.problem.stations is None
+                   else _friction_run if cur.contact is not None else None)
+        if run is not None:
+            m = run(steps, t, cur, rotation_a, same_a, snaps, settings)
             if m:
                 if progress:
                     for i in range(t, t + m):
@@ -459,6 +471,51 @@ def _warm_run(steps: _Steps, t: int, prev: Equilibrium, rotation: np.ndarray, sa
     except (ZeroDivisionError, OverflowError, FloatingPointError):
         m = int(steps.done[0])  # the general path meets the same at the next step and says so
     steps.base[t:t + m] = [pb0] * m
+    return m
+
+
+class _ContactRun(NamedTuple):
+    """The arrays of follow's friction runs on one grid's stations (warm.friction_run), rows by step
+    (runs on stations of the same count share them: their steps differ): theta (T, P · slots) the
+    state after each step, cvar (T, K + P), cout (T, K, 8); start and first: the run's first step
+    and the friction state it started from."""
+
+    theta: np.ndarray
+    cvar: np.ndarray
+    cout: np.ndarray
+    start: int
+    first: FrictionState
+
+
+def _friction_run(steps: _Steps, t: int, prev: Equilibrium, rotation: np.ndarray,
+                  same: np.ndarray, snaps: np.ndarray, settings: SolverSettings) -> int:
+    """_warm_run on a robot with contact effects (warm.friction_run), from prev's friction state."""
+    pb0 = prev.problem
+    a = pb0.arrays
+    st = pb0.stations
+    assert st is not None and prev.contact is not None
+    first = prev.contact.state
+    T = steps.Q.shape[0]
+    last = steps.last_run
+    if last is not None and last.cout.shape[1] == st.count:
+        run = _ContactRun(last.theta, last.cvar, last.cout, t, first)
+    else:
+        run = _ContactRun(np.empty((T, first.theta.shape[0])), np.empty((T, st.relaxed.shape[0])),
+                          np.empty((T, st.count, N_OUT)), t, first)
+    run.theta[t - 1] = first.theta
+    try:
+        m = warm.friction_run(
+            steps.Q, t, rotation, same, snaps, steps.xs, prev.stability, _weights(PATH_STATES),
+            PATH_STATES, a.lengths, pb0.beta, pb0.tips, a.rigid, a.k, a.gj, *pb0.grid,
+            settings.tol, settings.max_iter, settings.max_step, MAX_TURN_DEG, JUMP_RAD, DET_SLACK,
+            DET_RATE, st.table, st.pairs, st.prm, st.slot, first.q, prev.contact.out[:, 3],
+            run.theta, run.cvar, run.cout, steps.alpha, steps.body, steps.stats, steps.counts,
+            steps.done)
+    except (ZeroDivisionError, OverflowError, FloatingPointError):
+        m = int(steps.done[0])
+    steps.base[t:t + m] = [pb0] * m
+    steps.runs[t:t + m] = [run] * m
+    steps.last_run = run
     return m
 
 

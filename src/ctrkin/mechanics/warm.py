@@ -21,6 +21,7 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
+from ctrkin.mechanics.contact import gather_state, state_after
 from ctrkin.mechanics.grid import reduced_radians
 from ctrkin.mechanics.kernels import _newton, newton
 from ctrkin.mechanics.passes import flat_work
@@ -138,6 +139,75 @@ def warm_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_stat
             accepted = twist <= jump and abs(det_j - det) <= slack + rate * det
         if not accepted:
             break
+        stats[t, 0] = rn
+        stats[t, 1] = det_j
+        stats[t, 2] = det_h
+        counts[t, 0] = it
+        det = det_j
+        t += 1
+        done[0] = t - start
+    return t - start
+
+
+@njit(cache=True)
+def _same_modes(a, b):
+    """The stick/slip patterns a, b (K,) are the same bytes (continuation._det_comparable compares
+    the bytes of float64: equal values of equal sign)."""
+    for j in range(a.shape[0]):
+        if not (a[j] == b[j] and math.copysign(1.0, a[j]) == math.copysign(1.0, b[j])):
+            return False
+    return True
+
+
+@njit(cache=True)
+def friction_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_states, lengths,
+                 beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample, tol,
+                 max_iter, max_step, max_turn, jump, slack, rate, table, pairs, prm, slot, q_state,
+                 modes_prev, theta, cvar, cout, alpha, body, stats, counts, done):
+    """warm_run on a robot with friction (contact stations on the grid of step start − 1): each
+    step what continuation._advance's first try does there, from the friction state of the step
+    before (theta[t − 1] (P · slots,), held at joints q_state for step start, Q[t − 1] after):
+    the stations' state at Q[t] (contact.gather_state) into cvar[t] (K + P,), the Newton solve with
+    the stations (their outputs into cout[t] (K, 8)), the acceptance test (stable, twist within
+    jump, det J continuous unless the stick/slip pattern changed: modes_prev (K,) for step start,
+    cout[t − 1, :, 3] after) and the state after it (contact.state_after) into theta[t]. table,
+    pairs, prm, slot: the grid's friction.Stations. The rest as warm_run."""
+    n = xs.shape[1]
+    size = theta.shape[1]
+    guess = np.empty(n)
+    det = det_prev
+    t = start
+    done[0] = 0
+    while t < Q.shape[0] and rotation[t]:
+        m = 1
+        while m < path_states and same[t - m + 1] and not snapped[t - m]:
+            m += 1
+        if m > 1:
+            extrapolate(weights[m], xs[t - m:t], guess)
+        else:
+            guess[:] = xs[t - 1]
+        q, q_from = Q[t], Q[t - 1]
+        turn = 0.0
+        for i in range(n):
+            turn = max(turn, abs(q[i] - q_from[i]))
+        if not turn <= max_turn:
+            break
+        reduced_radians(q, alpha[t])
+        cvar[t, :] = gather_state(theta[t - 1], slot, q, q_state if t == start else q_from)
+        conv, it, rn, det_j, det_h, passes = newton(
+            guess, alpha[t], beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
+            tol, max_iter, max_step, xs[t], body[t], table, pairs, cvar[t], prm, cout[t])
+        counts[t, 1] = passes
+        accepted = conv and det_j > 0.0 and det_h > 0.0
+        if accepted:
+            twist = 0.0
+            for i in range(n):
+                twist = max(twist, abs((xs[t, i] - xs[t - 1, i]) * lengths[i]))
+            held = _same_modes(modes_prev if t == start else cout[t - 1, :, 3], cout[t, :, 3])
+            accepted = twist <= jump and (abs(det_j - det) <= slack + rate * det or not held)
+        if not accepted:
+            break
+        theta[t, :] = state_after(slot, cout[t], table, pairs, prm[1], size)
         stats[t, 0] = rn
         stats[t, 1] = det_j
         stats[t, 2] = det_h
