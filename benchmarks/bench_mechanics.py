@@ -122,10 +122,11 @@ class StepClock:
     """Per-step times and passes of `follow`, for this tree's code and an older one's alike.
 
     follow calls `progress` once per step, in order; where a compiled run of steps solves several
-    in one call (mechanics.warm.warm_run, where this tree has it) their calls come together when the
-    run returns, so a step's time is not the time between two calls: the steps of a run share its
-    time equally (from the call before the run to the run's last, the failed try of the step after
-    it included), every other step gets the time since the previous call. Passes: those of each
+    in one call (mechanics.warm's warm_run, friction_run and moving_run, those this tree has) their
+    calls come together when the run returns, so a step's time is not the time between two calls:
+    the steps of a run share its time equally (from the call before the run to the run's last, the
+    failed try of the step after it included), every other step gets the time since the previous
+    call. Passes: those of each
     Newton solve of the general path (continuation.newton) go to the step being solved, those of a
     run to the steps it tried (its `counts`). Use as a context manager around follow calls made with
     progress=clock.progress, clock.begin() before each."""
@@ -157,9 +158,12 @@ class StepClock:
         if self.count_passes:
             self.passes.extend(self._per.get(t, 0) for t in range(1, len(st)))
 
+    RUNS = ("warm_run", "friction_run", "moving_run")  # mechanics.warm's compiled runs of steps
+
     def __enter__(self) -> StepClock:
         self._inner_newton = continuation.newton
-        self._inner_run = None if warm is None else getattr(warm, "warm_run", None)
+        self._inner_runs = {} if warm is None else {
+            name: getattr(warm, name) for name in self.RUNS if hasattr(warm, name)}
         self._inner_step = None if warm is None else warm.warm_step
         clock = self
 
@@ -179,23 +183,25 @@ class StepClock:
             clock._per[t] = clock._per.get(t, 0) + out[5]
             return out
 
-        def run(*args: object) -> int:
-            start = int(args[1])  # type: ignore[call-overload]
-            counts = args[-2]
-            before = counts[:, 1].copy() if clock.count_passes else None  # type: ignore[index]
-            m = clock._inner_run(*args)  # type: ignore[misc]
-            clock._runs.append((start, m))
-            if before is not None:
-                for t in np.flatnonzero(counts[:, 1] != before).tolist():  # type: ignore[index]
-                    clock._per[t] = clock._per.get(t, 0) + int(counts[t, 1])  # type: ignore[index]
-            return m
+        def wrapped(inner: Callable[..., int]) -> Callable[..., int]:
+            def run(*args: object) -> int:
+                start = int(args[1])  # type: ignore[call-overload]
+                counts = args[-2]  # every run's (T, 2) iterations and passes per step
+                before = counts[:, 1].copy() if clock.count_passes else None  # type: ignore[index]
+                m = inner(*args)
+                clock._runs.append((start, m))
+                if before is not None:
+                    for t in np.flatnonzero(counts[:, 1] != before).tolist():  # type: ignore[index]
+                        clock._per[t] = clock._per.get(t, 0) + int(counts[t, 1])  # type: ignore[index]
+                return m
+            return run
 
         if self.count_passes:
             continuation.newton = counting
             if warm is not None:
                 warm.warm_step = counting_step
-        if self._inner_run is not None:
-            warm.warm_run = run
+        for name, inner in self._inner_runs.items():
+            setattr(warm, name, wrapped(inner))
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -204,8 +210,8 @@ class StepClock:
         continuation.newton = self._inner_newton
         if warm is not None:
             warm.warm_step = self._inner_step
-            if self._inner_run is not None:
-                warm.warm_run = self._inner_run
+            for name, inner in self._inner_runs.items():
+                setattr(warm, name, inner)
 
 
 def passes_per_step(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings) -> np.ndarray:

@@ -349,23 +349,29 @@ def _mixed_path() -> np.ndarray:
     return np.r_[sweep, slide, back]
 
 
+_MIXED = _mixed_path()
+
+
 @pytest.mark.parametrize("robot, Q", [
-    (ROBOT, _mixed_path()),
+    (ROBOT, _MIXED),
+    (ROBOT, np.c_[np.linspace(0.0, 360.0, 361), np.zeros(361), np.linspace(-20.0, -2.0, 361),
+                  np.zeros(361)]),
     (timclab_robot(), np.c_[rotation_sweep(2, 0.0)[:, 0], np.zeros((721, 2)),
                             np.full(721, -40.0), np.full(721, -20.0), np.zeros(721)]),
-], ids=["paper", "timclab"])
+], ids=["paper", "paper-translating", "timclab"])
 def test_compiled_runs_are_the_general_path(monkeypatch, robot: Robot, Q: np.ndarray) -> None:
     """follow's compiled runs of warm steps (mechanics.warm.warm_run, with the predictor inside)
     give what the general path gives step by step, bit for bit: every Equilibrium field (its
-    Problem's too; made when read), the snaps, poses and flags. With the runs off every step takes
-    the general path (continuation._advance without its compiled try)."""
+    Problem's too; made when read), the snaps, poses and flags; rotation runs (warm.warm_run) and
+    translating ones (warm.moving_run, a grid each step). With the runs off every step takes the
+    general path (continuation._advance without its compiled try)."""
     fast = follow(robot, Q)
     with monkeypatch.context() as m:
-        m.setattr(continuation, "_warm_run", lambda *args: 0)
+        m.setattr(continuation, "_run_for", lambda *args: None)
         slow = follow(robot, Q)
     for f in ("q", "tip_poses", "snaps", "azimuth", "stable", "converged"):
         np.testing.assert_array_equal(getattr(fast, f), getattr(slow, f), err_msg=f)
-    if robot is ROBOT:
+    if Q is _MIXED:
         assert fast.n_snaps == 2
     for u, v in zip(fast.equilibria, slow.equilibria, strict=True):
         for f in dataclasses.fields(Equilibrium):
@@ -415,7 +421,7 @@ def test_friction_runs_are_the_general_path(monkeypatch, d: float) -> None:
                                   np.full(91, -d + 5.0), np.zeros(91)]]
     fast = follow(rough, Q)
     with monkeypatch.context() as m:
-        m.setattr(continuation, "_friction_run", lambda *args: 0)
+        m.setattr(continuation, "_run_for", lambda *args: None)
         slow = follow(rough, Q)
     for f in ("q", "tip_poses", "snaps", "azimuth", "stable", "converged"):
         np.testing.assert_array_equal(getattr(fast, f), getattr(slow, f), err_msg=f)

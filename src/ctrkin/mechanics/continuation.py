@@ -61,6 +61,7 @@ from ctrkin.mechanics.pointwise import (
     newton,
     prepare,
     recover,
+    rk4_step,
     solve,
     twist_distance,
     with_alpha,
@@ -117,8 +118,10 @@ class _Steps:
     step before the run. On the paper robot's sweeps making them took ~2 µs a step, 15 % of the
     step (issue 26), and most callers read only the trajectory's arrays."""
 
-    def __init__(self, Q: np.ndarray, n: int) -> None:
-        T = Q.shape[0]
+    def __init__(self, robot: Robot, Q: np.ndarray, settings: SolverSettings) -> None:
+        T, n = Q.shape[0], robot.n_tubes
+        self.robot, self.settings = robot, settings
+        self.moved = [False] * T  # step t of a translating run: its problem is prepared afresh
         self.Q = Q
         self.eqs: list[Equilibrium | None] = [None] * T
         self.base: list[Problem | None] = [None] * T
@@ -145,9 +148,12 @@ class _Steps:
             pb0 = self.base[t]
             assert pb0 is not None
             q = self.Q[t]
-            pb = made(Problem, arrays=pb0.arrays, q=q, alpha=self.alpha[t], beta=pb0.beta,
-                       tips=pb0.tips, grid=pb0.grid, n_rk4=pb0.n_rk4, stations=None, cvar=None,
-                       state=None)
+            if self.moved[t]:  # _problem_at's prepare, the grid warm.moving_run built
+                pb = prepare(self.robot, q, self.settings, checked=True, arr=pb0.arrays)
+            else:
+                pb = made(Problem, arrays=pb0.arrays, q=q, alpha=self.alpha[t], beta=pb0.beta,
+                          tips=pb0.tips, grid=pb0.grid, n_rk4=pb0.n_rk4, stations=None,
+                          cvar=None, state=None)
             contact = None
             run = self.runs[t]
             if run is not None:  # what _problem_at, _after and pointwise.equilibrium make
@@ -402,7 +408,7 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     if start is not None:
         _check_start(robot, start)
     n = robot.n_tubes
-    steps = _Steps(Qa, n)
+    steps = _Steps(robot, Qa, settings)
     xs = steps.xs  # eqs[t].x, for the predictor
     snaps = np.zeros(n_steps, dtype=bool)
     if start is None:
@@ -419,10 +425,8 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     same, rotation = same_a.tolist(), rotation_a.tolist()
     t = 1
     while t < n_steps:
-        run = None
-        if rotation[t]:  # a run of rotation steps in one compiled call, up to one not accepted
-            run = (_warm_run if cur.problem.stations is None
-                   else _friction_run if cur.contact is not None else None)
+        # a run of steps in one compiled call, up to one not accepted or of another kind
+        run = _run_for(cur, rotation[t])
         if run is not None:
             m = run(steps, t, cur, rotation_a, same_a, snaps, settings)
             if m:
@@ -433,6 +437,8 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
                 cur = steps.at(t - 1)
                 if t == n_steps:
                     break
+                if rotation[t] != rotation[t - 1] and _run_for(cur, rotation[t]) is not None:
+                    continue  # a step of the other kind: its run
         k = 1  # states behind step t on one branch, reached by the joint increment of step t
         while k < PATH_STATES and same[t - k + 1] and not snaps[t - k]:
             k += 1
@@ -452,6 +458,37 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     return Trajectory(q=Qa, tip_poses=poses, snaps=snaps,
                       azimuth=tip_azimuth(poses[:, :3], Qa[:, n - 1]), stable=stable,
                       converged=converged, _steps=steps)
+
+
+_Run = Callable[["_Steps", int, Equilibrium, np.ndarray, np.ndarray, np.ndarray, SolverSettings],
+               int]
+
+
+def _run_for(prev: Equilibrium, rotation: bool) -> _Run | None:
+    """The compiled run for a step from prev: rotation steps without contact effects (_warm_run)
+    or with them (_friction_run, from a converged equilibrium), translating steps without them
+    (_moving_run); None: the general path."""
+    if prev.problem.stations is None:
+        return _warm_run if rotation else _moving_run
+    return _friction_run if rotation and prev.contact is not None else None
+
+
+def _moving_run(steps: _Steps, t: int, prev: Equilibrium, rotation: np.ndarray, same: np.ndarray,
+                snaps: np.ndarray, settings: SolverSettings) -> int:
+    """_warm_run for translating steps (warm.moving_run: a grid of its own every step)."""
+    a = prev.problem.arrays
+    try:
+        m = warm.moving_run(
+            steps.Q, t, rotation, same, snaps, steps.xs, prev.stability, _weights(PATH_STATES),
+            PATH_STATES, a.lengths, a.extra, a.sec_len, a.sec_kap, a.sec_kapy, a.n_sec,
+            rk4_step(a, settings), settings.max_rk4_steps, a.rigid, a.k, a.gj, settings.tol,
+            settings.max_iter, settings.max_step, MAX_TURN_DEG, JUMP_RAD, DET_SLACK, DET_RATE,
+            steps.alpha, steps.body, steps.stats, steps.counts, steps.done)
+    except (ZeroDivisionError, OverflowError, FloatingPointError):
+        m = int(steps.done[0])
+    steps.base[t:t + m] = [prev.problem] * m
+    steps.moved[t:t + m] = [True] * m
+    return m
 
 
 def _warm_run(steps: _Steps, t: int, prev: Equilibrium, rotation: np.ndarray, same: np.ndarray,

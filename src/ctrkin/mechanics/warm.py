@@ -22,7 +22,7 @@ from numba import njit, types
 from numba.extending import intrinsic
 
 from ctrkin.mechanics.contact import gather_state, state_after
-from ctrkin.mechanics.grid import reduced_radians
+from ctrkin.mechanics.grid import prepare, reduced_radians
 from ctrkin.mechanics.kernels import _newton, newton
 from ctrkin.mechanics.passes import flat_work
 
@@ -208,6 +208,60 @@ def friction_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_
         if not accepted:
             break
         theta[t, :] = state_after(slot, cout[t], table, pairs, prm[1], size)
+        stats[t, 0] = rn
+        stats[t, 1] = det_j
+        stats[t, 2] = det_h
+        counts[t, 0] = it
+        det = det_j
+        t += 1
+        done[0] = t - start
+    return t - start
+
+
+@njit(cache=True)
+def moving_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_states, tube_len,
+               extra, sec_len, sec_kap, sec_kapy, n_sec, h, max_rk4, rigid, k, gj, tol, max_iter,
+               max_step, max_turn, jump, slack, rate, alpha, body, stats, counts, done):
+    """warm_run for translating steps (rotation[t] False) of a robot without contact effects: each
+    step on a grid of its own, built as pointwise.prepare builds it (grid.prepare, the same
+    function; the run stops before a grid of more than max_rk4 RK4 steps, where the general path
+    raises). tube_len, extra, sec_len, sec_kap, sec_kapy, n_sec: the robot's arrays
+    (mechanics.arrays.RobotArrays), h: the RK4 step (pointwise.rk4_step). The rest as warm_run."""
+    n = xs.shape[1]
+    guess = np.empty(n)
+    det = det_prev
+    t = start
+    done[0] = 0
+    while t < Q.shape[0] and not rotation[t]:
+        m = 1
+        while m < path_states and same[t - m + 1] and not snapped[t - m]:
+            m += 1
+        if m > 1:
+            extrapolate(weights[m], xs[t - m:t], guess)
+        else:
+            guess[:] = xs[t - 1]
+        q, q_from = Q[t], Q[t - 1]
+        turn = 0.0
+        for i in range(n):
+            turn = max(turn, abs(q[i] - q_from[i]))
+        if not turn <= max_turn:
+            break
+        a, beta, tips, grid, _ = prepare(q, tube_len, extra, sec_len, sec_kap, sec_kapy, n_sec, h)
+        if grid[5].sum() > max_rk4:
+            break
+        alpha[t, :] = a
+        conv, it, rn, det_j, det_h, passes = newton(
+            guess, a, beta, tips, rigid, k, gj, grid[0], grid[1], grid[2], grid[3], grid[4],
+            grid[5], tol, max_iter, max_step, xs[t], body[t], None, None, None, None, None)
+        counts[t, 1] = passes
+        accepted = conv and det_j > 0.0 and det_h > 0.0
+        if accepted:
+            twist = 0.0
+            for i in range(n):
+                twist = max(twist, abs((xs[t, i] - xs[t - 1, i]) * tube_len[i]))
+            accepted = twist <= jump and abs(det_j - det) <= slack + rate * det
+        if not accepted:
+            break
         stats[t, 0] = rn
         stats[t, 1] = det_j
         stats[t, 2] = det_h
