@@ -479,6 +479,7 @@ def main() -> None:
     passes = passes_per_step(robot, sweeps, settings)
     print("paper robot, rotating and translating at once (a new grid every step)")
     sim = simultaneous_sweeps()
+    follow(robot, sim[0][:10], settings=settings)  # compile / load the translating steps' kernels
     step_sim, _ = bench_warm(robot, sim, ["d 20 → 2 mm", "d 2 → 20 mm"], settings, n_warm=0)
     passes_sim = passes_per_step(robot, sim, settings)
     err = bench_accuracy(robot, random_configs(args.n_ref, seed=1), settings)
