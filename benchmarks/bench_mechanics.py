@@ -455,7 +455,7 @@ def main() -> None:
     ap.add_argument("--step", type=float, default=None, help="largest RK4 step (mm), default: the settings'")
     ap.add_argument("--baseline", default=None, metavar="REV",
                     help=f"old and new: run this benchmark on REV's code (e.g. {BASELINE}, main before "
-                         "the compiled warm step) and on this tree's, alternating (compare())")
+                         "the compiled runs of steps) and on this tree's, alternating (compare())")
     ap.add_argument("--rounds", type=int, default=2, help="--baseline: rounds of old and new")
     ap.add_argument("--breakdown", action="store_true",
                     help="only the paper robot's warm step, split into its parts (warm_breakdown.py)")

@@ -10,6 +10,12 @@ continuation step (stable; a twist change within `jump`; det J continuous: |det 
 slack + rate · det J_prev). Where the test fails (a fold near, a large step) the caller takes the
 general path from the start, which repeats this try and goes on to sub-steps and the snap search:
 the decisions, and so the snaps, are the general path's.
+
+`follow` itself goes further: `warm_run` does consecutive such steps in one call, with its
+predictor (`extrapolate`), up to the first that is not accepted or not a rotation; `friction_run`
+does the same on a robot with friction or clearance (the stations' state carried from step to
+step), and `moving_run` for translating steps without contact effects (a grid each step).
+continuation._Steps makes their Equilibrium objects when they are read.
 """
 
 from __future__ import annotations
