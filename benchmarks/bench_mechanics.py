@@ -4,7 +4,7 @@ three-tube robot of the public C++ TCM of TIMClab-CAMI (issue 11, `ctrkin.robots
     python benchmarks/bench_mechanics.py            # 1,000 cold solves, 2×721 warm steps, accuracy
     python benchmarks/bench_mechanics.py --n 200    # quicker
     python benchmarks/bench_mechanics.py --breakdown  # where the paper robot's warm step goes
-    python benchmarks/bench_mechanics.py --n 200 --n-ref 5 --baseline dbab9a8   # old and new
+    python benchmarks/bench_mechanics.py --n 200 --n-ref 5 --baseline a389fb6   # old and new
 
 Prints, per robot: cold solve from the default guess (paper: median ≤ 1 ms goal, the paper's TCM took
 1.47 s a point; TIMClab: ≤ 100 µs), warm continuation step inside `follow` and the public warm path
@@ -56,7 +56,7 @@ from mechanics.reference_tcm import reference_tip
 
 warm = getattr(continuation, "warm", None)  # the compiled warm step (None in a tree before it)
 REPO = Path(__file__).resolve().parents[1]
-BASELINE = "dbab9a8"  # main before the compiled warm step (issue 26)
+BASELINE = "a389fb6"  # main before the compiled run of warm steps (issue 26)
 
 # What every solve of the run gave (tip poses, snap flags, stability, base states, in run order):
 # its digest ends the JSON line (`results_sha`), so that --baseline shows whether old and new code
@@ -118,44 +118,110 @@ def simultaneous_sweeps() -> list[np.ndarray]:
     return [fwd, fwd[::-1]]
 
 
+class StepClock:
+    """Per-step times and passes of `follow`, for this tree's code and an older one's alike.
+
+    follow calls `progress` once per step, in order; where a compiled run of steps solves several
+    in one call (mechanics.warm's warm_run, friction_run and moving_run, those this tree has) their
+    calls come together when the run returns, so a step's time is not the time between two calls:
+    the steps of a run share its time equally (from the call before the run to the run's last, the
+    failed try of the step after it included), every other step gets the time since the previous
+    call. Passes: those of each
+    Newton solve of the general path (continuation.newton) go to the step being solved, those of a
+    run to the steps it tried (its `counts`). Use as a context manager around follow calls made with
+    progress=clock.progress, clock.begin() before each."""
+
+    def __init__(self, count_passes: bool = False) -> None:
+        self.times: list[float] = []
+        self.passes: list[int] = []
+        self.count_passes = count_passes
+        self._stamps: list[float] = []
+        self._runs: list[tuple[int, int]] = []
+        self._per: dict[int, int] = {}
+
+    def begin(self) -> None:
+        self._flush()
+        self._stamps, self._runs, self._per = [], [], {}
+
+    def progress(self, _t: int) -> None:
+        self._stamps.append(CLOCK())
+
+    def _flush(self) -> None:
+        st = self._stamps
+        if len(st) < 2:
+            return
+        times = np.diff(st)
+        for start, m in self._runs:
+            if m:
+                times[start - 1:start + m - 1] = (st[start + m - 1] - st[start - 1]) / m
+        self.times.extend(times.tolist())
+        if self.count_passes:
+            self.passes.extend(self._per.get(t, 0) for t in range(1, len(st)))
+
+    RUNS = ("warm_run", "friction_run", "moving_run")  # mechanics.warm's compiled runs of steps
+
+    def __enter__(self) -> StepClock:
+        self._inner_newton = continuation.newton
+        self._inner_runs = {} if warm is None else {
+            name: getattr(warm, name) for name in self.RUNS if hasattr(warm, name)}
+        self._inner_step = None if warm is None else warm.warm_step
+        clock = self
+
+        def counting(pb: Problem, x0: np.ndarray, st: SolverSettings, work: list[int] | None = None
+                     ) -> NewtonResult:
+            w = [0]
+            sol = clock._inner_newton(pb, x0, st, w)
+            t = len(clock._stamps)
+            clock._per[t] = clock._per.get(t, 0) + w[0] // pb.n_rk4
+            if work is not None:
+                work[0] += w[0]
+            return sol
+
+        def counting_step(*args: object) -> tuple[bool, int, float, float, float, int]:
+            out = clock._inner_step(*args)  # type: ignore[misc]
+            t = len(clock._stamps)
+            clock._per[t] = clock._per.get(t, 0) + out[5]
+            return out
+
+        def wrapped(inner: Callable[..., int]) -> Callable[..., int]:
+            def run(*args: object) -> int:
+                start = int(args[1])  # type: ignore[call-overload]
+                counts = args[-2]  # every run's (T, 2) iterations and passes per step
+                before = counts[:, 1].copy() if clock.count_passes else None  # type: ignore[index]
+                m = inner(*args)
+                clock._runs.append((start, m))
+                if before is not None:
+                    for t in np.flatnonzero(counts[:, 1] != before).tolist():  # type: ignore[index]
+                        clock._per[t] = clock._per.get(t, 0) + int(counts[t, 1])  # type: ignore[index]
+                return m
+            return run
+
+        if self.count_passes:
+            continuation.newton = counting
+            if warm is not None:
+                warm.warm_step = counting_step
+        for name, inner in self._inner_runs.items():
+            setattr(warm, name, wrapped(inner))
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._flush()
+        self._stamps = []
+        continuation.newton = self._inner_newton
+        if warm is not None:
+            warm.warm_step = self._inner_step
+            for name, inner in self._inner_runs.items():
+                setattr(warm, name, inner)
+
+
 def passes_per_step(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings) -> np.ndarray:
     """Integration passes of each step of follow (all its Newton solves: sub-steps and fold
-    searches included), counted in an untimed run through wrappers around its Newton solve and
-    its compiled warm step (mechanics.warm, where there is one)."""
-    inner = continuation.newton
-    count = [0]
-
-    def counting(pb: Problem, x0: np.ndarray, st: SolverSettings, work: list[int] | None = None
-                 ) -> NewtonResult:
-        w = [0]
-        sol = inner(pb, x0, st, w)
-        count[0] += w[0] // pb.n_rk4
-        if work is not None:
-            work[0] += w[0]
-        return sol
-
-    inner_warm = None if warm is None else warm.warm_step
-
-    def counting_warm(*args: object) -> tuple[bool, int, float, float, float, int]:
-        out = inner_warm(*args)  # type: ignore[misc]
-        count[0] += out[5]
-        return out
-
-    per: list[int] = []
-    marks: list[int] = []
-    continuation.newton = counting
-    if warm is not None:
-        warm.warm_step = counting_warm
-    try:
+    searches included), counted in an untimed run (StepClock)."""
+    with StepClock(count_passes=True) as clock:
         for Qs in sweeps:
-            marks.clear()
-            follow(robot, Qs, settings=settings, progress=lambda _t: marks.append(count[0]))
-            per.extend(np.diff(marks))
-    finally:
-        continuation.newton = inner
-        if warm is not None:
-            warm.warm_step = inner_warm
-    p = np.array(per)
+            clock.begin()
+            follow(robot, Qs, settings=settings, progress=clock.progress)
+    p = np.array(clock.passes)
     print(f"  integration passes per warm step: median {np.median(p):.0f}, mean {p.mean():.2f} "
           f"({np.mean(p <= 2):.0%} of steps in one pass with the variation and the final one)")
     return p
@@ -186,15 +252,11 @@ def bench_warm(robot: Robot, sweeps: list[np.ndarray], labels: list[str],
     step_times: list[float] = []
     warm_times: list[float] = []
     for Qs, label in zip(sweeps, labels, strict=True):
-        stamps: list[float] = []
-
-        def stamp(_t: int, stamps: list[float] = stamps) -> None:
-            stamps.append(CLOCK())
-
-        t0 = CLOCK()
-        traj = follow(robot, Qs, settings=settings, progress=stamp)
-        total = CLOCK() - t0
-        step_times.extend(np.diff(stamps))
+        with StepClock() as clock:
+            t0 = CLOCK()
+            traj = follow(robot, Qs, settings=settings, progress=clock.progress)
+            total = CLOCK() - t0
+        step_times.extend(clock.times)
         record(traj.tip_poses, traj.snaps, traj.stable, np.array([e.x for e in traj.equilibria]),
                np.array([e.stability for e in traj.equilibria]))
         prev = traj.equilibria[0]
@@ -216,12 +278,11 @@ ROUNDS = 5
 
 
 def _step_times(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings) -> np.ndarray:
-    times: list[float] = []
-    for Qs in sweeps:
-        stamps: list[float] = []
-        follow(robot, Qs, settings=settings, progress=lambda _t, s=stamps: s.append(CLOCK()))
-        times.extend(np.diff(stamps))
-    return np.array(times)
+    with StepClock() as clock:
+        for Qs in sweeps:
+            clock.begin()
+            follow(robot, Qs, settings=settings, progress=clock.progress)
+    return np.array(clock.times)
 
 
 def bench_friction(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings
@@ -394,7 +455,7 @@ def main() -> None:
     ap.add_argument("--step", type=float, default=None, help="largest RK4 step (mm), default: the settings'")
     ap.add_argument("--baseline", default=None, metavar="REV",
                     help=f"old and new: run this benchmark on REV's code (e.g. {BASELINE}, main before "
-                         "the compiled warm step) and on this tree's, alternating (compare())")
+                         "the compiled runs of steps) and on this tree's, alternating (compare())")
     ap.add_argument("--rounds", type=int, default=2, help="--baseline: rounds of old and new")
     ap.add_argument("--breakdown", action="store_true",
                     help="only the paper robot's warm step, split into its parts (warm_breakdown.py)")
@@ -418,6 +479,7 @@ def main() -> None:
     passes = passes_per_step(robot, sweeps, settings)
     print("paper robot, rotating and translating at once (a new grid every step)")
     sim = simultaneous_sweeps()
+    follow(robot, sim[0][:10], settings=settings)  # compile / load the translating steps' kernels
     step_sim, _ = bench_warm(robot, sim, ["d 20 → 2 mm", "d 2 → 20 mm"], settings, n_warm=0)
     passes_sim = passes_per_step(robot, sim, settings)
     err = bench_accuracy(robot, random_configs(args.n_ref, seed=1), settings)

@@ -157,7 +157,7 @@ def breakdown(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings,
               plain_us: float) -> dict[str, float]:
     """Print the table of a warm step's parts (module docstring) and return its figures (µs);
     plain_us: the uninstrumented median step (bench_warm's)."""
-    counters = ("calls", "passes", "timed")
+    counters = ("calls", "passes", "timed", "dispatch")
     acc = dict.fromkeys((*BUCKETS, *counters), 0.0)
     warm = getattr(continuation, "warm", None)  # the compiled warm step, where this tree has one
     saved = [(kernels, "newton"), (continuation, "newton"), (continuation, "_problem_at"),
@@ -169,6 +169,7 @@ def breakdown(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings,
         def call(*args: Any) -> Any:
             out = fn(*args)
             acc["calls"] += passes_at is not None
+            acc["dispatch"] += passes_at is not None
             acc["passes"] += out[passes_at] if passes_at is not None else 0
             acc["timed"] += 1
             return out
@@ -179,22 +180,49 @@ def breakdown(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings,
     continuation._problem_at = _timed(counted(continuation._problem_at, None), acc, "problem")
     continuation.equilibrium = _timed(counted(continuation.equilibrium, None), acc, "equilibrium",
                                       ("kernel",))
+    runs: list[tuple[int, int]] = []  # (first step, steps) of each compiled run of steps
+    run_fn = None if warm is None else getattr(warm, "warm_run", None)
     if warm is not None:
         warm.warm_step = _timed(counted(warm.warm_step, 5), acc, "kernel")
         continuation._warm = _timed(counted(continuation._warm, None), acc, "warm", ("kernel",))
+    if run_fn is not None:
+        saved += [(warm, "warm_run"), (continuation, "_warm_run")]
+        originals += [run_fn, continuation._warm_run]
+
+        def run(*args: Any) -> int:
+            counts = args[-2]
+            before = counts[:, 1].sum()
+            m = run_fn(*args)
+            acc["calls"] += m + (m < counts.shape[0] - args[1])  # the steps tried
+            acc["passes"] += counts[:, 1].sum() - before
+            acc["timed"] += 1
+            acc["dispatch"] += 1
+            runs.append((int(args[1]), m))
+            return m
+
+        warm.warm_run = _timed(run, acc, "kernel")
+        continuation._warm_run = _timed(continuation._warm_run, acc, "warm", ("kernel",))
     rows: dict[str, list[float]] = {k: [] for k in ("total", *BUCKETS, *counters)}
     try:
         for Qs in sweeps:
             marks: list[tuple[float, dict[str, float]]] = []
+            runs.clear()
 
             def mark(_t: int, marks: list[tuple[float, dict[str, float]]] = marks) -> None:
                 marks.append((CLOCK(), dict(acc)))
 
             follow(robot, Qs, settings=settings, progress=mark)
+            part: dict[str, list[float]] = {k: [] for k in rows}
             for (t0, a0), (t1, a1) in itertools.pairwise(marks):
-                rows["total"].append(t1 - t0)
+                part["total"].append(t1 - t0)
                 for k in (*BUCKETS, *counters):
-                    rows[k].append(a1[k] - a0[k])
+                    part[k].append(a1[k] - a0[k])
+            for k, v in part.items():  # a run's steps share its time and counts equally
+                arr = np.array(v)
+                for start, m in runs:
+                    if m:
+                        arr[start - 1:start + m - 1] = arr[start - 1:start + m - 1].sum() / m
+                rows[k].extend(arr.tolist())
     finally:
         for (m, name), fn in zip(saved, originals, strict=True):
             setattr(m, name, fn)
@@ -204,6 +232,7 @@ def breakdown(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings,
     timer = _timer_us()
     var_us, fin_us = _pass_us(robot, q, settings)
     calls, passes = r["calls"].mean(), r["passes"].mean()
+    dispatches = r["dispatch"].mean()  # compiled calls a step (a run's one shared by its steps)
     us = {k: r[k] * 1e6 for k in ("total", *BUCKETS)}
     kernel_mean = us["kernel"].mean()
     pass_mean = (passes - calls) * var_us + calls * fin_us  # one final pass per converged solve
@@ -218,12 +247,14 @@ def breakdown(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings,
         ("step, instrumented, less the timers' own cost", float(np.median(us["total"] - r["timed"] * timer)),
          total_mean),
         row("  the kernel calls", us["kernel"]),
-        (f"    numba dispatch ({calls:.2f} calls × {disp:.2f})", calls * disp, calls * disp),
+        (f"    numba dispatch ({dispatches:.3f} calls × {disp:.2f})", dispatches * disp,
+         dispatches * disp),
         (f"    integration passes ({passes - calls:.2f} × {var_us:.2f} with the variation, "
          f"{calls:.2f} × {fin_us:.2f} final)", None, pass_mean),
         ("    the kernels' own (allocation, Newton logic, acceptance)", None,
-         kernel_mean - calls * disp - pass_mean),
-        row("  the warm step's Python (continuation._warm: arrays, Problem, Equilibrium)", us["warm"]),
+         kernel_mean - dispatches * disp - pass_mean),
+        row("  the warm steps' Python (continuation._warm, _warm_run: arrays, Problem, Equilibrium)",
+            us["warm"]),
         row("  Newton wrapper (pointwise.newton)", us["wrapper"]),
         row("  problem (_problem_at: with_alpha)", us["problem"]),
         row("  equilibrium (pointwise.equilibrium)", us["equilibrium"]),
@@ -240,5 +271,5 @@ def breakdown(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings,
           f"{total_mean:.2f} ({python_mean / total_mean:.0%}); the kernel calls: {kernel_mean:.2f}")
     return {"breakdown_step_us": float(np.median(us["total"] - r["timed"] * timer)),
             "breakdown_kernel_us": kernel_mean, "breakdown_python_us": python_mean,
-            "breakdown_dispatch_us": calls * disp, "breakdown_passes_us": pass_mean,
+            "breakdown_dispatch_us": dispatches * disp, "breakdown_passes_us": pass_mean,
             "breakdown_pass_var_us": var_us, "breakdown_pass_final_us": fin_us}

@@ -14,6 +14,7 @@ from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 from ctrkin.mechanics import continuation, kernels, warm
 from ctrkin.mechanics.continuation import Predictor
 from ctrkin.mechanics.pointwise import Equilibrium, equilibrium, newton, prepare, with_alpha
+from ctrkin.robots import timclab_robot
 
 ROBOT = paper_robot()
 
@@ -187,10 +188,18 @@ of the general path (continuation.newton) and of the compiled warm step (mechani
     passes: list[float] = []
     inner = continuation.newton
     inner_warm = warm.warm_step
+    inner_run = warm.warm_run
 
     def counting_warm(*args):
         out = inner_warm(*args)
         passes.append(out[5])
+        return out
+
+    def counting_run(*args):
+        counts = args[-2]  # (T, 2): iterations and passes of each step tried, 0 before
+        before = counts[:, 1].copy()
+        out = inner_run(*args)
+        passes.extend(counts[before != counts[:, 1], 1].tolist())
         return out
 
     def counting(pb, x0, settings, work=None):
@@ -204,6 +213,7 @@ of the general path (continuation.newton) and of the compiled warm step (mechani
     with monkeypatch.context() as m:
         m.setattr(continuation, "newton", counting)
         m.setattr(warm, "warm_step", counting_warm)
+        m.setattr(warm, "warm_run", counting_run)
         m.setattr(continuation, "PATH_STATES", path_states)
         traj = follow(ROBOT, Q)
     return passes, traj
@@ -327,3 +337,93 @@ def _assert_same(u: object, v: object, name: str) -> None:
         assert u == v or (math.isnan(u) and math.isnan(v)), name
     else:
         assert u is v or u == v, name
+
+
+def _mixed_path() -> np.ndarray:
+    """Paper robot: a 1° sweep at d = 20 mm (two snaps), then translating steps (a new grid each)
+    and a sweep back at the new β: runs of rotation steps that stop at folds and at translations."""
+    sweep = rotation_sweep(2, 20.0)
+    slide = np.c_[np.full(10, sweep[-1, 0]), np.zeros(10), np.linspace(-20.0, -11.0, 10),
+                  np.zeros(10)]
+    back = np.c_[np.linspace(0.0, 200.0, 201), np.zeros(201), np.full(201, -11.0), np.zeros(201)]
+    return np.r_[sweep, slide, back]
+
+
+_MIXED = _mixed_path()
+
+
+@pytest.mark.parametrize("robot, Q", [
+    (ROBOT, _MIXED),
+    (ROBOT, np.c_[np.linspace(0.0, 360.0, 361), np.zeros(361), np.linspace(-20.0, -2.0, 361),
+                  np.zeros(361)]),
+    (timclab_robot(), np.c_[rotation_sweep(2, 0.0)[:, 0], np.zeros((721, 2)),
+                            np.full(721, -40.0), np.full(721, -20.0), np.zeros(721)]),
+], ids=["paper", "paper-translating", "timclab"])
+def test_compiled_runs_are_the_general_path(monkeypatch, robot: Robot, Q: np.ndarray) -> None:
+    """follow's compiled runs of warm steps (mechanics.warm.warm_run, with the predictor inside)
+    give what the general path gives step by step, bit for bit: every Equilibrium field (its
+    Problem's too; made when read), the snaps, poses and flags; rotation runs (warm.warm_run) and
+    translating ones (warm.moving_run, a grid each step). With the runs off every step takes the
+    general path (continuation._advance without its compiled try)."""
+    fast = follow(robot, Q)
+    with monkeypatch.context() as m:
+        m.setattr(continuation, "_run_for", lambda *args: None)
+        slow = follow(robot, Q)
+    for f in ("q", "tip_poses", "snaps", "azimuth", "stable", "converged"):
+        np.testing.assert_array_equal(getattr(fast, f), getattr(slow, f), err_msg=f)
+    if Q is _MIXED:
+        assert fast.n_snaps == 2
+    for u, v in zip(fast.equilibria, slow.equilibria, strict=True):
+        for f in dataclasses.fields(Equilibrium):
+            a, b = getattr(u, f.name), getattr(v, f.name)
+            if f.name == "problem":
+                for g in dataclasses.fields(type(a)):
+                    _assert_same(getattr(a, g.name), getattr(b, g.name), g.name)
+            else:
+                _assert_same(a, b, f.name)
+
+
+def test_predictor_extrapolates_as_a_dot_product(rng) -> None:
+    """warm.extrapolate (one fused multiply-add a term, in order) is the Lagrange polynomial:
+    numpy's w.dot(xs) to round-off (bit for bit on this machine's OpenBLAS for N ≤ 3, which the
+    benchmark's digest shows)."""
+    for k in (2, 3):
+        for tau in (1.0, 0.5, 1.0 / 256):
+            w = continuation._lagrange(tau, k)
+            xs = 1e-3 * rng.normal(size=(k, 5)).cumsum(axis=0)
+            out = np.empty(5)
+            warm.extrapolate(w, xs, out)
+            np.testing.assert_allclose(out, w.dot(xs), rtol=1e-14, atol=1e-18)
+
+
+def _assert_same_deep(u: object, v: object, name: str) -> None:
+    """_assert_same, into dataclasses (Problem, ContactReport, FrictionState, Stations) field by
+    field."""
+    if dataclasses.is_dataclass(u) and not isinstance(u, type):
+        assert type(u) is type(v), name
+        for f in dataclasses.fields(u):
+            _assert_same_deep(getattr(u, f.name), getattr(v, f.name), f"{name}.{f.name}")
+    else:
+        _assert_same(u, v, name)
+
+
+@pytest.mark.parametrize("d", [12.0, 20.0])
+def test_friction_runs_are_the_general_path(monkeypatch, d: float) -> None:
+    """With friction (μ = 0.2, the virtual robot's) follow's compiled runs (warm.friction_run) give
+    what the general path gives, step by step and bit for bit: the equilibria with their problems
+    (stations, gathered state, the state solved for) and contact reports (outputs, the state after),
+    the snaps, poses and flags; the path turns back and translates, so runs start from states
+    the general path left."""
+    rough = dataclasses.replace(ROBOT, friction=0.2)
+    sweep = rotation_sweep(2, d)
+    slide = np.c_[np.full(6, sweep[-1, 0]), np.zeros(6), np.linspace(-d, -d + 5.0, 6), np.zeros(6)]
+    Q = np.r_[sweep, slide, np.c_[np.linspace(0.0, 90.0, 91), np.zeros(91),
+                                  np.full(91, -d + 5.0), np.zeros(91)]]
+    fast = follow(rough, Q)
+    with monkeypatch.context() as m:
+        m.setattr(continuation, "_run_for", lambda *args: None)
+        slow = follow(rough, Q)
+    for f in ("q", "tip_poses", "snaps", "azimuth", "stable", "converged"):
+        np.testing.assert_array_equal(getattr(fast, f), getattr(slow, f), err_msg=f)
+    for t, (u, v) in enumerate(zip(fast.equilibria, slow.equilibria, strict=True)):
+        _assert_same_deep(u, v, f"step {t}")

@@ -41,8 +41,8 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import NamedTuple, TypeVar
+from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -50,16 +50,18 @@ from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 from ctrkin.geometry import tip_azimuth, tip_pose
 from ctrkin.mechanics import warm
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
-from ctrkin.mechanics.friction import SLIP, FrictionState
+from ctrkin.mechanics.friction import N_OUT, SLIP, ContactReport, FrictionState
 from ctrkin.mechanics.pointwise import (
     Equilibrium,
     NewtonResult,
     Problem,
     equilibrium,
     friction_after,
+    made,
     newton,
     prepare,
     recover,
+    rk4_step,
     solve,
     twist_distance,
     with_alpha,
@@ -77,7 +79,6 @@ MIN_FRACTION = 1.0 / 256  # smallest sub-step, as a fraction of one trajectory s
 # largest turn of any α in one sub-step (deg): the end of a longer step can look like its start (a
 # whole turn brings the branch back), so a step of 340° or 720° crossed folds unseen (issue 27)
 MAX_TURN_DEG = 30.0
-_T = TypeVar("_T")
 PATH_STATES = 3  # states of the previous steps the predictor extrapolates through (a parabola)
 
 
@@ -85,7 +86,8 @@ PATH_STATES = 3  # states of the previous steps the predictor extrapolates throu
 class Trajectory:
     """Result of `follow`. tip_poses (T, 6); snaps (T,) bool: a fold was crossed on the way into
     step t; azimuth (T,) deg: T(L), the tip azimuth about z from the outer tube's base rotation
-    (unwrapped); stable, converged (T,) bool; equilibria: the T Equilibrium objects."""
+    (unwrapped); stable, converged (T,) bool; equilibria: the T Equilibrium objects (made on first
+    access where a compiled run of steps solved them, `_Steps`)."""
 
     q: np.ndarray
     tip_poses: np.ndarray
@@ -93,7 +95,11 @@ class Trajectory:
     azimuth: np.ndarray
     stable: np.ndarray
     converged: np.ndarray
-    equilibria: list[Equilibrium]
+    _steps: _Steps = field(repr=False)
+
+    @functools.cached_property
+    def equilibria(self) -> list[Equilibrium]:
+        return self._steps.equilibria()
 
     @property
     def tip_positions(self) -> np.ndarray:
@@ -102,6 +108,78 @@ class Trajectory:
     @property
     def n_snaps(self) -> int:
         return int(self.snaps.sum())
+
+
+class _Steps:
+    """The equilibria of a `follow`: those of the general path as made (eqs[t]), and those of the
+    compiled runs of steps (warm.warm_run) as its output arrays, made into Equilibrium objects on
+    first access, field by field what continuation._warm makes of the same step (tested): q = Q[t],
+    x = xs[t], α, the body and the statistics; the grid, β and tips of base[t], the problem of the
+    step before the run. On the paper robot's sweeps making them took ~2 µs a step, 15 % of the
+    step (issue 26), and most callers read only the trajectory's arrays."""
+
+    def __init__(self, robot: Robot, Q: np.ndarray, settings: SolverSettings) -> None:
+        T, n = Q.shape[0], robot.n_tubes
+        self.robot, self.settings = robot, settings
+        self.moved = [False] * T  # step t of a translating run: its problem is prepared afresh
+        self.Q = Q
+        self.eqs: list[Equilibrium | None] = [None] * T
+        self.base: list[Problem | None] = [None] * T
+        self.xs = np.empty((T, n))
+        self.alpha = np.empty((T, n))
+        self.body = np.empty((T, 7))
+        self.stats = np.empty((T, 3))
+        self.counts = np.zeros((T, 2), dtype=np.int64)
+        self.done = np.zeros(1, dtype=np.int64)
+        self.runs: list[_ContactRun | None] = [None] * T  # the friction run of step t, if any
+        self.states: dict[int, FrictionState] = {}   # the friction states made so far
+        self.last_run: _ContactRun | None = None
+
+    def put(self, t: int, eq: Equilibrium) -> None:
+        """Step t solved by the general path."""
+        self.eqs[t] = eq
+        self.xs[t] = eq.x
+        self.body[t, :3] = eq.tip_position
+        self.body[t, 3:6] = eq.tip_tangent
+
+    def at(self, t: int) -> Equilibrium:
+        eq = self.eqs[t]
+        if eq is None:
+            pb0 = self.base[t]
+            assert pb0 is not None
+            q = self.Q[t]
+            if self.moved[t]:  # _problem_at's prepare, the grid warm.moving_run built
+                pb = prepare(self.robot, q, self.settings, checked=True, arr=pb0.arrays)
+            else:
+                pb = made(Problem, arrays=pb0.arrays, q=q, alpha=self.alpha[t], beta=pb0.beta,
+                          tips=pb0.tips, grid=pb0.grid, n_rk4=pb0.n_rk4, stations=None,
+                          cvar=None, state=None)
+            contact = None
+            run = self.runs[t]
+            if run is not None:  # what _problem_at, _after and pointwise.equilibrium make
+                assert pb0.stations is not None
+                pb.__dict__.update(stations=pb0.stations, cvar=run.cvar[t],
+                                   state=run.first if t == run.start else self.state(t - 1))
+                contact = ContactReport(pb0.stations, run.cout[t], self.state(t))
+            body, st = self.body[t], self.stats[t].tolist()
+            eq = made(Equilibrium, q=q, x=self.xs[t], tip_position=body[:3],
+                      tip_tangent=body[3:6], converged=True, stability=st[1], conjugate=st[2],
+                      energy=float(body[6]), residual=st[0], iterations=int(self.counts[t, 0]),
+                      problem=pb, contact=contact)
+            self.eqs[t] = eq
+        return eq
+
+    def state(self, t: int) -> FrictionState:
+        """The friction state after step t of a friction run (one object per step)."""
+        out = self.states.get(t)
+        if out is None:
+            run = self.runs[t]
+            assert run is not None
+            out = self.states[t] = FrictionState(run.theta[t], self.Q[t])
+        return out
+
+    def equilibria(self) -> list[Equilibrium]:
+        return [self.at(t) for t in range(len(self.eqs))]
 
 
 @functools.lru_cache(maxsize=256)
@@ -126,8 +204,11 @@ class Predictor(NamedTuple):
     xs: np.ndarray
 
     def at(self, tau: float) -> np.ndarray:
-        """x(τ) (N,) rad/mm, τ in steps from the latest state."""
-        return _lagrange(tau, self.xs.shape[0]).dot(self.xs)
+        """x(τ) (N,) rad/mm, τ in steps from the latest state (warm.extrapolate: the compiled run
+        of steps computes it the same way)."""
+        out = np.empty(self.xs.shape[1])
+        warm.extrapolate(_lagrange(tau, self.xs.shape[0]), self.xs, out)
+        return out
 
 
 def _repeats(dq: np.ndarray) -> np.ndarray:
@@ -140,15 +221,18 @@ def _repeats(dq: np.ndarray) -> np.ndarray:
 
 
 def _advance(robot: Robot, prev: Equilibrium, q_to: np.ndarray, settings: SolverSettings,
-             path: Predictor | None = None, same_grid: bool = False) -> tuple[Equilibrium, bool]:
+             path: Predictor | None = None, same_grid: bool = False, compiled: bool = True
+             ) -> tuple[Equilibrium, bool]:
     """Continue from equilibrium `prev` to joints q_to. Returns (equilibrium, snapped).
 
     path: the states of the previous steps taken with the same joint increment (`Predictor`);
     Newton then starts from the current state moved along the extrapolated branch instead of from x.
     same_grid: q_to has the translations β of prev.q and prev was solved with these settings, so
-    every sub-step keeps prev's grid (`with_alpha`).
+    every sub-step keeps prev's grid (`with_alpha`). compiled: try the common step's compiled call
+    first (False where follow's compiled run of steps has just tried it: the same try, the same
+    outcome).
     """
-    if same_grid and prev.problem.stations is None:  # the common step, one compiled call
+    if compiled and same_grid and prev.problem.stations is None:  # the common step, one call
         done = _warm(prev, q_to, prev.x if path is None else path.at(1.0), settings)
         if done is not None:
             return done, False
@@ -233,21 +317,11 @@ def _warm(prev: Equilibrium, q_to: np.ndarray, guess: np.ndarray, settings: Solv
     if not acc:
         return None
     # what with_alpha and pointwise.equilibrium make of it (a converged NewtonResult, no contact)
-    pb = _made(Problem, arrays=a, q=q_to, alpha=alpha, beta=pb0.beta, tips=pb0.tips, grid=pb0.grid,
+    pb = made(Problem, arrays=a, q=q_to, alpha=alpha, beta=pb0.beta, tips=pb0.tips, grid=pb0.grid,
                n_rk4=pb0.n_rk4, stations=None, cvar=None, state=None)
-    return _made(Equilibrium, q=q_to, x=x, tip_position=body[:3], tip_tangent=body[3:6],
+    return made(Equilibrium, q=q_to, x=x, tip_position=body[:3], tip_tangent=body[3:6],
                  converged=True, stability=det_j, conjugate=det_h, energy=float(body[6]),
                  residual=rn, iterations=it, problem=pb, contact=None)
-
-
-def _made(cls: type[_T], **fields: object) -> _T:
-    """An instance of the frozen dataclass cls with these fields (every one of them), made without
-    its __init__: a frozen __init__ sets each field through object.__setattr__, and a warm step's
-    Problem and Equilibrium took ~3 µs of the step that way (issue 26). The instance is the same:
-    its __dict__ holds every field."""
-    obj = object.__new__(cls)
-    obj.__dict__.update(fields)
-    return obj
 
 
 def _problem_at(robot: Robot, prev: Equilibrium, q: np.ndarray, settings: SolverSettings,
@@ -323,7 +397,9 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     """Follow joint trajectory Q (T, 2N) (deg, mm) by continuation.
 
     start: the equilibrium the robot is in before Q[0] (continued to Q[0]); without it Q[0] is
-    solved point-wise. progress: called with the step index after each step.
+    solved point-wise. progress: called with the step index after each step, once per step and in
+    order; the steps of a compiled run (consecutive rotation steps solved in one call,
+    mechanics.warm.warm_run) are reported one after the other when the run returns.
     """
     Qa = robot.check_joints(np.atleast_2d(np.array(Q, dtype=float)))  # a copy: equilibria keep rows
     n_steps = Qa.shape[0]
@@ -331,36 +407,161 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
         raise JointError(f"follow needs at least one joint row, got Q of shape {Qa.shape}")
     if start is not None:
         _check_start(robot, start)
-    eqs: list[Equilibrium] = []
-    xs = np.empty((n_steps, robot.n_tubes))  # eqs[t].x, for the predictor
+    n = robot.n_tubes
+    steps = _Steps(robot, Qa, settings)
+    xs = steps.xs  # eqs[t].x, for the predictor
     snaps = np.zeros(n_steps, dtype=bool)
     if start is None:
         cur = solve(robot, Qa[0], settings=settings)
     else:
         cur, snaps[0] = _advance(robot, start, Qa[0], settings)
-    eqs.append(cur)
-    xs[0] = cur.x
+    steps.put(0, cur)
     if progress:
         progress(0)
     dq = np.diff(Qa, axis=0)
+    same_a = np.r_[False, False, _repeats(dq)]  # step t repeats step t − 1
+    rotation_a = np.r_[False, (dq[:, n:] == 0.0).all(axis=1)]  # step t keeps β
     # as Python lists: the loop reads them once a step (numpy's scalars cost more there)
-    same = [False, False, *_repeats(dq).tolist()]  # step t repeats step t − 1
-    rotation = [False, *(dq[:, robot.n_tubes:] == 0.0).all(axis=1).tolist()]  # step t keeps β
-    snapped = [bool(snaps[0])] + [False] * (n_steps - 1)
-    for t in range(1, n_steps):
+    same, rotation = same_a.tolist(), rotation_a.tolist()
+    t = 1
+    while t < n_steps:
+        # a run of steps in one compiled call, up to one not accepted or of another kind
+        run = _run_for(cur, rotation[t])
+        if run is not None:
+            m = run(steps, t, cur, rotation_a, same_a, snaps, settings)
+            if m:
+                if progress:
+                    for i in range(t, t + m):
+                        progress(i)
+                t += m
+                cur = steps.at(t - 1)
+                if t == n_steps:
+                    break
+                if rotation[t] != rotation[t - 1] and _run_for(cur, rotation[t]) is not None:
+                    continue  # a step of the other kind: its run
         k = 1  # states behind step t on one branch, reached by the joint increment of step t
-        while k < PATH_STATES and same[t - k + 1] and not snapped[t - k]:
+        while k < PATH_STATES and same[t - k + 1] and not snaps[t - k]:
             k += 1
         path = Predictor(xs[t - k:t]) if k > 1 else None
-        cur, snapped[t] = _advance(robot, cur, Qa[t], settings, path, rotation[t])
-        eqs.append(cur)
-        xs[t] = cur.x
+        # the run has tried step t where it is a rotation step: _advance need not try it again
+        cur, snaps[t] = _advance(robot, cur, Qa[t], settings, path, rotation[t], compiled=False)
+        steps.put(t, cur)
         if progress:
             progress(t)
-    snaps[:] = snapped
-    poses = tip_pose(np.array([e.tip_position for e in eqs]), np.array([e.tip_tangent for e in eqs]))
-    n = robot.n_tubes
+        t += 1
+    body = steps.body
+    poses = tip_pose(body[:, :3].copy(), body[:, 3:6].copy())
+    converged, stable = np.ones(n_steps, dtype=bool), np.ones(n_steps, dtype=bool)
+    for i, e in enumerate(steps.eqs):  # the steps of the compiled runs are stable equilibria
+        if e is not None:
+            converged[i], stable[i] = e.converged, e.stable
     return Trajectory(q=Qa, tip_poses=poses, snaps=snaps,
-                      azimuth=tip_azimuth(poses[:, :3], Qa[:, n - 1]),
-                      stable=np.array([e.stable for e in eqs]),
-                      converged=np.array([e.converged for e in eqs]), equilibria=eqs)
+                      azimuth=tip_azimuth(poses[:, :3], Qa[:, n - 1]), stable=stable,
+                      converged=converged, _steps=steps)
+
+
+_Run = Callable[["_Steps", int, Equilibrium, np.ndarray, np.ndarray, np.ndarray, SolverSettings],
+               int]
+
+
+def _run_for(prev: Equilibrium, rotation: bool) -> _Run | None:
+    """The compiled run for a step from prev: rotation steps without contact effects (_warm_run)
+    or with them (_friction_run, from a converged equilibrium), translating steps without them
+    (_moving_run); None: the general path."""
+    if prev.problem.stations is None:
+        return _warm_run if rotation else _moving_run
+    return _friction_run if rotation and prev.contact is not None else None
+
+
+def _moving_run(steps: _Steps, t: int, prev: Equilibrium, rotation: np.ndarray, same: np.ndarray,
+                snaps: np.ndarray, settings: SolverSettings) -> int:
+    """_warm_run for translating steps (warm.moving_run: a grid of its own every step)."""
+    a = prev.problem.arrays
+    try:
+        m = warm.moving_run(
+            steps.Q, t, rotation, same, snaps, steps.xs, prev.stability, _weights(PATH_STATES),
+            PATH_STATES, a.lengths, a.extra, a.sec_len, a.sec_kap, a.sec_kapy, a.n_sec,
+            rk4_step(a, settings), settings.max_rk4_steps, a.rigid, a.k, a.gj, settings.tol,
+            settings.max_iter, settings.max_step, MAX_TURN_DEG, JUMP_RAD, DET_SLACK, DET_RATE,
+            steps.alpha, steps.body, steps.stats, steps.counts, steps.done)
+    except (ZeroDivisionError, OverflowError, FloatingPointError):
+        m = int(steps.done[0])
+    steps.base[t:t + m] = [prev.problem] * m
+    steps.moved[t:t + m] = [True] * m
+    return m
+
+
+def _warm_run(steps: _Steps, t: int, prev: Equilibrium, rotation: np.ndarray, same: np.ndarray,
+              snaps: np.ndarray, settings: SolverSettings) -> int:
+    """Steps t, t + 1, … from `prev` (step t − 1, no contact effects) as one compiled call
+    (warm.warm_run): each the compiled step of _advance (`_warm`), with follow's predictor, up to
+    the first that is not a rotation or not accepted. Returns the number of steps accepted; their
+    outputs are in `steps`, their equilibria made when read (_Steps.at)."""
+    pb0 = prev.problem
+    a = pb0.arrays
+    try:
+        m = warm.warm_run(
+            steps.Q, t, rotation, same, snaps, steps.xs, prev.stability, _weights(PATH_STATES),
+            PATH_STATES, a.lengths, pb0.beta, pb0.tips, a.rigid, a.k, a.gj, *pb0.grid,
+            settings.tol, settings.max_iter, settings.max_step, MAX_TURN_DEG, JUMP_RAD, DET_SLACK,
+            DET_RATE, steps.alpha, steps.body, steps.stats, steps.counts, steps.done)
+    except (ZeroDivisionError, OverflowError, FloatingPointError):
+        m = int(steps.done[0])  # the general path meets the same at the next step and says so
+    steps.base[t:t + m] = [pb0] * m
+    return m
+
+
+class _ContactRun(NamedTuple):
+    """The arrays of follow's friction runs on one grid's stations (warm.friction_run), rows by step
+    (runs on stations of the same count share them: their steps differ): theta (T, P · slots) the
+    state after each step, cvar (T, K + P), cout (T, K, 8); start and first: the run's first step
+    and the friction state it started from."""
+
+    theta: np.ndarray
+    cvar: np.ndarray
+    cout: np.ndarray
+    start: int
+    first: FrictionState
+
+
+def _friction_run(steps: _Steps, t: int, prev: Equilibrium, rotation: np.ndarray,
+                  same: np.ndarray, snaps: np.ndarray, settings: SolverSettings) -> int:
+    """_warm_run on a robot with contact effects (warm.friction_run), from prev's friction state."""
+    pb0 = prev.problem
+    a = pb0.arrays
+    st = pb0.stations
+    assert st is not None and prev.contact is not None
+    first = prev.contact.state
+    T = steps.Q.shape[0]
+    last = steps.last_run
+    if last is not None and last.cout.shape[1] == st.count:
+        run = _ContactRun(last.theta, last.cvar, last.cout, t, first)
+    else:
+        run = _ContactRun(np.empty((T, first.theta.shape[0])), np.empty((T, st.relaxed.shape[0])),
+                          np.empty((T, st.count, N_OUT)), t, first)
+    run.theta[t - 1] = first.theta
+    try:
+        m = warm.friction_run(
+            steps.Q, t, rotation, same, snaps, steps.xs, prev.stability, _weights(PATH_STATES),
+            PATH_STATES, a.lengths, pb0.beta, pb0.tips, a.rigid, a.k, a.gj, *pb0.grid,
+            settings.tol, settings.max_iter, settings.max_step, MAX_TURN_DEG, JUMP_RAD, DET_SLACK,
+            DET_RATE, st.table, st.pairs, st.prm, st.slot, first.q, prev.contact.out[:, 3],
+            run.theta, run.cvar, run.cout, steps.alpha, steps.body, steps.stats, steps.counts,
+            steps.done)
+    except (ZeroDivisionError, OverflowError, FloatingPointError):
+        m = int(steps.done[0])
+    steps.base[t:t + m] = [pb0] * m
+    steps.runs[t:t + m] = [run] * m
+    steps.last_run = run
+    return m
+
+
+@functools.lru_cache(maxsize=8)
+def _weights(k: int) -> np.ndarray:
+    """(k + 1, k): row j ≥ 2, the predictor's Lagrange weights at τ = 1 through j states
+    (_lagrange(1, j)); rows 0 and 1 unused."""
+    w = np.zeros((k + 1, k))
+    for j in range(2, k + 1):
+        w[j, :j] = _lagrange(1.0, j)
+    w.setflags(write=False)
+    return w

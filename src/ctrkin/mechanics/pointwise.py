@@ -17,17 +17,19 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 
 from ctrkin.errors import ConvergenceError
 from ctrkin.geometry import quat_from_tangent
-from ctrkin.mechanics import kernels
+from ctrkin.mechanics import cold, kernels
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
 from ctrkin.mechanics.friction import N_OUT, ContactReport, FrictionState, Stations
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS, SolverSettings
 from ctrkin.robots.robot import Robot
+
+_T = TypeVar("_T")
 
 
 @dataclass(frozen=True, eq=False)
@@ -408,12 +410,54 @@ def solve(robot: Robot, q: np.ndarray, guess: Equilibrium | np.ndarray | None = 
     Invalid joints raise JointError. A failed solve returns converged=False with a NaN pose, or
     raises ConvergenceError if strict.
     """
-    pb = with_state(prepare(robot, q, settings), state)
-    eq = solve_prepared(pb, guess, settings)
+    eq = _cold(robot, q, settings) if guess is None and state is None else None
+    if eq is None:
+        pb = with_state(prepare(robot, q, settings), state)
+        eq = solve_prepared(pb, guess, settings)
     if strict and not eq.converged:
         raise ConvergenceError(f"no TCM equilibrium found at q = {pb.q.tolist()} "
                                f"(residual {eq.residual:.3g} rad/mm)")
     return eq
+
+
+def _cold(robot: Robot, q: np.ndarray, settings: SolverSettings) -> Equilibrium | None:
+    """A cold solve by cold.cold_start (prepare and the first Newton solve in one compiled call),
+    for q a float (2N,) array on a robot without contact effects: what solve_prepared(prepare(q),
+    None) gives (tested), or None where the Python path is to run (another q, invalid joints or
+    too fine a grid, whose errors it raises, or numerics that broke down, which it reports)."""
+    arr = robot_arrays(robot)
+    n = arr.lengths.shape[0]
+    if type(q) is not np.ndarray or q.dtype != np.float64 or q.shape != (2 * n,) or arr.contact:
+        return None
+    x, body = np.empty(n), np.empty(7)
+    try:
+        status, alpha, beta, tips, grid, n_rk4, conv, it, rn, det_j, det_h, passes = cold.cold_start(
+            q, robot._lengths, arr.lengths, arr.extra, arr.sec_len, arr.sec_kap, arr.sec_kapy,
+            arr.n_sec, rk4_step(arr, settings), settings.max_rk4_steps, arr.rigid, arr.k, arr.gj,
+            settings.tol, settings.max_iter, settings.max_step, x, body)
+    except (np.linalg.LinAlgError, ZeroDivisionError, OverflowError, FloatingPointError):
+        return None
+    if status != cold.VALID:
+        return None
+    pb = made(Problem, arrays=arr, q=q, alpha=alpha, beta=beta, tips=tips, grid=grid, n_rk4=n_rk4,
+              stations=None, cvar=None, state=None)
+    first = NewtonResult(x, conv, it, rn, det_j, det_h, body if conv else _NO_BODY)
+    if not first.stable:  # cold_solution's search from this first solve, or (one tube) the solve
+        return equilibrium(pb, first if n == 1 else cold_solution(pb, settings, [passes * n_rk4],
+                                                                  first))
+    return made(Equilibrium, q=q, x=x, tip_position=body[:3], tip_tangent=body[3:6],
+                converged=conv, stability=det_j, conjugate=det_h, energy=first.energy,
+                residual=rn, iterations=it, problem=pb, contact=None)
+
+
+def made(cls: type[_T], **fields: object) -> _T:
+    """An instance of the frozen dataclass cls with these fields (every one of them), made without
+    its __init__: a frozen __init__ sets each field through object.__setattr__, and a warm step's
+    Problem and Equilibrium took ~3 µs of the step that way (issue 26). The instance is the same:
+    its __dict__ holds every field."""
+    obj = object.__new__(cls)
+    obj.__dict__.update(fields)
+    return obj
 
 
 def solve_prepared(pb: Problem, guess: Equilibrium | np.ndarray | None,
@@ -455,13 +499,15 @@ def twist_distance(a: np.ndarray, b: np.ndarray, lengths: np.ndarray) -> float:
     return out
 
 
-def cold_solution(pb: Problem, settings: SolverSettings, work: list[int] | None = None
-                  ) -> NewtonResult:
+def cold_solution(pb: Problem, settings: SolverSettings, work: list[int] | None = None,
+                  first: NewtonResult | None = None) -> NewtonResult:
     """Newton from untwisted tubes; if that is not stable, the stable solution of least energy
-    among twisted starts (else the least-energy converged one, else the first attempt)."""
+    among twisted starts (else the least-energy converged one, else the first attempt). first:
+    that Newton solve, made already (its work counted in `work`)."""
     n = pb.alpha.shape[0]
     work = [0] if work is None else work
-    first = newton(pb, np.zeros(n), settings, work)
+    if first is None:
+        first = newton(pb, np.zeros(n), settings, work)
     if first.stable or n == 1:
         return first
     cands = search(pb, [first.x, *twisted_guesses(pb, np.zeros(n))], settings, work)

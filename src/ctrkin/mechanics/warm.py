@@ -10,16 +10,27 @@ continuation step (stable; a twist change within `jump`; det J continuous: |det 
 slack + rate · det J_prev). Where the test fails (a fold near, a large step) the caller takes the
 general path from the start, which repeats this try and goes on to sub-steps and the snap search:
 the decisions, and so the snaps, are the general path's.
+
+`follow` itself goes further: `warm_run` does consecutive such steps in one call, with its
+predictor (`extrapolate`), up to the first that is not accepted or not a rotation; `friction_run`
+does the same on a robot with friction or clearance (the stations' state carried from step to
+step), and `moving_run` for translating steps without contact effects (a grid each step).
+continuation._Steps makes their Equilibrium objects when they are read.
 """
 
 from __future__ import annotations
 
 import math
 
-from numba import njit
+import numpy as np
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
 
-from ctrkin.mechanics.grid import reduced_radians
-from ctrkin.mechanics.kernels import newton
+from ctrkin.mechanics.contact import gather_state, state_after
+from ctrkin.mechanics.grid import prepare, reduced_radians
+from ctrkin.mechanics.kernels import _newton, newton
+from ctrkin.mechanics.passes import flat_work
 
 
 @njit(cache=True)
@@ -52,3 +63,216 @@ def warm_step(q, q_from, guess, x_prev, det_prev, lengths, beta, tips, rigid, k,
             twist = max(twist, abs((x_out[i] - x_prev[i]) * lengths[i]))
         accepted = twist <= jump and abs(det_j - det_prev) <= slack + rate * det_prev
     return accepted, it, rn, det_j, det_h, passes
+
+
+@intrinsic
+def _fma(typingctx, a, b, c):
+    """a b + c rounded once (LLVM's llvm.fma.f64: the FMA instruction, or an exact software
+    fallback where the CPU has none)."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        d = ir.DoubleType()
+        fn = builder.module.declare_intrinsic("llvm.fma", [d], ir.FunctionType(d, [d, d, d]))
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+@njit(cache=True)
+def extrapolate(w, xs, out):
+    """out (N,) = Σj w[j] xs[j] (xs (k, N)): the predictor's polynomial at τ from its Lagrange
+    weights (continuation.Predictor), each term added by one fused multiply-add, j in order, from
+    0. That is the order and the rounding of numpy's w.dot(xs) on this machine's OpenBLAS (its
+    Haswell dgemv) for N ≤ 3 (tested against it), and one definition for the compiled run of steps
+    and the general path alike on any machine and N."""
+    for i in range(xs.shape[1]):
+        acc = 0.0
+        for j in range(xs.shape[0]):
+            acc = _fma(w[j], xs[j, i], acc)  # type: ignore[call-arg]  # (the typing context is numba's)
+        out[i] = acc
+
+
+@njit(cache=True)
+def warm_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_states, lengths, beta,
+             tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample, tol, max_iter,
+             max_step, max_turn, jump, slack, rate, alpha, body, stats, counts, done):
+    """Consecutive warm steps of `follow` from step `start` in one compiled call: each what
+    warm_step does for one (continuation._advance's first try: same grid, no contact effects),
+    with `follow`'s predictor, until a step is not a rotation (rotation[t] False), is not
+    accepted or the path ends. Returns the number m of steps accepted: start … start + m − 1.
+
+    Q (T, 2N) joints; rotation, same, snapped (T,) bool: step t keeps β, repeats step t − 1's
+    increment, snapped on its way in (continuation.follow's flags); xs (T, N): the states, rows
+    before `start` given, the accepted ones written; det_prev: det J of step start − 1; weights
+    (path_states + 1, path_states): row k, the predictor's Lagrange weights at τ = 1 through k
+    states (continuation._lagrange(1, k)); the problem on the grid of step start − 1 as
+    kernels.newton takes it; max_turn, jump, slack, rate: warm_step's. Writes, per accepted step
+    t: alpha[t] (N,) rad, xs[t], body[t] (7,) (kernels._tip), stats[t] = (|r|∞, det J, min det H),
+    counts[t] = (iterations, passes), and done[0] = the steps accepted so far (read where the
+    run raised: ZeroDivisionError and the like, as warm_step). counts[t, 1] is written for the
+    step that is not accepted as well (its passes, spent)."""
+    n = xs.shape[1]
+    work = flat_work(n)
+    guess = np.empty(n)
+    det = det_prev
+    t = start
+    done[0] = 0
+    while t < Q.shape[0] and rotation[t]:
+        m = 1  # states behind step t on one branch (follow's loop)
+        while m < path_states and same[t - m + 1] and not snapped[t - m]:
+            m += 1
+        if m > 1:
+            extrapolate(weights[m], xs[t - m:t], guess)
+        else:
+            guess[:] = xs[t - 1]
+        q, q_from = Q[t], Q[t - 1]
+        turn = 0.0
+        for i in range(n):
+            turn = max(turn, abs(q[i] - q_from[i]))
+        if not turn <= max_turn:
+            break
+        reduced_radians(q, alpha[t])
+        conv, it, rn, det_j, det_h, passes = _newton(
+            guess, alpha[t], beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
+            tol, max_iter, max_step, xs[t], body[t], work, None, None, None, None, None)
+        counts[t, 1] = passes
+        accepted = conv and det_j > 0.0 and det_h > 0.0
+        if accepted:
+            twist = 0.0
+            for i in range(n):
+                twist = max(twist, abs((xs[t, i] - xs[t - 1, i]) * lengths[i]))
+            accepted = twist <= jump and abs(det_j - det) <= slack + rate * det
+        if not accepted:
+            break
+        stats[t, 0] = rn
+        stats[t, 1] = det_j
+        stats[t, 2] = det_h
+        counts[t, 0] = it
+        det = det_j
+        t += 1
+        done[0] = t - start
+    return t - start
+
+
+@njit(cache=True)
+def _same_modes(a, b):
+    """The stick/slip patterns a, b (K,) are the same bytes (continuation._det_comparable compares
+    the bytes of float64: equal values of equal sign)."""
+    for j in range(a.shape[0]):
+        if not (a[j] == b[j] and math.copysign(1.0, a[j]) == math.copysign(1.0, b[j])):
+            return False
+    return True
+
+
+@njit(cache=True)
+def friction_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_states, lengths,
+                 beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample, tol,
+                 max_iter, max_step, max_turn, jump, slack, rate, table, pairs, prm, slot, q_state,
+                 modes_prev, theta, cvar, cout, alpha, body, stats, counts, done):
+    """warm_run on a robot with friction (contact stations on the grid of step start − 1): each
+    step what continuation._advance's first try does there, from the friction state of the step
+    before (theta[t − 1] (P · slots,), held at joints q_state for step start, Q[t − 1] after):
+    the stations' state at Q[t] (contact.gather_state) into cvar[t] (K + P,), the Newton solve with
+    the stations (their outputs into cout[t] (K, 8)), the acceptance test (stable, twist within
+    jump, det J continuous unless the stick/slip pattern changed: modes_prev (K,) for step start,
+    cout[t − 1, :, 3] after) and the state after it (contact.state_after) into theta[t]. table,
+    pairs, prm, slot: the grid's friction.Stations. The rest as warm_run."""
+    n = xs.shape[1]
+    size = theta.shape[1]
+    guess = np.empty(n)
+    det = det_prev
+    t = start
+    done[0] = 0
+    while t < Q.shape[0] and rotation[t]:
+        m = 1
+        while m < path_states and same[t - m + 1] and not snapped[t - m]:
+            m += 1
+        if m > 1:
+            extrapolate(weights[m], xs[t - m:t], guess)
+        else:
+            guess[:] = xs[t - 1]
+        q, q_from = Q[t], Q[t - 1]
+        turn = 0.0
+        for i in range(n):
+            turn = max(turn, abs(q[i] - q_from[i]))
+        if not turn <= max_turn:
+            break
+        reduced_radians(q, alpha[t])
+        cvar[t, :] = gather_state(theta[t - 1], slot, q, q_state if t == start else q_from)
+        conv, it, rn, det_j, det_h, passes = newton(
+            guess, alpha[t], beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
+            tol, max_iter, max_step, xs[t], body[t], table, pairs, cvar[t], prm, cout[t])
+        counts[t, 1] = passes
+        accepted = conv and det_j > 0.0 and det_h > 0.0
+        if accepted:
+            twist = 0.0
+            for i in range(n):
+                twist = max(twist, abs((xs[t, i] - xs[t - 1, i]) * lengths[i]))
+            held = _same_modes(modes_prev if t == start else cout[t - 1, :, 3], cout[t, :, 3])
+            accepted = twist <= jump and (abs(det_j - det) <= slack + rate * det or not held)
+        if not accepted:
+            break
+        theta[t, :] = state_after(slot, cout[t], table, pairs, prm[1], size)
+        stats[t, 0] = rn
+        stats[t, 1] = det_j
+        stats[t, 2] = det_h
+        counts[t, 0] = it
+        det = det_j
+        t += 1
+        done[0] = t - start
+    return t - start
+
+
+@njit(cache=True)
+def moving_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_states, tube_len,
+               extra, sec_len, sec_kap, sec_kapy, n_sec, h, max_rk4, rigid, k, gj, tol, max_iter,
+               max_step, max_turn, jump, slack, rate, alpha, body, stats, counts, done):
+    """warm_run for translating steps (rotation[t] False) of a robot without contact effects: each
+    step on a grid of its own, built as pointwise.prepare builds it (grid.prepare, the same
+    function; the run stops before a grid of more than max_rk4 RK4 steps, where the general path
+    raises). tube_len, extra, sec_len, sec_kap, sec_kapy, n_sec: the robot's arrays
+    (mechanics.arrays.RobotArrays), h: the RK4 step (pointwise.rk4_step). The rest as warm_run."""
+    n = xs.shape[1]
+    guess = np.empty(n)
+    det = det_prev
+    t = start
+    done[0] = 0
+    while t < Q.shape[0] and not rotation[t]:
+        m = 1
+        while m < path_states and same[t - m + 1] and not snapped[t - m]:
+            m += 1
+        if m > 1:
+            extrapolate(weights[m], xs[t - m:t], guess)
+        else:
+            guess[:] = xs[t - 1]
+        q, q_from = Q[t], Q[t - 1]
+        turn = 0.0
+        for i in range(n):
+            turn = max(turn, abs(q[i] - q_from[i]))
+        if not turn <= max_turn:
+            break
+        a, beta, tips, grid, _ = prepare(q, tube_len, extra, sec_len, sec_kap, sec_kapy, n_sec, h)
+        if grid[5].sum() > max_rk4:
+            break
+        alpha[t, :] = a
+        conv, it, rn, det_j, det_h, passes = newton(
+            guess, a, beta, tips, rigid, k, gj, grid[0], grid[1], grid[2], grid[3], grid[4],
+            grid[5], tol, max_iter, max_step, xs[t], body[t], None, None, None, None, None)
+        counts[t, 1] = passes
+        accepted = conv and det_j > 0.0 and det_h > 0.0
+        if accepted:
+            twist = 0.0
+            for i in range(n):
+                twist = max(twist, abs((xs[t, i] - xs[t - 1, i]) * tube_len[i]))
+            accepted = twist <= jump and abs(det_j - det) <= slack + rate * det
+        if not accepted:
+            break
+        stats[t, 0] = rn
+        stats[t, 1] = det_j
+        stats[t, 2] = det_h
+        counts[t, 0] = it
+        det = det_j
+        t += 1
+        done[0] = t - start
+    return t - start
