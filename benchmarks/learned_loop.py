@@ -3,6 +3,10 @@
 
     python benchmarks/learned_loop.py                  # paper robot and the comet nylon robot
     python benchmarks/learned_loop.py --quick          # fewer walks, shorter training and loop
+    python benchmarks/learned_loop.py --quick --robot paper --keep DIR   # one robot; keep the models
+
+This is bench_planning.py's goal-2 part alone (coverage, OOD AUROC, streaming cost, and the control
+loop): the same figures and JSON keys without the planning paths.
 
 Data: random joint walks on the virtual robot (friction, backlash, true tubes, tracker noise and
 registration), recorded as a dataset (measured poses in the tracker frame, true poses beside them).
@@ -250,17 +254,20 @@ def control_study(robot: Robot, vr: VirtualRobot, folder: Path, quick: bool, see
             "dropout_stopped_at": drop.stopped_at, "dropout_held_still": held}
 
 
-def run(quick: bool, seed: int = 0, robots: tuple[str, ...] = ROBOTS) -> dict[str, Any]:
-    """Every study on every robot (the control loop on the first); one dict of figures."""
+def run(quick: bool, seed: int = 0, robots: tuple[str, ...] = ROBOTS, keep: Path | None = None) -> dict[str, Any]:
+    """Every study on every robot (the control loop on the first); one dict of figures. keep: a folder
+    to leave the calibrated models in (ROBOT_fk, ROBOT_ik), else they go with a temporary folder."""
     out: dict[str, Any] = {}
     with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp) if keep is None else keep
+        root.mkdir(parents=True, exist_ok=True)
         for k, spec in enumerate(robots):
             robot = paper_robot() if spec == "paper" else load_robot(spec)
             vr = VirtualRobot(robot, seed=seed)
             rng = np.random.default_rng(seed)
-            out[robot.name] = uncertainty_study(robot, vr, rng, quick, Path(tmp), seed)
+            out[robot.name] = uncertainty_study(robot, vr, rng, quick, root, seed)
             if k == 0:
-                out["control"] = control_study(robot, vr, Path(tmp) / f"{robot.name}_fk", quick, seed)
+                out["control"] = control_study(robot, vr, root / f"{robot.name}_fk", quick, seed)
     return out
 
 
@@ -304,8 +311,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--robot", action="append", default=None,
+                    help=f"paper or a robot file, repeatable (default: {', '.join(ROBOTS)})")
+    ap.add_argument("--keep", type=Path, default=None, help="leave the calibrated model folders here")
     args = ap.parse_args()
-    res = run(args.quick, args.seed)
+    res = run(args.quick, args.seed, tuple(args.robot or ROBOTS), args.keep)
     print_table(res)
     print(json.dumps({**summary(res), "detail": res}))
 

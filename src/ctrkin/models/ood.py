@@ -19,7 +19,9 @@ median; the score is the largest part's, plus the excess beyond the trained rang
 
 from __future__ import annotations
 
+import itertools
 import math
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -166,10 +168,20 @@ def _stream_features(mode: int, n: int, rows: np.ndarray, count: int, center: np
 
 
 # --- the score ------------------------------------------------------------------------------------------
+# The k-NN scan is exact and searched: each part's reference rows are kept sorted by their projection on
+# the part's first principal axis v (the key; `KnnIndex`), contiguous part by part, and the scan walks
+# outward from the query's key, nearest key first. |v·(z − r)| ≤ ‖z − r‖ (‖v‖ = 1), so once the key's
+# gap, less δ (a bound on its rounding: 1e-12 × (Σ|z_i| + max_r Σ|r_i|), some 200 times the worst
+# error of the two dot products), squared, exceeds the k-th best squared distance (by a relative 1e-12,
+# beyond the rounding of a row's sum of squares), every row further along is further than the k-th:
+# the scan stops. And a part whose running distance (the mean of its k best so far, which only falls)
+# over its calibration median is already no larger than a part before it cannot change the score's
+# maximum: its scan stops there too. Each row's distance sums the part's columns in order as brute
+# force does, so the k nearest distances, and the score, are brute force's to the bit (tested).
 @numba.njit(cache=True)
 def _knn_score(z: np.ndarray, ref: np.ndarray, lo: int, hi: int, k: int, best: np.ndarray) -> float:
-    """Mean Euclidean distance of z (F,) to its k nearest rows of ref (M, F), over columns lo..hi−1;
-    best (k,) scratch."""
+    """Mean Euclidean distance of z (F,) to its k nearest rows of ref (M, F), over columns lo..hi−1, by
+    brute force (the searched scan's reference; calibration); best (k,) scratch."""
     for j in range(k):
         best[j] = np.inf
     for m in range(ref.shape[0]):
@@ -193,32 +205,115 @@ def _knn_score(z: np.ndarray, ref: np.ndarray, lo: int, hi: int, k: int, best: n
 
 
 @numba.njit(cache=True)
-def _score(z: np.ndarray, ref: np.ndarray, parts: np.ndarray, k: int, tau: np.ndarray, lo: np.ndarray,
-           hi: np.ndarray, best: np.ndarray) -> float:
+def _mean_root(best: np.ndarray, k: int) -> float:
+    tot = 0.0
+    for j in range(k):
+        tot += math.sqrt(best[j])
+    return tot / k
+
+
+@numba.njit(cache=True)
+def _knn_searched(z: np.ndarray, rows: np.ndarray, keys: np.ndarray, axis: np.ndarray, reach: float, lo: int,
+                  hi: int, k: int, best: np.ndarray, tau: float, enough: float) -> float:
+    """`_knn_score` of z over columns lo..hi−1 from the part's rows (M·(hi − lo),) flat, sorted by their
+    keys (M,) (projections on the unit axis (hi − lo,); reach: the rows' largest Σ|r_i|): module comment
+    above. Stops early, with a distance d ≥ the true one and d / tau ≤ enough, once that holds."""
+    w = hi - lo
+    n = keys.shape[0]
+    for j in range(k):
+        best[j] = np.inf
+    zk = 0.0
+    size = 0.0
+    for f in range(w):
+        zk += axis[f] * z[lo + f]
+        size += abs(z[lo + f])
+    slack = 1e-12 * (size + reach)
+    a, b = 0, n
+    while a < b:                              # the first row whose key is not below the query's
+        mid = (a + b) // 2
+        if keys[mid] < zk:
+            a = mid + 1
+        else:
+            b = mid
+    down, up = a - 1, a
+    while down >= 0 or up < n:
+        gd = zk - keys[down] if down >= 0 else np.inf
+        gu = keys[up] - zk if up < n else np.inf
+        if gd <= gu:
+            g, m = gd, down
+            down -= 1
+        else:
+            g, m = gu, up
+            up += 1
+        lim = best[k - 1]
+        g -= slack
+        if g > 0.0 and g * g > lim * (1.0 + 1e-12):      # this row and every one after: further than the k-th
+            break
+        s = 0.0
+        base = m * w
+        for f in range(w):
+            e = z[lo + f] - rows[base + f]
+            s += e * e
+            if s >= lim:
+                break
+        if s < lim:
+            j = k - 1
+            while j > 0 and best[j - 1] > s:
+                best[j] = best[j - 1]
+                j -= 1
+            best[j] = s
+            if best[k - 1] < np.inf and _mean_root(best, k) / tau <= enough:
+                break
+    return _mean_root(best, k)
+
+
+@numba.njit(cache=True)
+def _score(z: np.ndarray, rows: np.ndarray, keys: np.ndarray, axes: np.ndarray, reach: np.ndarray,
+           parts: np.ndarray, k: int, tau: np.ndarray, stats: np.ndarray, best: np.ndarray) -> float:
     """The OOD score of standardised features z (F,): the largest over parts [parts[p], parts[p+1]) of
     the k-NN distance over the part's calibration median tau[p], plus the excess beyond the trained
-    range [lo, hi] (F,) in units of RANGE_UNIT."""
+    range [stats[2], stats[3]] (F,) in units of RANGE_UNIT. rows, keys, axes, reach: a KnnIndex's."""
     worst = 0.0
+    n = keys.shape[1]
     for p in range(parts.shape[0] - 1):
-        worst = max(worst, _knn_score(z, ref, parts[p], parts[p + 1], k, best) / tau[p])
+        lo, hi = parts[p], parts[p + 1]
+        d = _knn_searched(z, rows[n * lo:n * hi], keys[p], axes[lo:hi], reach[p], lo, hi, k, best, tau[p],
+                          worst if p > 0 else -1.0)
+        worst = max(worst, d / tau[p])
     excess = 0.0
     for f in range(z.shape[0]):
-        excess += max(z[f] - hi[f], 0.0) + max(lo[f] - z[f], 0.0)
+        excess += max(z[f] - stats[3, f], 0.0) + max(stats[2, f] - z[f], 0.0)
     return worst + excess / RANGE_UNIT
 
 
 @numba.njit(cache=True)
-def stream_score(mode: int, n: int, rows: np.ndarray, count: int, center: np.ndarray, spread: np.ndarray,
-                 z: np.ndarray, ref: np.ndarray, parts: np.ndarray, k: int, tau: np.ndarray, lo: np.ndarray,
-                 hi: np.ndarray, best: np.ndarray) -> float:
-    """One streamed step's OOD score (one call: the features into z, then the score)."""
-    _stream_features(mode, n, rows, count, center, spread, z)
-    return _score(z, ref, parts, k, tau, lo, hi, best)
+def stream_step(mode: int, n: int, x: np.ndarray, joints: np.ndarray, history: np.ndarray, count: np.ndarray,
+                stats: np.ndarray, z: np.ndarray, rows: np.ndarray, keys: np.ndarray, axes: np.ndarray,
+                reach: np.ndarray, parts: np.ndarray, k: int, tau: np.ndarray, best: np.ndarray) -> float:
+    """One streamed step's OOD score, in one call: x (W,) (mode 2: the pose (6,) and joints (2N,)) pushed
+    as the newest of the last HISTORY + 1 raw inputs history (HISTORY + 1, W), count[0] of them held;
+    the features into z, then the score. stats (4, F): center, spread, trained lo, hi."""
+    c = count[0]
+    if c == HISTORY + 1:
+        for i in range(HISTORY):
+            for j in range(history.shape[1]):
+                history[i, j] = history[i + 1, j]
+    else:
+        c += 1
+        count[0] = c
+    row = history[c - 1]
+    for j in range(x.shape[0]):
+        row[j] = x[j]
+    if mode == 2:
+        for j in range(joints.shape[0]):
+            row[POSE + j] = joints[j]
+    _stream_features(mode, n, history, c, stats[0], stats[1], z)
+    return _score(z, rows, keys, axes, reach, parts, k, tau, stats, best)
 
 
 @numba.njit(cache=True)
 def part_scores(Z: np.ndarray, ref: np.ndarray, lo: int, hi: int, k: int) -> np.ndarray:
-    """(T,) k-NN distances of rows Z (T, F) over columns lo..hi−1."""
+    """(T,) k-NN distances of rows Z (T, F) over columns lo..hi−1 (brute force)."""
     out = np.empty(Z.shape[0])
     best = np.empty(k)
     for t in range(Z.shape[0]):
@@ -227,14 +322,47 @@ def part_scores(Z: np.ndarray, ref: np.ndarray, lo: int, hi: int, k: int) -> np.
 
 
 @numba.njit(cache=True)
-def batch_scores(Z: np.ndarray, ref: np.ndarray, parts: np.ndarray, k: int, tau: np.ndarray, lo: np.ndarray,
-                 hi: np.ndarray) -> np.ndarray:
+def batch_scores(Z: np.ndarray, rows: np.ndarray, keys: np.ndarray, axes: np.ndarray, reach: np.ndarray,
+                 parts: np.ndarray, k: int, tau: np.ndarray, stats: np.ndarray) -> np.ndarray:
     """(T,) OOD scores of standardised rows Z (T, F) (the same kernel as the stream's)."""
     out = np.empty(Z.shape[0])
     best = np.empty(k)
     for t in range(Z.shape[0]):
-        out[t] = _score(Z[t], ref, parts, k, tau, lo, hi, best)
+        out[t] = _score(Z[t], rows, keys, axes, reach, parts, k, tau, stats, best)
     return out
+
+
+@dataclass(frozen=True, eq=False)
+class KnnIndex:
+    """The reference rows (M, F) arranged for the searched scan (module comment above): rows (M·F,) part
+    after part, each part's block (M, w) contiguous and sorted by its key; keys (P, M) the sorted keys;
+    axes (F,) each part's unit principal axis in its columns; reach (P,) each part's largest Σ|r_i|."""
+
+    rows: np.ndarray
+    keys: np.ndarray
+    axes: np.ndarray
+    reach: np.ndarray
+
+    @classmethod
+    def of(cls, ref: np.ndarray, parts: np.ndarray) -> KnnIndex:
+        ref = np.asarray(ref, np.float64)
+        m, width = ref.shape
+        flat, axes = np.empty(m * width), np.zeros(width)
+        keys, reach = np.empty((len(parts) - 1, m)), np.zeros(len(parts) - 1)
+        for p, (lo, hi) in enumerate(itertools.pairwise(parts.tolist())):
+            block = ref[:, lo:hi]
+            axis = np.zeros(hi - lo)
+            axis[0] = 1.0
+            if m > 1:
+                centred = block - block.mean(axis=0)
+                axis = np.linalg.eigh(centred.T @ centred)[1][:, -1]
+            axis = axis / np.linalg.norm(axis)
+            key = block @ axis
+            order = np.argsort(key, kind="stable")
+            flat[m * lo:m * hi] = block[order].ravel()
+            keys[p], axes[lo:hi] = key[order], axis
+            reach[p] = float(np.abs(block).sum(axis=1).max()) if m else 0.0
+        return cls(flat, keys, axes, reach)
 
 
 def mode(inputs: str) -> int:
