@@ -3,6 +3,7 @@ with uncertainty ≤ 3× without): what the joint-aware IK score's generalised p
 
     python benchmarks/bench_ood_stream.py                      # against main before the change (dbab9a8)
     python benchmarks/bench_ood_stream.py --baseline REV [--baseline REV2 ...]
+    python benchmarks/bench_ood_stream.py --baseline REV --folder DIR/paper_fk   # a real FK (learned_loop --keep)
 
 The baseline's `ctrkin/models/uncertainty.py` (and its `ctrkin/models/ood.py` where it has one) is loaded from its `git archive` (benchmarks/
 bench_streaming.py's tree) beside this tree's, in one process: the same synthetic walks of a
@@ -21,8 +22,10 @@ import json
 import os
 import subprocess
 import sys
+import time
 import timeit
 from types import ModuleType
+from typing import Any
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
@@ -73,14 +76,72 @@ def best_us(step: object, x: np.ndarray) -> float:
     return min(timeit.repeat(lambda: step(x), number=300, repeat=3)) / 300 * 1e6  # type: ignore[operator]
 
 
+def per_step_us(fn: Any, xs: np.ndarray, reset: Any) -> list[float]:
+    """Each call of fn over the inputs xs (T, ·) of one sequence, timed alone (µs)."""
+    reset()
+    out = []
+    clock = time.perf_counter
+    for x in xs:
+        t0 = clock()
+        fn(x)
+        out.append((clock() - t0) * 1e6)
+    return out
+
+
+def folder_study(folder: str, olds: dict[str, ModuleType], rounds: int) -> dict[str, Any]:
+    """A calibrated FK folder's own OOD score, streamed along five walks of benchmarks/learned_loop.py's
+    training region (other draws than its training walks), with each baseline's kernel and this
+    tree's (scores checked equal), and Kinematics.step against step_uncertain (this tree): medians of
+    the steps timed one by one, in alternating rounds."""
+    import learned_loop  # benchmarks/, beside this file
+    from ctrkin import Kinematics
+
+    kin = Kinematics.load(folder)
+    if kin.task != "fk":
+        raise SystemExit("--folder takes a calibrated FK folder")
+    robot = kin.robot
+    rng = np.random.default_rng(12345)
+    xs = [learned_loop.walk(robot, rng, 40, **learned_loop.regions(robot)["train"]) for _ in range(5)]
+    streams = {f"{rev} FK stream": m.Uncertainty.load(folder).stream() for rev, m in olds.items()}
+    streams["this FK stream"] = new.Uncertainty.load(folder).stream()
+    want = [kin.uncertainty.ood_scores(x, [(0, len(x))]) for x in xs]  # type: ignore[union-attr]
+    for name, st in streams.items():
+        for x, w in zip(xs, want, strict=True):
+            st.reset()
+            if not np.allclose([st.step(q) for q in x], w, rtol=0, atol=1e-9):
+                raise SystemExit(f"{name}'s score differs from this tree's batch score: no comparison")
+    times: dict[str, list[float]] = {k: [] for k in (*streams, "step", "step_uncertain")}
+    for _ in range(rounds):
+        for x in xs:
+            for name, st in streams.items():
+                times[name] += per_step_us(st.step, x, st.reset)
+            times["step"] += per_step_us(kin.step, x, kin.reset)
+            times["step_uncertain"] += per_step_us(kin.step_uncertain, x, kin.reset)
+    med = {k: float(np.median(v)) for k, v in times.items()}
+    return {"folder": folder, "step_us": med, "ratio": med["step_uncertain"] / med["step"]}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--baseline", action="append", default=None,
                     help=f"a revision to time beside this tree, repeatable (default {BASELINE})")
     ap.add_argument("--rounds", type=int, default=20)
+    ap.add_argument("--folder", default=None,
+                    help="a calibrated FK folder (learned_loop.py --keep): its own score on walks, and its "
+                         "step with and without the uncertainty")
     args = ap.parse_args()
     revs = args.baseline or [BASELINE]
     olds = {rev: module_of(str(baseline_tree(rev)), rev) for rev in revs}
+    if args.folder:
+        res = folder_study(args.folder, olds, args.rounds)
+        load = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+        print(f"{args.folder}: one streamed step (µs, median over {args.rounds} rounds of 5 walks of 40 "
+              f"steps); {load}")
+        for k, v in res["step_us"].items():
+            print(f"  {k:30s} {v:7.2f}")
+        print(f"  step_uncertain / step          {res['ratio']:7.2f}")
+        print(json.dumps({"baselines": revs, **res, "uptime": load}))
+        return
     rng = np.random.default_rng(0)
     x, b = walks(rng, 40, 60)
     cx, cb = walks(rng, 20, 60)

@@ -168,16 +168,17 @@ def _stream_features(mode: int, n: int, rows: np.ndarray, count: int, center: np
 
 
 # --- the score ------------------------------------------------------------------------------------------
-# The k-NN scan is exact and searched: each part's reference rows are kept sorted by their projection on
-# the part's first principal axis v (the key; `KnnIndex`), contiguous part by part, and the scan walks
-# outward from the query's key, nearest key first. |v·(z − r)| ≤ ‖z − r‖ (‖v‖ = 1), so once the key's
-# gap, less δ (a bound on its rounding: 1e-12 × (Σ|z_i| + max_r Σ|r_i|), some 200 times the worst
-# error of the two dot products), squared, exceeds the k-th best squared distance (by a relative 1e-12,
-# beyond the rounding of a row's sum of squares), every row further along is further than the k-th:
-# the scan stops. And a part whose running distance (the mean of its k best so far, which only falls)
-# over its calibration median is already no larger than a part before it cannot change the score's
-# maximum: its scan stops there too. Each row's distance sums the part's columns in order as brute
-# force does, so the k nearest distances, and the score, are brute force's to the bit (tested).
+# The k-NN scan is exact and searched: each part's reference rows are kept in a k-d tree (`KnnIndex`:
+# median splits on the widest column down to leaves of at most LEAF rows, each node's rows contiguous,
+# its bounding box stored), visited nearest box first, and a box is skipped once the squared distance
+# from the query to it reaches the k-th best squared distance so far. That bound is exact in floating
+# point: for a row r in the box, |fl(z_f − r_f)| ≥ |fl(z_f − box_f)| column by column (rounding is
+# monotone), so the row's sum of squares, taken in the same column order, is at least the box's. And a
+# part whose running distance (the mean of its k best so far, which only falls) over its calibration
+# median is already no larger than a part before it cannot change the score's maximum: its search
+# stops there. Each row's distance sums the part's columns in order as brute force does, so the k
+# nearest distances, and the score, are brute force's to the bit (tested).
+LEAF = 16
 @numba.njit(cache=True)
 def _knn_score(z: np.ndarray, ref: np.ndarray, lo: int, hi: int, k: int, best: np.ndarray) -> float:
     """Mean Euclidean distance of z (F,) to its k nearest rows of ref (M, F), over columns lo..hi−1, by
@@ -213,71 +214,80 @@ def _mean_root(best: np.ndarray, k: int) -> float:
 
 
 @numba.njit(cache=True)
-def _knn_searched(z: np.ndarray, rows: np.ndarray, keys: np.ndarray, axis: np.ndarray, reach: float, lo: int,
-                  hi: int, k: int, best: np.ndarray, tau: float, enough: float) -> float:
-    """`_knn_score` of z over columns lo..hi−1 from the part's rows (M·(hi − lo),) flat, sorted by their
-    keys (M,) (projections on the unit axis (hi − lo,); reach: the rows' largest Σ|r_i|): module comment
-    above. Stops early, with a distance d ≥ the true one and d / tau ≤ enough, once that holds."""
+def _box_bound(z: np.ndarray, box: np.ndarray, lo: int, w: int) -> float:
+    """Squared distance from z's columns lo.. (w of them) to the box (2, ≥ w): the module comment's bound."""
+    s = 0.0
+    for f in range(w):
+        v = z[lo + f]
+        g = 0.0
+        if v < box[0, f]:
+            g = box[0, f] - v
+        elif v > box[1, f]:
+            g = v - box[1, f]
+        s += g * g
+    return s
+
+
+@numba.njit(cache=True)
+def _knn_searched(z: np.ndarray, rows: np.ndarray, tree: np.ndarray, boxes: np.ndarray, lo: int, hi: int, k: int,
+                  best: np.ndarray, stack: np.ndarray, bounds: np.ndarray, tau: float, enough: float) -> float:
+    """`_knn_score` of z over columns lo..hi−1 from the part's rows (M·(hi − lo),) flat in tree order,
+    tree (4, nodes) first row, end, left and right child (−1: a leaf), boxes (nodes, 2, ≥ w); stack,
+    bounds scratch (≥ tree depth + 1,). Stops early, with a distance d ≥ the true one and
+    d / tau ≤ enough, once that holds (module comment above)."""
     w = hi - lo
-    n = keys.shape[0]
     for j in range(k):
         best[j] = np.inf
-    zk = 0.0
-    size = 0.0
-    for f in range(w):
-        zk += axis[f] * z[lo + f]
-        size += abs(z[lo + f])
-    slack = 1e-12 * (size + reach)
-    a, b = 0, n
-    while a < b:                              # the first row whose key is not below the query's
-        mid = (a + b) // 2
-        if keys[mid] < zk:
-            a = mid + 1
+    stack[0] = 0
+    bounds[0] = _box_bound(z, boxes[0], lo, w)
+    top = 1
+    while top > 0:
+        top -= 1
+        node = stack[top]
+        if bounds[top] >= best[k - 1]:
+            continue
+        left = tree[2, node]
+        if left < 0:
+            for m in range(tree[0, node], tree[1, node]):
+                lim = best[k - 1]
+                s = 0.0
+                base = m * w
+                for f in range(w):
+                    e = z[lo + f] - rows[base + f]
+                    s += e * e
+                    if s >= lim:
+                        break
+                if s < lim:
+                    j = k - 1
+                    while j > 0 and best[j - 1] > s:
+                        best[j] = best[j - 1]
+                        j -= 1
+                    best[j] = s
+                    if best[k - 1] < np.inf and _mean_root(best, k) / tau <= enough:
+                        return _mean_root(best, k)
         else:
-            b = mid
-    down, up = a - 1, a
-    while down >= 0 or up < n:
-        gd = zk - keys[down] if down >= 0 else np.inf
-        gu = keys[up] - zk if up < n else np.inf
-        if gd <= gu:
-            g, m = gd, down
-            down -= 1
-        else:
-            g, m = gu, up
-            up += 1
-        lim = best[k - 1]
-        g -= slack
-        if g > 0.0 and g * g > lim * (1.0 + 1e-12):      # this row and every one after: further than the k-th
-            break
-        s = 0.0
-        base = m * w
-        for f in range(w):
-            e = z[lo + f] - rows[base + f]
-            s += e * e
-            if s >= lim:
-                break
-        if s < lim:
-            j = k - 1
-            while j > 0 and best[j - 1] > s:
-                best[j] = best[j - 1]
-                j -= 1
-            best[j] = s
-            if best[k - 1] < np.inf and _mean_root(best, k) / tau <= enough:
-                break
+            right = tree[3, node]
+            bl = _box_bound(z, boxes[left], lo, w)
+            br = _box_bound(z, boxes[right], lo, w)
+            if bl <= br:                     # the nearer child on top: visited first
+                stack[top], bounds[top], stack[top + 1], bounds[top + 1] = right, br, left, bl
+            else:
+                stack[top], bounds[top], stack[top + 1], bounds[top + 1] = left, bl, right, br
+            top += 2
     return _mean_root(best, k)
 
 
 @numba.njit(cache=True)
-def _score(z: np.ndarray, rows: np.ndarray, keys: np.ndarray, axes: np.ndarray, reach: np.ndarray,
-           parts: np.ndarray, k: int, tau: np.ndarray, stats: np.ndarray, best: np.ndarray) -> float:
+def _score(z: np.ndarray, rows: np.ndarray, tree: np.ndarray, boxes: np.ndarray, parts: np.ndarray, k: int,
+           tau: np.ndarray, stats: np.ndarray, best: np.ndarray, stack: np.ndarray, bounds: np.ndarray) -> float:
     """The OOD score of standardised features z (F,): the largest over parts [parts[p], parts[p+1]) of
     the k-NN distance over the part's calibration median tau[p], plus the excess beyond the trained
-    range [stats[2], stats[3]] (F,) in units of RANGE_UNIT. rows, keys, axes, reach: a KnnIndex's."""
+    range [stats[2], stats[3]] (F,) in units of RANGE_UNIT. rows, tree, boxes: a KnnIndex's."""
     worst = 0.0
-    n = keys.shape[1]
+    n = rows.shape[0] // stats.shape[1]
     for p in range(parts.shape[0] - 1):
         lo, hi = parts[p], parts[p + 1]
-        d = _knn_searched(z, rows[n * lo:n * hi], keys[p], axes[lo:hi], reach[p], lo, hi, k, best, tau[p],
+        d = _knn_searched(z, rows[n * lo:n * hi], tree, boxes[p], lo, hi, k, best, stack, bounds, tau[p],
                           worst if p > 0 else -1.0)
         worst = max(worst, d / tau[p])
     excess = 0.0
@@ -288,8 +298,9 @@ def _score(z: np.ndarray, rows: np.ndarray, keys: np.ndarray, axes: np.ndarray, 
 
 @numba.njit(cache=True)
 def stream_step(mode: int, n: int, x: np.ndarray, joints: np.ndarray, history: np.ndarray, count: np.ndarray,
-                stats: np.ndarray, z: np.ndarray, rows: np.ndarray, keys: np.ndarray, axes: np.ndarray,
-                reach: np.ndarray, parts: np.ndarray, k: int, tau: np.ndarray, best: np.ndarray) -> float:
+                stats: np.ndarray, z: np.ndarray, rows: np.ndarray, tree: np.ndarray, boxes: np.ndarray,
+                parts: np.ndarray, k: int, tau: np.ndarray, best: np.ndarray, stack: np.ndarray,
+                bounds: np.ndarray) -> float:
     """One streamed step's OOD score, in one call: x (W,) (mode 2: the pose (6,) and joints (2N,)) pushed
     as the newest of the last HISTORY + 1 raw inputs history (HISTORY + 1, W), count[0] of them held;
     the features into z, then the score. stats (4, F): center, spread, trained lo, hi."""
@@ -308,7 +319,7 @@ def stream_step(mode: int, n: int, x: np.ndarray, joints: np.ndarray, history: n
         for j in range(joints.shape[0]):
             row[POSE + j] = joints[j]
     _stream_features(mode, n, history, c, stats[0], stats[1], z)
-    return _score(z, rows, keys, axes, reach, parts, k, tau, stats, best)
+    return _score(z, rows, tree, boxes, parts, k, tau, stats, best, stack, bounds)
 
 
 @numba.njit(cache=True)
@@ -322,47 +333,68 @@ def part_scores(Z: np.ndarray, ref: np.ndarray, lo: int, hi: int, k: int) -> np.
 
 
 @numba.njit(cache=True)
-def batch_scores(Z: np.ndarray, rows: np.ndarray, keys: np.ndarray, axes: np.ndarray, reach: np.ndarray,
-                 parts: np.ndarray, k: int, tau: np.ndarray, stats: np.ndarray) -> np.ndarray:
+def batch_scores(Z: np.ndarray, rows: np.ndarray, tree: np.ndarray, boxes: np.ndarray, parts: np.ndarray, k: int,
+                 tau: np.ndarray, stats: np.ndarray) -> np.ndarray:
     """(T,) OOD scores of standardised rows Z (T, F) (the same kernel as the stream's)."""
     out = np.empty(Z.shape[0])
     best = np.empty(k)
+    stack = np.empty(tree.shape[1], np.int64)
+    bounds = np.empty(tree.shape[1])
     for t in range(Z.shape[0]):
-        out[t] = _score(Z[t], rows, keys, axes, reach, parts, k, tau, stats, best)
+        out[t] = _score(Z[t], rows, tree, boxes, parts, k, tau, stats, best, stack, bounds)
     return out
+
+
+def _tree(m: int, leaf: int) -> np.ndarray:
+    """(4, nodes) the k-d tree's shape over m rows (the same for every part: split by count): each
+    node's first row, end, left and right child (−1 at a leaf), in preorder."""
+    nodes: list[list[int]] = []
+
+    def build(a: int, b: int) -> int:
+        me = len(nodes)
+        nodes.append([a, b, -1, -1])
+        if b - a > leaf:
+            h = a + (b - a) // 2
+            nodes[me][2] = build(a, h)
+            nodes[me][3] = build(h, b)
+        return me
+
+    build(0, m)
+    return np.ascontiguousarray(np.array(nodes, np.int64).reshape(-1, 4).T)
 
 
 @dataclass(frozen=True, eq=False)
 class KnnIndex:
     """The reference rows (M, F) arranged for the searched scan (module comment above): rows (M·F,) part
-    after part, each part's block (M, w) contiguous and sorted by its key; keys (P, M) the sorted keys;
-    axes (F,) each part's unit principal axis in its columns; reach (P,) each part's largest Σ|r_i|."""
+    after part, each part's block (M, w) contiguous in its tree's order; tree (4, nodes) the trees'
+    common shape (`_tree`); boxes (P, nodes, 2, max w) each node's bounding box (lo, hi) in its part's
+    columns."""
 
     rows: np.ndarray
-    keys: np.ndarray
-    axes: np.ndarray
-    reach: np.ndarray
+    tree: np.ndarray
+    boxes: np.ndarray
 
     @classmethod
-    def of(cls, ref: np.ndarray, parts: np.ndarray) -> KnnIndex:
+    def of(cls, ref: np.ndarray, parts: np.ndarray, leaf: int = LEAF) -> KnnIndex:
         ref = np.asarray(ref, np.float64)
         m, width = ref.shape
-        flat, axes = np.empty(m * width), np.zeros(width)
-        keys, reach = np.empty((len(parts) - 1, m)), np.zeros(len(parts) - 1)
-        for p, (lo, hi) in enumerate(itertools.pairwise(parts.tolist())):
+        tree = _tree(m, leaf)
+        spans = list(itertools.pairwise(parts.tolist()))
+        flat = np.empty(m * width)
+        boxes = np.zeros((len(spans), tree.shape[1], 2, max([b - a for a, b in spans], default=0)))
+        for p, (lo, hi) in enumerate(spans):
             block = ref[:, lo:hi]
-            axis = np.zeros(hi - lo)
-            axis[0] = 1.0
-            if m > 1:
-                centred = block - block.mean(axis=0)
-                axis = np.linalg.eigh(centred.T @ centred)[1][:, -1]
-            axis = axis / np.linalg.norm(axis)
-            key = block @ axis
-            order = np.argsort(key, kind="stable")
+            order = np.arange(m)
+            for node in range(tree.shape[1]):    # preorder: a node's rows are in place before it splits them
+                a, b, left, _ = tree[:, node]
+                rows = block[order[a:b]]
+                if len(rows):
+                    boxes[p, node, 0, :hi - lo], boxes[p, node, 1, :hi - lo] = rows.min(axis=0), rows.max(axis=0)
+                if left >= 0:
+                    col = int(np.argmax(np.ptp(rows, axis=0)))
+                    order[a:b] = order[a:b][np.argsort(rows[:, col], kind="stable")]
             flat[m * lo:m * hi] = block[order].ravel()
-            keys[p], axes[lo:hi] = key[order], axis
-            reach[p] = float(np.abs(block).sum(axis=1).max()) if m else 0.0
-        return cls(flat, keys, axes, reach)
+        return cls(flat, tree, boxes)
 
 
 def mode(inputs: str) -> int:

@@ -227,8 +227,8 @@ class Uncertainty:
         further from training)."""
         z = (sequence_features(self.inputs, self.n_tubes, x, bounds) - self.center) / self.spread
         ix = self.knn_index
-        return batch_scores(np.ascontiguousarray(z), ix.rows, ix.keys, ix.axes, ix.reach, self.parts, self.k,
-                            self.tau, self.stats)
+        return batch_scores(np.ascontiguousarray(z), ix.rows, ix.tree, ix.boxes, self.parts, self.k, self.tau,
+                            self.stats)
 
     def half_widths(self) -> np.ndarray:
         """The interval's half widths: FK (3,) the ball's radius on each axis (mm); IK (2N,) deg, mm."""
@@ -296,8 +296,8 @@ class UncertainStream:
         self._best = np.empty(max(unc.k, 1))
         self._none = np.zeros(0)
         ix = unc.knn_index
-        self._args = (unc.stats, self._z, ix.rows, ix.keys, ix.axes, ix.reach, unc.parts, unc.k, unc.tau,
-                      self._best)
+        self._args = (unc.stats, self._z, ix.rows, ix.tree, ix.boxes, unc.parts, unc.k, unc.tau, self._best,
+                      np.empty(ix.tree.shape[1], np.int64), np.empty(ix.tree.shape[1]))
         self.half_widths = unc.half_widths()          # the same every step
         self.half_widths.flags.writeable = False
         self.reset()
