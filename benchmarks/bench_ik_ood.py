@@ -83,8 +83,8 @@ def record(robot: Robot, vr: VirtualRobot, rng: np.random.Generator, seed: int, 
     """Held-out in-range walks (4 × per_kind: half calibrate, half are scored) and per_kind walks of
     each OOD kind (one set: validation or test)."""
     reg = learned_loop.regions(robot)
-    held = learned_loop.record_walks(vr, learned_loop.region_walks(robot, rng, reg["train"], 4 * per_kind, 40),
-                                     seed, first_id=first_id)
+    walks = learned_loop.region_walks(robot, rng, reg["train"], 4 * per_kind, 40)
+    held = learned_loop.record_walks(vr, walks, seed, first_id=first_id)
     ood = {k: learned_loop.record_walks(vr, learned_loop.region_walks(robot, rng, reg[k], per_kind, 40),
                                         seed + 1 + i, first_id=first_id + 10_000 * (i + 1))
            for i, k in enumerate(KINDS)}
@@ -121,7 +121,8 @@ def aurocs_of(walks: dict[str, list[np.ndarray]]) -> dict[str, float]:
     return row | {k: learned_loop.auroc(inside, v) for k, v in outside.items()}
 
 
-def bootstrap_all(forms: dict[str, dict[str, list[np.ndarray]]], rounds: int, seed: int) -> dict[str, np.ndarray]:
+def bootstrap_all(forms: dict[str, dict[str, list[np.ndarray]]], rounds: int, seed: int
+                  ) -> dict[str, np.ndarray]:
     """(rounds,) "all" AUROC of each form on the same resamples of walks (paired: every form sees the
     same walks drawn with replacement, within the in-range set and within each kind)."""
     rng = np.random.default_rng(seed)
@@ -136,8 +137,8 @@ def bootstrap_all(forms: dict[str, dict[str, list[np.ndarray]]], rounds: int, se
     return {f: np.asarray(v) for f, v in out.items()}
 
 
-def choose(val: dict[str, dict[str, list[np.ndarray]]], res: dict[str, dict[str, float]], candidates: list[str],
-           rounds: int, seed: int) -> dict[str, Any]:
+def choose(val: dict[str, dict[str, list[np.ndarray]]], res: dict[str, dict[str, float]],
+           candidates: list[str], rounds: int, seed: int) -> dict[str, Any]:
     """The candidate with the largest validation AUROC over every kind, and how sure: against each
     other candidate, the bootstrap's difference (5-95 %) and the share of resamples it wins."""
     chosen = max(candidates, key=lambda f: res[f]["all"])
@@ -212,9 +213,9 @@ def main() -> None:
     picks = {task: choose(walks["validation"], res["validation"], forms, args.bootstrap, args.seed)
              for task, forms in CANDIDATES.items()}
     chosen = {p["chosen"] for p in picks.values()}
-    print(f"OOD score on the {robot.name} robot (virtual, defaults, seed {args.seed}; {args.validation_walks} "
-          f"validation and {args.test_walks} test walks of each kind): AUROC, held-out in-range walks against "
-          "each kind; * the form chosen on validation (FK, IK)")
+    print(f"OOD score on the {robot.name} robot (virtual, defaults, seed {args.seed}; "
+          f"{args.validation_walks} validation and {args.test_walks} test walks of each kind): AUROC, "
+          "held-out in-range walks against each kind; * the form chosen on validation (FK, IK)")
     print(f"{'walks':10s} {'scored input, parts':32s} {'all':>6s} " + " ".join(f"{k:>11s}" for k in KINDS))
     for part_name, rows in res.items():
         for name, row in rows.items():
@@ -224,8 +225,9 @@ def main() -> None:
     for task, p in picks.items():
         for f, a in p["against"].items():
             lo, hi = a["difference_p5_p95"]
-            print(f"{task.upper()} validation: {p['chosen']} minus {f}: {a['difference']:+.3f} (bootstrap over "
-                  f"walks, 5-95 %: {lo:+.3f} to {hi:+.3f}; wins {a['wins_share']:.2f} of {args.bootstrap})")
+            print(f"{task.upper()} validation: {p['chosen']} minus {f}: {a['difference']:+.3f} (bootstrap "
+                  f"over walks, 5-95 %: {lo:+.3f} to {hi:+.3f}; wins {a['wins_share']:.2f} of "
+                  f"{args.bootstrap})")
     held, ood = sets["test"]
     ik_chosen = picks["ik"]["chosen"]
     dist = combination_distance(robot, train, held, ood["combination"], fitted[f"test/{ik_chosen}"])

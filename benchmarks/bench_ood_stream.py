@@ -3,15 +3,18 @@ with uncertainty ≤ 3× without): what the joint-aware IK score's generalised p
 
     python benchmarks/bench_ood_stream.py                      # against main before the change (dbab9a8)
     python benchmarks/bench_ood_stream.py --baseline REV [--baseline REV2 ...]
-    python benchmarks/bench_ood_stream.py --baseline REV --folder DIR/paper_fk   # a real FK (learned_loop --keep)
+    python benchmarks/bench_ood_stream.py --baseline REV --folder DIR/paper_fk   # a real FK
+                                                               # (learned_loop.py --keep DIR)
 
-The baseline's `ctrkin/models/uncertainty.py` (and its `ctrkin/models/ood.py` where it has one) is loaded from its `git archive` (benchmarks/
-bench_streaming.py's tree) beside this tree's, in one process: the same synthetic walks of a
-two-tube robot (40 of 60 steps to train on, 20 to calibrate; 1,000 reference rows), both scores
-checked equal (to 1e-9), then `UncertainStream.step` of each timed in alternating rounds (the load falls on
-both alike): medians over rounds of the best of 3 × 300 calls, µs. Also the IK score (pose and
-joints, four parts) on the same walks with random poses beside them, of this tree and of each
-baseline that has it (uncertainty format 2 on). Prints `uptime` and ends with one JSON line.
+The baseline's `ctrkin/models/uncertainty.py` (and its `ctrkin/models/ood.py` where it has one) is
+loaded from its `git archive` (benchmarks/bench_streaming.py's tree) beside this tree's, in one
+process: the same synthetic walks of a two-tube robot (40 of 60 steps to train on, 20 to calibrate;
+1,000 reference rows), the scores checked equal (to 1e-9), then `UncertainStream.step` of each timed
+in alternating rounds (the load falls on all alike): medians over rounds of the best of 3 × 300
+calls, µs. Also the IK score (pose and joints, four parts) on the same walks with random poses
+beside them, of this tree and of each baseline that has it (uncertainty format 2 on). With
+--folder, a calibrated FK's own score instead (folder_study). Prints `uptime` and ends with one
+JSON line.
 """
 
 from __future__ import annotations
@@ -57,7 +60,8 @@ def module_of(src: str, rev: str) -> ModuleType:
     if not os.path.exists(f"{src}/ctrkin/models/ood.py"):
         return _load(name, path)
     _load(f"ood_{rev}", f"{src}/ctrkin/models/ood.py")
-    text = open(path, encoding="utf-8").read().replace("from ctrkin.models.ood import", f"from ood_{rev} import")
+    text = open(path, encoding="utf-8").read()
+    text = text.replace("from ctrkin.models.ood import", f"from ood_{rev} import")
     return _load(name, path, text)
 
 
@@ -156,8 +160,8 @@ def main() -> None:
             raise SystemExit(f"{name}'s FK score differs from this tree's: not the same score, no comparison")
     poses = rng.normal(0, 1, (len(x), 6)), rng.normal(0, 1, (len(cx), 6))
     ik_fit = (np.hstack([poses[0], x]), b, np.hstack([poses[1], cx]), cb, np.zeros((len(cx), 4)))
-    iks = {f"{rev} IK (pose + joints)": m.Uncertainty.fit("ik", 2, *ik_fit).stream() for rev, m in olds.items()
-           if getattr(m, "FORMAT", 1) >= 2}
+    iks = {f"{rev} IK (pose + joints)": m.Uncertainty.fit("ik", 2, *ik_fit).stream()
+           for rev, m in olds.items() if getattr(m, "FORMAT", 1) >= 2}
     iks["this IK (pose + joints)"] = new.Uncertainty.fit("ik", 2, *ik_fit).stream()
     times: dict[str, list[float]] = {k: [] for k in (*streams, *iks)}
     row = np.hstack([poses[0][10], x[10]])
@@ -181,7 +185,8 @@ def main() -> None:
     for rev in revs:
         print(f"  this FK − {rev} FK{'':{max(0, 15 - len(rev))}s} {med['this FK'] - med[f'{rev} FK']:+7.2f}")
     print(json.dumps({"baselines": revs, "step_us": med,
-                      "fk_extra_us": {rev: med["this FK"] - med[f"{rev} FK"] for rev in revs}, "uptime": load}))
+                      "fk_extra_us": {rev: med["this FK"] - med[f"{rev} FK"] for rev in revs},
+                      "uptime": load}))
 
 
 if __name__ == "__main__":

@@ -254,7 +254,8 @@ def control_study(robot: Robot, vr: VirtualRobot, folder: Path, quick: bool, see
             "dropout_stopped_at": drop.stopped_at, "dropout_held_still": held}
 
 
-def run(quick: bool, seed: int = 0, robots: tuple[str, ...] = ROBOTS, keep: Path | None = None) -> dict[str, Any]:
+def run(quick: bool, seed: int = 0, robots: tuple[str, ...] = ROBOTS, keep: Path | None = None
+        ) -> dict[str, Any]:
     """Every study on every robot (the control loop on the first); one dict of figures. keep: a folder
     to leave the calibrated models in (ROBOT_fk, ROBOT_ik), else they go with a temporary folder."""
     out: dict[str, Any] = {}

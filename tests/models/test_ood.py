@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -49,7 +51,8 @@ def test_searched_scan_is_brute_force_to_the_bit(k):
                    np.full((1, width), 1e200)])            # squares that overflow
     tau = rng.uniform(0.3, 3.0, len(parts) - 1)
     lo, hi = ref.min(axis=0), ref.max(axis=0)
-    assert np.array_equal(searched(z, ref, parts, k, tau, lo, hi), brute_scores(z, ref, parts, k, tau, lo, hi))
+    want = brute_scores(z, ref, parts, k, tau, lo, hi)
+    assert np.array_equal(searched(z, ref, parts, k, tau, lo, hi), want)
 
 
 def test_a_part_that_cannot_raise_the_maximum_stops_early_and_changes_nothing():
@@ -59,7 +62,8 @@ def test_a_part_that_cannot_raise_the_maximum_stops_early_and_changes_nothing():
     z = rng.normal(size=(200, 9))
     lo, hi = np.full(9, -1e9), np.full(9, 1e9)
     for tau in (np.array([0.01, 100.0]), np.array([100.0, 0.01]), np.array([1.0, 1.0])):
-        assert np.array_equal(searched(z, ref, parts, 5, tau, lo, hi), brute_scores(z, ref, parts, 5, tau, lo, hi))
+        want = brute_scores(z, ref, parts, 5, tau, lo, hi)
+        assert np.array_equal(searched(z, ref, parts, 5, tau, lo, hi), want)
 
 
 def test_a_nan_query_scores_as_brute_force_does():
@@ -87,12 +91,13 @@ def test_the_trees_boxes_hold_their_rows_and_the_leaves_cover_every_row_once():
     assert sorted(r for n in leaves for r in range(first[n], end[n])) == list(range(53))
     inner = np.flatnonzero(left >= 0)
     assert np.all(first[left[inner]] == first[inner]) and np.all(end[right[inner]] == end[inner])
-    for p, (a, b) in enumerate(zip(parts[:-1], parts[1:], strict=True)):
+    for p, (a, b) in enumerate(itertools.pairwise(parts.tolist())):
         block = ix.rows[53 * a:53 * b].reshape(53, b - a)
         assert sorted(map(tuple, block)) == sorted(map(tuple, ref[:, a:b]))
         for node in range(ix.tree.shape[1]):
             rows = block[first[node]:end[node]]
-            assert np.all(rows >= ix.boxes[p, node, 0, :b - a]) and np.all(rows <= ix.boxes[p, node, 1, :b - a])
+            box = ix.boxes[p, node, :, :b - a]
+            assert np.all(rows >= box[0]) and np.all(rows <= box[1])
 
 
 @pytest.mark.parametrize("leaf", [1, 2, 8, 64, 1000])

@@ -229,8 +229,9 @@ def _box_bound(z: np.ndarray, box: np.ndarray, lo: int, w: int) -> float:
 
 
 @numba.njit(cache=True)
-def _knn_searched(z: np.ndarray, rows: np.ndarray, tree: np.ndarray, boxes: np.ndarray, lo: int, hi: int, k: int,
-                  best: np.ndarray, stack: np.ndarray, bounds: np.ndarray, tau: float, enough: float) -> float:
+def _knn_searched(z: np.ndarray, rows: np.ndarray, tree: np.ndarray, boxes: np.ndarray, lo: int, hi: int,
+                  k: int, best: np.ndarray, stack: np.ndarray, bounds: np.ndarray, tau: float,
+                  enough: float) -> float:
     """`_knn_score` of z over columns lo..hi−1 from the part's rows (M·(hi − lo),) flat in tree order,
     tree (4, nodes) first row, end, left and right child (−1: a leaf), boxes (nodes, 2, ≥ w); stack,
     bounds scratch (≥ tree depth + 1,). Stops early, with a distance d ≥ the true one and
@@ -279,7 +280,8 @@ def _knn_searched(z: np.ndarray, rows: np.ndarray, tree: np.ndarray, boxes: np.n
 
 @numba.njit(cache=True)
 def _score(z: np.ndarray, rows: np.ndarray, tree: np.ndarray, boxes: np.ndarray, parts: np.ndarray, k: int,
-           tau: np.ndarray, stats: np.ndarray, best: np.ndarray, stack: np.ndarray, bounds: np.ndarray) -> float:
+           tau: np.ndarray, stats: np.ndarray, best: np.ndarray, stack: np.ndarray,
+           bounds: np.ndarray) -> float:
     """The OOD score of standardised features z (F,): the largest over parts [parts[p], parts[p+1]) of
     the k-NN distance over the part's calibration median tau[p], plus the excess beyond the trained
     range [stats[2], stats[3]] (F,) in units of RANGE_UNIT. rows, tree, boxes: a KnnIndex's."""
@@ -333,8 +335,8 @@ def part_scores(Z: np.ndarray, ref: np.ndarray, lo: int, hi: int, k: int) -> np.
 
 
 @numba.njit(cache=True)
-def batch_scores(Z: np.ndarray, rows: np.ndarray, tree: np.ndarray, boxes: np.ndarray, parts: np.ndarray, k: int,
-                 tau: np.ndarray, stats: np.ndarray) -> np.ndarray:
+def batch_scores(Z: np.ndarray, rows: np.ndarray, tree: np.ndarray, boxes: np.ndarray, parts: np.ndarray,
+                 k: int, tau: np.ndarray, stats: np.ndarray) -> np.ndarray:
     """(T,) OOD scores of standardised rows Z (T, F) (the same kernel as the stream's)."""
     out = np.empty(Z.shape[0])
     best = np.empty(k)
@@ -389,7 +391,8 @@ class KnnIndex:
                 a, b, left, _ = tree[:, node]
                 rows = block[order[a:b]]
                 if len(rows):
-                    boxes[p, node, 0, :hi - lo], boxes[p, node, 1, :hi - lo] = rows.min(axis=0), rows.max(axis=0)
+                    boxes[p, node, 0, :hi - lo] = rows.min(axis=0)
+                    boxes[p, node, 1, :hi - lo] = rows.max(axis=0)
                 if left >= 0:
                     col = int(np.argmax(np.ptp(rows, axis=0)))
                     order[a:b] = order[a:b][np.argsort(rows[:, col], kind="stable")]

@@ -23,10 +23,11 @@ arrays stay where callers read them (ctrkin.models.predictor: "an uncertainty be
   motion at the tracker's noise, nor a joint combination never recorded that reaches a recorded
   pose. The columns fall into parts (FK: configuration, history; IK: by default pose, joints, pose
   history, joints history, each its own). Each part gets the mean distance to the k nearest of up to
-  `max_reference` (1,000) training rows in that part (brute force in numba: the same kernel for batch
-  and streaming, so both give the same score), over its median on the calibration rows; the score is
-  the largest part's (a joint combination never visited stands out in its few columns, not diluted
-  by the others', and the reverse), plus the features' excess beyond their trained ranges in units
+  `max_reference` (1,000) training rows in that part (an exact k-d tree search in numba, brute
+  force's distances to the bit: the same kernel for batch and streaming, so both give the same
+  score), over its median on the calibration rows; the score is the largest part's (a joint
+  combination never visited stands out in its few columns, not diluted by the others', and the
+  reverse), plus the features' excess beyond their trained ranges in units
   of 1 % of their spread (outside the trained range is out of distribution however near: the score
   then passes every in-range neighbour distance). Joints beyond the trained ranges, combinations the
   protocols never visited and histories unlike the recorded ones (larger steps, reversals) all land
@@ -319,7 +320,7 @@ class UncertainStream:
             q = np.asarray(joints, np.float64)
             if q.shape != (self._width - POSE,):
                 raise ModelError(f"the IK's OOD score takes ({self._width - POSE},) joints, got {q.shape}")
-        return stream_step(self._mode, self.unc.n_tubes, x, q, self._rows, self._count,  # type: ignore[no-any-return]
+        return stream_step(self._mode, self.unc.n_tubes, x, q, self._rows, self._count,
                            *self._args)
 
 
