@@ -325,6 +325,27 @@ def stream_step(mode: int, n: int, x: np.ndarray, joints: np.ndarray, history: n
 
 
 @numba.njit(cache=True)
+def sequence_scores(mode: int, n: int, x: np.ndarray, starts: np.ndarray, ends: np.ndarray, stats: np.ndarray,
+                    rows: np.ndarray, tree: np.ndarray, boxes: np.ndarray, parts: np.ndarray, k: int,
+                    tau: np.ndarray) -> np.ndarray:
+    """(T,) OOD scores of raw inputs x (T, W) (the stream's rows) in sequences [starts[s], ends[s]) that
+    cover every row: each row's features by the stream's kernel from the last HISTORY + 1 rows of its
+    sequence, then the same score, so the batch is the stream to the bit."""
+    out = np.empty(x.shape[0])
+    z = np.empty(stats.shape[1])
+    best = np.empty(k)
+    stack = np.empty(tree.shape[1], np.int64)
+    bounds = np.empty(tree.shape[1])
+    for s in range(starts.shape[0]):
+        a, b = starts[s], ends[s]
+        for t in range(a, b):
+            lo = max(a, t - HISTORY)
+            _stream_features(mode, n, x[lo:t + 1], t + 1 - lo, stats[0], stats[1], z)
+            out[t] = _score(z, rows, tree, boxes, parts, k, tau, stats, best, stack, bounds)
+    return out
+
+
+@numba.njit(cache=True)
 def part_scores(Z: np.ndarray, ref: np.ndarray, lo: int, hi: int, k: int) -> np.ndarray:
     """(T,) k-NN distances of rows Z (T, F) over columns lo..hi−1 (brute force)."""
     out = np.empty(Z.shape[0])

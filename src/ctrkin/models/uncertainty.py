@@ -61,12 +61,12 @@ from ctrkin.models.ood import (
     POSE,
     SPLITS,
     KnnIndex,
-    batch_scores,
     input_width,
     mode,
     part_bounds,
     part_scores,
     sequence_features,
+    sequence_scores,
     stream_step,
     wrap_deg,
 )
@@ -226,10 +226,19 @@ class Uncertainty:
     def ood_scores(self, x: np.ndarray, bounds: list[tuple[int, int]]) -> np.ndarray:
         """(T,) OOD scores of scored inputs x (T, ·) (Uncertainty.fit) in sequences `bounds` (larger:
         further from training)."""
-        z = (sequence_features(self.inputs, self.n_tubes, x, bounds) - self.center) / self.spread
+        x = np.ascontiguousarray(np.atleast_2d(np.asarray(x, np.float64)))
+        width = input_width(self.inputs, self.n_tubes)
+        if x.shape[1] != width:
+            raise ModelError(f"the {self.inputs!r} OOD score takes rows of {width} columns, got {x.shape[1]}")
+        covered = np.zeros(len(x), bool)
+        for a, b in bounds:
+            covered[a:b] = True
+        alone = np.flatnonzero(~covered)                 # a row of no sequence: a sequence of its own
+        starts = np.array([a for a, _ in bounds] + alone.tolist(), np.int64)
+        ends = np.array([b for _, b in bounds] + (alone + 1).tolist(), np.int64)
         ix = self.knn_index
-        return batch_scores(np.ascontiguousarray(z), ix.rows, ix.tree, ix.boxes, self.parts, self.k, self.tau,
-                            self.stats)
+        return sequence_scores(mode(self.inputs), self.n_tubes, x, starts, ends, self.stats, ix.rows, ix.tree,
+                               ix.boxes, self.parts, self.k, self.tau)
 
     def half_widths(self) -> np.ndarray:
         """The interval's half widths: FK (3,) the ball's radius on each axis (mm); IK (2N,) deg, mm."""
