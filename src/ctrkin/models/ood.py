@@ -90,7 +90,9 @@ def _history(length: int, dim: int, bounds: list[tuple[int, int]], per_run: list
 
 def sequence_features(inputs: str, n_tubes: int, x: np.ndarray, bounds: list[tuple[int, int]]) -> np.ndarray:
     """OOD features (T, F) of raw inputs x (T, input_width) split into sequences [a, b): the blocks of
-    the module docstring (the changes zero before a sequence's start: a robot at rest before it)."""
+    the module docstring (the changes zero before a sequence's start: a robot at rest before it). The
+    training and calibration rows' (center, spread, reference, tau); scores take each row's features
+    from the stream's kernel (`sequence_scores`), equal to these to rounding."""
     x = np.atleast_2d(np.asarray(x, float))
     n = n_tubes
     blocks_cfg, blocks_hist = [], []
