@@ -111,3 +111,20 @@ def test_every_leaf_size_gives_brute_forces_score(leaf):
     stats = np.ascontiguousarray(np.vstack([np.zeros(10), np.ones(10), lo, hi]))
     got = batch_scores(z, ix.rows, ix.tree, ix.boxes, parts, 5, tau, stats)
     assert np.array_equal(got, brute_scores(z, ref, parts, 5, tau, lo, hi))
+
+
+@pytest.mark.parametrize("inputs", ["joints", "pose", "pose+joints"])
+def test_the_streams_feature_kernel_is_sequence_features_to_rounding(inputs):
+    from ctrkin.models.ood import HISTORY, _stream_features, input_width, mode, sequence_features
+
+    rng = np.random.default_rng(1)
+    x = rng.normal(0, 40, (25, input_width(inputs, 3)))
+    bounds = [(0, 1), (1, 12), (12, 25)]
+    want = sequence_features(inputs, 3, x, bounds)
+    got = np.empty_like(want)
+    for a, b in bounds:
+        for t in range(a, b):
+            lo = max(a, t - HISTORY)
+            _stream_features(mode(inputs), 3, x[lo:t + 1], t + 1 - lo, np.zeros(want.shape[1]),
+                             np.ones(want.shape[1]), got[t])
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
