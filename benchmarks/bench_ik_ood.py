@@ -1,23 +1,28 @@
-"""The IK's out-of-distribution score (issue 24, goal 2): AUROC of held-out in-range walks against
-each out-of-distribution kind, for the score on the target pose alone (the IK's score before, an
-uncertainty file of format 1) and the joint-aware score (the pose and the robot's joints when it
-was asked, ctrkin.models.ood) with its two splits into k-NN parts; and how far the "unseen
-combination" walks lie from the training rows.
+"""The out-of-distribution score's form, chosen on validation walks (issue 24, goal 2): AUROC of
+held-out in-range walks against each out-of-distribution kind, for the IK's score on the target pose
+alone (the IK's score before, an uncertainty file of format 1), the joint-aware IK score (the pose and
+the robot's joints when it was asked, ctrkin.models.ood) with its splits into k-NN parts, and the FK's
+score (the joints) with its splits; and how far the "unseen combination" walks lie from the training
+rows.
 
-    python benchmarks/bench_ik_ood.py                          # paper robot, quick walks (~2 min)
+    python benchmarks/bench_ik_ood.py                          # paper robot (~10 min at load 2)
     python benchmarks/bench_ik_ood.py --robot design-b         # bench_generalisation's second design
     python benchmarks/bench_ik_ood.py --robot examples/robots/comet_nylon_ndi.toml
+    python benchmarks/bench_ik_ood.py --validation-walks 12 --test-walks 12   # the earlier, smaller sets
 
-The walks, regions and AUROC are benchmarks/learned_loop.py's (quick sizes: 24 training walks of 120
-steps, 48 held-out walks of 40, 12 of each OOD kind), recorded on the virtual robot at its defaults.
-The score is the library's (ctrkin.inference.uncertainty.scored_inputs: from a recording, the joints
-when a pose was asked are the row before's). No model is trained: the score reads only the inputs
-(the IK's errors set its interval, not its OOD score), so the errors passed are zeros.
+The walks, regions and AUROC are benchmarks/learned_loop.py's (24 training walks of 120 steps; in each
+of a validation and a test set, other seeds: 4 × W held-out in-range walks of 40 steps and W of each
+OOD kind, W = 48 by default), recorded on the virtual robot at its defaults. The score is the
+library's (ctrkin.inference.uncertainty.scored_inputs: from a recording, the joints when a pose was
+asked are the row before's). No model is trained: the score reads only the inputs (a model's errors
+set its interval, not its OOD score), so the errors passed are zeros.
 
-The form is chosen on validation walks (a second held-out set and a second set of each OOD kind,
-other seeds): the form with the larger validation AUROC over every kind. The test walks report every
-form; the chosen one is marked. Calibrated on the first half of each held-out set, scored on the
-other half. Ends with one JSON line.
+Each task's form (IK: the joint-aware splits; FK: its splits) is the one with the larger validation
+AUROC over every kind; how sure the choice is comes from a paired bootstrap over the validation walks
+(each resample draws walks with replacement within the in-range set and within each kind, the same
+walks for every form): the difference's 5-95 % and the share of resamples the chosen form wins. The
+test walks report every form; the chosen ones are marked. Calibrated on the first half of each
+held-out set, scored on the other half. Ends with one JSON line.
 """
 
 from __future__ import annotations
@@ -44,7 +49,11 @@ KINDS = ("range", "combination", "steps", "reversals")
 FORMS = {"pose (before)": ("pose", "config-history"),
          "pose + joints, config-history": ("pose+joints", "config-history"),
          "pose + joints, blocks": ("pose+joints", "blocks"),
-         "pose + joints, fine": ("pose+joints", "fine")}
+         "pose + joints, fine": ("pose+joints", "fine"),
+         "FK joints, blocks": ("joints", "blocks"),
+         "FK joints, fine": ("joints", "fine")}
+CANDIDATES = {"ik": [f for f, (i, _) in FORMS.items() if i == "pose+joints"],
+              "fk": [f for f, (i, _) in FORMS.items() if i == "joints"]}
 
 
 def bounds(ds: Dataset) -> list[tuple[int, int]]:
@@ -53,6 +62,8 @@ def bounds(ds: Dataset) -> list[tuple[int, int]]:
 
 def scored(ds: Dataset, inputs: str) -> np.ndarray:
     """The scored inputs of every row (ctrkin.inference.uncertainty.scored_inputs without a model)."""
+    if inputs == "joints":
+        return ds.joints()
     pose = ds.poses()
     return pose if inputs == "pose" else np.hstack([pose, joints_before(ds.joints(), ds.sequence_bounds())])
 
@@ -67,32 +78,79 @@ def robot_of(spec: str) -> Robot:
     return load_robot(spec)
 
 
-def record(robot: Robot, vr: VirtualRobot, rng: np.random.Generator, seed: int, first_id: int
+def record(robot: Robot, vr: VirtualRobot, rng: np.random.Generator, seed: int, first_id: int, per_kind: int
            ) -> tuple[Dataset, dict[str, Dataset]]:
-    """Held-out in-range walks and walks of each OOD kind (one set: validation or test)."""
+    """Held-out in-range walks (4 × per_kind: half calibrate, half are scored) and per_kind walks of
+    each OOD kind (one set: validation or test)."""
     reg = learned_loop.regions(robot)
-    held = learned_loop.record_walks(vr, learned_loop.region_walks(robot, rng, reg["train"], 48, 40), seed,
-                                     first_id=first_id)
-    ood = {k: learned_loop.record_walks(vr, learned_loop.region_walks(robot, rng, reg[k], 12, 40),
-                                        seed + 1 + i, first_id=first_id + 1000 * (i + 1))
+    walks = learned_loop.region_walks(robot, rng, reg["train"], 4 * per_kind, 40)
+    held = learned_loop.record_walks(vr, walks, seed, first_id=first_id)
+    ood = {k: learned_loop.record_walks(vr, learned_loop.region_walks(robot, rng, reg[k], per_kind, 40),
+                                        seed + 1 + i, first_id=first_id + 10_000 * (i + 1))
            for i, k in enumerate(KINDS)}
     return held, ood
 
 
-def aurocs(robot: Robot, train: Dataset, held: Dataset, ood: dict[str, Dataset], inputs: str, split: str
-           ) -> tuple[dict[str, float], Uncertainty]:
-    """AUROC of the form, calibrated on the first half of the held-out walks, against each kind."""
+def per_walk(scores: np.ndarray, runs: list[tuple[int, int]]) -> list[np.ndarray]:
+    return [scores[a:b] for a, b in runs]
+
+
+def walk_scores(robot: Robot, train: Dataset, held: Dataset, ood: dict[str, Dataset], inputs: str, split: str
+                ) -> tuple[dict[str, list[np.ndarray]], Uncertainty]:
+    """The form's scores walk by walk ("inside": the scored half of the held-out walks; then each
+    kind), calibrated on the first half of the held-out walks."""
     hb = bounds(held)
     half = len(hb) // 2
     cut = hb[half][0]
     test_bounds = [(a - cut, b - cut) for a, b in hb[half:]]
     x = scored(held, inputs)
-    unc = Uncertainty.fit("ik", robot.n_tubes, scored(train, inputs), bounds(train), x[:cut], hb[:half],
-                          np.zeros((cut, robot.n_joints)), inputs=inputs, split=split)
-    inside = unc.ood_scores(x[cut:], test_bounds)
-    outside = {k: unc.ood_scores(scored(d, inputs), bounds(d)) for k, d in ood.items()}
+    task = "fk" if inputs == "joints" else "ik"
+    unc = Uncertainty.fit(task, robot.n_tubes, scored(train, inputs), bounds(train), x[:cut], hb[:half],
+                          np.zeros((cut, 3 if task == "fk" else robot.n_joints)), inputs=inputs, split=split)
+    out = {"inside": per_walk(unc.ood_scores(x[cut:], test_bounds), test_bounds)}
+    for k, d in ood.items():
+        out[k] = per_walk(unc.ood_scores(scored(d, inputs), bounds(d)), bounds(d))
+    return out, unc
+
+
+def aurocs_of(walks: dict[str, list[np.ndarray]]) -> dict[str, float]:
+    """AUROC of held-out in-range rows against every kind ("all") and each kind."""
+    inside = np.concatenate(walks["inside"])
+    outside = {k: np.concatenate(walks[k]) for k in KINDS}
     row = {"all": learned_loop.auroc(inside, np.concatenate(list(outside.values())))}
-    return row | {k: learned_loop.auroc(inside, v) for k, v in outside.items()}, unc
+    return row | {k: learned_loop.auroc(inside, v) for k, v in outside.items()}
+
+
+def bootstrap_all(forms: dict[str, dict[str, list[np.ndarray]]], rounds: int, seed: int
+                  ) -> dict[str, np.ndarray]:
+    """(rounds,) "all" AUROC of each form on the same resamples of walks (paired: every form sees the
+    same walks drawn with replacement, within the in-range set and within each kind)."""
+    rng = np.random.default_rng(seed)
+    first = next(iter(forms.values()))
+    out: dict[str, list[float]] = {f: [] for f in forms}
+    for _ in range(rounds):
+        pick = {k: rng.integers(0, len(w), len(w)) for k, w in first.items()}
+        for f, walks in forms.items():
+            inside = np.concatenate([walks["inside"][i] for i in pick["inside"]])
+            outside = np.concatenate([walks[k][i] for k in KINDS for i in pick[k]])
+            out[f].append(learned_loop.auroc(inside, outside))
+    return {f: np.asarray(v) for f, v in out.items()}
+
+
+def choose(val: dict[str, dict[str, list[np.ndarray]]], res: dict[str, dict[str, float]],
+           candidates: list[str], rounds: int, seed: int) -> dict[str, Any]:
+    """The candidate with the largest validation AUROC over every kind, and how sure: against each
+    other candidate, the bootstrap's difference (5-95 %) and the share of resamples it wins."""
+    chosen = max(candidates, key=lambda f: res[f]["all"])
+    boot = bootstrap_all({f: val[f] for f in candidates}, rounds, seed)
+    against = {}
+    for f in candidates:
+        if f != chosen:
+            d = boot[chosen] - boot[f]
+            against[f] = {"difference": res[chosen]["all"] - res[f]["all"],
+                          "difference_p5_p95": [float(v) for v in np.quantile(d, [0.05, 0.95])],
+                          "wins_share": float(np.mean(d > 0))}
+    return {"chosen": chosen, "against": against}
 
 
 def combination_distance(robot: Robot, train: Dataset, held: Dataset, combo: Dataset,
@@ -132,6 +190,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--robot", default="paper", help="paper, design-b, or a robot file")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--validation-walks", type=int, default=48, help="walks of each OOD kind (validation)")
+    ap.add_argument("--test-walks", type=int, default=48, help="walks of each OOD kind (test)")
+    ap.add_argument("--bootstrap", type=int, default=500, help="resamples of the validation walks")
     args = ap.parse_args()
     robot = robot_of(args.robot)
     vr = VirtualRobot(robot, seed=args.seed)
@@ -139,36 +200,48 @@ def main() -> None:
     reg = learned_loop.regions(robot)
     train = learned_loop.record_walks(vr, learned_loop.region_walks(robot, rng, reg["train"], 24, 120),
                                       args.seed + 1)
-    sets = {"validation": record(robot, vr, rng, args.seed + 10, 10_000),
-            "test": record(robot, vr, rng, args.seed + 20, 20_000)}
+    sets = {"validation": record(robot, vr, rng, args.seed + 10, 100_000, args.validation_walks),
+            "test": record(robot, vr, rng, args.seed + 20, 200_000, args.test_walks)}
     res: dict[str, dict[str, dict[str, float]]] = {}
+    walks: dict[str, dict[str, dict[str, list[np.ndarray]]]] = {}
     fitted: dict[str, Uncertainty] = {}
     for part_name, (held, ood) in sets.items():
-        res[part_name] = {}
+        res[part_name], walks[part_name] = {}, {}
         for name, (inputs, split) in FORMS.items():
-            row, unc = aurocs(robot, train, held, ood, inputs, split)
-            res[part_name][name], fitted[f"{part_name}/{name}"] = row, unc
-    joint_forms = [f for f in FORMS if FORMS[f][0] == "pose+joints"]
-    chosen = max(joint_forms, key=lambda f: res["validation"][f]["all"])
-    print(f"IK OOD score on the {robot.name} robot (virtual, defaults, seed {args.seed}): AUROC, held-out "
-          f"in-range walks against each kind; the joint-aware form chosen on validation: {chosen}")
+            w, unc = walk_scores(robot, train, held, ood, inputs, split)
+            res[part_name][name], walks[part_name][name], fitted[f"{part_name}/{name}"] = aurocs_of(w), w, unc
+    picks = {task: choose(walks["validation"], res["validation"], forms, args.bootstrap, args.seed)
+             for task, forms in CANDIDATES.items()}
+    chosen = {p["chosen"] for p in picks.values()}
+    print(f"OOD score on the {robot.name} robot (virtual, defaults, seed {args.seed}; "
+          f"{args.validation_walks} validation and {args.test_walks} test walks of each kind): AUROC, "
+          "held-out in-range walks against each kind; * the form chosen on validation (FK, IK)")
     print(f"{'walks':10s} {'scored input, parts':32s} {'all':>6s} " + " ".join(f"{k:>11s}" for k in KINDS))
     for part_name, rows in res.items():
         for name, row in rows.items():
-            mark = " *" if name == chosen else ""
+            mark = " *" if name in chosen else ""
             print(f"{part_name:10s} {name + mark:32s} {row['all']:6.3f} "
                   + " ".join(f"{row[k]:11.3f}" for k in KINDS))
+    for task, p in picks.items():
+        for f, a in p["against"].items():
+            lo, hi = a["difference_p5_p95"]
+            print(f"{task.upper()} validation: {p['chosen']} minus {f}: {a['difference']:+.3f} (bootstrap "
+                  f"over walks, 5-95 %: {lo:+.3f} to {hi:+.3f}; wins {a['wins_share']:.2f} of "
+                  f"{args.bootstrap})")
     held, ood = sets["test"]
-    dist = combination_distance(robot, train, held, ood["combination"], fitted[f"test/{chosen}"])
+    ik_chosen = picks["ik"]["chosen"]
+    dist = combination_distance(robot, train, held, ood["combination"], fitted[f"test/{ik_chosen}"])
     print("unseen combination against held-out walks (test): nearest training row in (β1, β2), mm, median / "
-          "90th percentile; the k-NN distance of the part holding the translations over its median")
+          "90th percentile; the k-NN distance of the IK's part holding the translations over its median")
     for name in ("held_out", "combination"):
         d = dist[name]
         print(f"  {name:12s} {d['nearest_beta_mm_median']:.3f} / {d['nearest_beta_mm_p90']:.3f} mm   "
               f"part {d['joint_part_median']:.2f} / {d['joint_part_p90']:.2f}; rows nearer than the held-out "
               f"rows' 90th percentile {dist[name + '_share_nearer_than_held_out_p90']:.2f}")
-    print(json.dumps({"robot": robot.name, "seed": args.seed, "chosen": chosen, "auroc": res,
-                      "combination_distance": dist}))
+    print(json.dumps({"robot": robot.name, "seed": args.seed, "walks_per_kind": {
+        "validation": args.validation_walks, "test": args.test_walks}, "chosen": {t: p["chosen"] for t, p in
+                                                                               picks.items()},
+        "choice": picks, "auroc": res, "combination_distance": dist}))
 
 
 if __name__ == "__main__":

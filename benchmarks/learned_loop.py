@@ -3,6 +3,11 @@
 
     python benchmarks/learned_loop.py                  # paper robot and the comet nylon robot
     python benchmarks/learned_loop.py --quick          # fewer walks, shorter training and loop
+    python benchmarks/learned_loop.py --quick --robot paper --keep DIR   # one robot; keep the models
+    python benchmarks/learned_loop.py --quick --no-control --robot examples/robots/comet_nylon_ndi.toml
+
+This is bench_planning.py's goal-2 part alone (coverage, OOD AUROC, streaming cost, and the control
+loop): the same figures and JSON keys without the planning paths.
 
 Data: random joint walks on the virtual robot (friction, backlash, true tubes, tracker noise and
 registration), recorded as a dataset (measured poses in the tracker frame, true poses beside them).
@@ -250,17 +255,22 @@ def control_study(robot: Robot, vr: VirtualRobot, folder: Path, quick: bool, see
             "dropout_stopped_at": drop.stopped_at, "dropout_held_still": held}
 
 
-def run(quick: bool, seed: int = 0, robots: tuple[str, ...] = ROBOTS) -> dict[str, Any]:
-    """Every study on every robot (the control loop on the first); one dict of figures."""
+def run(quick: bool, seed: int = 0, robots: tuple[str, ...] = ROBOTS, keep: Path | None = None,
+        control: bool = True) -> dict[str, Any]:
+    """Every study on every robot (the control loop on the first, unless control is False); one dict of
+    figures. keep: a folder to leave the calibrated models in (ROBOT_fk, ROBOT_ik), else they go with
+    a temporary folder."""
     out: dict[str, Any] = {}
     with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp) if keep is None else keep
+        root.mkdir(parents=True, exist_ok=True)
         for k, spec in enumerate(robots):
             robot = paper_robot() if spec == "paper" else load_robot(spec)
             vr = VirtualRobot(robot, seed=seed)
             rng = np.random.default_rng(seed)
-            out[robot.name] = uncertainty_study(robot, vr, rng, quick, Path(tmp), seed)
-            if k == 0:
-                out["control"] = control_study(robot, vr, Path(tmp) / f"{robot.name}_fk", quick, seed)
+            out[robot.name] = uncertainty_study(robot, vr, rng, quick, root, seed)
+            if k == 0 and control:
+                out["control"] = control_study(robot, vr, root / f"{robot.name}_fk", quick, seed)
     return out
 
 
@@ -269,15 +279,16 @@ def summary(res: dict[str, Any]) -> dict[str, Any]:
     robots and tasks (the IK's score takes the robot's joints beside the pose, ctrkin.models.ood), the
     FK's and the IK's least beside it; the control figures."""
     studies = [v for k, v in res.items() if k != "control"]
+    control = res.get("control", dict.fromkeys(("control_hz", "tracking_rmse_mm", "snaps")))
     return {"coverage_90": max((s[t]["coverage_90"] for s in studies for t in ("fk", "ik")),
                                key=lambda c: abs(c - 0.9)),
             "ood_auroc": min(s[t]["ood_auroc"] for s in studies for t in ("fk", "ik")),
             "ood_auroc_fk": min(s["fk"]["ood_auroc"] for s in studies),
             "ood_auroc_ik": min(s["ik"]["ood_auroc"] for s in studies),
             "stream_cost_ratio": max(s[t]["stream"]["ratio"] for s in studies for t in ("fk", "ik")),
-            "control_hz": res["control"]["control_hz"],
-            "tracking_rmse_mm": res["control"]["tracking_rmse_mm"],
-            "control_snaps": res["control"]["snaps"]}
+            "control_hz": control["control_hz"],
+            "tracking_rmse_mm": control["tracking_rmse_mm"],
+            "control_snaps": control["snaps"]}
 
 
 def print_table(res: dict[str, Any]) -> None:
@@ -293,6 +304,8 @@ def print_table(res: dict[str, Any]) -> None:
             print(f"{name:18s} {t:4s} {r['coverage_90']:13.3f} {lo:6.3f}-{hi:6.3f} {r['ood_auroc']:6.3f} "
                   f"{by['range']:6.3f} {by['combination']:6.3f} {by['steps']:6.3f} {by['reversals']:6.3f} "
                   f"{r['false_alarm_held_out']:9.3f} {r['stream']['ratio']:7.2f}")
+    if "control" not in res:
+        return
     c = res["control"]
     print(f"control: {c['control_hz']:.0f} cycles/s, steady-state RMS {c['tracking_rmse_mm']:.3f} mm "
           f"(max {c['tracking_max_mm']:.3f}), {c['snaps']} snaps over {c['cycles']} cycles, path "
@@ -304,8 +317,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--robot", action="append", default=None,
+                    help=f"paper or a robot file, repeatable (default: {', '.join(ROBOTS)})")
+    ap.add_argument("--keep", type=Path, default=None, help="leave the calibrated model folders here")
+    ap.add_argument("--no-control", action="store_true", help="leave out the control loop (run on the first "
+                    "robot; it starts at the paper robot's mid-range joints)")
     args = ap.parse_args()
-    res = run(args.quick, args.seed)
+    res = run(args.quick, args.seed, tuple(args.robot or ROBOTS), args.keep, not args.no_control)
     print_table(res)
     print(json.dumps({**summary(res), "detail": res}))
 

@@ -19,7 +19,9 @@ median; the score is the largest part's, plus the excess beyond the trained rang
 
 from __future__ import annotations
 
+import itertools
 import math
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -88,7 +90,9 @@ def _history(length: int, dim: int, bounds: list[tuple[int, int]], per_run: list
 
 def sequence_features(inputs: str, n_tubes: int, x: np.ndarray, bounds: list[tuple[int, int]]) -> np.ndarray:
     """OOD features (T, F) of raw inputs x (T, input_width) split into sequences [a, b): the blocks of
-    the module docstring (the changes zero before a sequence's start: a robot at rest before it)."""
+    the module docstring (the changes zero before a sequence's start: a robot at rest before it). The
+    training and calibration rows' (center, spread, reference, tau); scores take each row's features
+    from the stream's kernel (`sequence_scores`), equal to these to rounding."""
     x = np.atleast_2d(np.asarray(x, float))
     n = n_tubes
     blocks_cfg, blocks_hist = [], []
@@ -166,10 +170,21 @@ def _stream_features(mode: int, n: int, rows: np.ndarray, count: int, center: np
 
 
 # --- the score ------------------------------------------------------------------------------------------
+# The k-NN scan is exact and searched: each part's reference rows are kept in a k-d tree (`KnnIndex`:
+# median splits on the widest column down to leaves of at most LEAF rows, each node's rows contiguous,
+# its bounding box stored), visited nearest box first, and a box is skipped once the squared distance
+# from the query to it reaches the k-th best squared distance so far. That bound is exact in floating
+# point: for a row r in the box, |fl(z_f − r_f)| ≥ |fl(z_f − box_f)| column by column (rounding is
+# monotone), so the row's sum of squares, taken in the same column order, is at least the box's. And a
+# part whose running distance (the mean of its k best so far, which only falls) over its calibration
+# median is already no larger than a part before it cannot change the score's maximum: its search
+# stops there. Each row's distance sums the part's columns in order as brute force does, so the k
+# nearest distances, and the score, are brute force's to the bit (tested).
+LEAF = 16
 @numba.njit(cache=True)
 def _knn_score(z: np.ndarray, ref: np.ndarray, lo: int, hi: int, k: int, best: np.ndarray) -> float:
-    """Mean Euclidean distance of z (F,) to its k nearest rows of ref (M, F), over columns lo..hi−1;
-    best (k,) scratch."""
+    """Mean Euclidean distance of z (F,) to its k nearest rows of ref (M, F), over columns lo..hi−1, by
+    brute force (the searched scan's reference; calibration); best (k,) scratch."""
     for j in range(k):
         best[j] = np.inf
     for m in range(ref.shape[0]):
@@ -193,32 +208,148 @@ def _knn_score(z: np.ndarray, ref: np.ndarray, lo: int, hi: int, k: int, best: n
 
 
 @numba.njit(cache=True)
-def _score(z: np.ndarray, ref: np.ndarray, parts: np.ndarray, k: int, tau: np.ndarray, lo: np.ndarray,
-           hi: np.ndarray, best: np.ndarray) -> float:
+def _mean_root(best: np.ndarray, k: int) -> float:
+    tot = 0.0
+    for j in range(k):
+        tot += math.sqrt(best[j])
+    return tot / k
+
+
+@numba.njit(cache=True)
+def _box_bound(z: np.ndarray, box: np.ndarray, lo: int, w: int) -> float:
+    """Squared distance from z's columns lo.. (w of them) to the box (2, ≥ w): the module comment's bound."""
+    s = 0.0
+    for f in range(w):
+        v = z[lo + f]
+        g = 0.0
+        if v < box[0, f]:
+            g = box[0, f] - v
+        elif v > box[1, f]:
+            g = v - box[1, f]
+        s += g * g
+    return s
+
+
+@numba.njit(cache=True)
+def _knn_searched(z: np.ndarray, rows: np.ndarray, tree: np.ndarray, boxes: np.ndarray, lo: int, hi: int,
+                  k: int, best: np.ndarray, stack: np.ndarray, bounds: np.ndarray, tau: float,
+                  enough: float) -> float:
+    """`_knn_score` of z over columns lo..hi−1 from the part's rows (M·(hi − lo),) flat in tree order,
+    tree (4, nodes) first row, end, left and right child (−1: a leaf), boxes (nodes, 2, ≥ w); stack,
+    bounds scratch (≥ tree depth + 1,). Stops early, with a distance d ≥ the true one and
+    d / tau ≤ enough, once that holds (module comment above)."""
+    w = hi - lo
+    for j in range(k):
+        best[j] = np.inf
+    stack[0] = 0
+    bounds[0] = _box_bound(z, boxes[0], lo, w)
+    top = 1
+    while top > 0:
+        top -= 1
+        node = stack[top]
+        if bounds[top] >= best[k - 1]:
+            continue
+        left = tree[2, node]
+        if left < 0:
+            for m in range(tree[0, node], tree[1, node]):
+                lim = best[k - 1]
+                s = 0.0
+                base = m * w
+                for f in range(w):
+                    e = z[lo + f] - rows[base + f]
+                    s += e * e
+                    if s >= lim:
+                        break
+                if s < lim:
+                    j = k - 1
+                    while j > 0 and best[j - 1] > s:
+                        best[j] = best[j - 1]
+                        j -= 1
+                    best[j] = s
+                    if best[k - 1] < np.inf and _mean_root(best, k) / tau <= enough:
+                        return _mean_root(best, k)
+        else:
+            right = tree[3, node]
+            bl = _box_bound(z, boxes[left], lo, w)
+            br = _box_bound(z, boxes[right], lo, w)
+            if bl <= br:                     # the nearer child on top: visited first
+                stack[top], bounds[top], stack[top + 1], bounds[top + 1] = right, br, left, bl
+            else:
+                stack[top], bounds[top], stack[top + 1], bounds[top + 1] = left, bl, right, br
+            top += 2
+    return _mean_root(best, k)
+
+
+@numba.njit(cache=True)
+def _score(z: np.ndarray, rows: np.ndarray, tree: np.ndarray, boxes: np.ndarray, parts: np.ndarray, k: int,
+           tau: np.ndarray, stats: np.ndarray, best: np.ndarray, stack: np.ndarray,
+           bounds: np.ndarray) -> float:
     """The OOD score of standardised features z (F,): the largest over parts [parts[p], parts[p+1]) of
     the k-NN distance over the part's calibration median tau[p], plus the excess beyond the trained
-    range [lo, hi] (F,) in units of RANGE_UNIT."""
+    range [stats[2], stats[3]] (F,) in units of RANGE_UNIT. rows, tree, boxes: a KnnIndex's."""
     worst = 0.0
+    n = rows.shape[0] // stats.shape[1]
     for p in range(parts.shape[0] - 1):
-        worst = max(worst, _knn_score(z, ref, parts[p], parts[p + 1], k, best) / tau[p])
+        lo, hi = parts[p], parts[p + 1]
+        d = _knn_searched(z, rows[n * lo:n * hi], tree, boxes[p], lo, hi, k, best, stack, bounds, tau[p],
+                          worst if p > 0 else -1.0)
+        worst = max(worst, d / tau[p])
     excess = 0.0
     for f in range(z.shape[0]):
-        excess += max(z[f] - hi[f], 0.0) + max(lo[f] - z[f], 0.0)
+        excess += max(z[f] - stats[3, f], 0.0) + max(stats[2, f] - z[f], 0.0)
     return worst + excess / RANGE_UNIT
 
 
 @numba.njit(cache=True)
-def stream_score(mode: int, n: int, rows: np.ndarray, count: int, center: np.ndarray, spread: np.ndarray,
-                 z: np.ndarray, ref: np.ndarray, parts: np.ndarray, k: int, tau: np.ndarray, lo: np.ndarray,
-                 hi: np.ndarray, best: np.ndarray) -> float:
-    """One streamed step's OOD score (one call: the features into z, then the score)."""
-    _stream_features(mode, n, rows, count, center, spread, z)
-    return _score(z, ref, parts, k, tau, lo, hi, best)
+def stream_step(mode: int, n: int, x: np.ndarray, joints: np.ndarray, history: np.ndarray, count: np.ndarray,
+                stats: np.ndarray, z: np.ndarray, rows: np.ndarray, tree: np.ndarray, boxes: np.ndarray,
+                parts: np.ndarray, k: int, tau: np.ndarray, best: np.ndarray, stack: np.ndarray,
+                bounds: np.ndarray) -> float:
+    """One streamed step's OOD score, in one call: x (W,) (mode 2: the pose (6,) and joints (2N,)) pushed
+    as the newest of the last HISTORY + 1 raw inputs history (HISTORY + 1, W), count[0] of them held;
+    the features into z, then the score. stats (4, F): center, spread, trained lo, hi."""
+    c = count[0]
+    if c == HISTORY + 1:
+        for i in range(HISTORY):
+            for j in range(history.shape[1]):
+                history[i, j] = history[i + 1, j]
+    else:
+        c += 1
+        count[0] = c
+    row = history[c - 1]
+    for j in range(x.shape[0]):
+        row[j] = x[j]
+    if mode == 2:
+        for j in range(joints.shape[0]):
+            row[POSE + j] = joints[j]
+    _stream_features(mode, n, history, c, stats[0], stats[1], z)
+    return _score(z, rows, tree, boxes, parts, k, tau, stats, best, stack, bounds)
+
+
+@numba.njit(cache=True)
+def sequence_scores(mode: int, n: int, x: np.ndarray, starts: np.ndarray, ends: np.ndarray, stats: np.ndarray,
+                    rows: np.ndarray, tree: np.ndarray, boxes: np.ndarray, parts: np.ndarray, k: int,
+                    tau: np.ndarray) -> np.ndarray:
+    """(T,) OOD scores of raw inputs x (T, W) (the stream's rows) in sequences [starts[s], ends[s]) that
+    cover every row: each row's features by the stream's kernel from the last HISTORY + 1 rows of its
+    sequence, then the same score, so the batch is the stream to the bit."""
+    out = np.empty(x.shape[0])
+    z = np.empty(stats.shape[1])
+    best = np.empty(k)
+    stack = np.empty(tree.shape[1], np.int64)
+    bounds = np.empty(tree.shape[1])
+    for s in range(starts.shape[0]):
+        a, b = starts[s], ends[s]
+        for t in range(a, b):
+            lo = max(a, t - HISTORY)
+            _stream_features(mode, n, x[lo:t + 1], t + 1 - lo, stats[0], stats[1], z)
+            out[t] = _score(z, rows, tree, boxes, parts, k, tau, stats, best, stack, bounds)
+    return out
 
 
 @numba.njit(cache=True)
 def part_scores(Z: np.ndarray, ref: np.ndarray, lo: int, hi: int, k: int) -> np.ndarray:
-    """(T,) k-NN distances of rows Z (T, F) over columns lo..hi−1."""
+    """(T,) k-NN distances of rows Z (T, F) over columns lo..hi−1 (brute force)."""
     out = np.empty(Z.shape[0])
     best = np.empty(k)
     for t in range(Z.shape[0]):
@@ -227,14 +358,69 @@ def part_scores(Z: np.ndarray, ref: np.ndarray, lo: int, hi: int, k: int) -> np.
 
 
 @numba.njit(cache=True)
-def batch_scores(Z: np.ndarray, ref: np.ndarray, parts: np.ndarray, k: int, tau: np.ndarray, lo: np.ndarray,
-                 hi: np.ndarray) -> np.ndarray:
+def batch_scores(Z: np.ndarray, rows: np.ndarray, tree: np.ndarray, boxes: np.ndarray, parts: np.ndarray,
+                 k: int, tau: np.ndarray, stats: np.ndarray) -> np.ndarray:
     """(T,) OOD scores of standardised rows Z (T, F) (the same kernel as the stream's)."""
     out = np.empty(Z.shape[0])
     best = np.empty(k)
+    stack = np.empty(tree.shape[1], np.int64)
+    bounds = np.empty(tree.shape[1])
     for t in range(Z.shape[0]):
-        out[t] = _score(Z[t], ref, parts, k, tau, lo, hi, best)
+        out[t] = _score(Z[t], rows, tree, boxes, parts, k, tau, stats, best, stack, bounds)
     return out
+
+
+def _tree(m: int, leaf: int) -> np.ndarray:
+    """(4, nodes) the k-d tree's shape over m rows (the same for every part: split by count): each
+    node's first row, end, left and right child (−1 at a leaf), in preorder."""
+    nodes: list[list[int]] = []
+
+    def build(a: int, b: int) -> int:
+        me = len(nodes)
+        nodes.append([a, b, -1, -1])
+        if b - a > leaf:
+            h = a + (b - a) // 2
+            nodes[me][2] = build(a, h)
+            nodes[me][3] = build(h, b)
+        return me
+
+    build(0, m)
+    return np.ascontiguousarray(np.array(nodes, np.int64).reshape(-1, 4).T)
+
+
+@dataclass(frozen=True, eq=False)
+class KnnIndex:
+    """The reference rows (M, F) arranged for the searched scan (module comment above): rows (M·F,) part
+    after part, each part's block (M, w) contiguous in its tree's order; tree (4, nodes) the trees'
+    common shape (`_tree`); boxes (P, nodes, 2, max w) each node's bounding box (lo, hi) in its part's
+    columns."""
+
+    rows: np.ndarray
+    tree: np.ndarray
+    boxes: np.ndarray
+
+    @classmethod
+    def of(cls, ref: np.ndarray, parts: np.ndarray, leaf: int = LEAF) -> KnnIndex:
+        ref = np.asarray(ref, np.float64)
+        m, width = ref.shape
+        tree = _tree(m, leaf)
+        spans = list(itertools.pairwise(parts.tolist()))
+        flat = np.empty(m * width)
+        boxes = np.zeros((len(spans), tree.shape[1], 2, max([b - a for a, b in spans], default=0)))
+        for p, (lo, hi) in enumerate(spans):
+            block = ref[:, lo:hi]
+            order = np.arange(m)
+            for node in range(tree.shape[1]):    # preorder: a node's rows are in place before it splits them
+                a, b, left, _ = tree[:, node]
+                rows = block[order[a:b]]
+                if len(rows):
+                    boxes[p, node, 0, :hi - lo] = rows.min(axis=0)
+                    boxes[p, node, 1, :hi - lo] = rows.max(axis=0)
+                if left >= 0:
+                    col = int(np.argmax(np.ptp(rows, axis=0)))
+                    order[a:b] = order[a:b][np.argsort(rows[:, col], kind="stable")]
+            flat[m * lo:m * hi] = block[order].ravel()
+        return cls(flat, tree, boxes)
 
 
 def mode(inputs: str) -> int:

@@ -23,10 +23,11 @@ arrays stay where callers read them (ctrkin.models.predictor: "an uncertainty be
   motion at the tracker's noise, nor a joint combination never recorded that reaches a recorded
   pose. The columns fall into parts (FK: configuration, history; IK: by default pose, joints, pose
   history, joints history, each its own). Each part gets the mean distance to the k nearest of up to
-  `max_reference` (1,000) training rows in that part (brute force in numba: the same kernel for batch
-  and streaming, so both give the same score), over its median on the calibration rows; the score is
-  the largest part's (a joint combination never visited stands out in its few columns, not diluted
-  by the others', and the reverse), plus the features' excess beyond their trained ranges in units
+  `max_reference` (1,000) training rows in that part (an exact k-d tree search in numba, brute
+  force's distances to the bit: the same kernel for batch and streaming, so both give the same
+  score), over its median on the calibration rows; the score is the largest part's (a joint
+  combination never visited stands out in its few columns, not diluted by the others', and the
+  reverse), plus the features' excess beyond their trained ranges in units
   of 1 % of their spread (outside the trained range is out of distribution however near: the score
   then passes every in-range neighbour distance). Joints beyond the trained ranges, combinations the
   protocols never visited and histories unlike the recorded ones (larger steps, reversals) all land
@@ -41,6 +42,8 @@ same, an IK's scores the pose alone (`inputs == "pose"`) and ignores the joints 
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import itertools
 import math
 import os
@@ -55,14 +58,16 @@ from ctrkin.errors import ModelError
 from ctrkin.models.ood import (
     HISTORY,
     INPUTS,
+    POSE,
     SPLITS,
-    batch_scores,
+    KnnIndex,
     input_width,
     mode,
     part_bounds,
     part_scores,
     sequence_features,
-    stream_score,
+    sequence_scores,
+    stream_step,
     wrap_deg,
 )
 
@@ -197,10 +202,10 @@ class Uncertainty:
         if len(z):
             spans = itertools.pairwise(parts.tolist())
             tau = np.maximum([np.median(part_scores(z, ref, lo, hi, unc.k)) for lo, hi in spans], FLOOR)
-            unc = cls(**{**unc.__dict__, "tau": tau})
+            unc = dataclasses.replace(unc, tau=tau)
         cal = unc.ood_scores(cal_x, cal_bounds)
         thr = float(np.quantile(cal, 1.0 - false_alarm)) if len(cal) else math.inf
-        return cls(**{**unc.__dict__, "threshold": thr})
+        return dataclasses.replace(unc, threshold=thr)
 
     # --- use ------------------------------------------------------------------------------------
     @property
@@ -208,12 +213,32 @@ class Uncertainty:
         """Whether an IK's score takes the robot's joints beside the pose (inputs "pose+joints")."""
         return self.inputs == "pose+joints"
 
+    @functools.cached_property
+    def knn_index(self) -> KnnIndex:
+        """The reference rows arranged for the searched k-NN scan (ctrkin.models.ood; built on first use)."""
+        return KnnIndex.of(self.reference, self.parts)
+
+    @functools.cached_property
+    def stats(self) -> np.ndarray:
+        """(4, F) center, spread, lo, hi: the kernels' one array of them."""
+        return np.ascontiguousarray(np.vstack([self.center, self.spread, self.lo, self.hi]), np.float64)
+
     def ood_scores(self, x: np.ndarray, bounds: list[tuple[int, int]]) -> np.ndarray:
         """(T,) OOD scores of scored inputs x (T, ·) (Uncertainty.fit) in sequences `bounds` (larger:
         further from training)."""
-        z = (sequence_features(self.inputs, self.n_tubes, x, bounds) - self.center) / self.spread
-        return batch_scores(np.ascontiguousarray(z), self.reference, self.parts, self.k, self.tau, self.lo,
-                            self.hi)
+        x = np.ascontiguousarray(np.atleast_2d(np.asarray(x, np.float64)))
+        width = input_width(self.inputs, self.n_tubes)
+        if x.shape[1] != width:
+            raise ModelError(f"the {self.inputs!r} OOD score takes rows of {width} columns, got {x.shape[1]}")
+        covered = np.zeros(len(x), bool)
+        for a, b in bounds:
+            covered[a:b] = True
+        alone = np.flatnonzero(~covered)                 # a row of no sequence: a sequence of its own
+        starts = np.array([a for a, _ in bounds] + alone.tolist(), np.int64)
+        ends = np.array([b for _, b in bounds] + (alone + 1).tolist(), np.int64)
+        ix = self.knn_index
+        return sequence_scores(mode(self.inputs), self.n_tubes, x, starts, ends, self.stats, ix.rows, ix.tree,
+                               ix.boxes, self.parts, self.k, self.tau)
 
     def half_widths(self) -> np.ndarray:
         """The interval's half widths: FK (3,) the ball's radius on each axis (mm); IK (2N,) deg, mm."""
@@ -268,40 +293,44 @@ class Uncertainty:
 
 class UncertainStream:
     """The OOD score one step at a time (equal to `Uncertainty.ood_scores` on the whole sequence):
-    keeps the last HISTORY + 1 scored inputs."""
+    keeps the last HISTORY + 1 scored inputs (the ring and the score in one compiled call)."""
 
     def __init__(self, unc: Uncertainty) -> None:
         self.unc = unc
         self._mode = mode(unc.inputs)
         self._width = input_width(unc.inputs, unc.n_tubes)
+        self._x_width = POSE if self._mode == 2 else self._width
         self._rows = np.zeros((HISTORY + 1, self._width))
+        self._count = np.zeros(1, np.int64)
         self._z = np.empty(len(unc.center))
         self._best = np.empty(max(unc.k, 1))
+        self._none = np.zeros(0)
+        ix = unc.knn_index
+        self._args = (unc.stats, self._z, ix.rows, ix.tree, ix.boxes, unc.parts, unc.k, unc.tau, self._best,
+                      np.empty(ix.tree.shape[1], np.int64), np.empty(ix.tree.shape[1]))
         self.half_widths = unc.half_widths()          # the same every step
         self.half_widths.flags.writeable = False
         self.reset()
 
     def reset(self) -> None:
-        self._count = 0
+        self._count[0] = 0
 
     def step(self, x: np.ndarray, joints: np.ndarray | None = None) -> float:
         """The OOD score of the next step: x the model's input (joints (2N,) or pose (6,)); joints (2N,),
         an IK's "pose+joints" score only, the robot's joints when the pose was asked (ignored by a
         "pose" score)."""
-        u, rows = self.unc, self._rows
-        if self._count == HISTORY + 1:
-            rows[:-1] = rows[1:]
-        else:
-            self._count += 1
+        x = np.asarray(x, np.float64)
+        if x.shape != (self._x_width,):
+            raise ModelError(f"the OOD score's step takes ({self._x_width},) inputs, got {x.shape}")
+        q = self._none
         if self._mode == 2:
             if joints is None:
                 raise ModelError("this IK's OOD score takes the robot's joints with each pose: give them")
-            rows[self._count - 1, :6] = x
-            rows[self._count - 1, 6:] = joints
-        else:
-            rows[self._count - 1] = x
-        return float(stream_score(self._mode, u.n_tubes, rows, self._count, u.center, u.spread, self._z,
-                                  u.reference, u.parts, u.k, u.tau, u.lo, u.hi, self._best))
+            q = np.asarray(joints, np.float64)
+            if q.shape != (self._width - POSE,):
+                raise ModelError(f"the IK's OOD score takes ({self._width - POSE},) joints, got {q.shape}")
+        return stream_step(self._mode, self.unc.n_tubes, x, q, self._rows, self._count,
+                           *self._args)
 
 
 @dataclass(frozen=True, eq=False)
