@@ -169,35 +169,16 @@ HISTORIES = ("rest", "both tubes translated 4 mm", "inner slid 0.2 mm (d - 0.2 -
              "inner slid 4 mm (d - 4 -> d)", "outer slid 4 mm (d - 4 -> d)", "a turn at d - 4, then slid")
 
 
-def excitation(robot: Any, virtual: Any, workers: int) -> Dataset:
-    """Training-only runs that excite the slide term (--excite): at the largest sweep level d, the
-    inner tube slid from d − s (s = 0.5, 4 mm) to d, or both tubes moved together 4 mm, then one
-    full inner turn, at the snap-turns' outer angles (their outer translation −1.25 mm, carried
-    over), each run from rest, its start recorded. A protocol a user could add; not the held-out
-    sweeps' path (a turn at d − 4 before the slide)."""
-    from ctrkin.acquisition.plan import Plan, Run, Segment, transition
-    from ctrkin.acquisition.protocols import (
-        PAPER_FULL_LEVELS_MM,
-        SNAP_TURN_OUTER_ANGLES_DEG,
-        config,
-        inner_turn,
-    )
-    from ctrkin.acquisition.ranges import ProtocolRanges
+def excitation(robot: Any, virtual: Any, workers: int, scale: str) -> Dataset:
+    """Training-only runs that excite the slide term (--excite): the library's excitation protocol
+    (ctrkin.acquisition.excitation: short runs from rest, slides of one tube against the other before
+    turns, mid-turn reversals at random angles) at the scale's size, with the reproduction's seed."""
+    from ctrkin.acquisition import protocols
     from ctrkin.acquisition.recorder import record
+    from ctrkin.evaluation.datasets import SEEDS
 
-    n = robot.n_tubes
-    ranges = ProtocolRanges.of(robot)
-    d, b_out = ranges.d(PAPER_FULL_LEVELS_MM[-1]), ranges.beta_outer(-1.25)
-    runs = []
-    for k, ao in enumerate(SNAP_TURN_OUTER_ANGLES_DEG):
-        turn = inner_turn(n, ao, b_out, d)
-        start = (config(n, 0.0, ao, b_out, d - 0.5), config(n, 0.0, ao, b_out, d - 4.0),
-                 config(n, 0.0, ao, b_out - 4.0, d))[k % 3]
-        # the start is recorded (a few rows at rest), so that the slide is in the run's joint path
-        runs.append(Run((Segment(np.repeat(start[None], 5, axis=0), level=0),
-                         transition(start, turn[0], n), Segment(turn, level=0))))
-    plan = Plan("excitation", tuple(runs), ({"relative_translation_mm": d},), {"d_mm": d})
-    return record(plan, virtual, seed=1, workers=workers, progress=False)
+    plan = protocols.build("excitation", robot, scale=scale, seed=SEEDS["excitation"])
+    return record(plan, virtual, seed=SEEDS["excitation"], workers=workers, progress=False)
 
 
 def history_probe(robot: Any, virtual: Any, workers: int) -> dict[str, list[float]]:
@@ -250,7 +231,7 @@ def _record(args: argparse.Namespace
     for name, extra in (("paper", _paper_kw(scale, robot)), ("sweeps", {}), ("snap-turns", {})):
         plan = protocols.build(name, robot, **kw, **extra, seed=SEEDS[name])
         got[name] = record(plan, virtual, seed=SEEDS[name], workers=args.workers, progress=False)
-    extra = excitation(robot, virtual, args.workers) if args.excite else None
+    extra = excitation(robot, virtual, args.workers, scale.protocol_scale) if args.excite else None
     return got["paper"], got["sweeps"], got["snap-turns"], history_probe(robot, virtual, args.workers), extra
 
 

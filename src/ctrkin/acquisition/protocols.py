@@ -428,3 +428,13 @@ def build(name: str, robot: Robot, scale: Scale = "full", seed: int = 0, **kw: A
     plan: Plan = PROTOCOLS[name](robot, scale=scale, seed=seed, **kw)
     robot.check_joints(plan.all_joints())
     return plan
+
+
+def _register_excitation() -> None:
+    """The training-only excitation protocol (its own module, ctrkin.acquisition.excitation)."""
+    from ctrkin.acquisition.excitation import excitation
+
+    PROTOCOLS["excitation"] = excitation
+
+
+_register_excitation()

@@ -22,7 +22,7 @@ from ctrkin.virtual.truth import tracker_truth
 
 # noise seeds: training and each test experiment see independent measurement noise
 SEEDS = {"paper": 0, "sweeps": 1, "random-points": 2, "arbitrary": 3, "square": 4, "triangle": 5,
-         "snap-turns": 6}
+         "snap-turns": 6, "excitation": 8}
 
 
 @dataclass(eq=False)
