@@ -10,14 +10,18 @@ models assume about the robot). `excitation` records what the paper protocol lea
     many short runs, each from rest at a random configuration (recorded for REST_SAMPLES steps at
     rest, so the start is in the data), then moves until the run has RUN_SAMPLES samples; each move
     is, with probability SLIDE_PROBABILITY, a slide (the inner tube against the outer one, the outer
-    against the inner one, or both together: a random d = βN − β1 and/or βN step, SLIDE_MM scaled to
-    the robot), followed by a turn of the inner tube (probability INNER_PROBABILITY) or the outer
+    against the inner one, or both together: a random d = βN − β1 and/or βN step, scaled to the
+    robot), followed by a turn of the inner tube (probability INNER_PROBABILITY) or the outer
     tube (the middle tubes move with it) made of 1..MAX_LEGS legs of random length (TURN_LEG_DEG)
     in alternating directions: reversals at random angles.
 
 The ranges are the robot's (ctrkin.acquisition.ranges: d within the paper's 4..20 mm carried over,
 βN within its 0..−5 mm carried over, both α within [0, 360]°, the ranges of the paper protocol, so
-the normalisation of a model trained on both does not stretch). Every draw comes from `seed`.
+the normalisation of a model trained on both does not stretch). The starts and the slides' ends lie
+in the high-overlap part d(18)..d(20) with HIGH_OVERLAP_PROBABILITY: the curved sections overlap
+most there, and that is where a two-tube robot is bistable and snaps (on the paper robot with its
+default effects every recorded snap of the paper protocol is at d = 20 mm), so the runs' turns
+cross snaps after slides. Every draw comes from `seed`.
 
 Size: EXCITATION_FRACTION (20 %) of the paper protocol's samples at the same scale, in runs of
 RUN_SAMPLES: quick 20 runs, 10,400 samples (the paper protocol 51,912); full 80 runs, 41,600
@@ -42,20 +46,24 @@ from ctrkin.acquisition.ranges import ProtocolRanges
 from ctrkin.robots.robot import Robot
 
 EXCITATION_FRACTION = 0.2          # of the paper protocol's samples at the same scale
-RUN_SAMPLES = 520                  # recorded samples per run (rest included)
+RUN_SAMPLES = 1040                 # recorded samples per run (rest included)
 REST_SAMPLES = 5                   # recorded at rest at each run's start
 SLIDE_PROBABILITY = 0.7            # a slide before a turn
 INNER_PROBABILITY = 0.6            # the turn is the inner tube's (else the outer tube's)
 MAX_LEGS = 3                       # legs per turn (2 or 3: one or two mid-turn reversals)
-TURN_LEG_DEG = (15.0, 270.0)       # a leg's length, uniform
-SLIDE_MM = (0.3, 6.0)              # a slide's length on the paper robot, uniform (scaled to the robot)
+TURN_LEG_DEG = (30.0, 360.0)       # a leg's length, uniform
+HIGH_OVERLAP_MM = (18.0, 20.0)      # d where the curved sections overlap most (paper robot; carried over)
+HIGH_OVERLAP_PROBABILITY = 0.7     # a start or a slide's end d drawn there (else anywhere in the range)
+SMALL_SLIDE_PROBABILITY = 0.3      # a short slide (SMALL_SLIDE_MM) instead of one to a drawn d
+SMALL_SLIDE_MM = (0.05, 1.0)       # its length on the paper robot, uniform (scaled to the robot)
+SLIDE_MM = (0.3, 6.0)              # the both-tubes move's length on the paper robot (scaled)
 MIN_LEG_DEG = 5.0                  # a leg shorter than this (at a bound) turns the other way instead
 SEED_SALT = 0xE7C1                 # keeps the draws apart from the other protocols' for the same seed
 
 
 def n_runs(paper_samples: int) -> int:
-    """Runs at a scale whose paper protocol records `paper_samples` (at least 2)."""
-    return max(2, round(EXCITATION_FRACTION * paper_samples / RUN_SAMPLES))
+    """Runs at a scale whose paper protocol records `paper_samples` (at least 1)."""
+    return max(1, round(EXCITATION_FRACTION * paper_samples / RUN_SAMPLES))
 
 
 def excitation(robot: Robot, scale: str = "full", seed: int = 0, runs: int | None = None) -> Plan:
@@ -86,26 +94,38 @@ def excitation(robot: Robot, scale: str = "full", seed: int = 0, runs: int | Non
         raise ValueError(f"runs must be >= 1, got {runs}")
     ranges = ProtocolRanges.of(robot)
     bounds = Bounds(d=(ranges.d(protocols.RANDOM_D_RANGE_MM[0]), ranges.d(protocols.RANDOM_D_RANGE_MM[1])),
+                    high=(ranges.d(HIGH_OVERLAP_MM[0]), ranges.d(HIGH_OVERLAP_MM[1])),
                     beta=(ranges.beta_outer(protocols.RANDOM_OUTER_BETA_RANGE_MM[0]), 0.0),
-                    slide=(SLIDE_MM[0] * ranges.scale, SLIDE_MM[1] * ranges.scale))
+                    slide=(SLIDE_MM[0] * ranges.scale, SLIDE_MM[1] * ranges.scale),
+                    small=(SMALL_SLIDE_MM[0] * ranges.scale, SMALL_SLIDE_MM[1] * ranges.scale))
     protocols._check_levels(robot, bounds.d, bounds.beta)
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), SEED_SALT]))
     plan_runs = tuple(_run(robot.n_tubes, bounds, rng) for _ in range(runs))
     params = {"scale": scale, "seed": seed, "runs": runs, "run_samples": RUN_SAMPLES,
               "rest_samples": REST_SAMPLES, "d_range_mm": list(bounds.d),
               "outer_beta_range_mm": list(bounds.beta),
-              "slide_mm": list(bounds.slide), "turn_leg_deg": list(TURN_LEG_DEG), "max_legs": MAX_LEGS,
+              "high_overlap_d_mm": list(bounds.high), "slide_mm": list(bounds.slide),
+              "small_slide_mm": list(bounds.small), "high_overlap_probability": HIGH_OVERLAP_PROBABILITY,
+              "small_slide_probability": SMALL_SLIDE_PROBABILITY, "turn_leg_deg": list(TURN_LEG_DEG),
+              "max_legs": MAX_LEGS,
               "slide_probability": SLIDE_PROBABILITY, "inner_probability": INNER_PROBABILITY}
     return Plan("excitation", plan_runs, (), params)
 
 
 @dataclass(frozen=True)
 class Bounds:
-    """Where the runs move: d and βN ranges (mm) and the slides' lengths (mm)."""
+    """Where the runs move (mm): the d range and its high-overlap part, the βN range, the lengths of
+    the both-tubes moves and of the short slides."""
 
     d: tuple[float, float]
+    high: tuple[float, float]
     beta: tuple[float, float]
     slide: tuple[float, float]
+    small: tuple[float, float]
+
+    def draw_d(self, rng: np.random.Generator) -> float:
+        """A relative translation: in the high-overlap part with HIGH_OVERLAP_PROBABILITY, else anywhere."""
+        return float(rng.uniform(*(self.high if rng.uniform() < HIGH_OVERLAP_PROBABILITY else self.d)))
 
 
 def _run(n_tubes: int, b: Bounds, rng: np.random.Generator) -> Run:
@@ -113,7 +133,7 @@ def _run(n_tubes: int, b: Bounds, rng: np.random.Generator) -> Run:
     from ctrkin.acquisition.protocols import config
 
     # state: α inner, α outer, βN, d
-    s = np.array([rng.uniform(0, 360), rng.uniform(0, 360), rng.uniform(*b.beta), rng.uniform(*b.d)])
+    s = np.array([rng.uniform(0, 360), rng.uniform(0, 360), rng.uniform(*b.beta), b.draw_d(rng)])
     last = config(n_tubes, *s)
     path = [np.repeat(last[None], REST_SAMPLES, axis=0)]
     total = REST_SAMPLES
@@ -138,9 +158,15 @@ def _run(n_tubes: int, b: Bounds, rng: np.random.Generator) -> Run:
 
 def _slide(s: np.ndarray, b: Bounds, rng: np.random.Generator) -> np.ndarray:
     """A slide: the inner tube against the outer (d), the outer against the inner (βN and d, β1 fixed)
-    or both together (βN, d fixed); a random length and direction, kept within the bounds."""
+    or both together (βN, d fixed), kept within the bounds. A slide of one tube against the other goes
+    to a drawn d (Bounds.draw_d), or is short (SMALL_SLIDE_PROBABILITY) in a random direction; the
+    both-tubes move has a random length (SLIDE_MM) and direction."""
     out = s.copy()
-    length = rng.uniform(*b.slide) * rng.choice((-1.0, 1.0))
+    sign = rng.choice((-1.0, 1.0))
+    if rng.uniform() < SMALL_SLIDE_PROBABILITY:
+        length = rng.uniform(*b.small) * sign
+    else:
+        length = b.draw_d(rng) - s[3]
     kind = rng.integers(3)
     if kind == 0:                                   # inner tube slides: β1 moves, βN fixed
         out[3] = np.clip(s[3] + length, *b.d)
@@ -150,7 +176,7 @@ def _slide(s: np.ndarray, b: Bounds, rng: np.random.Generator) -> np.ndarray:
         step = float(np.clip(length, min(lo, 0.0), max(hi, 0.0)))
         out[2], out[3] = s[2] + step, s[3] + step
     else:                                           # both together: βN moves, d fixed
-        out[2] = np.clip(s[2] + length, *b.beta)
+        out[2] = np.clip(s[2] + rng.uniform(*b.slide) * sign, *b.beta)
     return out
 
 
