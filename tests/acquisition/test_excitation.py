@@ -18,7 +18,7 @@ def _reversals(a: np.ndarray) -> int:
     return int((np.diff(s) != 0).sum())
 
 
-@pytest.mark.parametrize(("scale", "runs"), [("tiny", 2), ("quick", 20), ("full", 80)])
+@pytest.mark.parametrize(("scale", "runs"), [("tiny", 1), ("quick", 10), ("full", 40)])
 def test_its_size_is_a_fifth_of_the_paper_protocols(robot, scale, runs):
     plan = protocols.build("excitation", robot, scale=scale, seed=8)
     paper = protocols.PAPER_SIZES[scale].n_samples()

@@ -24,8 +24,8 @@ default effects every recorded snap of the paper protocol is at d = 20 mm), so t
 cross snaps after slides. Every draw comes from `seed`.
 
 Size: EXCITATION_FRACTION (20 %) of the paper protocol's samples at the same scale, in runs of
-RUN_SAMPLES: quick 20 runs, 10,400 samples (the paper protocol 51,912); full 80 runs, 41,600
-(207,648); tiny 2 runs, 1,040 (5,768). A fifth keeps the paper protocol the bulk of the training
+RUN_SAMPLES: quick 10 runs, 10,400 samples (the paper protocol 51,912); full 40 runs, 41,600
+(207,648); tiny 1 run, 1,040 (5,768). A fifth keeps the paper protocol the bulk of the training
 rows (the reproduction of the paper's grids trains on the paper protocol only) and the extra
 collection time a fifth of the paper protocol's; docs/reproduction.md measures what it buys.
 
