@@ -42,6 +42,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ctrkin.acquisition.plan import Plan, Run, Segment, move
+from ctrkin.acquisition.protocol_base import (
+    PAPER_SIZES,
+    RANDOM_D_RANGE_MM,
+    RANDOM_OUTER_BETA_RANGE_MM,
+    check_levels,
+    check_scale,
+    config,
+)
 from ctrkin.acquisition.ranges import ProtocolRanges
 from ctrkin.robots.robot import Robot
 
@@ -85,20 +93,18 @@ def excitation(robot: Robot, scale: str = "full", seed: int = 0, runs: int | Non
     Plan
         One recorded sequence per run (RUN_SAMPLES samples each), level −1.
     """
-    from ctrkin.acquisition import protocols  # protocols registers this one: imported late
-
-    protocols._check_scale(scale)
+    check_scale(scale)
     if runs is None:
-        runs = n_runs(protocols.PAPER_SIZES[scale].n_samples())
+        runs = n_runs(PAPER_SIZES[scale].n_samples())
     if runs < 1:
         raise ValueError(f"runs must be >= 1, got {runs}")
     ranges = ProtocolRanges.of(robot)
-    bounds = Bounds(d=(ranges.d(protocols.RANDOM_D_RANGE_MM[0]), ranges.d(protocols.RANDOM_D_RANGE_MM[1])),
+    bounds = Bounds(d=(ranges.d(RANDOM_D_RANGE_MM[0]), ranges.d(RANDOM_D_RANGE_MM[1])),
                     high=(ranges.d(HIGH_OVERLAP_MM[0]), ranges.d(HIGH_OVERLAP_MM[1])),
-                    beta=(ranges.beta_outer(protocols.RANDOM_OUTER_BETA_RANGE_MM[0]), 0.0),
+                    beta=(ranges.beta_outer(RANDOM_OUTER_BETA_RANGE_MM[0]), 0.0),
                     slide=(SLIDE_MM[0] * ranges.scale, SLIDE_MM[1] * ranges.scale),
                     small=(SMALL_SLIDE_MM[0] * ranges.scale, SMALL_SLIDE_MM[1] * ranges.scale))
-    protocols._check_levels(robot, bounds.d, bounds.beta)
+    check_levels(robot, bounds.d, bounds.beta)
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), SEED_SALT]))
     plan_runs = tuple(_run(robot.n_tubes, bounds, rng) for _ in range(runs))
     params = {"scale": scale, "seed": seed, "runs": runs, "run_samples": RUN_SAMPLES,
@@ -130,8 +136,6 @@ class Bounds:
 
 def _run(n_tubes: int, b: Bounds, rng: np.random.Generator) -> Run:
     """One run: REST_SAMPLES at rest at a random start, then slide-and-turn moves, RUN_SAMPLES in all."""
-    from ctrkin.acquisition.protocols import config
-
     # state: α inner, α outer, βN, d
     s = np.array([rng.uniform(0, 360), rng.uniform(0, 360), rng.uniform(*b.beta), b.draw_d(rng)])
     last = config(n_tubes, *s)
