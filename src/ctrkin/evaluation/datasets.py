@@ -130,8 +130,9 @@ def with_training_runs(ds: Dataset, extra: Dataset) -> Dataset:
     import pandas as pd
 
     more = extra.frame.copy()
-    for col in ("sequence_id", "run"):
-        more[col] = more[col].to_numpy() + int(ds.frame[col].max()) + 1
+    for col in ("sequence_id", "run"):             # `run` is optional (recorded datasets have it)
+        if col in ds.frame.columns and col in more.columns:
+            more[col] = more[col].to_numpy() + int(ds.frame[col].max()) + 1
     frame = pd.concat([ds.frame, more[ds.frame.columns]], ignore_index=True)
     n = len(ds.frame)
     split = dataclasses.replace(ds.split, train=np.r_[ds.split.train, n + np.arange(len(more))],
