@@ -162,42 +162,71 @@ def measure(paper: Dataset, sweeps: Dataset, turns: Dataset | None = None,
         out |= {f"{where}_{k}": v for k, v in snap_residuals(gate, ds).items()}
         out |= {f"{where}_{k}": v for k, v in gate_switches(gate, ds).items()}
     out |= play_form(gate, paper, train, held)
-    return out if extra is None else out | play_form(gate, paper, train, held, extra, "pix")
+    if extra is None:
+        return out
+    return out | play_form(gate, paper, train, held, extra, "pix") | choose_on_validation(paper, extra, held)
+
+
+def split_runs(ds: Dataset) -> tuple[Dataset, Dataset]:
+    """`ds` (one sequence per run, as the excitation protocol records) in two by run: the even runs
+    (identification) and the odd ones (validation)."""
+    runs = ds.frame["run"].to_numpy()
+    ids = np.unique(runs)
+    pick = np.isin(runs, ids[::2])
+    return (Dataset(ds.frame[pick].reset_index(drop=True), ds.robot, dict(ds.meta)),
+            Dataset(ds.frame[~pick].reset_index(drop=True), ds.robot, dict(ds.meta)))
+
+
+def choose_on_validation(paper: Dataset, extra: Dataset, held: dict[str, Dataset]) -> dict[str, Any]:
+    """The fold-gate form against the play-operator form, both identified as the reproduction now
+    trains (the paper protocol's training rows + excitation runs: half the runs here) and judged on
+    the other half of the excitation runs (`val`: snaps after slides and mid-turn reversals that no
+    held-out experiment repeats): residuals and switches P/R per form on `val` and on each of `held`
+    (reported, not used to choose); beside them the fold gate of the paper's training rows alone.
+    Keys `xv_`… (fold gate), …`_pxv_`… (play), …`_pv_`… (fold gate, paper rows)."""
+    from ctrkin.evaluation.datasets import with_training_runs
+    from ctrkin.families.snap_aware.recipe import fold_gate
+
+    ident, val = split_runs(extra)
+    paper.get_split()
+    both = with_training_runs(paper, ident)
+    train = np.sort(both.get_split().train)
+    gate = fold_gate(both, train)
+    out: dict[str, Any] = {"xv_widen_deg": gate.widen_deg, "xv_outer_lag_deg": gate.outer_lag_deg,
+                           "xv_val_runs": int(val.frame["run"].nunique()),
+                           "xv_id_runs": int(ident.frame["run"].nunique())}
+    sets = {"val": val, **held}
+    paper_gate = fold_gate(paper, np.sort(paper.get_split().train))
+    for where, ds in sets.items():
+        for tag, g in (("xv", gate), ("pv", paper_gate)):
+            out |= {f"{where}_{tag}_{k}": v for k, v in snap_residuals(g, ds).items()}
+            out |= {f"{where}_{tag}_{k}": v for k, v in gate_switches(g, ds).items()}
+    out |= play_form(gate, both, train, sets, tag="pxv")
+    f1 = {form: _f1(out[f"val_{p}gate_precision"], out[f"val_{p}gate_recall"])
+          for form, p in (("fold gate", "xv_"), ("play", "pxv_"), ("fold gate (paper rows)", "pv_"))}
+    out["xv_chosen"] = max(f1, key=lambda k: (f1[k], k == "fold gate"))   # a tie keeps the fold gate
+    out["xv_val_f1"] = f1
+    return out
+
+
+def _f1(precision: float, recall: float) -> float:
+    return 0.0 if precision + recall == 0 else 2 * precision * recall / (precision + recall)
 
 
 HISTORIES = ("rest", "both tubes translated 4 mm", "inner slid 0.2 mm (d - 0.2 -> d)",
              "inner slid 4 mm (d - 4 -> d)", "outer slid 4 mm (d - 4 -> d)", "a turn at d - 4, then slid")
 
 
-def excitation(robot: Any, virtual: Any, workers: int) -> Dataset:
-    """Training-only runs that excite the slide term (--excite): at the largest sweep level d, the
-    inner tube slid from d − s (s = 0.5, 4 mm) to d, or both tubes moved together 4 mm, then one
-    full inner turn, at the snap-turns' outer angles (their outer translation −1.25 mm, carried
-    over), each run from rest, its start recorded. A protocol a user could add; not the held-out
-    sweeps' path (a turn at d − 4 before the slide)."""
-    from ctrkin.acquisition.plan import Plan, Run, Segment, transition
-    from ctrkin.acquisition.protocols import (
-        PAPER_FULL_LEVELS_MM,
-        SNAP_TURN_OUTER_ANGLES_DEG,
-        config,
-        inner_turn,
-    )
-    from ctrkin.acquisition.ranges import ProtocolRanges
+def excitation(robot: Any, virtual: Any, workers: int, scale: str) -> Dataset:
+    """Training-only runs that excite the slide term (--excite): the library's excitation protocol
+    (ctrkin.acquisition.excitation: short runs from rest, slides of one tube against the other before
+    turns, mid-turn reversals at random angles) at the scale's size, with the reproduction's seed."""
+    from ctrkin.acquisition import protocols
     from ctrkin.acquisition.recorder import record
+    from ctrkin.evaluation.datasets import SEEDS
 
-    n = robot.n_tubes
-    ranges = ProtocolRanges.of(robot)
-    d, b_out = ranges.d(PAPER_FULL_LEVELS_MM[-1]), ranges.beta_outer(-1.25)
-    runs = []
-    for k, ao in enumerate(SNAP_TURN_OUTER_ANGLES_DEG):
-        turn = inner_turn(n, ao, b_out, d)
-        start = (config(n, 0.0, ao, b_out, d - 0.5), config(n, 0.0, ao, b_out, d - 4.0),
-                 config(n, 0.0, ao, b_out - 4.0, d))[k % 3]
-        # the start is recorded (a few rows at rest), so that the slide is in the run's joint path
-        runs.append(Run((Segment(np.repeat(start[None], 5, axis=0), level=0),
-                         transition(start, turn[0], n), Segment(turn, level=0))))
-    plan = Plan("excitation", tuple(runs), ({"relative_translation_mm": d},), {"d_mm": d})
-    return record(plan, virtual, seed=1, workers=workers, progress=False)
+    plan = protocols.build("excitation", robot, scale=scale, seed=SEEDS["excitation"])
+    return record(plan, virtual, seed=SEEDS["excitation"], workers=workers, progress=False)
 
 
 def history_probe(robot: Any, virtual: Any, workers: int) -> dict[str, list[float]]:
@@ -250,7 +279,7 @@ def _record(args: argparse.Namespace
     for name, extra in (("paper", _paper_kw(scale, robot)), ("sweeps", {}), ("snap-turns", {})):
         plan = protocols.build(name, robot, **kw, **extra, seed=SEEDS[name])
         got[name] = record(plan, virtual, seed=SEEDS[name], workers=args.workers, progress=False)
-    extra = excitation(robot, virtual, args.workers) if args.excite else None
+    extra = excitation(robot, virtual, args.workers, scale.protocol_scale) if args.excite else None
     return got["paper"], got["sweeps"], got["snap-turns"], history_probe(robot, virtual, args.workers), extra
 
 
@@ -269,8 +298,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="a virtual robot effect, as `ctrkin reproduce --set` (repeatable)")
     ap.add_argument("--scale", default="quick", choices=("tiny", "quick", "full"))
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--excite", action="store_true", help="also record training-only turns after slides "
-                    "of the inner tube (`excitation`) and identify the play form on them too")
+    ap.add_argument("--excite", action="store_true", help="also record the training-only excitation "
+                    "protocol (ctrkin.acquisition.excitation), identify the play form on it too, and choose "
+                    "between the fold-gate and the play forms on held-out excitation runs (with --data: "
+                    "its excitation/ folder, where there)")
     args = ap.parse_args(argv)
     extra = None
     t0 = time.perf_counter()
@@ -278,6 +309,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.data is not None:
         paper, sweeps = Dataset.load(args.data / "paper"), Dataset.load(args.data / "sweeps")
         turns = Dataset.load(args.data / "snap-turns") if (args.data / "snap-turns").is_dir() else None
+        if (args.data / "excitation").is_dir():
+            extra = Dataset.load(args.data / "excitation")
         source = str(args.data)
     else:
         paper, sweeps, turns, probe, extra = _record(args)
@@ -310,6 +343,23 @@ def main(argv: list[str] | None = None) -> int:
             slid = _fmt(r.get(f"{where}_{p}slide_lag_max_mm"), ".2f") if p else ""
             counts = f"{r[f'{where}_gate_snaps']:3d} {r[f'{where}_gate_no_fold_snaps']:7d}"
             print(f"  {where + ' ' + name:18s} {counts} {res:>19s} {sw:>25s} {slid:>16s}")
+    if "xv_chosen" in r:
+        print(f"  chosen on validation: identified on the paper training rows + {r['xv_id_runs']} "
+              f"excitation runs, judged on {r['xv_val_runs']} others (F1 of the switches within ±2 steps)")
+        print(f"  fold gate: c = {r['xv_widen_deg']:.2f} deg, kappa = {r['xv_outer_lag_deg']:.2f} deg; "
+              f"play: c = {r['pxv_widen_deg']:.2f} deg, g = {r['pxv_fold_scale']:.3f}, "
+              f"u = {r['pxv_slide_weights']}")
+        for where in ("val", "sweeps", "turns"):
+            if f"{where}_xv_gate_snaps" not in r:
+                continue
+            for name, g, p in (("fold gate", "xv_gate_", "xv_"), ("play", "pxv_", "pxv_"),
+                               ("fold gate (paper rows)", "pv_gate_", "pv_")):
+                res = f"{_fmt(r[f'{where}_{g}residual_rms_deg'])} / {_fmt(r[f'{where}_{g}residual_max_deg'])}"
+                sw = (f"{r[f'{where}_{p}gate_switches']} vs {r[f'{where}_{p}recorded_snaps']}: "
+                      f"{r[f'{where}_{p}gate_precision']:.2f} / {r[f'{where}_{p}gate_recall']:.2f}")
+                print(f"  {where + ' ' + name:32s} {r[f'{where}_xv_gate_snaps']:3d} "
+                      f"{r[f'{where}_xv_gate_no_fold_snaps']:7d} {res:>19s} {sw:>25s}")
+        print(f"  chosen: {r['xv_chosen']} (validation F1 {r['xv_val_f1']})")
     if probe:
         print("  history probe: the same inner turn at the largest sweep level after each unrecorded "
               "history, α0 of its snaps (deg)")

@@ -61,7 +61,7 @@ import numpy as np
 import torch
 
 from ctrkin.data.dataset import Dataset
-from ctrkin.evaluation.datasets import registered_truth
+from ctrkin.evaluation.datasets import registered_truth, with_training_runs
 from ctrkin.families.registry import build_model
 from ctrkin.families.snap_aware.play import dataset_lags
 from ctrkin.metrics import position_error
@@ -237,6 +237,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--max-epochs", type=int, default=None, help="cap every arm's epochs (a smoke run)")
     ap.add_argument("--seed", default=None, help="the arms' training seeds, comma-separated, each arm "
                     "trained once per seed (default: the recipe's)")
+    ap.add_argument("--extra", type=Path, default=None, help="a dataset folder recorded on the same "
+                    "virtual robot whose rows every arm also trains on, as training rows only (e.g. the "
+                    "reproduction's data/excitation; ctrkin.evaluation.datasets.with_training_runs)")
     ap.add_argument("--no-reversals", action="store_true", help="do not record and score the mid-turn "
                     "reversals (the sweeps beside --data are still scored)")
     args = ap.parse_args(argv)
@@ -249,12 +252,15 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         ap.error(f"{args.data} has no split.json: the arms must be compared on a saved split")
     if not ds.has_truth:
         ap.error(f"{args.data} has no true pose columns (a virtual robot's data is needed)")
+    if args.extra is not None:
+        ds = with_training_runs(ds, Dataset.load(args.extra))
     base = recipe_config(args.recipe, args.max_epochs)
     seeds = [base.seed] if args.seed is None else [int(s) for s in str(args.seed).split(",") if s.strip()]
     lags = play_columns(ds)
     t0 = time.perf_counter()
     sets = held_out_sets(args.data, ds, not args.no_reversals)
-    print(f"memory features on {args.data}: {len(ds.frame)} rows, recipe {base.model} {base.options} "
+    print(f"memory features on {args.data}{f' + {args.extra} (training rows)' if args.extra else ''}: "
+          f"{len(ds.frame)} rows, recipe {base.model} {base.options} "
           f"lr {base.lr} batch {base.batch_size} max_epochs {base.max_epochs} patience {base.patience} "
           f"seeds {seeds}; play widths {ANGLE_WIDTHS} deg, {SLIDE_WIDTHS} mm; held out beyond the protocol: "
           f"{[f'{h.name} ({int(h.keep.sum())} rows)' for h in sets]} ({time.perf_counter() - t0:.0f} s)",
@@ -278,9 +284,10 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                   + " ".join(f"{r.get(k, math.nan):7.3f}" for k in ("train", "val", "test", "sweeps_rmse"))
                   + f" {r.get('reversals_rmse', math.nan):6.2f} {r.get('reversals_max', math.nan):6.2f}"
                   f" {r['seconds']:6.0f} {r['step_us']:5.0f} {r['load']:5.1f}", flush=True)
-    report = {"data": str(args.data), "recipe": {"model": base.model, "options": base.options, "lr": base.lr,
-                                                 "batch_size": base.batch_size, "max_epochs": base.max_epochs,
-                                                 "patience": base.patience, "seeds": seeds},
+    report = {"data": str(args.data), "extra": None if args.extra is None else str(args.extra),
+              "recipe": {"model": base.model, "options": base.options, "lr": base.lr,
+                         "batch_size": base.batch_size, "max_epochs": base.max_epochs,
+                         "patience": base.patience, "seeds": seeds},
               "angle_widths_deg": ANGLE_WIDTHS, "slide_widths_mm": SLIDE_WIDTHS,
               "held_out": {h.name: int(h.keep.sum()) for h in sets}, "arms": out}
     print(json.dumps(report, default=float))

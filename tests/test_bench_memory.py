@@ -94,3 +94,20 @@ def test_one_state_arm_trains_and_predicts_as_it_scores(bench, state_mod, sweeps
     assert state_mod.run_bounds(sweeps) == sweeps.sequence_bounds()     # no `run` column: each sequence
     pred = model.predict(sweeps)
     assert pred.shape == (len(sweeps.frame), 6) and np.all(np.isfinite(pred))
+
+
+def test_extra_rows_join_the_training_rows_only(bench, sweeps, tmp_path, capsys) -> None:
+    """--extra DIR: every arm trains on the data's training rows plus DIR's rows; the validation and
+    test rows are the data's (datasets.with_training_runs)."""
+    import dataclasses
+
+    data, extra = tmp_path / "paper", tmp_path / "excitation"
+    ds = dataclasses.replace(sweeps, split=sweeps.get_split(seed=0))
+    ds.save(data)
+    sweeps.save(extra)
+    report = bench.main(["--data", str(data), "--extra", str(extra), "--arms", "ib2", "--max-epochs", "1",
+                         "--no-reversals"])
+    out = capsys.readouterr().out
+    assert report["extra"] == str(extra)
+    assert f"{2 * len(sweeps.frame)} rows" in out and "(training rows)" in out
+    assert report["arms"]["ib2"][0]["epochs"] == 1

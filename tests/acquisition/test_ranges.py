@@ -19,7 +19,7 @@ from ctrkin.robots.overlap import curved_overlap
 from ctrkin.robots.robot import Robot
 from ctrkin.robots.tube import Tube
 
-ALL = ("paper", "sweeps", "random-points", "arbitrary", "snap-turns")
+ALL = ("paper", "sweeps", "random-points", "arbitrary", "snap-turns", "excitation")
 
 
 def tube(like: Tube, **changes: float) -> Tube:

@@ -57,3 +57,23 @@ def test_a_folder_recorded_with_the_defaults_of_an_earlier_version_is_refused(tm
         claim(out, robot, tiny, 0, False)
     claim(out, robot, tiny, 0, True)                                    # --overwrite replaces it
     assert not (out / "data").exists()
+
+
+def test_a_folder_whose_recommended_models_trained_on_the_paper_protocol_alone_is_refused(tmp_path) -> None:
+    """Before the excitation protocol the recommended models trained on the paper protocol only: a
+    rerun would find models of other training data, so the folder is another reproduction."""
+    from ctrkin.evaluation.repro_folder import TRAINING_DATA
+    from ctrkin.util.ownership import write_marker
+
+    out, robot, tiny = tmp_path / "repro", load_robot("paper"), get_scale("tiny")
+    claim(out, robot, tiny, 0, False)
+    assert read_marker(out)["training_data"] == TRAINING_DATA == "paper+excitation"
+    claim(out, robot, tiny, 0, False)                                  # the same: kept
+    skip = ("training_data", "kind", "ctrkin_version", "marker_version")
+    marker = {k: v for k, v in read_marker(out).items() if k not in skip}
+    write_marker(out, "reproduction", **marker)                        # as a reproduction before it
+    (out / "data").mkdir()
+    with pytest.raises(OutputError, match="recommended models trained on paper"):
+        claim(out, robot, tiny, 0, False)
+    claim(out, robot, tiny, 0, True)
+    assert read_marker(out)["training_data"] == TRAINING_DATA

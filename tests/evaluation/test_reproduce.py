@@ -102,11 +102,37 @@ def test_report_has_every_section_and_figure(tiny_run) -> None:
 
 
 @pytest.mark.slow
+def test_the_recommended_models_alone_train_on_the_excitation_runs_too(tiny_run) -> None:
+    """data/excitation beside data/paper; the snap-aware FK and the follow IK train on the paper rows
+    and the excitation runs (data/paper+excitation), every other model on the paper rows alone; the
+    validation and test rows are the paper's for all."""
+    from ctrkin.data.dataset import Dataset
+    from ctrkin.evaluation.training_runs import TRAINED_WITH_EXCITATION
+
+    out, _results = tiny_run
+    paper, extra = Dataset.load(out / "data" / "paper"), Dataset.load(out / "data" / "excitation")
+    both = Dataset.load(out / "data" / "paper+excitation")
+    assert extra.meta["protocol"] == "excitation" and len(both.frame) == len(paper.frame) + len(extra.frame)
+    assert both.split.test.tolist() == paper.split.test.tolist()
+    assert both.split.val.tolist() == paper.split.val.tolist()
+    for folder in sorted((out / "models").glob("*/config.json")):
+        if folder.parent.name == "ik_refined":
+            continue
+        samples = json.loads(folder.read_text())["data"]["samples"]
+        want = len(both.frame) if folder.parent.name in TRAINED_WITH_EXCITATION else len(paper.frame)
+        assert samples == want, folder.parent.name
+
+
+@pytest.mark.slow
 def test_rerun_reuses_data_and_models(tiny_run) -> None:
     out, first = tiny_run
     data_stamp = (out / "data" / "paper" / "data.parquet").stat().st_mtime_ns
+    stamps = {name: (out / "data" / name / "data.parquet").stat().st_mtime_ns
+              for name in ("excitation", "paper+excitation")}
     again = reproduce(paper_robot(), get_scale("tiny"), out, log=lambda _m: None)
     assert (out / "data" / "paper" / "data.parquet").stat().st_mtime_ns == data_stamp
+    for name, stamp in stamps.items():
+        assert (out / "data" / name / "data.parquet").stat().st_mtime_ns == stamp, name
     for name, info in first.training.items():  # no epoch trained again
         assert again.training[name]["epochs"] == info["epochs"]
         assert again.training[name]["seconds"] == info["seconds"]

@@ -7,6 +7,7 @@
     ctrkin collect --protocol sweeps --levels 2,6,10 --robot my_robot.toml --out data/my-sweeps
     ctrkin collect --protocol random-points --n-points 20 --seed 1 --out data/random
     ctrkin collect --protocol arbitrary --out data/arbitrary
+    ctrkin collect --protocol excitation --scale quick --seed 8 --out data/excitation   # training only
     ctrkin collect --protocol square --out data/square        # IK targets, not a dataset
     ctrkin collect --rig examples/rigs/paper.toml --protocol paper --scale full --out data/rig-paper
 
@@ -59,10 +60,10 @@ class CollectConfig:
     protocol: str = field(default="paper", metadata=option_help(
         "What to record: " + ", ".join(CHOICES) + ".", choices=CHOICES))
     scale: Scale = field(default="quick", metadata=option_help(
-        "Size of the paper protocol, the training data of `reproduce --scale` of the same name (the other "
-        "protocols do not depend on it). full: the paper's, 8 levels x 36 outer angles (207,648 "
-        "samples); quick: 4 levels x 18 outer angles (51,912); tiny: 2 levels x 4 outer angles "
-        "(5,768)."))
+        "Size of the paper protocol, the training data of `reproduce --scale` of the same name (the "
+        "excitation protocol records a fifth of its samples; the other protocols do not depend on it). "
+        "full: the paper's, 8 levels x 36 outer angles (207,648 samples); quick: 4 levels x 18 outer "
+        "angles (51,912); tiny: 2 levels x 4 outer angles (5,768)."))
     robot: str = field(default="paper", metadata=option_help(ROBOT_HELP))
     seed: int = field(default=0, metadata=option_help("Noise, glitches, random configurations."))
     robot_seed: int = field(default=0, metadata=option_help("The virtual hardware draw."))

@@ -3,6 +3,7 @@ truth as the tracker would see it without noise (the reference for "vs true" err
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,14 +23,16 @@ from ctrkin.virtual.truth import tracker_truth
 
 # noise seeds: training and each test experiment see independent measurement noise
 SEEDS = {"paper": 0, "sweeps": 1, "random-points": 2, "arbitrary": 3, "square": 4, "triangle": 5,
-         "snap-turns": 6}
+         "snap-turns": 6, "excitation": 8}
 
 
 @dataclass(eq=False)
 class ReproData:
     """paper: training data; sweeps, random_points, arbitrary: test experiments (Fig. 10);
     square, triangle: IK target poses (P, 6) in the tracker frame (Fig. 12); snap_turns: full turns
-    at full overlap off the training grid (ctrkin.acquisition.protocols.snap_turns)."""
+    at full overlap off the training grid (ctrkin.acquisition.protocols.snap_turns); excitation:
+    training-only runs (ctrkin.acquisition.excitation) added to the recommended models' training rows
+    (with_training_runs), never to a validation or test part."""
 
     virtual: VirtualRobot
     paper: Dataset
@@ -39,6 +42,7 @@ class ReproData:
     square: np.ndarray
     triangle: np.ndarray
     snap_turns: Dataset
+    excitation: Dataset
 
 
 def registered_truth(ds: Dataset, virtual: VirtualRobot | None = None) -> np.ndarray:
@@ -103,7 +107,59 @@ def collect(
         square=shapes["square"],
         triangle=shapes["triangle"],
         snap_turns=get("snap-turns"),
+        excitation=get("excitation"),
     )
+
+
+def with_training_runs(ds: Dataset, extra: Dataset) -> Dataset:
+    """`ds` with the rows of `extra` appended as TRAINING rows only (e.g. the excitation protocol's:
+    ctrkin.acquisition.excitation): their sequence ids and runs renumbered after those of `ds` (each
+    extra run starts from rest, as recorded), the split `ds`'s with every extra row added to its
+    training part, so validation and test are the rows of `ds` they were.
+
+    Raises
+    ------
+    DatasetError
+        `ds` has no split, or the two were recorded on different robots.
+    """
+    if ds.split is None:
+        raise DatasetError("with_training_runs: the dataset needs its split (save_split) first")
+    if ds.robot.fingerprint() != extra.robot.fingerprint():
+        raise DatasetError(f"with_training_runs: the extra runs were recorded on robot {extra.robot.name!r}, "
+                           f"not on {ds.robot.name!r}")
+    import pandas as pd
+
+    more = extra.frame.copy()
+    for col in ("sequence_id", "run"):             # `run` is optional (recorded datasets have it)
+        if col in ds.frame.columns and col in more.columns:
+            more[col] = more[col].to_numpy() + int(ds.frame[col].max()) + 1
+    frame = pd.concat([ds.frame, more[ds.frame.columns]], ignore_index=True)
+    n = len(ds.frame)
+    split = dataclasses.replace(ds.split, train=np.r_[ds.split.train, n + np.arange(len(more))],
+                                n_rows=len(frame))
+    meta = {**ds.meta, "training_runs": {"protocol": extra.meta.get("protocol"), "samples": len(more),
+                                         "data_sha256": extra.meta.get("data_sha256"),
+                                         "params": extra.meta.get("protocol_params")}}
+    return Dataset(frame, ds.robot, meta, split=split)
+
+
+TRAINING_FOLDER = "paper+excitation"      # beside data/paper: the recommended models' training data
+
+
+def save_training_set(data: ReproData, folder: Path) -> Path:
+    """Save the paper dataset (its split saved) with the excitation runs among its training rows
+    (with_training_runs) into `folder`, unless it already holds exactly that (the same paper and
+    excitation data and split: a rerun reuses it, and the models trained on it); the folder."""
+    combined = with_training_runs(data.paper, data.excitation)
+    key = {"paper": data.paper.meta.get("data_sha256"), "excitation": data.excitation.meta.get("data_sha256"),
+           "split": data.paper.get_split().to_dict()}
+    if (folder / "meta.json").is_file():
+        old = Dataset.load(folder)
+        if old.meta.get("training_set_key") == key:
+            return folder
+    combined.meta["training_set_key"] = key
+    combined.save(folder)
+    return folder
 
 
 def virtual_overrides(config: VirtualConfig | None) -> dict[str, Any]:

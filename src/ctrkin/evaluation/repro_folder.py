@@ -2,9 +2,9 @@
 
 A reproduction reuses what an earlier run of the same settings left in its folder (data, models),
 so a rerun continues. A folder that holds a reproduction of other settings (scale, robot, robot
-seed, the virtual robot's effects) is refused before anything is recorded, unless `overwrite`,
-which replaces it as a whole (ctrkin.util.ownership: only a ctrkin reproduction holding nothing
-else is ever replaced). The
+seed, the virtual robot's effects, what the recommended models train on: TRAINING_DATA) is refused
+before anything is recorded, unless `overwrite`, which replaces it as a whole
+(ctrkin.util.ownership: only a ctrkin reproduction holding nothing else is ever replaced). The
 settings live in the folder's marker (ctrkin-output.json); a folder of ctrkin before 0.2 has none,
 and is judged by the key its paper dataset was recorded with.
 """
@@ -26,6 +26,8 @@ from ctrkin.util.ownership import check_replaceable, read_marker, write_marker
 from ctrkin.virtual.config import VirtualConfig
 
 KIND = "reproduction"
+# what the recommended models train on (a reproduction before the excitation protocol: "paper")
+TRAINING_DATA = "paper+excitation"
 
 
 def settings(robot: Robot, scale: ReproScale, robot_seed: int,
@@ -33,7 +35,8 @@ def settings(robot: Robot, scale: ReproScale, robot_seed: int,
     """What a reproduction folder is a reproduction of (kept in its marker); virtual_settings: the
     effect magnitudes that differ from the default (datasets.virtual_overrides)."""
     return {"scale": scale.name, "robot": robot.name, "robot_fingerprint": robot.fingerprint(),
-            "robot_seed": int(robot_seed), "virtual_settings": virtual_overrides(virtual)}
+            "robot_seed": int(robot_seed), "virtual_settings": virtual_overrides(virtual),
+            "training_data": TRAINING_DATA}
 
 
 def _recorded(out: Path) -> dict[str, Any] | None:
@@ -46,6 +49,7 @@ def _recorded(out: Path) -> dict[str, Any] | None:
     if marker is not None:      # a marker before --set has no virtual_settings: the default's
         return {**{k: marker.get(k) for k in ("scale", "robot", "robot_fingerprint", "robot_seed")},
                 "virtual_settings": marker.get("virtual_settings", {}),
+                "training_data": marker.get("training_data", "paper"),
                 "virtual_config": _paper_config(out)}
     try:
         meta = json.loads((out / "data" / "paper" / "meta.json").read_text())
@@ -90,7 +94,8 @@ def claim(out: Path, robot: Robot, scale: ReproScale, robot_seed: int, overwrite
                 "or choose another --out")
         elif not same:
             what = (f"scale {got.get('scale')}, robot {got.get('robot')}, robot seed {got.get('robot_seed')}"
-                    f"{_effects(got.get('virtual_settings'))}"
+                    f"{_effects(got.get('virtual_settings'))}, its recommended models trained on "
+                    f"{got.get('training_data')}"
                     if got is not None and "paper_key" not in got else "other settings")
             raise OutputError(f"{out} holds a reproduction of {what}; pass --overwrite to replace it, or "
                               "choose another --out")

@@ -18,7 +18,13 @@ from ctrkin.calibration.fit import CalibrationResult, calibrate
 from ctrkin.calibration.params import FRICTION, GROUPS
 from ctrkin.errors import OutputError
 from ctrkin.evaluation.context import Context
-from ctrkin.evaluation.datasets import ReproData, collect, virtual_overrides
+from ctrkin.evaluation.datasets import (
+    TRAINING_FOLDER,
+    ReproData,
+    collect,
+    save_training_set,
+    virtual_overrides,
+)
 from ctrkin.evaluation.experiments import EXPERIMENTS
 from ctrkin.evaluation.experiments_fk import SNAP_TURNS, SWEEPS
 from ctrkin.evaluation.report import write_report
@@ -120,9 +126,10 @@ def _reproduce(robot: Robot, scale: ReproScale, out: Path, robot_seed: int, work
     with st.stage("collect data on the virtual robot"):
         data = collect(robot, scale, out / "data", robot_seed=robot_seed, config=virtual)
         data.paper.save_split(out / "data" / "paper", data.paper.get_split(seed=0))
+        training = save_training_set(data, out / "data" / TRAINING_FOLDER)
     with st.stage("train models"):
         models = train_all(out / "data" / "paper", scale, out / "models", workers=workers, log=log,
-                           executor=executor, device=device)
+                           executor=executor, device=device, training_dir=training)
     with st.stage("fit the TCM baseline's registration on training rows"):
         tcm = _tcm_baseline(robot, data, scale)
     with st.stage("calibrate the TCM on training rows (friction included)"):

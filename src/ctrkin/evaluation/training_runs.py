@@ -4,7 +4,11 @@ structure grids (Tables II, III). The refined IK (the IK model refined on the sn
 ctrkin.families.refined.refine) is assembled from two trained folders, not trained.
 
 All runs use the same by-sequence split of the paper dataset (saved in it), so every model is tested
-on the same held-out sequences. Grid and comparison models may see fewer training sequences
+on the same held-out sequences. The recommended models (TRAINED_WITH_EXCITATION: the snap-aware FK
+and the follow IK) also train on the excitation protocol's runs (ctrkin.acquisition.excitation),
+added to their training rows only (ctrkin.evaluation.datasets.with_training_runs, the folder
+`training_dir`); the paper's own models, baselines and grids train on the paper protocol alone, as
+the paper ran them. Grid and comparison models may see fewer training sequences
 (ReproScale.grid_sequences) to keep the quick scale within minutes.
 """
 
@@ -21,13 +25,25 @@ from ctrkin.data.dataset import Dataset
 from ctrkin.errors import CtrkinError
 from ctrkin.evaluation.executors import run_jobs
 from ctrkin.evaluation.scales import Budget, ReproScale
-from ctrkin.evaluation.table import ABLATION, BASELINES, FK_BRANCH, FK_PAPER, IK_FOLLOW, IK_PAPER, IK_REFINED
+from ctrkin.evaluation.table import (
+    ABLATION,
+    BASELINES,
+    FK_BRANCH,
+    FK_PAPER,
+    IK_FOLLOW,
+    IK_PAPER,
+    IK_REFINED,
+    RECOMMENDED,
+)
 from ctrkin.families.refined.folder import assemble_refined
 from ctrkin.inference import Kinematics
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.device import resolve_device
 from ctrkin.training.engine import train
 from ctrkin.util.progress import progress_bar
+
+# the recommended FK and IK (table.RECOMMENDED) train on the paper protocol + the excitation runs
+TRAINED_WITH_EXCITATION = tuple(str(row.folder) for row in RECOMMENDED.values())
 
 
 @dataclass(frozen=True)
@@ -99,7 +115,7 @@ def _train_run(dataset_dir: str, n_sequences: int | None, cfg: dict[str, Any], o
 
 def train_all(
     dataset_dir: Path, scale: ReproScale, out: Path, workers: int = 2, log: Callable[[str], None] = print,
-    executor: str = "local", device: str = "auto",
+    executor: str = "local", device: str = "auto", training_dir: Path | None = None,
 ) -> dict[str, Kinematics]:
     """Train (or resume / reuse) every run into out/<name>, `workers` runs at a time with one torch
     thread each (two single-threaded runs use two cores better than one run with two threads);
@@ -107,7 +123,8 @@ def train_all(
     "local" (spawned processes) or "ray" (Ray tasks of one CPU each, ctrkin.evaluation.executors;
     the same results for the same seeds); device: auto | cpu | cuda (ctrkin.training.device), resolved
     here once, so that auto says once where the runs train (the Ray executor's tasks train on the
-    CPU: they reserve no GPU)."""
+    CPU: they reserve no GPU); training_dir: the saved paper dataset with the excitation runs among its
+    training rows, which the TRAINED_WITH_EXCITATION runs train on (None: dataset_dir)."""
     if executor == "ray" and device != "cpu":        # Ray hides the GPUs from tasks that reserve none
         if device == "cuda":
             raise CtrkinError("--device cuda with --executor ray: the Ray tasks reserve CPUs only; pass "
@@ -122,7 +139,9 @@ def train_all(
     for run in runs:
         cfg = {**replace(run.config, threads=1).to_dict(), "device": torch_device.type}
         n_seq = None if run.role == "main" else scale.grid_sequences
-        jobs.append((str(dataset_dir), n_seq, cfg, str(out / run.name)))
+        with_extra = training_dir is not None and run.name in TRAINED_WITH_EXCITATION
+        data_dir = training_dir if with_extra else dataset_dir
+        jobs.append((str(data_dir), n_seq, cfg, str(out / run.name)))
     with progress_bar(total=len(runs), desc="train models", unit="model") as bar:
         for k in run_jobs(_train_run, jobs, executor=executor, workers=workers, threads=1):
             bar.update(1)
