@@ -34,6 +34,46 @@ from ctrkin.mechanics.passes import flat_work
 
 
 @njit(cache=True)
+def _turn(q, q_from, n):
+    """max_i |q_i − q_from_i| over the N rotations (deg): the step's largest turn."""
+    turn = 0.0
+    for i in range(n):
+        turn = max(turn, abs(q[i] - q_from[i]))
+    return turn
+
+
+@njit(cache=True)
+def _twist(x, x_prev, lengths, n):
+    """max_i |x_i − x_prev_i| L_i: the largest change of a tube's twist over its length (rad)."""
+    twist = 0.0
+    for i in range(n):
+        twist = max(twist, abs((x[i] - x_prev[i]) * lengths[i]))
+    return twist
+
+
+@njit(cache=True)
+def _predict(t, same, snapped, xs, weights, path_states, guess):
+    """guess (N,) = follow's predictor at step t: the polynomial through the m states behind t on
+    one branch (m ≤ path_states; continuation.Predictor), or the last state where m = 1."""
+    m = 1
+    while m < path_states and same[t - m + 1] and not snapped[t - m]:
+        m += 1
+    if m > 1:
+        extrapolate(weights[m], xs[t - m:t], guess)
+    else:
+        guess[:] = xs[t - 1]
+
+
+@njit(cache=True)
+def _record(t, rn, det_j, det_h, it, stats, counts):
+    """An accepted step's figures: stats[t] = (|r|∞, det J, min det H), counts[t, 0] = iterations."""
+    stats[t, 0] = rn
+    stats[t, 1] = det_j
+    stats[t, 2] = det_h
+    counts[t, 0] = it
+
+
+@njit(cache=True)
 def warm_step(q, q_from, guess, x_prev, det_prev, lengths, beta, tips, rigid, k, gj, bounds, kap,
               kapy, present, nsteps, nsample, tol, max_iter, max_step, max_turn, jump, slack, rate,
               alpha, x_out, body_out):
@@ -47,10 +87,7 @@ def warm_step(q, q_from, guess, x_prev, det_prev, lengths, beta, tips, rigid, k,
     and |det J − det_prev| ≤ slack + rate det_prev.
     """
     n = alpha.shape[0]
-    turn = 0.0
-    for i in range(n):
-        turn = max(turn, abs(q[i] - q_from[i]))
-    if not turn <= max_turn:
+    if not _turn(q, q_from, n) <= max_turn:
         return False, 0, math.inf, math.nan, math.nan, 0
     reduced_radians(q, alpha)
     conv, it, rn, det_j, det_h, passes = newton(
@@ -58,9 +95,7 @@ def warm_step(q, q_from, guess, x_prev, det_prev, lengths, beta, tips, rigid, k,
         max_iter, max_step, x_out, body_out, None, None, None, None, None)
     accepted = conv and det_j > 0.0 and det_h > 0.0
     if accepted:
-        twist = 0.0
-        for i in range(n):
-            twist = max(twist, abs((x_out[i] - x_prev[i]) * lengths[i]))
+        twist = _twist(x_out, x_prev, lengths, n)
         accepted = twist <= jump and abs(det_j - det_prev) <= slack + rate * det_prev
     return accepted, it, rn, det_j, det_h, passes
 
@@ -119,18 +154,9 @@ def warm_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_stat
     t = start
     done[0] = 0
     while t < Q.shape[0] and rotation[t]:
-        m = 1  # states behind step t on one branch (follow's loop)
-        while m < path_states and same[t - m + 1] and not snapped[t - m]:
-            m += 1
-        if m > 1:
-            extrapolate(weights[m], xs[t - m:t], guess)
-        else:
-            guess[:] = xs[t - 1]
+        _predict(t, same, snapped, xs, weights, path_states, guess)
         q, q_from = Q[t], Q[t - 1]
-        turn = 0.0
-        for i in range(n):
-            turn = max(turn, abs(q[i] - q_from[i]))
-        if not turn <= max_turn:
+        if not _turn(q, q_from, n) <= max_turn:
             break
         reduced_radians(q, alpha[t])
         conv, it, rn, det_j, det_h, passes = _newton(
@@ -139,16 +165,11 @@ def warm_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_stat
         counts[t, 1] = passes
         accepted = conv and det_j > 0.0 and det_h > 0.0
         if accepted:
-            twist = 0.0
-            for i in range(n):
-                twist = max(twist, abs((xs[t, i] - xs[t - 1, i]) * lengths[i]))
+            twist = _twist(xs[t], xs[t - 1], lengths, n)
             accepted = twist <= jump and abs(det_j - det) <= slack + rate * det
         if not accepted:
             break
-        stats[t, 0] = rn
-        stats[t, 1] = det_j
-        stats[t, 2] = det_h
-        counts[t, 0] = it
+        _record(t, rn, det_j, det_h, it, stats, counts)
         det = det_j
         t += 1
         done[0] = t - start
@@ -185,18 +206,9 @@ def friction_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_
     t = start
     done[0] = 0
     while t < Q.shape[0] and rotation[t]:
-        m = 1
-        while m < path_states and same[t - m + 1] and not snapped[t - m]:
-            m += 1
-        if m > 1:
-            extrapolate(weights[m], xs[t - m:t], guess)
-        else:
-            guess[:] = xs[t - 1]
+        _predict(t, same, snapped, xs, weights, path_states, guess)
         q, q_from = Q[t], Q[t - 1]
-        turn = 0.0
-        for i in range(n):
-            turn = max(turn, abs(q[i] - q_from[i]))
-        if not turn <= max_turn:
+        if not _turn(q, q_from, n) <= max_turn:
             break
         reduced_radians(q, alpha[t])
         cvar[t, :] = gather_state(theta[t - 1], slot, q, q_state if t == start else q_from)
@@ -206,18 +218,13 @@ def friction_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_
         counts[t, 1] = passes
         accepted = conv and det_j > 0.0 and det_h > 0.0
         if accepted:
-            twist = 0.0
-            for i in range(n):
-                twist = max(twist, abs((xs[t, i] - xs[t - 1, i]) * lengths[i]))
+            twist = _twist(xs[t], xs[t - 1], lengths, n)
             held = _same_modes(modes_prev if t == start else cout[t - 1, :, 3], cout[t, :, 3])
             accepted = twist <= jump and (abs(det_j - det) <= slack + rate * det or not held)
         if not accepted:
             break
         theta[t, :] = state_after(slot, cout[t], table, pairs, prm[1], size)
-        stats[t, 0] = rn
-        stats[t, 1] = det_j
-        stats[t, 2] = det_h
-        counts[t, 0] = it
+        _record(t, rn, det_j, det_h, it, stats, counts)
         det = det_j
         t += 1
         done[0] = t - start
@@ -239,18 +246,9 @@ def moving_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_st
     t = start
     done[0] = 0
     while t < Q.shape[0] and not rotation[t]:
-        m = 1
-        while m < path_states and same[t - m + 1] and not snapped[t - m]:
-            m += 1
-        if m > 1:
-            extrapolate(weights[m], xs[t - m:t], guess)
-        else:
-            guess[:] = xs[t - 1]
+        _predict(t, same, snapped, xs, weights, path_states, guess)
         q, q_from = Q[t], Q[t - 1]
-        turn = 0.0
-        for i in range(n):
-            turn = max(turn, abs(q[i] - q_from[i]))
-        if not turn <= max_turn:
+        if not _turn(q, q_from, n) <= max_turn:
             break
         a, beta, tips, grid, _ = prepare(q, tube_len, extra, sec_len, sec_kap, sec_kapy, n_sec, h)
         if grid[5].sum() > max_rk4:
@@ -262,16 +260,11 @@ def moving_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_st
         counts[t, 1] = passes
         accepted = conv and det_j > 0.0 and det_h > 0.0
         if accepted:
-            twist = 0.0
-            for i in range(n):
-                twist = max(twist, abs((xs[t, i] - xs[t - 1, i]) * tube_len[i]))
+            twist = _twist(xs[t], xs[t - 1], tube_len, n)
             accepted = twist <= jump and abs(det_j - det) <= slack + rate * det
         if not accepted:
             break
-        stats[t, 0] = rn
-        stats[t, 1] = det_j
-        stats[t, 2] = det_h
-        counts[t, 0] = it
+        _record(t, rn, det_j, det_h, it, stats, counts)
         det = det_j
         t += 1
         done[0] = t - start
