@@ -131,7 +131,7 @@ class _Steps:
         self.stats = np.empty((T, 3))
         self.counts = np.zeros((T, 2), dtype=np.int64)
         self.done = np.zeros(1, dtype=np.int64)
-        self.runs: list[_ContactRun | None] = [None] * T  # the friction run of step t, if any
+        self.runs: list[_ContactStep | None] = [None] * T  # step t's rows of its friction run, if any
         self.states: dict[int, FrictionState] = {}   # the friction states made so far
         self.last_run: _ContactRun | None = None
 
@@ -158,9 +158,9 @@ class _Steps:
             run = self.runs[t]
             if run is not None:  # what _problem_at, _after and pointwise.equilibrium make
                 assert pb0.stations is not None
-                pb.__dict__.update(stations=pb0.stations, cvar=run.cvar[t],
+                pb.__dict__.update(stations=pb0.stations, cvar=run.cvar,
                                    state=run.first if t == run.start else self.state(t - 1))
-                contact = ContactReport(pb0.stations, run.cout[t], self.state(t))
+                contact = ContactReport(pb0.stations, run.cout, self.state(t))
             body, st = self.body[t], self.stats[t].tolist()
             eq = made(Equilibrium, q=q, x=self.xs[t], tip_position=body[:3],
                       tip_tangent=body[3:6], converged=True, stability=st[1], conjugate=st[2],
@@ -175,7 +175,7 @@ class _Steps:
         if out is None:
             run = self.runs[t]
             assert run is not None
-            out = self.states[t] = FrictionState(run.theta[t], self.Q[t])
+            out = self.states[t] = FrictionState(run.theta, self.Q[t])
         return out
 
     def equilibria(self) -> list[Equilibrium]:
@@ -524,6 +524,17 @@ class _ContactRun(NamedTuple):
     first: FrictionState
 
 
+class _ContactStep(NamedTuple):
+    """One accepted step of a friction run: its rows of the run's arrays (theta (P · slots,) the state
+    after it, cvar (K + P,), cout (K, 8)), the run's first step and the friction state it started from."""
+
+    theta: np.ndarray
+    cvar: np.ndarray
+    cout: np.ndarray
+    start: int
+    first: FrictionState
+
+
 def _friction_run(steps: _Steps, t: int, prev: Equilibrium, rotation: np.ndarray,
                   same: np.ndarray, snaps: np.ndarray, settings: SolverSettings) -> int:
     """_warm_run on a robot with contact effects (warm.friction_run), from prev's friction state."""
@@ -551,7 +562,10 @@ def _friction_run(steps: _Steps, t: int, prev: Equilibrium, rotation: np.ndarray
     except (ZeroDivisionError, OverflowError, FloatingPointError):
         m = int(steps.done[0])
     steps.base[t:t + m] = [pb0] * m
-    steps.runs[t:t + m] = [run] * m
+    # each accepted step keeps its own rows: the run's (T, …) arrays are not held by the steps (a
+    # path whose grid changes often would otherwise keep one such set per run: O(T²) memory)
+    steps.runs[t:t + m] = [_ContactStep(run.theta[i].copy(), run.cvar[i].copy(), run.cout[i].copy(), t, first)
+                           for i in range(t, t + m)]
     steps.last_run = run
     return m
 

@@ -121,7 +121,7 @@ class SeqNet(KinematicsNet):
     def _lstm(self, layer: nn.LSTM, h: torch.Tensor) -> torch.Tensor:
         """layer(h)[0]: the fused window LSTM where `fused_lstm` applies, else torch's."""
         if self.fused_lstm and torch.is_grad_enabled():
-            # imported here: window_lstm imports batch, which imports this module
+            # imported here: window_lstm imports numba, which training alone needs
             from ctrkin.models.window_lstm import fits, window_lstm
 
             if fits(layer, h):

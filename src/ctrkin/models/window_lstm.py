@@ -16,7 +16,7 @@ Equations (gate order i, f, g, o as torch):
             da_o = dh_t·tanh(c_t)·o(1 − o); da_i = dc_t·g·i(1 − i); da_g = dc_t·i(1 − g²);
             da_f = dc_t·c_{t−1}·f(1 − f) (0 at t = 0); dh_{t−1} += da_t W_hh
             dW_ih = Σ_t da_tᵀ x_t; dW_hh = Σ_{t≥1} da_tᵀ h_{t−1}; db_ih = db_hh = Σ_t da_t
-σ and tanh(x) = 2σ(2x) − 1 use batch.py's float32 sigmoid (relative error < 1e-7). Equal to nn.LSTM's
+σ and tanh(x) = 2σ(2x) − 1 use sigmoid32's float32 sigmoid (relative error < 1e-7). Equal to nn.LSTM's
 outputs and gradients within float32 round-off (tests/models/test_window_lstm.py).
 """
 
@@ -29,7 +29,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from ctrkin.models.batch import _sigmoid32
+from ctrkin.models.sigmoid32 import _sigmoid32
 
 _F32 = np.float32
 
@@ -217,11 +217,10 @@ def window_lstm(layer: nn.LSTM, x: torch.Tensor) -> torch.Tensor:
 
 def use_window_lstm(net: nn.Module, on: bool) -> None:
     """Let every SeqNet in `net` run its LSTM with `window_lstm` (SeqNet.fused_lstm), or not (and
-    free the pooled buffers)."""
-    from ctrkin.models.seqnet import SeqNet
-
+    free the pooled buffers). A SeqNet is known by its class attribute `fused_lstm` (seqnet imports
+    this module: importing SeqNet here would close a circle)."""
     if not on:
         _POOL.clear()
     for m in net.modules():
-        if isinstance(m, SeqNet):
+        if hasattr(type(m), "fused_lstm"):
             m.fused_lstm = on
