@@ -223,4 +223,4 @@ def use_window_lstm(net: nn.Module, on: bool) -> None:
         _POOL.clear()
     for m in net.modules():
         if hasattr(type(m), "fused_lstm"):
-            m.fused_lstm = on
+            setattr(m, "fused_lstm", on)  # noqa: B010 (nn.Module types its attributes as tensors or modules)
