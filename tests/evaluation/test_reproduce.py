@@ -12,6 +12,7 @@ from typing import Any
 import pytest
 
 from ctrkin import paper_robot
+from ctrkin.evaluation.datasets import TRAINING_FOLDER
 from ctrkin.evaluation.reproduce import reproduce
 from ctrkin.evaluation.results import ReproResults
 from ctrkin.evaluation.scales import get_scale
@@ -149,7 +150,7 @@ def test_ray_executor_gives_the_local_results(tiny_run, tmp_path) -> None:
     pytest.importorskip("ray")
     out, _local = tiny_run
     train_all(out / "data" / "paper", get_scale("tiny"), tmp_path / "models", workers=2, executor="ray",
-              log=lambda _m: None)
+              log=lambda _m: None, training_dir=out / "data" / TRAINING_FOLDER)
     local_runs = sorted(p.parent.name for p in (out / "models").glob("*/weights.pt"))
     ray_runs = sorted(p.parent.name for p in (tmp_path / "models").glob("*/weights.pt"))
     assert local_runs and ray_runs == local_runs
@@ -160,9 +161,10 @@ def test_ray_executor_gives_the_local_results(tiny_run, tmp_path) -> None:
 
 
 def _metrics(folder: Path) -> dict[str, Any]:
-    """A model folder's metrics.json less what depends on the clock (training seconds, samples/s)."""
+    """A model folder's metrics.json less what depends on the clock (training seconds and CPU seconds,
+    samples per second of each)."""
     metrics = json.loads((folder / "metrics.json").read_text())
-    for key in ("seconds", "samples_per_s"):
+    for key in ("seconds", "samples_per_s", "cpu_seconds", "samples_per_cpu_s"):
         del metrics["training"][key]
     return metrics
 
