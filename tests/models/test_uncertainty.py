@@ -116,7 +116,7 @@ def test_ik_score_sees_joint_histories_the_pose_cannot():
     err = np.zeros((len(cal_x), 4))
     unc = Uncertainty.fit("ik", 2, np.hstack([poses["x"], x]), b, np.hstack([poses["cal"], cal_x]), cal_b,
                           err)
-    assert unc.inputs == "pose+joints" and len(unc.parts) == 5          # pose, joints, their histories
+    assert unc.inputs == "pose+joints" and len(unc.parts) == 5   # pose, joints, translations, the histories
     inside = unc.ood_scores(np.hstack([poses["held"], held]), hb)
     outside = unc.ood_scores(np.hstack([poses["held"], rev]), hb)
     assert np.median(outside) > np.quantile(inside, 0.99)
@@ -128,7 +128,7 @@ def test_ik_stream_with_joints_equals_batch_and_round_trips(tmp_path):
     rng = np.random.default_rng(5)
     q, b = _walks(rng, 4, 30)
     x = np.hstack([rng.normal(0, 1, (len(q), 6)), q])
-    for split in ("blocks", "config-history", "fine"):
+    for split in ("blocks", "config-history", "fine", "blocks+translations"):
         unc = Uncertainty.fit("ik", 2, x, b, x[:60], [(0, 30), (30, 60)], rng.normal(0, 1, (60, 4)),
                               split=split)
         seq = x[30:60]

@@ -31,7 +31,7 @@ import numpy as np
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import ModelError
 from ctrkin.models.ik import IKResult
-from ctrkin.models.ood import joints_before
+from ctrkin.models.ood import DEFAULT_SPLIT, joints_before
 from ctrkin.models.uncertainty import UncertainPrediction, UncertainStep, Uncertainty
 
 if TYPE_CHECKING:
@@ -83,11 +83,12 @@ def predict_rows(kin: Kinematics, ds: Dataset) -> tuple[np.ndarray, np.ndarray]:
 
 def calibrate(kin: Kinematics, ds: Dataset, train_rows: np.ndarray, cal_rows: np.ndarray,
               level: float = 0.9, false_alarm: float = 0.01, inputs: str | None = None,
-              split: str = "blocks") -> Uncertainty:
+              split: str = DEFAULT_SPLIT) -> Uncertainty:
     """The model's uncertainty (ctrkin.models.uncertainty.Uncertainty) from rows of ds: train_rows
     (the rows it trained on: what is in distribution), cal_rows (held-out rows: the interval and the
     flag's threshold). Rows are indices into ds.frame, each set in time order. inputs, split: the
-    OOD score's (Uncertainty.fit; an IK's default scores the pose and the robot's joints)."""
+    OOD score's (Uncertainty.fit; an IK's default scores the pose and the robot's joints; the default
+    split, ctrkin.models.ood.DEFAULT_SPLIT, counts the joints' translations in a part of their own too)."""
     kin.check_robot(ds.robot)
     train_rows, cal_rows = np.sort(np.asarray(train_rows)), np.sort(np.asarray(cal_rows))
     if np.intersect1d(train_rows, cal_rows).size:

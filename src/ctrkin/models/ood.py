@@ -13,13 +13,13 @@ The features come in blocks, in this order: the pose (6,) as it is; the joints' 
 (cos, sin of each relative rotation αi − αN, i < N: a common turn of every tube is the same robot
 turned; then each βi); the pose's last HISTORY changes; the joints' last HISTORY changes (relative
 rotations wrapped, deg; translations, mm). Each kind has the blocks of its input. The k-NN score is
-taken over *parts*: contiguous runs of these columns (`part_bounds`), each over its calibration
-median; the score is the largest part's, plus the excess beyond the trained range.
+taken over *parts*: spans of contiguous columns (`part_spans`; spans may overlap, a column may count
+in two parts), each over its calibration median; the score is the largest part's, plus the excess
+beyond the trained range.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 
@@ -29,7 +29,8 @@ import numpy as np
 HISTORY = 2           # changes of the input over the last HISTORY steps are features (the "history" blocks)
 RANGE_UNIT = 0.01    # a feature 1 % of its training spread beyond its trained range adds 1 to the score
 INPUTS = ("joints", "pose", "pose+joints")
-SPLITS = ("config-history", "blocks", "fine")
+SPLITS = ("config-history", "blocks", "fine", "blocks+translations")
+DEFAULT_SPLIT = "blocks+translations"   # chosen on validation walks (docs/planning.md: Uncertainty)
 POSE = 6
 _MODE = {"joints": 0, "pose": 1, "pose+joints": 2}
 
@@ -51,20 +52,39 @@ def block_widths(inputs: str, n_tubes: int) -> list[int]:
             "pose+joints": [POSE, jc, HISTORY * POSE, HISTORY * jd]}[inputs]
 
 
-def part_bounds(inputs: str, n_tubes: int, split: str) -> np.ndarray:
-    """(P + 1,) column boundaries of the k-NN parts: "config-history", two parts (every configuration
+def spans_of(bounds: np.ndarray) -> np.ndarray:
+    """(P, 2) the column spans [lo, hi) between boundaries (P + 1,) (parts that tile the columns)."""
+    b = np.asarray(bounds, np.int64)
+    return np.ascontiguousarray(np.stack([b[:-1], b[1:]], axis=1))
+
+
+def part_spans(inputs: str, n_tubes: int, split: str) -> np.ndarray:
+    """(P, 2) column spans [lo, hi) of the k-NN parts: "config-history", two parts (every configuration
     block, every history block); "blocks", each block its own part (the same for "joints" and "pose",
     two blocks); "fine", the blocks with the joints' configuration split into its rotations (cos, sin)
-    and its translations."""
+    and its translations; "blocks+translations", the blocks and, beside them, the joints'
+    translations alone (their columns count in the joints' configuration part and in a part of their
+    own: a joint combination never recorded is out of distribution in the translations only, where
+    the rotations' neighbour distances would swamp it; the blocks keep the rotations and translations
+    together, which "fine" loses). "pose" has no joints: its "fine" and "blocks+translations" are its
+    blocks."""
     w = block_widths(inputs, n_tubes)
+    extra = None
     if split == "config-history":
         w = [sum(w[:len(w) // 2]), sum(w[len(w) // 2:])]
     elif split == "fine" and inputs != "pose":
         at = 0 if inputs == "joints" else 1
         w = [*w[:at], 2 * (n_tubes - 1), n_tubes, *w[at + 1:]]
-    elif split not in ("blocks", "fine"):
+    elif split == "blocks+translations" and inputs != "pose":
+        first = (0 if inputs == "joints" else POSE) + 2 * (n_tubes - 1)    # after the cos and sin columns
+        extra = [first, first + n_tubes]
+    elif split not in SPLITS:
         raise ValueError(f"split must be one of {SPLITS}, got {split!r}")
-    return np.cumsum([0, *w]).astype(np.int64)
+    spans = spans_of(np.cumsum([0, *w]))
+    if extra is not None:                    # after the joints' configuration block, before the histories
+        at = 1 if inputs == "joints" else 2
+        spans = np.ascontiguousarray(np.insert(spans, at, extra, axis=0))
+    return spans.astype(np.int64)
 
 
 def _joint_config(n: int, q: np.ndarray) -> np.ndarray:
@@ -284,15 +304,19 @@ def _knn_searched(z: np.ndarray, rows: np.ndarray, tree: np.ndarray, boxes: np.n
 def _score(z: np.ndarray, rows: np.ndarray, tree: np.ndarray, boxes: np.ndarray, parts: np.ndarray, k: int,
            tau: np.ndarray, stats: np.ndarray, best: np.ndarray, stack: np.ndarray,
            bounds: np.ndarray) -> float:
-    """The OOD score of standardised features z (F,): the largest over parts [parts[p], parts[p+1]) of
-    the k-NN distance over the part's calibration median tau[p], plus the excess beyond the trained
-    range [stats[2], stats[3]] (F,) in units of RANGE_UNIT. rows, tree, boxes: a KnnIndex's."""
+    """The OOD score of standardised features z (F,): the largest over parts, the spans
+    [parts[p, 0], parts[p, 1]) (P, 2), of the k-NN distance over the part's calibration median tau[p],
+    plus the excess beyond the trained range [stats[2], stats[3]] (F,) in units of RANGE_UNIT. rows,
+    tree, boxes: a KnnIndex's (the parts' blocks one after another)."""
     worst = 0.0
-    n = rows.shape[0] // stats.shape[1]
-    for p in range(parts.shape[0] - 1):
-        lo, hi = parts[p], parts[p + 1]
-        d = _knn_searched(z, rows[n * lo:n * hi], tree, boxes[p], lo, hi, k, best, stack, bounds, tau[p],
+    m = tree[1, 0]                           # the root's end: the reference rows
+    at = 0
+    for p in range(parts.shape[0]):
+        lo, hi = parts[p, 0], parts[p, 1]
+        size = m * (hi - lo)
+        d = _knn_searched(z, rows[at:at + size], tree, boxes[p], lo, hi, k, best, stack, bounds, tau[p],
                           worst if p > 0 else -1.0)
+        at += size
         worst = max(worst, d / tau[p])
     excess = 0.0
     for f in range(z.shape[0]):
@@ -390,10 +414,10 @@ def _tree(m: int, leaf: int) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class KnnIndex:
-    """The reference rows (M, F) arranged for the searched scan (module comment above): rows (M·F,) part
-    after part, each part's block (M, w) contiguous in its tree's order; tree (4, nodes) the trees'
-    common shape (`_tree`); boxes (P, nodes, 2, max w) each node's bounding box (lo, hi) in its part's
-    columns."""
+    """The reference rows (M, F) arranged for the searched scan (module comment above): rows (M·Σw,)
+    part after part (spans (P, 2), `part_spans`), each part's block (M, w) contiguous in its tree's
+    order; tree (4, nodes) the trees' common shape (`_tree`); boxes (P, nodes, 2, max w) each node's
+    bounding box (lo, hi) in its part's columns."""
 
     rows: np.ndarray
     tree: np.ndarray
@@ -402,11 +426,12 @@ class KnnIndex:
     @classmethod
     def of(cls, ref: np.ndarray, parts: np.ndarray, leaf: int = LEAF) -> KnnIndex:
         ref = np.asarray(ref, np.float64)
-        m, width = ref.shape
+        m = ref.shape[0]
         tree = _tree(m, leaf)
-        spans = list(itertools.pairwise(parts.tolist()))
-        flat = np.empty(m * width)
+        spans = [(int(a), int(b)) for a, b in np.asarray(parts, np.int64).reshape(-1, 2)]
+        flat = np.empty(m * sum(b - a for a, b in spans))
         boxes = np.zeros((len(spans), tree.shape[1], 2, max([b - a for a, b in spans], default=0)))
+        at = 0
         for p, (lo, hi) in enumerate(spans):
             block = ref[:, lo:hi]
             order = np.arange(m)
@@ -419,7 +444,8 @@ class KnnIndex:
                 if left >= 0:
                     col = int(np.argmax(np.ptp(rows, axis=0)))
                     order[a:b] = order[a:b][np.argsort(rows[:, col], kind="stable")]
-            flat[m * lo:m * hi] = block[order].ravel()
+            flat[at:at + m * (hi - lo)] = block[order].ravel()
+            at += m * (hi - lo)
         return cls(flat, tree, boxes)
 
 

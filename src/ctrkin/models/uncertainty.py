@@ -21,8 +21,11 @@ arrays stay where callers read them (ctrkin.models.predictor: "an uncertainty be
   target pose *and the robot's joints when it was asked* (the encoders of a loop; the joints a follow
   IK steps from): its pose alone cannot tell a 3° reversal of the inner tube from any other small
   motion at the tracker's noise, nor a joint combination never recorded that reaches a recorded
-  pose. The columns fall into parts (FK: configuration, history; IK: by default pose, joints, pose
-  history, joints history, each its own). Each part gets the mean distance to the k nearest of up to
+  pose. The columns fall into parts (by default, split "blocks+translations": FK configuration,
+  translations, history; IK pose, joints, translations, pose history, joints history; the joints'
+  translations count twice, with the rotations and in a part of their own, where a joint
+  combination never recorded stands out: chosen on validation walks on two robots, docs/planning.md).
+  Each part gets the mean distance to the k nearest of up to
   `max_reference` (1,000) training rows in that part (an exact k-d tree search in numba, brute
   force's distances to the bit: the same kernel for batch and streaming, so both give the same
   score), over its median on the calibration rows; the score is the largest part's (a joint
@@ -37,14 +40,16 @@ arrays stay where callers read them (ctrkin.models.predictor: "an uncertainty be
 Saved beside the model as `uncertainty.npz` (a model folder without one, every folder written before
 this, loads as before with no uncertainty). Format 2 adds the scored input's kind and the parts; a
 format-1 file (written before the IK scored the joints) loads with its own score: the FK's is the
-same, an IK's scores the pose alone (`inputs == "pose"`) and ignores the joints it is given.
+same, an IK's scores the pose alone (`inputs == "pose"`) and ignores the joints it is given. Format
+3 stores the parts as (P, 2) column spans, which may overlap (the default split, "blocks+translations",
+counts the joints' translations in two parts); a format-2 file's (P + 1,) boundaries are read as the
+spans between them, so it keeps its score.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
-import itertools
 import math
 import os
 import tempfile
@@ -56,6 +61,7 @@ import numpy as np
 
 from ctrkin.errors import ModelError
 from ctrkin.models.ood import (
+    DEFAULT_SPLIT,
     HISTORY,
     INPUTS,
     POSE,
@@ -63,16 +69,17 @@ from ctrkin.models.ood import (
     KnnIndex,
     input_width,
     mode,
-    part_bounds,
     part_scores,
+    part_spans,
     sequence_features,
     sequence_scores,
+    spans_of,
     stream_step,
     wrap_deg,
 )
 
 FILE = "uncertainty.npz"
-FORMAT = 2
+FORMAT = 3
 FLOOR = 1e-6          # a feature that never varied in training: its spread floored (no division by 0)
 
 
@@ -138,8 +145,9 @@ class Uncertainty:
     position, IK the multiple of joint_scale; joint_scale: (2N,) IK only (deg, mm), else empty;
     inputs: the scored input's kind (ctrkin.models.ood.INPUTS: "joints" FK, "pose+joints" IK, "pose"
     an IK calibrated before the joints were scored); center, spread: (F,) standardisation of the OOD
-    features; reference: (M, F) standardised training rows; k: neighbours; parts: (P + 1,) column
-    boundaries of the k-NN parts; tau: (P,) the calibration rows' median k-NN distance in each part;
+    features; reference: (M, F) standardised training rows; k: neighbours; parts: (P, 2) column
+    spans [lo, hi) of the k-NN parts (ctrkin.models.ood.part_spans; they may overlap); tau: (P,) the
+    calibration rows' median k-NN distance in each part;
     lo, hi: (F,) the standardised features' trained range; threshold: the OOD flag's score;
     false_alarm: its in-range rate; n_calibration: rows the radius and threshold came from."""
 
@@ -165,13 +173,14 @@ class Uncertainty:
     def fit(cls, task: str, n_tubes: int, train_x: np.ndarray, train_bounds: list[tuple[int, int]],
             cal_x: np.ndarray, cal_bounds: list[tuple[int, int]], cal_errors: np.ndarray,
             level: float = 0.9, false_alarm: float = 0.01, k: int = 5, max_reference: int = 1000,
-            inputs: str | None = None, split: str = "blocks") -> Uncertainty:
+            inputs: str | None = None, split: str = DEFAULT_SPLIT) -> Uncertainty:
         """From training rows train_x (T, ·) and calibration rows cal_x (C, ·) with their sequences, and
         the model's errors on the calibration rows: FK (C, 3) predicted − measured tip (mm), IK (C, 2N)
         predicted − recorded joints (deg, mm). The rows are the scored inputs of `inputs` (default: FK
         "joints", (·, 2N); IK "pose+joints", (·, 6 + 2N) the target pose and the robot's joints when
         it was asked; "pose" (·, 6) scores an IK's pose alone); split: the k-NN parts
-        (ctrkin.models.ood.part_bounds)."""
+        (ctrkin.models.ood.part_spans; the default chosen on validation walks, docs/planning.md:
+        Uncertainty)."""
         if not 0.0 < level < 1.0 or not 0.0 < false_alarm < 1.0:
             raise ModelError(f"level and false_alarm must lie in (0, 1), got {level}, {false_alarm}")
         inputs = inputs or ("joints" if task == "fk" else "pose+joints")
@@ -194,14 +203,14 @@ class Uncertainty:
         pick = np.linspace(0, len(feats) - 1, min(max_reference, len(feats))).round().astype(int)
         z_train = (feats - center) / spread
         ref = np.ascontiguousarray(z_train[np.unique(pick)])
-        parts = part_bounds(inputs, n_tubes, split)
+        parts = part_spans(inputs, n_tubes, split)
         unc = cls(task, n_tubes, float(level), radius, scale, inputs, center, spread, ref,
-                  int(min(k, len(ref))), parts, np.ones(len(parts) - 1), z_train.min(axis=0),
+                  int(min(k, len(ref))), parts, np.ones(len(parts)), z_train.min(axis=0),
                   z_train.max(axis=0), math.inf, float(false_alarm), int(ok.sum()))
         z = np.ascontiguousarray((sequence_features(inputs, n_tubes, cal_x, cal_bounds) - center) / spread)
         if len(z):
-            spans = itertools.pairwise(parts.tolist())
-            tau = np.maximum([np.median(part_scores(z, ref, lo, hi, unc.k)) for lo, hi in spans], FLOOR)
+            tau = np.maximum([np.median(part_scores(z, ref, int(lo), int(hi), unc.k)) for lo, hi in parts],
+                             FLOOR)
             unc = dataclasses.replace(unc, tau=tau)
         cal = unc.ood_scores(cal_x, cal_bounds)
         thr = float(np.quantile(cal, 1.0 - false_alarm)) if len(cal) else math.inf
@@ -268,8 +277,9 @@ class Uncertainty:
 
     @classmethod
     def load(cls, folder: str | Path) -> Uncertainty | None:
-        """The folder's uncertainty, or None where it has none (a model never calibrated). A format-1
-        file (module docstring) keeps its score: FK joints, IK pose alone, two parts."""
+        """The folder's uncertainty, or None where it has none (a model never calibrated). Older files
+        keep their score (module docstring): format 1, FK joints or IK pose alone, two parts; format 2,
+        its parts' (P + 1,) column boundaries read as the spans between them."""
         path = Path(folder) / FILE
         if not path.is_file():
             return None
@@ -281,9 +291,11 @@ class Uncertainty:
             task = str(f["task"])
             if version == 1:
                 inputs = "joints" if task == "fk" else "pose"
-                parts = np.array([0, int(f["n_config"]), len(f["center"])], np.int64)
+                parts = spans_of(np.array([0, int(f["n_config"]), len(f["center"])]))
+            elif version == 2:
+                inputs, parts = str(f["inputs"]), spans_of(f["parts"])
             else:
-                inputs, parts = str(f["inputs"]), f["parts"].astype(np.int64)
+                inputs, parts = str(f["inputs"]), np.ascontiguousarray(f["parts"], np.int64).reshape(-1, 2)
             return cls(task, int(f["n_tubes"]), float(f["level"]), float(f["radius"]),
                        f["joint_scale"].copy(), inputs, f["center"].copy(), f["spread"].copy(),
                        np.ascontiguousarray(f["reference"]), int(f["k"]), parts,
