@@ -4,7 +4,7 @@
     python benchmarks/learned_loop.py                  # paper robot and the comet nylon robot
     python benchmarks/learned_loop.py --quick          # fewer walks, shorter training and loop
     python benchmarks/learned_loop.py --quick --robot paper --keep DIR   # one robot; keep the models
-    python benchmarks/learned_loop.py --quick --no-control --robot examples/robots/comet_nylon_ndi.toml
+    python benchmarks/learned_loop.py --quick --robot examples/robots/comet_nylon_ndi.toml
 
 This is bench_planning.py's goal-2 part alone (coverage, OOD AUROC, streaming cost, and the control
 loop): the same figures and JSON keys without the planning paths.
@@ -33,9 +33,13 @@ holds many independent stretches of the region (rows of one walk are correlated)
   recorded joints of the row before; ctrkin.models.ood). Streaming cost: Kinematics.step against
   step_uncertain on a held-out walk (the IK's joints: its own previous answers), alternating blocks,
   medians.
-- Control: ctrkin.control.Controller on the FK, closed around the same virtual robot (another seed of
-  tracker noise): a 2 mm-radius circle at 4 s a turn (3.1 mm/s) from a start in the middle of the
-  training region (α0 = 90°, d and the outer retraction mid-range: no joint at a stop),
+- Control (on every robot; the goal keys are the first robot's): ctrkin.control.Controller on the
+  FK, closed around the same virtual robot (another seed of tracker noise): a 2 mm-radius circle at
+  4 s a turn (3.1 mm/s) from a start in the robot's own training region (α0 = 0°, the curvatures
+  aligned, furthest from the bistable band about 180°; d and the outer retraction in the middle of
+  the robot's ranges, `regions`: no joint at a stop). At α0 = 90°, the start before, the comet nylon
+  robot's true tubes had no equilibrium at all 15 cycles in (VirtualRobot.move leaves the step NaN,
+  and the next move refuses to continue from it: ConvergenceError),
   steady-state RMS of the true tip (as the tracker sees it without noise) against the target after the
   first quarter, snaps of the true robot, the controller's cycles per second, and the stop when the
   tracker drops out.
@@ -226,20 +230,28 @@ def uncertainty_study(robot: Robot, vr: VirtualRobot, rng: np.random.Generator, 
     return out
 
 
+def control_start(robot: Robot) -> np.ndarray:
+    """(2N,) the control loop's start joints (deg, mm), from the robot's own training region
+    (`regions`): every α 0 (α0 = 0°: the curvatures aligned, the one stable equilibrium, furthest
+    from the bistable band), d and the outer retraction at the middle of their ranges (no joint at a
+    stop); the middle tubes move with the outer one, as in the walks."""
+    reg = regions(robot)["train"]
+    d = 0.5 * (reg["d"][0] + reg["d"][1])
+    retract = 0.5 * (reg["ret"][0] + reg["ret"][1])
+    n = robot.n_tubes
+    start = np.zeros(2 * n)
+    start[n:] = -retract
+    start[n] = -retract - d
+    return start
+
+
 def control_study(robot: Robot, vr: VirtualRobot, folder: Path, quick: bool, seed: int) -> dict[str, Any]:
     """The controller on the FK of `folder` around the virtual robot (module docstring)."""
     from ctrkin import Kinematics
     from ctrkin.control import Controller, circle_path, run_virtual
     from ctrkin.geometry import tip_pose
 
-    reg = regions(robot)["train"]
-    d = 0.5 * (reg["d"][0] + reg["d"][1])
-    n = robot.n_tubes
-    retract = 0.5 * sum(regions(robot)["train"]["ret"])
-    start = np.zeros(2 * n)
-    start[0] = 90.0                                  # α0 = 90°: far from the bistable band
-    start[n:] = -retract                             # mid-range: no joint at its stop
-    start[n] = -retract - d
+    start = control_start(robot)
     eq = vr.rest(start).equilibrium
     p0 = vr.tracker.registered(tip_pose(eq.tip_position[None], eq.tip_tangent[None]))[0, :3]
     cycles = 2000 if quick else 4000
@@ -257,9 +269,10 @@ def control_study(robot: Robot, vr: VirtualRobot, folder: Path, quick: bool, see
 
 def run(quick: bool, seed: int = 0, robots: tuple[str, ...] = ROBOTS, keep: Path | None = None,
         control: bool = True) -> dict[str, Any]:
-    """Every study on every robot (the control loop on the first, unless control is False); one dict of
-    figures. keep: a folder to leave the calibrated models in (ROBOT_fk, ROBOT_ik), else they go with
-    a temporary folder."""
+    """Every study on every robot (the control loop too, unless control is False: in each robot's
+    figures, and the first robot's again as "control", the goal keys'); one dict of figures. keep: a
+    folder to leave the calibrated models in (ROBOT_fk, ROBOT_ik), else they go with a temporary
+    folder."""
     out: dict[str, Any] = {}
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) if keep is None else keep
@@ -269,8 +282,10 @@ def run(quick: bool, seed: int = 0, robots: tuple[str, ...] = ROBOTS, keep: Path
             vr = VirtualRobot(robot, seed=seed)
             rng = np.random.default_rng(seed)
             out[robot.name] = uncertainty_study(robot, vr, rng, quick, root, seed)
-            if k == 0 and control:
-                out["control"] = control_study(robot, vr, root / f"{robot.name}_fk", quick, seed)
+            if control:
+                out[robot.name]["control"] = control_study(robot, vr, root / f"{robot.name}_fk", quick, seed)
+                if k == 0:
+                    out["control"] = out[robot.name]["control"]
     return out
 
 
@@ -304,13 +319,15 @@ def print_table(res: dict[str, Any]) -> None:
             print(f"{name:18s} {t:4s} {r['coverage_90']:13.3f} {lo:6.3f}-{hi:6.3f} {r['ood_auroc']:6.3f} "
                   f"{by['range']:6.3f} {by['combination']:6.3f} {by['steps']:6.3f} {by['reversals']:6.3f} "
                   f"{r['false_alarm_held_out']:9.3f} {r['stream']['ratio']:7.2f}")
-    if "control" not in res:
-        return
-    c = res["control"]
-    print(f"control: {c['control_hz']:.0f} cycles/s, steady-state RMS {c['tracking_rmse_mm']:.3f} mm "
-          f"(max {c['tracking_max_mm']:.3f}), {c['snaps']} snaps over {c['cycles']} cycles, path "
-          f"{c['path_diameter_mm']:.1f} mm across; tracker dropped at cycle 200: stopped at "
-          f"{c['dropout_stopped_at']}, held still {c['dropout_held_still']}")
+    for name, s in res.items():
+        if name == "control" or "control" not in s:
+            continue
+        c = s["control"]
+        print(f"control, {name}: {c['control_hz']:.0f} cycles/s, steady-state RMS "
+              f"{c['tracking_rmse_mm']:.3f} mm (max {c['tracking_max_mm']:.3f}), {c['snaps']} snaps over "
+              f"{c['cycles']} cycles, path "
+              f"{c['path_diameter_mm']:.1f} mm across; tracker dropped at cycle 200: stopped at "
+              f"{c['dropout_stopped_at']}, held still {c['dropout_held_still']}")
 
 
 def main() -> None:
@@ -320,8 +337,8 @@ def main() -> None:
     ap.add_argument("--robot", action="append", default=None,
                     help=f"paper or a robot file, repeatable (default: {', '.join(ROBOTS)})")
     ap.add_argument("--keep", type=Path, default=None, help="leave the calibrated model folders here")
-    ap.add_argument("--no-control", action="store_true", help="leave out the control loop (run on the first "
-                    "robot; it starts at the paper robot's mid-range joints)")
+    ap.add_argument("--no-control", action="store_true", help="leave out the control loop (run on every "
+                    "robot from the middle of its own training region, α0 = 0°)")
     args = ap.parse_args()
     res = run(args.quick, args.seed, tuple(args.robot or ROBOTS), args.keep, not args.no_control)
     print_table(res)
