@@ -11,8 +11,10 @@ loaded from its `git archive` (benchmarks/bench_streaming.py's tree) beside this
 process: the same synthetic walks of a two-tube robot (40 of 60 steps to train on, 20 to calibrate;
 1,000 reference rows), the scores checked equal (to 1e-9), then `UncertainStream.step` of each timed
 in alternating rounds (the load falls on all alike): medians over rounds of the best of 3 × 300
-calls, µs. Also the IK score (pose and joints, four parts) on the same walks with random poses
-beside them, of this tree and of each baseline that has it (uncertainty format 2 on). With
+calls, µs. This tree's scores are fitted with the baselines' parts (split "blocks") to compare, and
+timed again with its default split (the translations in a part of their own too). Also the IK score
+(pose and joints, four parts) on the same walks with random poses beside them, of this tree and of
+each baseline that has it (uncertainty format 2 on). With
 --folder, a calibrated FK's own score instead (folder_study). Prints `uptime` and ends with one
 JSON line.
 """
@@ -157,18 +159,20 @@ def main() -> None:
     cx, cb = walks(rng, 20, 60)
     err = rng.normal(0, 0.3, (len(cx), 3))
     streams = {f"{rev} FK": m.Uncertainty.fit("fk", 2, x, b, cx, cb, err).stream() for rev, m in olds.items()}
-    streams["this FK"] = new.Uncertainty.fit("fk", 2, x, b, cx, cb, err).stream()
+    streams["this FK"] = new.Uncertainty.fit("fk", 2, x, b, cx, cb, err, split="blocks").stream()  # theirs
     seq = x[:60]
     this = [streams["this FK"].step(q) for q in seq]
     for name, st in streams.items():
         st.reset()
         if not np.allclose([st.step(q) for q in seq], this, rtol=0, atol=1e-9):
             raise SystemExit(f"{name}'s FK score differs from this tree's: not the same score, no comparison")
+    streams["this FK (default split)"] = new.Uncertainty.fit("fk", 2, x, b, cx, cb, err).stream()
     poses = rng.normal(0, 1, (len(x), 6)), rng.normal(0, 1, (len(cx), 6))
     ik_fit = (np.hstack([poses[0], x]), b, np.hstack([poses[1], cx]), cb, np.zeros((len(cx), 4)))
     iks = {f"{rev} IK (pose + joints)": m.Uncertainty.fit("ik", 2, *ik_fit).stream()
            for rev, m in olds.items() if getattr(m, "FORMAT", 1) >= 2}
-    iks["this IK (pose + joints)"] = new.Uncertainty.fit("ik", 2, *ik_fit).stream()
+    iks["this IK (pose + joints)"] = new.Uncertainty.fit("ik", 2, *ik_fit, split="blocks").stream()
+    iks["this IK (default split)"] = new.Uncertainty.fit("ik", 2, *ik_fit).stream()
     times: dict[str, list[float]] = {k: [] for k in (*streams, *iks)}
     row = np.hstack([poses[0][10], x[10]])
     for _ in range(args.rounds):
