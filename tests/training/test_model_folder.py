@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import shutil
 import threading
-import time
 
 import pytest
 
@@ -175,19 +174,25 @@ def test_a_model_too_large_to_be_ctrkins_is_refused_before_it_is_built(quick_ds,
         Kinematics.load(out)
 
 
-def _swapper(a: str, b: str, out: str, seconds: float, q) -> None:
-    """Replace model folder `out` by a copy of a or b, alternately, as training does."""
+LOADS = 10          # loads per reader (the test is sized in loads and swaps, not in seconds)
+WAIT_S = 120.0      # a bound on every wait, so that a hung process fails the test instead of hanging it
+
+
+def _swapper(a: str, b: str, out: str, started, stop, q) -> None:
+    """Replace model folder `out` by a copy of b or a, alternately, as training does (built aside,
+    then swap_in under the writer lock), from before the readers start until `stop` is set (and at
+    least twice, so that both models have been swapped in)."""
     import uuid
     from pathlib import Path
 
     from ctrkin.util.folders import folder_lock, swap_in
 
     target, swaps, failed = Path(out), 0, 0
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
+    while swaps < 2 or not stop.is_set():
         build = target.with_name(f".{target.name}.tmp-{uuid.uuid4().hex[:16]}")
         try:
             with folder_lock(target, ModelError):            # built and swapped under the lock
+                started.set()                                 # the first replace has begun
                 shutil.copytree(a if swaps % 2 else b, build)
                 swap_in(build, target, ModelError)
         except Exception:  # every failure counts
@@ -197,25 +202,28 @@ def _swapper(a: str, b: str, out: str, seconds: float, q) -> None:
     q.put(("swaps", swaps, failed))
 
 
-def _model_reader(out: str, probe, answers, seconds: float, q) -> None:
+def _model_reader(out: str, probe, answers, started, q) -> None:
+    """LOADS loads of `out` once the writer has begun replacing it: each must predict as one of the
+    two models, `answers`; a load matching neither, or any exception, counts as bad."""
     import numpy as np
 
-    loads = bad = 0
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
+    bad = [] if started.wait(WAIT_S) else ["the writer never started"]
+    for _ in range(LOADS):
         try:
             got = Kinematics.load(out).predict(probe)
-            bad += not any(np.array_equal(got, a) for a in answers)
-        except Exception:  # every failure counts
-            bad += 1
-        loads += 1
-    q.put(("loads", loads, bad))
+            if not any(np.array_equal(got, a) for a in answers):
+                bad.append("a prediction of neither model")
+        except Exception as e:  # every failure counts
+            bad.append(f"{type(e).__name__}: {e}")
+    q.put(("loads", LOADS, bad))
 
 
 @pytest.mark.slow
 def test_loading_a_model_while_it_is_replaced_gives_one_model_or_the_other(quick_ds, tmp_path):
     """Item 6: loading a model while it was retrained with --overwrite returned a mix of the two
-    models (predictions matching neither, tips up to 2.1 mm off), or a non-ctrkin exception."""
+    models (predictions matching neither, tips up to 2.1 mm off), or a non-ctrkin exception. Two
+    readers load it LOADS times each while a writer keeps swapping the two models in (copies of two
+    trained folders, by swap_in as training does), until both readers are done."""
     import multiprocessing
 
     a = train(quick_ds, _cfg(), tmp_path / "a", progress=False).out
@@ -226,16 +234,23 @@ def test_loading_a_model_while_it_is_replaced_gives_one_model_or_the_other(quick
     answers = [Kinematics.load(p).predict(probe) for p in (a, b)]
     assert not (answers[0] == answers[1]).all()
     spawn = multiprocessing.get_context("spawn")
-    q = spawn.Queue()
-    procs = [spawn.Process(target=_swapper, args=(str(a), str(b), str(out), 6.0, q)),
-             *(spawn.Process(target=_model_reader, args=(str(out), probe, answers, 6.0, q))
-               for _ in range(2))]
+    q, started, stop = spawn.Queue(), spawn.Event(), spawn.Event()
+    writer = spawn.Process(target=_swapper, args=(str(a), str(b), str(out), started, stop, q))
+    readers = [spawn.Process(target=_model_reader, args=(str(out), probe, answers, started, q))
+               for _ in range(2)]
+    procs = [writer, *readers]
     for p in procs:
         p.start()
-    results = [q.get(timeout=180) for _ in procs]
-    for p in procs:
-        p.join(timeout=60)
-    swaps = next(r for r in results if r[0] == "swaps")
-    loads = [r for r in results if r[0] == "loads"]
-    assert swaps[1] >= 10 and sum(r[1] for r in loads) >= 10, results
-    assert swaps[2] == 0 and all(r[2] == 0 for r in loads), results
+    try:
+        loads = [q.get(timeout=WAIT_S) for _ in readers]     # the readers report first: the writer
+        stop.set()                                           # swaps until told to stop
+        swaps = q.get(timeout=WAIT_S)
+    finally:
+        stop.set()
+        for p in procs:
+            p.join(timeout=WAIT_S)
+            if p.is_alive():
+                p.kill()
+    assert [r[0] for r in loads] == ["loads", "loads"] and swaps[0] == "swaps", (loads, swaps)
+    assert all(r[2] == [] for r in loads), loads
+    assert swaps[1] >= 2 and swaps[2] == 0, swaps
