@@ -52,6 +52,20 @@ def _twist(x, x_prev, lengths, n):
 
 
 @njit(cache=True)
+def _accepted(conv, det_j, det_h, x, x_prev, lengths, n, det_prev, jump, slack, rate, held):
+    """The acceptance test of a continuation step (continuation._advance's): Newton converged
+    (conv) to a stable equilibrium (det J > 0, min det H > 0), no tube's twist changed by more than
+    jump (rad: max_i |x_i − x_prev_i| L_i, lengths (N,) mm) and det J continuous, |det J −
+    det_prev| ≤ slack + rate det_prev. That last is asked only where `held` (friction_run: the
+    stick/slip pattern is the previous step's; True without contact effects): a pattern that
+    changes may make det J jump."""
+    if not (conv and det_j > 0.0 and det_h > 0.0):
+        return False
+    return _twist(x, x_prev, lengths, n) <= jump and (
+        abs(det_j - det_prev) <= slack + rate * det_prev or not held)
+
+
+@njit(cache=True)
 def _predict(t, same, snapped, xs, weights, path_states, guess):
     """guess (N,) = follow's predictor at step t: the polynomial through the m states behind t on
     one branch (m ≤ path_states; continuation.Predictor), or the last state where m = 1."""
@@ -93,10 +107,8 @@ def warm_step(q, q_from, guess, x_prev, det_prev, lengths, beta, tips, rigid, k,
     conv, it, rn, det_j, det_h, passes = newton(
         guess, alpha, beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample, tol,
         max_iter, max_step, x_out, body_out, None, None, None, None, None)
-    accepted = conv and det_j > 0.0 and det_h > 0.0
-    if accepted:
-        twist = _twist(x_out, x_prev, lengths, n)
-        accepted = twist <= jump and abs(det_j - det_prev) <= slack + rate * det_prev
+    accepted = _accepted(conv, det_j, det_h, x_out, x_prev, lengths, n, det_prev, jump, slack,
+                         rate, True)
     return accepted, it, rn, det_j, det_h, passes
 
 
@@ -163,11 +175,8 @@ def warm_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_stat
             guess, alpha[t], beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
             tol, max_iter, max_step, xs[t], body[t], work, None, None, None, None, None)
         counts[t, 1] = passes
-        accepted = conv and det_j > 0.0 and det_h > 0.0
-        if accepted:
-            twist = _twist(xs[t], xs[t - 1], lengths, n)
-            accepted = twist <= jump and abs(det_j - det) <= slack + rate * det
-        if not accepted:
+        if not _accepted(conv, det_j, det_h, xs[t], xs[t - 1], lengths, n, det, jump, slack, rate,
+                         True):
             break
         _record(t, rn, det_j, det_h, it, stats, counts)
         det = det_j
@@ -216,12 +225,9 @@ def friction_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_
             guess, alpha[t], beta, tips, rigid, k, gj, bounds, kap, kapy, present, nsteps, nsample,
             tol, max_iter, max_step, xs[t], body[t], table, pairs, cvar[t], prm, cout[t])
         counts[t, 1] = passes
-        accepted = conv and det_j > 0.0 and det_h > 0.0
-        if accepted:
-            twist = _twist(xs[t], xs[t - 1], lengths, n)
-            held = _same_modes(modes_prev if t == start else cout[t - 1, :, 3], cout[t, :, 3])
-            accepted = twist <= jump and (abs(det_j - det) <= slack + rate * det or not held)
-        if not accepted:
+        held = _same_modes(modes_prev if t == start else cout[t - 1, :, 3], cout[t, :, 3])
+        if not _accepted(conv, det_j, det_h, xs[t], xs[t - 1], lengths, n, det, jump, slack, rate,
+                         held):
             break
         theta[t, :] = state_after(slot, cout[t], table, pairs, prm[1], size)
         _record(t, rn, det_j, det_h, it, stats, counts)
@@ -258,11 +264,8 @@ def moving_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_st
             guess, a, beta, tips, rigid, k, gj, grid[0], grid[1], grid[2], grid[3], grid[4],
             grid[5], tol, max_iter, max_step, xs[t], body[t], None, None, None, None, None)
         counts[t, 1] = passes
-        accepted = conv and det_j > 0.0 and det_h > 0.0
-        if accepted:
-            twist = _twist(xs[t], xs[t - 1], tube_len, n)
-            accepted = twist <= jump and abs(det_j - det) <= slack + rate * det
-        if not accepted:
+        if not _accepted(conv, det_j, det_h, xs[t], xs[t - 1], tube_len, n, det, jump, slack, rate,
+                         True):
             break
         _record(t, rn, det_j, det_h, it, stats, counts)
         det = det_j
