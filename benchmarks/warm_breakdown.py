@@ -25,6 +25,7 @@ the mean add up to the mean total).
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import time
 from collections.abc import Callable
@@ -185,9 +186,12 @@ def breakdown(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings,
     if warm is not None:
         warm.warm_step = _timed(counted(warm.warm_step, 5), acc, "kernel")
         continuation._warm = _timed(counted(continuation._warm, None), acc, "warm", ("kernel",))
+    runs_at: Any = continuation  # the Python of follow's compiled runs: continuation in older trees
+    with contextlib.suppress(ImportError):
+        from ctrkin.mechanics import compiled_runs as runs_at
     if run_fn is not None:
-        saved += [(warm, "warm_run"), (continuation, "_warm_run")]
-        originals += [run_fn, continuation._warm_run]
+        saved += [(warm, "warm_run"), (runs_at, "_warm_run")]
+        originals += [run_fn, runs_at._warm_run]
 
         def run(*args: Any) -> int:
             counts = args[-2]
@@ -201,7 +205,7 @@ def breakdown(robot: Robot, sweeps: list[np.ndarray], settings: SolverSettings,
             return m
 
         warm.warm_run = _timed(run, acc, "kernel")
-        continuation._warm_run = _timed(continuation._warm_run, acc, "warm", ("kernel",))
+        runs_at._warm_run = _timed(runs_at._warm_run, acc, "warm", ("kernel",))
     rows: dict[str, list[float]] = {k: [] for k in ("total", *BUCKETS, *counters)}
     try:
         for Qs in sweeps:

@@ -367,7 +367,7 @@ def test_compiled_runs_are_the_general_path(monkeypatch, robot: Robot, Q: np.nda
     general path (continuation._advance without its compiled try)."""
     fast = follow(robot, Q)
     with monkeypatch.context() as m:
-        m.setattr(continuation, "_run_for", lambda *args: None)
+        m.setattr(continuation, "run_for", lambda *args: None)
         slow = follow(robot, Q)
     for f in ("q", "tip_poses", "snaps", "azimuth", "stable", "converged"):
         np.testing.assert_array_equal(getattr(fast, f), getattr(slow, f), err_msg=f)
@@ -421,7 +421,7 @@ def test_friction_runs_are_the_general_path(monkeypatch, d: float) -> None:
                                   np.full(91, -d + 5.0), np.zeros(91)]]
     fast = follow(rough, Q)
     with monkeypatch.context() as m:
-        m.setattr(continuation, "_run_for", lambda *args: None)
+        m.setattr(continuation, "run_for", lambda *args: None)
         slow = follow(rough, Q)
     for f in ("q", "tip_poses", "snaps", "azimuth", "stable", "converged"):
         np.testing.assert_array_equal(getattr(fast, f), getattr(slow, f), err_msg=f)

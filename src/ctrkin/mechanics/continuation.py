@@ -34,7 +34,9 @@ twist (JUMP_RAD); sub-stepping on would need a search per 1/256 of the step and 
 The common step, a rotation (β kept, so the grid is the previous step's) of a robot without contact
 effects whose first try is accepted, runs as one compiled call (`_warm`, mechanics.warm.warm_step:
 α, the Newton solve, the acceptance test); any other step, or a first try that is not accepted,
-takes the general path below from the start, so the decisions and the snaps are its own.
+takes the general path below from the start, so the decisions and the snaps are its own. `follow`
+goes further: consecutive such steps run in one compiled call each (mechanics.compiled_runs), up to
+the first that is not accepted, which the general path then takes.
 """
 
 from __future__ import annotations
@@ -46,11 +48,14 @@ from typing import NamedTuple
 
 import numpy as np
 
+# sibling modules by full name: `from ctrkin.mechanics import ...` names the package, whose
+# lazy table imports this module (an import circle: tests/test_layering.py)
+import ctrkin.mechanics.warm as warm
 from ctrkin.errors import ConvergenceError, JointError, RobotDescriptionError
 from ctrkin.geometry import tip_azimuth, tip_pose
-from ctrkin.mechanics import warm
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
-from ctrkin.mechanics.friction import N_OUT, SLIP, ContactReport, FrictionState
+from ctrkin.mechanics.compiled_runs import Steps, run_for
+from ctrkin.mechanics.friction import SLIP, FrictionState
 from ctrkin.mechanics.pointwise import (
     Equilibrium,
     NewtonResult,
@@ -61,7 +66,6 @@ from ctrkin.mechanics.pointwise import (
     newton,
     prepare,
     recover,
-    rk4_step,
     solve,
     twist_distance,
     with_alpha,
@@ -87,7 +91,7 @@ class Trajectory:
     """Result of `follow`. tip_poses (T, 6); snaps (T,) bool: a fold was crossed on the way into
     step t; azimuth (T,) deg: T(L), the tip azimuth about z from the outer tube's base rotation
     (unwrapped); stable, converged (T,) bool; equilibria: the T Equilibrium objects (made on first
-    access where a compiled run of steps solved them, `_Steps`)."""
+    access where a compiled run of steps solved them, `Steps`)."""
 
     q: np.ndarray
     tip_poses: np.ndarray
@@ -95,7 +99,7 @@ class Trajectory:
     azimuth: np.ndarray
     stable: np.ndarray
     converged: np.ndarray
-    _steps: _Steps = field(repr=False)
+    _steps: Steps = field(repr=False)
 
     @functools.cached_property
     def equilibria(self) -> list[Equilibrium]:
@@ -108,78 +112,6 @@ class Trajectory:
     @property
     def n_snaps(self) -> int:
         return int(self.snaps.sum())
-
-
-class _Steps:
-    """The equilibria of a `follow`: those of the general path as made (eqs[t]), and those of the
-    compiled runs of steps (warm.warm_run) as its output arrays, made into Equilibrium objects on
-    first access, field by field what continuation._warm makes of the same step (tested): q = Q[t],
-    x = xs[t], α, the body and the statistics; the grid, β and tips of base[t], the problem of the
-    step before the run. On the paper robot's sweeps making them took ~2 µs a step, 15 % of the
-    step (issue 26), and most callers read only the trajectory's arrays."""
-
-    def __init__(self, robot: Robot, Q: np.ndarray, settings: SolverSettings) -> None:
-        T, n = Q.shape[0], robot.n_tubes
-        self.robot, self.settings = robot, settings
-        self.moved = [False] * T  # step t of a translating run: its problem is prepared afresh
-        self.Q = Q
-        self.eqs: list[Equilibrium | None] = [None] * T
-        self.base: list[Problem | None] = [None] * T
-        self.xs = np.empty((T, n))
-        self.alpha = np.empty((T, n))
-        self.body = np.empty((T, 7))
-        self.stats = np.empty((T, 3))
-        self.counts = np.zeros((T, 2), dtype=np.int64)
-        self.done = np.zeros(1, dtype=np.int64)
-        self.runs: list[_ContactStep | None] = [None] * T  # step t's rows of its friction run, if any
-        self.states: dict[int, FrictionState] = {}   # the friction states made so far
-        self.last_run: _ContactRun | None = None
-
-    def put(self, t: int, eq: Equilibrium) -> None:
-        """Step t solved by the general path."""
-        self.eqs[t] = eq
-        self.xs[t] = eq.x
-        self.body[t, :3] = eq.tip_position
-        self.body[t, 3:6] = eq.tip_tangent
-
-    def at(self, t: int) -> Equilibrium:
-        eq = self.eqs[t]
-        if eq is None:
-            pb0 = self.base[t]
-            assert pb0 is not None
-            q = self.Q[t]
-            if self.moved[t]:  # _problem_at's prepare, the grid warm.moving_run built
-                pb = prepare(self.robot, q, self.settings, checked=True, arr=pb0.arrays)
-            else:
-                pb = made(Problem, arrays=pb0.arrays, q=q, alpha=self.alpha[t], beta=pb0.beta,
-                          tips=pb0.tips, grid=pb0.grid, n_rk4=pb0.n_rk4, stations=None,
-                          cvar=None, state=None)
-            contact = None
-            run = self.runs[t]
-            if run is not None:  # what _problem_at, _after and pointwise.equilibrium make
-                assert pb0.stations is not None
-                pb.__dict__.update(stations=pb0.stations, cvar=run.cvar,
-                                   state=run.first if t == run.start else self.state(t - 1))
-                contact = ContactReport(pb0.stations, run.cout, self.state(t))
-            body, st = self.body[t], self.stats[t].tolist()
-            eq = made(Equilibrium, q=q, x=self.xs[t], tip_position=body[:3],
-                      tip_tangent=body[3:6], converged=True, stability=st[1], conjugate=st[2],
-                      energy=float(body[6]), residual=st[0], iterations=int(self.counts[t, 0]),
-                      problem=pb, contact=contact)
-            self.eqs[t] = eq
-        return eq
-
-    def state(self, t: int) -> FrictionState:
-        """The friction state after step t of a friction run (one object per step)."""
-        out = self.states.get(t)
-        if out is None:
-            run = self.runs[t]
-            assert run is not None
-            out = self.states[t] = FrictionState(run.theta, self.Q[t])
-        return out
-
-    def equilibria(self) -> list[Equilibrium]:
-        return [self.at(t) for t in range(len(self.eqs))]
 
 
 @functools.lru_cache(maxsize=256)
@@ -408,7 +340,8 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     if start is not None:
         _check_start(robot, start)
     n = robot.n_tubes
-    steps = _Steps(robot, Qa, settings)
+    steps = Steps(robot, Qa, settings, PATH_STATES, _weights(PATH_STATES),
+                   (MAX_TURN_DEG, JUMP_RAD, DET_SLACK, DET_RATE))
     xs = steps.xs  # eqs[t].x, for the predictor
     snaps = np.zeros(n_steps, dtype=bool)
     if start is None:
@@ -426,7 +359,7 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     t = 1
     while t < n_steps:
         # a run of steps in one compiled call, up to one not accepted or of another kind
-        run = _run_for(cur, rotation[t])
+        run = run_for(cur, rotation[t])
         if run is not None:
             m = run(steps, t, cur, rotation_a, same_a, snaps, settings)
             if m:
@@ -437,7 +370,7 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
                 cur = steps.at(t - 1)
                 if t == n_steps:
                     break
-                if rotation[t] != rotation[t - 1] and _run_for(cur, rotation[t]) is not None:
+                if rotation[t] != rotation[t - 1] and run_for(cur, rotation[t]) is not None:
                     continue  # a step of the other kind: its run
         k = 1  # states behind step t on one branch, reached by the joint increment of step t
         while k < PATH_STATES and same[t - k + 1] and not snaps[t - k]:
@@ -458,116 +391,6 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
     return Trajectory(q=Qa, tip_poses=poses, snaps=snaps,
                       azimuth=tip_azimuth(poses[:, :3], Qa[:, n - 1]), stable=stable,
                       converged=converged, _steps=steps)
-
-
-_Run = Callable[["_Steps", int, Equilibrium, np.ndarray, np.ndarray, np.ndarray, SolverSettings],
-               int]
-
-
-def _run_for(prev: Equilibrium, rotation: bool) -> _Run | None:
-    """The compiled run for a step from prev: rotation steps without contact effects (_warm_run)
-    or with them (_friction_run, from a converged equilibrium), translating steps without them
-    (_moving_run); None: the general path."""
-    if prev.problem.stations is None:
-        return _warm_run if rotation else _moving_run
-    return _friction_run if rotation and prev.contact is not None else None
-
-
-def _moving_run(steps: _Steps, t: int, prev: Equilibrium, rotation: np.ndarray, same: np.ndarray,
-                snaps: np.ndarray, settings: SolverSettings) -> int:
-    """_warm_run for translating steps (warm.moving_run: a grid of its own every step)."""
-    a = prev.problem.arrays
-    try:
-        m = warm.moving_run(
-            steps.Q, t, rotation, same, snaps, steps.xs, prev.stability, _weights(PATH_STATES),
-            PATH_STATES, a.lengths, a.extra, a.sec_len, a.sec_kap, a.sec_kapy, a.n_sec,
-            rk4_step(a, settings), settings.max_rk4_steps, a.rigid, a.k, a.gj, settings.tol,
-            settings.max_iter, settings.max_step, MAX_TURN_DEG, JUMP_RAD, DET_SLACK, DET_RATE,
-            steps.alpha, steps.body, steps.stats, steps.counts, steps.done)
-    except (ZeroDivisionError, OverflowError, FloatingPointError):
-        m = int(steps.done[0])
-    steps.base[t:t + m] = [prev.problem] * m
-    steps.moved[t:t + m] = [True] * m
-    return m
-
-
-def _warm_run(steps: _Steps, t: int, prev: Equilibrium, rotation: np.ndarray, same: np.ndarray,
-              snaps: np.ndarray, settings: SolverSettings) -> int:
-    """Steps t, t + 1, … from `prev` (step t − 1, no contact effects) as one compiled call
-    (warm.warm_run): each the compiled step of _advance (`_warm`), with follow's predictor, up to
-    the first that is not a rotation or not accepted. Returns the number of steps accepted; their
-    outputs are in `steps`, their equilibria made when read (_Steps.at)."""
-    pb0 = prev.problem
-    a = pb0.arrays
-    try:
-        m = warm.warm_run(
-            steps.Q, t, rotation, same, snaps, steps.xs, prev.stability, _weights(PATH_STATES),
-            PATH_STATES, a.lengths, pb0.beta, pb0.tips, a.rigid, a.k, a.gj, *pb0.grid,
-            settings.tol, settings.max_iter, settings.max_step, MAX_TURN_DEG, JUMP_RAD, DET_SLACK,
-            DET_RATE, steps.alpha, steps.body, steps.stats, steps.counts, steps.done)
-    except (ZeroDivisionError, OverflowError, FloatingPointError):
-        m = int(steps.done[0])  # the general path meets the same at the next step and says so
-    steps.base[t:t + m] = [pb0] * m
-    return m
-
-
-class _ContactRun(NamedTuple):
-    """The arrays of follow's friction runs on one grid's stations (warm.friction_run), rows by step
-    (runs on stations of the same count share them: their steps differ): theta (T, P · slots) the
-    state after each step, cvar (T, K + P), cout (T, K, 8); start and first: the run's first step
-    and the friction state it started from."""
-
-    theta: np.ndarray
-    cvar: np.ndarray
-    cout: np.ndarray
-    start: int
-    first: FrictionState
-
-
-class _ContactStep(NamedTuple):
-    """One accepted step of a friction run: its rows of the run's arrays (theta (P · slots,) the state
-    after it, cvar (K + P,), cout (K, 8)), the run's first step and the friction state it started from."""
-
-    theta: np.ndarray
-    cvar: np.ndarray
-    cout: np.ndarray
-    start: int
-    first: FrictionState
-
-
-def _friction_run(steps: _Steps, t: int, prev: Equilibrium, rotation: np.ndarray,
-                  same: np.ndarray, snaps: np.ndarray, settings: SolverSettings) -> int:
-    """_warm_run on a robot with contact effects (warm.friction_run), from prev's friction state."""
-    pb0 = prev.problem
-    a = pb0.arrays
-    st = pb0.stations
-    assert st is not None and prev.contact is not None
-    first = prev.contact.state
-    T = steps.Q.shape[0]
-    last = steps.last_run
-    if last is not None and last.cout.shape[1] == st.count:
-        run = _ContactRun(last.theta, last.cvar, last.cout, t, first)
-    else:
-        run = _ContactRun(np.empty((T, first.theta.shape[0])), np.empty((T, st.relaxed.shape[0])),
-                          np.empty((T, st.count, N_OUT)), t, first)
-    run.theta[t - 1] = first.theta
-    try:
-        m = warm.friction_run(
-            steps.Q, t, rotation, same, snaps, steps.xs, prev.stability, _weights(PATH_STATES),
-            PATH_STATES, a.lengths, pb0.beta, pb0.tips, a.rigid, a.k, a.gj, *pb0.grid,
-            settings.tol, settings.max_iter, settings.max_step, MAX_TURN_DEG, JUMP_RAD, DET_SLACK,
-            DET_RATE, st.table, st.pairs, st.prm, st.slot, first.q, prev.contact.out[:, 3],
-            run.theta, run.cvar, run.cout, steps.alpha, steps.body, steps.stats, steps.counts,
-            steps.done)
-    except (ZeroDivisionError, OverflowError, FloatingPointError):
-        m = int(steps.done[0])
-    steps.base[t:t + m] = [pb0] * m
-    # each accepted step keeps its own rows: the run's (T, …) arrays are not held by the steps (a
-    # path whose grid changes often would otherwise keep one such set per run: O(T²) memory)
-    steps.runs[t:t + m] = [_ContactStep(run.theta[i].copy(), run.cvar[i].copy(), run.cout[i].copy(), t, first)
-                           for i in range(t, t + m)]
-    steps.last_run = run
-    return m
 
 
 @functools.lru_cache(maxsize=8)

@@ -21,9 +21,12 @@ from typing import NamedTuple, TypeVar
 
 import numpy as np
 
+# sibling modules by full name: `from ctrkin.mechanics import ...` names the package, whose
+# lazy table imports this module (an import circle: tests/test_layering.py)
+import ctrkin.mechanics.cold as cold
+import ctrkin.mechanics.kernels as kernels
 from ctrkin.errors import ConvergenceError
 from ctrkin.geometry import quat_from_tangent
-from ctrkin.mechanics import cold, kernels
 from ctrkin.mechanics.arrays import RobotArrays, robot_arrays
 from ctrkin.mechanics.friction import N_OUT, ContactReport, FrictionState, Stations
 from ctrkin.mechanics.settings import DEFAULT_SETTINGS, SolverSettings

@@ -15,7 +15,7 @@ the decisions, and so the snaps, are the general path's.
 predictor (`extrapolate`), up to the first that is not accepted or not a rotation; `friction_run`
 does the same on a robot with friction or clearance (the stations' state carried from step to
 step), and `moving_run` for translating steps without contact effects (a grid each step).
-continuation._Steps makes their Equilibrium objects when they are read.
+compiled_runs.Steps makes their Equilibrium objects when they are read.
 """
 
 from __future__ import annotations
