@@ -37,7 +37,7 @@ from ctrkin.evaluation.table import (
 )
 from ctrkin.families.refined.folder import assemble_refined
 from ctrkin.inference import Kinematics
-from ctrkin.training.config import TrainConfig
+from ctrkin.training.config import FK_PLAY_LAGS, TrainConfig
 from ctrkin.training.device import resolve_device
 from ctrkin.training.engine import train
 from ctrkin.util.progress import progress_bar
@@ -74,7 +74,7 @@ def plan_runs(scale: ReproScale) -> list[Run]:
     runs = [
         Run(FK_PAPER, "main", cfg(scale.main, task="fk")),
         Run(IK_PAPER, "main", cfg(scale.main, task="ik")),
-        Run(FK_BRANCH, "main", cfg(scale.branch, task="fk", model="lstm_mlp_branch")),
+        Run(FK_BRANCH, "main", cfg(scale.branch, task="fk", model="lstm_mlp_branch", play_lags=FK_PLAY_LAGS)),
         Run(IK_FOLLOW, "main", cfg(scale.follow, task="ik", model="follow_mlp")),
     ]
     runs += [Run(f"fk_{m}", "compare", cfg(scale.compare, task="fk", model=m)) for m in BASELINES]

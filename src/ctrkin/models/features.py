@@ -8,7 +8,11 @@ of the dataset (min-max on unwrapped angles is the paper's choice); `angle_encod
 each angle αi and α0 by (sin, cos) — Δα0 stays in degrees; `angle_encoding="phase"` keeps the paper's
 features and adds (sin α0, cos α0): the relative rotation modulo a turn, which is what decides where a
 two-tube pair's bistable band lies (centred at α0 = 180°, docs/mechanics.md: Model), whatever the
-unwrapped α0 of the sequence.
+unwrapped α0 of the sequence. `equivariant=True` drops the absolute angles α1..αN (the middle tubes'
+αi − αN take their place): the inputs are then unchanged when every tube turns by the same angle, so
+a model in the outer tube's frame is rotation-equivariant by construction, and whatever depends on
+where the tip is in space (a tracker's field distortion) is left to a field of the position
+(ctrkin.models.field).
 
 Inverse kinematics (IK), per step: the tip pose (x, y, z, q0, qx, qy) and, by default, its step change
 (Δx .. Δqy, 0 at a sequence start): the IK analogue of Δα0, it tells the model which way the robot is
@@ -29,6 +33,7 @@ import numpy as np
 from ctrkin.errors import ModelError
 from ctrkin.geometry import POSE_COLUMNS
 from ctrkin.models.choices import ANGLE_ENCODINGS, AngleEncoding, Task
+from ctrkin.models.play_lags import path_lags, play_names
 from ctrkin.robots.robot import alpha_names, beta_names
 
 POSE_NAMES = POSE_COLUMNS    # the pose features are named as the dataset's pose columns
@@ -67,6 +72,10 @@ class FeatureLayout:
     family: a layout a model family registered for itself (FAMILY_LAYOUTS, register_layout): its
     names are the family's and its features are computed by the family (e.g. "follow", the follow
     IK of ctrkin.families.follow.features); None: the paper's FK or IK layout above.
+    equivariant: an FK's inputs without the absolute angles α1..αN (module docstring).
+    play: an FK's inputs end with the play-operator lags of α1, αN and βN − β1
+    (ctrkin.models.play_lags): a memory of the joint path beyond the window, which the features of a
+    step cannot hold, so `sequence_features` and `step_features` are then given them.
     """
 
     task: Task = "fk"
@@ -75,6 +84,8 @@ class FeatureLayout:
     delta: bool = True
     angle_encoding: AngleEncoding = "minmax"
     family: str | None = None
+    play: bool = False
+    equivariant: bool = False
     input_names: tuple[str, ...] = field(init=False)
     output_names: tuple[str, ...] = field(init=False)
 
@@ -90,6 +101,11 @@ class FeatureLayout:
         if self.task == "ik" and self.angle_encoding != "minmax":
             raise ModelError(f"angle_encoding={self.angle_encoding!r} applies to FK inputs only; use "
                              "'minmax' for IK")
+        if self.play and (self.task != "fk" or self.family is not None):
+            raise ModelError("play lags are inputs of the paper's FK layout only (task 'fk', no family)")
+        if self.equivariant and (self.task != "fk" or self.family is not None
+                                 or self.angle_encoding == "sincos"):
+            raise ModelError("equivariant inputs are an FK layout's with the minmax or phase encoding")
         n = self.n_tubes
         alphas, betas = alpha_names(n), beta_names(n)
         if self.task == "fk" and self.family is None:
@@ -97,11 +113,14 @@ class FeatureLayout:
                 ins = [f"{f}_{a}" for a in alphas for f in ("sin", "cos")] + betas
                 ins += ["sin_alpha_0", "cos_alpha_0"]
             else:
-                ins = [*alphas, *betas, "alpha_0"]
+                ins = [*([f"{a}_rel" for a in alphas[1:n - 1]] if self.equivariant else alphas), *betas,
+                       "alpha_0"]
                 if self.angle_encoding == "phase":
                     ins += ["sin_alpha_0", "cos_alpha_0"]
             if self.delta:
                 ins.append("delta_alpha_0")
+            if self.play:
+                ins += play_names(n)
             outs = list(POSE_NAMES)
         elif self.family is not None:
             ins, outs = family_layout(self.family).names(self)
@@ -133,7 +152,8 @@ class FeatureLayout:
 
     def to_dict(self) -> dict[str, object]:
         return {"task": self.task, "n_tubes": self.n_tubes, "ib": self.ib, "delta": self.delta,
-                "angle_encoding": self.angle_encoding, "family": self.family,
+                "angle_encoding": self.angle_encoding, "family": self.family, "play": self.play,
+                "equivariant": self.equivariant,
                 "input_names": list(self.input_names),
                 "output_names": list(self.output_names)}
 
@@ -149,7 +169,8 @@ class FeatureLayout:
         try:
             layout = cls(task=d["task"], n_tubes=int(d["n_tubes"]), ib=int(d["ib"]),
                          delta=bool(d["delta"]), angle_encoding=d["angle_encoding"],
-                         family=None if family is None else str(family))
+                         family=None if family is None else str(family), play=bool(d.get("play", False)),
+                         equivariant=bool(d.get("equivariant", False)))
         except KeyError as e:
             raise ModelError(f"feature layout lacks {e}") from None
         if "input_names" in d and tuple(d["input_names"]) != layout.input_names:
@@ -160,14 +181,15 @@ class FeatureLayout:
     def describe_difference(self, other: FeatureLayout) -> list[str]:
         """Human-readable list of what differs between two layouts (empty if equal)."""
         diffs = []
-        for k in ("task", "n_tubes", "ib", "delta", "angle_encoding", "family"):
+        for k in ("task", "n_tubes", "ib", "delta", "angle_encoding", "family", "play", "equivariant"):
             a, b = getattr(self, k), getattr(other, k)
             if a != b:
                 diffs.append(f"{k}: {a!r} vs {b!r}")
         return diffs
 
 
-_LAYOUT_KEYS = ("task", "n_tubes", "ib", "delta", "angle_encoding", "family", "input_names", "output_names")
+_LAYOUT_KEYS = ("task", "n_tubes", "ib", "delta", "angle_encoding", "family", "play", "equivariant",
+                "input_names", "output_names")
 
 
 def family_layout(name: str) -> FamilyLayout:
@@ -180,32 +202,54 @@ def family_layout(name: str) -> FamilyLayout:
                          ) from None
 
 
-def step_features(layout: FeatureLayout, raw: np.ndarray, prev_raw: np.ndarray | None) -> np.ndarray:
+def step_features(layout: FeatureLayout, raw: np.ndarray, prev_raw: np.ndarray | None,
+                  lags: np.ndarray | None = None) -> np.ndarray:
     """Features of one step (the streaming path; must equal `sequence_features` row by row).
 
     raw: (2N,) joints (deg, mm) for FK or (6,) pose for IK; prev_raw: the previous step of the same
-    sequence, or None at its start. Returns (F,).
+    sequence, or None at its start; lags (P,): a play layout's lags at this step
+    (ctrkin.models.play_lags.PlayState). Returns (F,).
     """
     cur = np.asarray(raw, dtype=np.float64)[None, :]
     prev = cur if prev_raw is None else np.asarray(prev_raw, dtype=np.float64)[None, :]
-    return _features(layout, cur, prev)[0]
+    return _with_play(layout, _features(layout, cur, prev), None if lags is None else lags[None])[0]
 
 
-def sequence_features(layout: FeatureLayout, raw: np.ndarray, bounds: list[tuple[int, int]]
-                      ) -> np.ndarray:
+def sequence_features(layout: FeatureLayout, raw: np.ndarray, bounds: list[tuple[int, int]],
+                      lags: np.ndarray | None = None) -> np.ndarray:
     """Features of every row. raw: (T, 2N) joints or (T, 6) poses; bounds: [(start, stop)) of the
-    sequences (deltas are 0 at each start). Returns (T, F) float64."""
+    sequences (deltas are 0 at each start); lags (T, P): a play layout's lags along the rows (default:
+    each sequence from rest, ctrkin.models.play_lags.path_lags of raw). Returns (T, F) float64."""
     raw = check_raw(layout, raw)
     prev = np.empty_like(raw)
     prev[1:] = raw[:-1]
     for a, _ in bounds:
         prev[a] = raw[a]
-    return _features(layout, raw, prev)
+    if layout.play and lags is None:
+        lags = path_lags(raw, bounds, layout.n_tubes).columns()
+    return _with_play(layout, _features(layout, raw, prev), lags)
 
 
-def pair_features(layout: FeatureLayout, cur: np.ndarray, prev: np.ndarray) -> np.ndarray:
-    """Features (K, F) of K candidate steps cur (K, 2N | 6) that would follow prev (K, 2N | 6)."""
-    return _features(layout, np.atleast_2d(np.asarray(cur, float)), np.atleast_2d(np.asarray(prev, float)))
+def pair_features(layout: FeatureLayout, cur: np.ndarray, prev: np.ndarray, lags: np.ndarray | None = None
+                  ) -> np.ndarray:
+    """Features (K, F) of K candidate steps cur (K, 2N | 6) that would follow prev (K, 2N | 6); lags
+    (K, P): a play layout's lags after each (PlayState.peek)."""
+    cur2, prev2 = np.atleast_2d(np.asarray(cur, float)), np.atleast_2d(np.asarray(prev, float))
+    return _with_play(layout, _features(layout, cur2, prev2), lags)
+
+
+def _with_play(layout: FeatureLayout, feats: np.ndarray, lags: np.ndarray | None) -> np.ndarray:
+    """feats (T, F − P) with a play layout's lags (T, P) appended (ModelError where none are given)."""
+    if not layout.play:
+        return feats
+    if lags is None:
+        raise ModelError("a play layout's features need the play lags along the path "
+                         "(ctrkin.models.play_lags.PlayState)")
+    lags = np.asarray(lags, float)
+    if lags.shape != (len(feats), layout.n_inputs - feats.shape[1]):
+        raise ModelError(f"play lags must have shape ({len(feats)}, {layout.n_inputs - feats.shape[1]}), "
+                         f"got {lags.shape}")
+    return np.concatenate([feats, lags], axis=1)
 
 
 def delta_columns(layout: FeatureLayout) -> np.ndarray:
@@ -230,7 +274,7 @@ def _features(layout: FeatureLayout, cur: np.ndarray, prev: np.ndarray) -> np.nd
         sc = np.stack([np.sin(ang), np.cos(ang)], axis=2).reshape(len(cur), -1)
         cols_ = [sc[:, : 2 * n], beta, sc[:, 2 * n:]]
     else:
-        cols_ = [alpha, beta, a0[:, None]]
+        cols_ = [alpha[:, 1:n - 1] - alpha[:, n - 1:n] if layout.equivariant else alpha, beta, a0[:, None]]
         if layout.angle_encoding == "phase":
             r = np.radians(a0)[:, None]
             cols_ += [np.sin(r), np.cos(r)]

@@ -11,7 +11,9 @@ run torch on windows. An LSTM-MLP with one LSTM layer runs each whole step in on
 
 Streaming state: the previous joints as the network saw them, the sequence's whole-turn shift, the
 relay state of a model with a tabulated gate (−1 at a start), the direction m_N in which the outer
-motor last turned and its previous angle (ctrkin.models.motion), and the outer lag λ(β) of the last β.
+motor last turned and its previous angle (ctrkin.models.motion), the outer lag λ(β) of the last β,
+and for a model with play-lag inputs the play operators' outputs (ctrkin.models.play_lags; such a
+model takes the reference path, not the fused step, and is not exported to ONNX).
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ from ctrkin.models.guards import FKGuard
 from ctrkin.models.motion import outer_motion, recorded_motion
 from ctrkin.models.onnx_graph import write_onnx
 from ctrkin.models.outer_lag import lag_one
+from ctrkin.models.play_lags import PlayState, path_lags, recorded_lags
 from ctrkin.models.predictor_base import BasePredictor
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle
@@ -62,19 +65,20 @@ class FKPredictor(BasePredictor):
         super().__init__(bundle, None, seqnet)
         self._frame = bundle.frame
         self._prev: np.ndarray | None = None
-        self._fast = self.layout.angle_encoding in ("minmax", "phase")
+        self._fast = self.layout.angle_encoding in ("minmax", "phase") and not self.layout.equivariant
         # input checks and whole-turn α shifts, the same in predict and step (ctrkin.models.guards)
         self._guard = FKGuard(self.robot, self.layout, bundle.x_norm)
         self._shift: np.ndarray | None = None
         self._gate_state, self._outer_motion, self._outer_prev = -1, 0, math.nan
         self._lag_beta, self._lag = b"", 0.0      # the outer lag λ(β) of the last β (ctrkin.models.frame)
+        self._play = PlayState(self.layout.n_tubes) if self.layout.play else None
         self._use_fused = fused
         self._fused: FusedFK | None = None
         self._rebuild_fused()
         # predict by chains with features and poses each in one numba pass (batch.fk_padded_rows,
         # batch.fk_poses): the paper's FK features on a SeqNet whose outputs need no family's hook
         self._chains_fast = (seqnet is not None and self._fast and self.layout.family is None
-                             and self.layout.n_outputs == 6
+                             and not self.layout.play and self.layout.n_outputs == 6
                              and type(self)._batch_outputs is FKPredictor._batch_outputs)
 
     # --- hooks of a model with a branch state (ctrkin.families.snap_aware) -------------------------
@@ -177,7 +181,8 @@ class FKPredictor(BasePredictor):
                                              x.lo, x.span, *d)
             y = fk_poses(seqnet_predict(self._seqnet, padded, windows), self._y_norm.lo, self._y_norm.span)
         else:
-            feats = self._x_norm.transform(self.clip_deltas(sequence_features(self.layout, net_raw, bounds)))
+            feats = self._x_norm.transform(self.clip_deltas(sequence_features(
+                self.layout, net_raw, bounds, self.play_columns(data, raw, bounds))))
             yn = self._batch_outputs(feats, bounds, data, raw, options)
             y = postprocess(self.layout, self._y_norm.inverse(yn))
         return y if self.frame is None or angles is None else self.frame.to_world(y, angles)
@@ -191,6 +196,17 @@ class FKPredictor(BasePredictor):
         if any(b != starts[k + 1] for k, (_, b) in enumerate(bounds)):
             return None
         return starts
+
+    def play_columns(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]]
+                     ) -> np.ndarray | None:
+        """(T, P) the play lags of a play layout along the joints as recorded (a Dataset: runs followed
+        across sequences, glitch rows skipped; an array: each sequence from rest), None without."""
+        if not self.layout.play:
+            return None
+        n = self.layout.n_tubes
+        if isinstance(data, Dataset):
+            return recorded_lags(data.frame, data.joints(), bounds, n).columns()
+        return path_lags(raw, bounds, n).columns()
 
     def _recorded_motion(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]]
                          ) -> tuple[np.ndarray, np.ndarray | None]:
@@ -228,6 +244,7 @@ class FKPredictor(BasePredictor):
             raise ModelError(f"{what}() needs an FK model of the LSTM-MLP family")
         Q = np.atleast_2d(np.asarray(Q, float))
         outer = Q[:, self.layout.n_tubes - 1].copy()
+        lags = None if self._play is None else self._play.peek(Q)       # of the joints as given
         if len(Q):
             Q = Q - (self._shift if self._shift is not None else self._guard.shift(Q[0]))
         angles, net_q = None, Q
@@ -235,7 +252,7 @@ class FKPredictor(BasePredictor):
             angles = self._probe_angles(Q, outer)
             net_q = self.frame.network_joints(Q, angles)
         prev = net_q if self._prev is None else np.broadcast_to(self._prev, Q.shape)
-        xn = self._x_norm.transform(self.clip_deltas(pair_features(self.layout, net_q, prev)))
+        xn = self._x_norm.transform(self.clip_deltas(pair_features(self.layout, net_q, prev, lags)))
         yn, states = self._engine.probe(xn, self._probe_states(Q, outer))
         return Q, self._y_norm.inverse(yn), states, angles
 
@@ -246,7 +263,8 @@ class FKPredictor(BasePredictor):
         Q, y, _, angles = self._probe_outputs(Q, "probe_tips")
         if self.frame is not None and angles is not None:
             reg = self.frame.registration
-            return local_tips_to_world(y, angles, reg.rotation, reg.translation)
+            pos, tan = local_tips_to_world(y, angles, reg.rotation, reg.translation)
+            return (pos, tan) if self.frame.field is None else (pos + self.frame.field(pos), tan)
         return local_tips_to_world(y, np.zeros(len(Q)), np.eye(3), np.zeros(3))
 
     def probe(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -277,6 +295,8 @@ class FKPredictor(BasePredictor):
             raise ModelError(f"outer_motion must be -1, 0 or 1, got {outer_motion!r}")
         if not continue_run:
             self._gate_state, self._outer_motion, self._outer_prev = -1, int(outer_motion), math.nan
+            if self._play is not None:
+                self._play.reset()
         self._prev = None
         self._shift = None
         self.reset_stream()
@@ -306,14 +326,17 @@ class FKPredictor(BasePredictor):
         if raw.shape != (self.layout.raw_width,):
             raise ModelError(f"step() expects shape ({self.layout.raw_width},), got {raw.shape}")
         outer = float(raw[self.layout.n_tubes - 1])     # as given: whole-turn shifts differ by sequence
+        lags, play_out = (None, None) if self._play is None else self._play.after(raw)
         raw, self._shift = self._guard.step(raw, self._shift if self._prev is not None else None)
         angle = math.nan if self.frame is None else self._step_angle(raw, outer)
         net_raw = raw
         if self.frame is not None and self.frame.lags_inputs:      # the network sees the frame's angle
             net_raw = raw.copy()
             net_raw[self.layout.n_tubes - 1] = angle
-        feat = self._features(net_raw)
+        feat = self._features(net_raw, lags)
         self._prev = net_raw
+        if self._play is not None and play_out is not None:
+            self._play.advance(play_out)
         if len(self._dcols):
             feat[self._dcols] = np.minimum(np.maximum(feat[self._dcols], self._dlo), self._dhi)
         xn = self._x_norm.transform(feat)
@@ -328,10 +351,11 @@ class FKPredictor(BasePredictor):
             y[3:6] /= nq
         return y
 
-    def _features(self, net_raw: np.ndarray) -> np.ndarray:
-        """(F,) features of one step (step_features in scalar arithmetic where the encoding allows)."""
+    def _features(self, net_raw: np.ndarray, lags: np.ndarray | None = None) -> np.ndarray:
+        """(F,) features of one step (step_features in scalar arithmetic where the encoding allows);
+        lags (P,): a play layout's, appended."""
         if not self._fast:
-            return step_features(self.layout, net_raw, self._prev)
+            return step_features(self.layout, net_raw, self._prev, lags)
         n = self.layout.n_tubes
         a0 = net_raw[0] - net_raw[n - 1]
         feat = np.empty(self.layout.n_inputs)
@@ -344,6 +368,9 @@ class FKPredictor(BasePredictor):
             k += 2
         if self.layout.delta:
             feat[k] = 0.0 if self._prev is None else a0 - (self._prev[0] - self._prev[n - 1])
+            k += 1
+        if lags is not None:
+            feat[k:] = lags
         return feat
 
     def _fused_rows(self, raw: np.ndarray) -> np.ndarray | None:
@@ -390,4 +417,15 @@ class FKPredictor(BasePredictor):
 
     # --- export ----------------------------------------------------------------------------------
     def export_onnx(self, path: Path, opset: int) -> None:
+        self.check_exportable()
         write_onnx(self.bundle, self.net, path, opset, frame=self.frame)
+
+    def check_exportable(self) -> None:
+        """ModelError where the ONNX graph cannot hold what the model computes (play-lag inputs: the
+        operators' state is not in the graph)."""
+        if self.layout.play:
+            raise ModelError("this FK model has play-lag inputs (ctrkin.models.play_lags), whose operators' "
+                             "state the ONNX graph does not hold: it streams in ctrkin only")
+        if self.layout.equivariant or (self.frame is not None and self.frame.field is not None):
+            raise ModelError("this FK model's equivariant inputs and position field are not in the ONNX "
+                             "graph: it streams in ctrkin only")

@@ -31,6 +31,7 @@ from numba import njit
 
 from ctrkin.errors import ModelError
 from ctrkin.geometry import Registration, quat_from_tangent, rotate_z, tangent_from_quat
+from ctrkin.models.field import PositionField
 from ctrkin.models.outer_lag import lag_deg
 from ctrkin.robots.robot import Robot
 
@@ -44,6 +45,7 @@ class OuterFrame:
     registration: Registration
     lag: tuple[float, float] = (0.0, 0.0)
     lagged_inputs: bool = False
+    field: PositionField | None = None     # the tracker-frame position field (ctrkin.models.field)
 
     @property
     def has_lag(self) -> bool:
@@ -98,6 +100,8 @@ class OuterFrame:
         a = np.asarray(alpha_outer_deg, float)
         pos = rotate_z(y[:, :3], a) @ R.T + t
         tan = rotate_z(tangent_from_quat(y[:, 3:6]), a) @ R.T
+        if self.field is not None:
+            pos = pos + self.field(pos)
         return np.concatenate([pos, quat_from_tangent(tan)], axis=1)
 
     def to_world_one(self, y: np.ndarray, alpha_outer_deg: float) -> np.ndarray:
@@ -105,17 +109,21 @@ class OuterFrame:
         out = np.empty(6)
         pose_to_world(np.asarray(y, np.float64), float(alpha_outer_deg), self.registration.rotation,
                       self.registration.translation, out)
-        return out
+        return out if self.field is None else self.field.apply_one(out)
 
     def to_dict(self) -> dict[str, object]:
-        return {"frame": "outer", **self.registration.to_dict(), "outer_lag_deg": list(self.lag),
-                "lagged_inputs": self.lagged_inputs}
+        d: dict[str, object] = {"frame": "outer", **self.registration.to_dict(),
+                                "outer_lag_deg": list(self.lag), "lagged_inputs": self.lagged_inputs}
+        if self.field is not None:
+            d["position_field"] = self.field.to_dict()
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> OuterFrame:
         try:
             a, b = (float(v) for v in d.get("outer_lag_deg", (0.0, 0.0)))   # older folders: no lag
-            return cls(Registration.from_dict(d), (a, b), bool(d.get("lagged_inputs", False)))
+            field = PositionField.from_dict(d["position_field"]) if d.get("position_field") else None
+            return cls(Registration.from_dict(d), (a, b), bool(d.get("lagged_inputs", False)), field)
         except (KeyError, ValueError, TypeError) as e:
             raise ModelError(f"bad outer-frame entry: {e}") from None
 

@@ -396,7 +396,8 @@ class FusedFK:
         clip and outer frame; the branch state from `relay` where given), or None where it does not
         apply (module docstring)."""
         eng = engine
-        if (eng is None or bundle.layout.angle_encoding not in ("minmax", "phase")
+        if (eng is None or bundle.layout.angle_encoding not in ("minmax", "phase") or bundle.layout.play
+                or (frame is not None and frame.field is not None)
                 or len(eng.seq) != 1 or eng.seq[0][0] != "lstm" or not eng.heads[0][0]
                 or len(eng.heads) > 2):
             return None

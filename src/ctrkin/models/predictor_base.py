@@ -139,8 +139,13 @@ class BasePredictor:
         in `predict`: the input of the exported ONNX model."""
         raw, bounds = self.raw_inputs(data, sequence_id)
         feats = self.clip_deltas(sequence_features(self.layout, self.network_inputs(data, raw, bounds),
-                                                   bounds))
+                                                   bounds, self.play_columns(data, raw, bounds)))
         return feats[window_index(bounds, self.ib)]
+
+    def play_columns(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]]
+                     ) -> np.ndarray | None:
+        """(T, P) play lags of a layout with them (an FK's: FKPredictor), None without."""
+        return None
 
     def network_inputs(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]]
                        ) -> np.ndarray:

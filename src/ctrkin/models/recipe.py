@@ -32,10 +32,13 @@ from ctrkin.data.tracker_view import recorded_tracker_view
 from ctrkin.errors import ModelError
 from ctrkin.metrics import metrics_json_joint_errors, metrics_json_pose_errors
 from ctrkin.models.features import FeatureLayout, delta_columns, postprocess, sequence_features, windows
+from ctrkin.models.field import PositionField
 from ctrkin.models.frame import OuterFrame
 from ctrkin.models.motion import recorded_motion
 from ctrkin.models.normalize import MinMax
 from ctrkin.models.outer_lag import fit_outer_lag
+from ctrkin.models.play_lags import recorded_lags
+from ctrkin.models.store import FRAME, write_json
 from ctrkin.models.workspace import Workspace
 
 if TYPE_CHECKING:
@@ -209,7 +212,10 @@ class WindowRecipe:
             target = self.frame.to_local(target, self.outer_deg)
             net_in = self.frame.network_joints(self.raw_in, self.outer_deg)
         self.target = target
-        feats = sequence_features(self.layout, net_in, self.bounds)
+        lags = None
+        if self.layout.play:            # the play lags of the joints as recorded, along each run
+            lags = recorded_lags(ds.frame, self.raw_in, self.bounds, ds.n_tubes).columns()
+        feats = sequence_features(self.layout, net_in, self.bounds, lags)
         self.x_norm = MinMax.fit(feats[self.rows["train"]])
         self.y_norm = MinMax.fit(target[self.rows["train"]])
         self.X = windows(self.x_norm.transform(feats), self.bounds, self.layout.ib).astype(np.float32)
@@ -242,6 +248,8 @@ class WindowRecipe:
         return self.frame.to_world(pred, self.outer_deg[rows])
 
     def finish(self, bundle: ModelBundle, folder: Path, log: Log) -> dict[str, Any]:
+        if self.layout.equivariant and self.frame is not None:
+            self.fit_field(bundle, folder, log)
         metrics = self.evaluate(bundle)
         if self.layout.task == "ik":
             train, val = self.rows["train"], self.rows["val"]
@@ -249,6 +257,22 @@ class WindowRecipe:
             Workspace.fit(self.raw_in[train], self.raw_in[val], pose_norm,
                           train_joints=self.target[train]).save(folder)
         return metrics
+
+    def fit_field(self, bundle: ModelBundle, folder: Path, log: Log) -> None:
+        """An equivariant FK's position field (ctrkin.models.field) from its training rows' residuals
+        against the poses it learned from, into the frame (and the folder's frame.json)."""
+        assert self.frame is not None
+        train = self.rows["train"]
+        yn = self.predict_rows(bundle.net, train)
+        pred = self.to_world(postprocess(self.layout, self.y_norm.inverse(yn)), train)
+        measured = inputs_and_targets(self.data.ds, "fk", self.cfg.pose_source)[1][train]
+        groups = self.data.ds.frame["sequence_id"].to_numpy()[train]
+        pf = PositionField.fit(pred[:, :3], measured[:, :3], groups)
+        log(f"position field: degree {pf.degree}, cross-validated residual {pf.cv_rms_mm:.3f} mm "
+            f"(without it {pf.cv_rms_without_mm:.3f} mm)")
+        self.frame = replace(self.frame, field=pf)
+        bundle.frame = self.frame
+        write_json(folder / FRAME, self.frame.to_dict())
 
     def evaluate(self, bundle: ModelBundle) -> dict[str, Any]:
         """Loss (normalised MAE) and physical errors on the training, validation and test rows (the

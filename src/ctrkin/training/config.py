@@ -43,10 +43,13 @@ PATIENCE_STEPS = 1_000     # early stopping's least optimiser steps without an i
 # IB 8 was measured against 2 (benchmarks/bench_fk_memory.py, docs/learned_kinematics.md: Memory of
 # the recommended FK): better on the validation rows of the top-of-range robot, worse along mid-turn
 # reversals and in snap magnitude, ×3.6 the training time and ×3-4.6 the streaming step; kept at 2.
+# Its memory beyond the window is the play-operator lags of the joint path (FK_PLAY_LAGS;
+# ctrkin.models.play_lags; bench_fk_memory.py, docs/learned_kinematics.md: Play lags as FK inputs).
 FK_MEMORY_IB = 2
+FK_PLAY_LAGS = True
 RECOMMENDED: dict[str, dict[str, Any]] = {
     "fk": {"model": "lstm_mlp_branch", "batch_size": 256, "lr": 2e-3, "lr_schedule": "cosine",
-           "base_epochs": 80, "patience": 80, "ib": FK_MEMORY_IB},
+           "base_epochs": 80, "patience": 80, "ib": FK_MEMORY_IB, "play_lags": FK_PLAY_LAGS},
     "ik": {"model": "follow_mlp", "batch_size": 512, "lr": 2e-3, "lr_schedule": "cosine",
            "base_epochs": 40, "patience": 40, "min_steps": 0},
 }
@@ -86,6 +89,14 @@ class TrainConfig:
     angle_encoding: AngleEncoding = field(default="minmax", metadata=_help(
         "FK angle encoding: minmax (min-max of unwrapped degrees, paper), sincos, or phase (the "
         "paper's features and sin/cos α0; ctrkin.models.features)."))
+    equivariant: bool = field(default=False, metadata=_help(
+        "FK only: the inputs drop the absolute tube angles α1..αN (rotation-equivariant in the outer "
+        "tube's frame), and what depends on the tip's place in space is fitted as a field of its "
+        "position after training (ctrkin.models.field)."))
+    play_lags: bool = field(default=False, metadata=_help(
+        "FK only: the inputs also hold the play-operator lags of α1, αN and βN − β1 along the joint "
+        "path (ctrkin.models.play_lags: a memory of the path beyond the window, no friction law "
+        "assumed)."))
     output_activation: OutputActivation = field(default="relu", metadata=_help(
         "Output layer activation: relu (paper eq. 7) or linear."))
     pose_source: PoseSource = field(default="measured", metadata=_help(
@@ -222,7 +233,8 @@ class TrainConfig:
         from ctrkin.models.features import FeatureLayout
 
         return FeatureLayout(task=self.task, n_tubes=n_tubes, ib=self.ib, delta=self.delta,
-                             angle_encoding=self.angle_encoding, family="follow" if self.follow else None)
+                             angle_encoding=self.angle_encoding, family="follow" if self.follow else None,
+                             play=self.play_lags, equivariant=self.equivariant)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -12,8 +12,8 @@ by what each transmission's history left: backlash, friction wind-up, tubes stic
 Rate-independent hysteresis of that kind is, to first order, a non-negative sum of play operators
 (Brokate and Sprekels 1996; the identification form of Kuhnen 2003), with no friction law assumed:
 
-    play of width r:  y_t = min(max(y_{t−1}, x_t − r), x_t + r),  y = x at rest
-    lag               L_r(x)_t = (x_t − y_t) / r ∈ [−1, 1]   (the fraction of its play taken up)
+    play of width r, its lag L_r   ctrkin.models.play_lags (the operators, shared with the FK's
+                                   play-lag inputs)
     inputs            α1, αN (deg; widths ANGLE_WIDTHS_DEG) and the relative translation
                       d = βN − β1 (mm; widths SLIDE_WIDTHS_MM)
     thresholds        θ± = g·φ±(β) ± c + Σ w_k L_k(α1) − Σ v_k L_k(αN) ∓ Σ u_k L_k(d)
@@ -42,11 +42,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numba import njit
 from scipy.optimize import lsq_linear
 
 from ctrkin.families.snap_aware.labels import phase_deg, snap_events
+from ctrkin.models import play_lags
 from ctrkin.models.motion import run_continues
+from ctrkin.models.play_lags import Lags
 from ctrkin.models.relay import MIN_FOLD_DEG, relay_scan
 
 ANGLE_WIDTHS_DEG = (2.0, 5.0, 15.0, 45.0, 90.0)    # the rotation operators' half widths
@@ -54,60 +55,19 @@ SLIDE_WIDTHS_MM = (0.02, 0.05, 0.2, 1.0)          # the relative translation's
 RIDGES = (1e-3, 1e-2, 1e-1, 1.0, 10.0)            # ridge weights tried by cross-validation
 
 
-@dataclass(frozen=True)
-class Lags:
-    """Play lags along a path (fractions of each width): inner (T, K) of α1, outer (T, K) of αN,
-    slide (T, J) of d."""
-
-    inner: np.ndarray
-    outer: np.ndarray
-    slide: np.ndarray
-
-    def mid(self, t: int) -> Lags:
-        """Mid-way between rows t−1 and t, each (1, ·)."""
-        return Lags(*(0.5 * (a[t:t + 1] + a[t - 1:t]) for a in (self.inner, self.outer, self.slide)))
-
-
-@njit(cache=True)
-def _lags(x: np.ndarray, starts: np.ndarray, widths: np.ndarray) -> np.ndarray:
-    """(T, K) lags (x − y) / r of the play operators along x (T,); starts (T,): a run starts at rest."""
-    out = np.empty((len(x), len(widths)))
-    y = np.zeros(len(widths))
-    for t in range(len(x)):
-        if starts[t]:
-            y[:] = x[t]
-        for k in range(len(widths)):
-            y[k] = min(max(y[k], x[t] - widths[k]), x[t] + widths[k])
-            out[t, k] = (x[t] - y[k]) / widths[k]
-    return out
-
-
 def path_lags(joints: np.ndarray, bounds: list[tuple[int, int]], n_tubes: int,
               runs: np.ndarray | None = None, skip: np.ndarray | None = None,
               angle_widths: tuple[float, ...] = ANGLE_WIDTHS_DEG,
               slide_widths: tuple[float, ...] = SLIDE_WIDTHS_MM) -> Lags:
-    """The play lags of α1, αN and d = βN − β1 along the joint path (T, 2N) (module docstring):
-    sequences of one run (runs (T,), file order) are one path; skip (T,): rows whose joints are not
-    to be believed."""
-    q = np.asarray(joints, float).copy()
-    if skip is not None:
-        for g in np.nonzero(skip)[0]:
-            q[g] = q[g - 1] if g > 0 else q[g]
-    starts = np.zeros(len(q), dtype=np.bool_)
-    for (a, b), cont in zip(bounds, run_continues(bounds, runs), strict=True):
-        if b > a and not cont:
-            starts[a] = True
-    n = n_tubes
-    inputs = ((q[:, 0], angle_widths), (q[:, n - 1], angle_widths), (q[:, 2 * n - 1] - q[:, n], slide_widths))
-    return Lags(*(_lags(np.ascontiguousarray(x), starts, np.asarray(w, float)) for x, w in inputs))
+    """ctrkin.models.play_lags.path_lags at this form's widths."""
+    return play_lags.path_lags(joints, bounds, n_tubes, runs, skip, angle_widths, slide_widths)
 
 
 def dataset_lags(ds: Any, angle_widths: tuple[float, ...] = ANGLE_WIDTHS_DEG,
                  slide_widths: tuple[float, ...] = SLIDE_WIDTHS_MM) -> Lags:
     """path_lags of a Dataset's joints as recorded, its runs followed, glitch rows skipped."""
-    runs = ds.frame["run"].to_numpy() if "run" in ds.frame.columns else None
-    return path_lags(ds.joints(), ds.sequence_bounds(), ds.n_tubes, runs, ds.frame["outlier"].to_numpy(),
-                     angle_widths, slide_widths)
+    return play_lags.recorded_lags(ds.frame, ds.joints(), ds.sequence_bounds(), ds.n_tubes, angle_widths,
+                                   slide_widths)
 
 
 @dataclass(frozen=True)

@@ -132,6 +132,7 @@ class SnapAwarePredictor(FKPredictor):
         return None if fg is None else Relay(fg.tables, fg.widen_deg, fg.outer_lag_deg, fg.band_deg)
 
     def export_onnx(self, path: Path, opset: int) -> None:
+        self.check_exportable()
         write_onnx(self.bundle, self.net, path, opset, frame=self.frame, stateful=True)
 
     def export_downgrade(self) -> str | None:

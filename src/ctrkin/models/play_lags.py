@@ -1,0 +1,154 @@
+"""Play-operator lags of the commanded joints: a memory of the joint path that no friction law shapes
+(docs/learned_kinematics.md: Play lags as FK inputs).
+
+Rate-independent hysteresis (backlash, friction wind-up, tubes sticking to each other) is, to first
+order, a non-negative sum of play operators of the inputs (a Prandtl–Ishlinskii basis; Brokate and
+Sprekels 1996, Kuhnen 2003). Each operator of half width r follows its input x with a dead band:
+
+    y_t = min(max(y_{t−1}, x_t − r), x_t + r),   y = x at rest
+    L_r(x)_t = (x_t − y_t) / r ∈ [−1, 1]         (the fraction of its play taken up)
+
+The inputs are α1, αN (deg) and the relative translation d = βN − β1 (mm), the joints that set where
+a pair of tubes folds and how far it has wound up. The lags carry no simulator parameter: a robot
+computes them from its commanded joints as they are recorded, and what they mean for the tip is
+learned from data (a network's inputs, `FeatureLayout(play=True)`) or identified (the snap form of
+ctrkin.families.snap_aware.play).
+
+Along a recorded dataset the operators run along each whole run (the `run` column, as m_N does:
+ctrkin.models.motion): the unrecorded move between two sequences of a run is one step from the end of
+one to the start of the next; a run starts at rest (every lag 0); glitch rows (`outlier`) repeat the
+last believed joints. Streaming (`PlayState`) keeps the operators' outputs from step to step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from ctrkin.models.motion import run_continues
+
+# the half widths of an FK's play-lag inputs: a Prandtl–Ishlinskii basis from the smallest backlash to
+# the widest hysteresis loop of base rotation measured on the virtual robot (35–77°,
+# docs/learned_kinematics.md: Memory), and from a lead screw's dead band to a millimetre of slide
+INPUT_ANGLE_WIDTHS_DEG = (2.0, 5.0, 15.0, 45.0, 90.0)
+INPUT_SLIDE_WIDTHS_MM = (0.05, 0.2, 1.0)
+
+
+@dataclass(frozen=True)
+class Lags:
+    """Play lags along a path (fractions of each width): inner (T, K) of α1, outer (T, K) of αN,
+    slide (T, J) of d."""
+
+    inner: np.ndarray
+    outer: np.ndarray
+    slide: np.ndarray
+
+    def mid(self, t: int) -> Lags:
+        """Mid-way between rows t−1 and t, each (1, ·)."""
+        return Lags(*(0.5 * (a[t:t + 1] + a[t - 1:t]) for a in (self.inner, self.outer, self.slide)))
+
+    def columns(self) -> np.ndarray:
+        """(T, 2K + J): inner, outer, slide side by side (an FK's play inputs, `play_names`)."""
+        return np.concatenate([self.inner, self.outer, self.slide], axis=1)
+
+
+@njit(cache=True)
+def _lags(x: np.ndarray, starts: np.ndarray, widths: np.ndarray) -> np.ndarray:
+    """(T, K) lags (x − y) / r of the play operators along x (T,); starts (T,): a run starts at rest."""
+    out = np.empty((len(x), len(widths)))
+    y = np.zeros(len(widths))
+    for t in range(len(x)):
+        if starts[t]:
+            y[:] = x[t]
+        for k in range(len(widths)):
+            y[k] = min(max(y[k], x[t] - widths[k]), x[t] + widths[k])
+            out[t, k] = (x[t] - y[k]) / widths[k]
+    return out
+
+
+def play_inputs(joints: np.ndarray, n_tubes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The operators' inputs of joints (T, 2N): α1, αN (deg) and d = βN − β1 (mm), each (T,)."""
+    q = np.asarray(joints, float)
+    n = n_tubes
+    return q[:, 0], q[:, n - 1], q[:, 2 * n - 1] - q[:, n]
+
+
+def path_lags(joints: np.ndarray, bounds: list[tuple[int, int]], n_tubes: int,
+              runs: np.ndarray | None = None, skip: np.ndarray | None = None,
+              angle_widths: tuple[float, ...] = INPUT_ANGLE_WIDTHS_DEG,
+              slide_widths: tuple[float, ...] = INPUT_SLIDE_WIDTHS_MM) -> Lags:
+    """The play lags of α1, αN and d = βN − β1 along the joint path (T, 2N) (module docstring):
+    sequences of one run (runs (T,), file order) are one path, else each starts at rest; skip (T,):
+    rows whose joints are not to be believed."""
+    q = np.asarray(joints, float).copy()
+    if skip is not None:
+        for g in np.nonzero(skip)[0]:
+            q[g] = q[g - 1] if g > 0 else q[g]
+    starts = np.zeros(len(q), dtype=np.bool_)
+    for (a, b), cont in zip(bounds, run_continues(bounds, runs), strict=True):
+        if b > a and not cont:
+            starts[a] = True
+    widths = (angle_widths, angle_widths, slide_widths)
+    return Lags(*(_lags(np.ascontiguousarray(x), starts, np.asarray(w, float))
+                  for x, w in zip(play_inputs(q, n_tubes), widths, strict=True)))
+
+
+def recorded_lags(frame: Any, joints: np.ndarray, bounds: list[tuple[int, int]], n_tubes: int,
+                  angle_widths: tuple[float, ...] = INPUT_ANGLE_WIDTHS_DEG,
+                  slide_widths: tuple[float, ...] = INPUT_SLIDE_WIDTHS_MM) -> Lags:
+    """path_lags of a Dataset's rows (its frame, joints (T, 2N) as recorded, its sequences): runs
+    followed across sequences, glitch rows skipped."""
+    runs = frame["run"].to_numpy() if "run" in frame.columns else None
+    return path_lags(joints, bounds, n_tubes, runs, frame["outlier"].to_numpy(), angle_widths, slide_widths)
+
+
+def play_names(n_tubes: int) -> list[str]:
+    """Names of an FK's play-lag inputs, in `Lags.columns` order (widths in deg, mm)."""
+    def w(x: float) -> str:
+        return f"{x:g}"
+    return ([f"play_alpha_1_{w(r)}" for r in INPUT_ANGLE_WIDTHS_DEG]
+            + [f"play_alpha_{n_tubes}_{w(r)}" for r in INPUT_ANGLE_WIDTHS_DEG]
+            + [f"play_d_{w(r)}" for r in INPUT_SLIDE_WIDTHS_MM])
+
+
+class PlayState:
+    """The play operators of an FK's inputs while streaming: `after` gives the lags (P,) a step to
+    joints (2N,) would leave, `advance` takes that step, `peek` the lags (K, P) of K candidate next
+    steps (the refined IK's probes); `reset` starts at rest (the next step sets every output to its
+    input)."""
+
+    def __init__(self, n_tubes: int) -> None:
+        self.n = n_tubes
+        k, j = len(INPUT_ANGLE_WIDTHS_DEG), len(INPUT_SLIDE_WIDTHS_MM)
+        self.widths = np.array(INPUT_ANGLE_WIDTHS_DEG * 2 + INPUT_SLIDE_WIDTHS_MM, float)
+        self.which = np.repeat(np.arange(3), (k, k, j))      # the input each operator follows
+        self.y: np.ndarray | None = None
+
+    def reset(self) -> None:
+        self.y = None
+
+    def _inputs(self, Q: np.ndarray) -> np.ndarray:
+        """(K, P): each operator's input at K joints Q (K, 2N)."""
+        return np.stack(play_inputs(Q, self.n), axis=1)[:, self.which]
+
+    def _outputs(self, x: np.ndarray) -> np.ndarray:
+        y = x if self.y is None else self.y
+        return np.minimum(np.maximum(y, x - self.widths), x + self.widths)
+
+    def after(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(lags (P,), the operators' outputs (P,)) after a step to joints q (2N,), nothing changed."""
+        x = self._inputs(np.asarray(q, float)[None])[0]
+        y = self._outputs(x)
+        return (x - y) / self.widths, y
+
+    def advance(self, y: np.ndarray) -> None:
+        """Take the step whose outputs `after` gave."""
+        self.y = y
+
+    def peek(self, Q: np.ndarray) -> np.ndarray:
+        """(K, P) lags after a step to each of K joints Q (K, 2N), nothing changed."""
+        x = self._inputs(np.atleast_2d(np.asarray(Q, float)))
+        return (x - self._outputs(x)) / self.widths
