@@ -4,6 +4,8 @@ FK; docs/learned_kinematics.md: Memory of the recommended FK).
     python benchmarks/bench_fk_memory.py --data out/reproduce/data/paper --out /tmp/fkmem
     python benchmarks/bench_fk_memory.py --data ... --out ... --arms ib2,ib4,ib8,ib2e160
     python benchmarks/bench_fk_memory.py --repro out/gen/default-top --out ...  # + FK experiments
+    python benchmarks/bench_fk_memory.py --collect /tmp/nowarp --set em_distortion_mm=0 --out ... \
+        --arms ib2,ib2p          # the reproduction's data recorded first, on the default robot with --set
 
 Every arm is the snap-aware FK (`lstm_mlp_branch`) trained exactly as `ctrkin reproduce` trains it
 (ctrkin.evaluation.training_runs.plan_runs at `--scale`: the same split, seed, batch, learning rate
@@ -171,6 +173,20 @@ def run_arm(ds: Dataset, scale: str, arm: str, out: Path, stream: np.ndarray, re
     return row
 
 
+def collect_repro(folder: Path, scale: str, settings: list[str]) -> Path:
+    """`folder` holding a reproduction's data (data/paper with its split, data/paper+excitation, the
+    sweeps and snap turns), recorded as `ctrkin reproduce --scale S --set ...` records them."""
+    from ctrkin.cli.from_config import virtual_config
+    from ctrkin.evaluation.datasets import TRAINING_FOLDER, collect, save_training_set
+    from ctrkin.robots import paper_robot
+
+    data = collect(paper_robot(), get_scale(scale), folder / "data", 0, progress=False,
+                   config=virtual_config(settings))
+    data.paper.save_split(folder / "data" / "paper", data.paper.get_split(seed=0))
+    save_training_set(data, folder / "data" / TRAINING_FOLDER)
+    return folder
+
+
 def _f(x: float | None) -> str:
     return "–" if x is None else f"{x:.2f}"
 
@@ -178,9 +194,15 @@ def _f(x: float | None) -> str:
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", type=Path, default=None, help="a reproduction's paper dataset folder "
-                    "(its split.json is the split), e.g. out/reproduce/data/paper (default: --repro's)")
+                    "(its split.json is the split), e.g. out/reproduce/data/paper (default: --repro's "
+                    "data/paper+excitation, what reproduce trains the recommended FK on, or its data/paper)")
     ap.add_argument("--repro", type=Path, default=None, help="a reproduction folder: its paper data, and "
                     "the FK experiments on its sweeps and snap turns and along reversals")
+    ap.add_argument("--collect", type=Path, default=None, help="record the reproduction's data at --scale "
+                    "on the paper robot (hardware seed 0, the virtual robot's defaults with --set) into "
+                    "COLLECT/data, as `ctrkin reproduce` does (reused when there), and use it as --repro")
+    ap.add_argument("--set", dest="settings", action="append", default=[], metavar="KEY=VALUE",
+                    help="a virtual robot effect for --collect (VirtualConfig's fields, as `ctrkin collect`)")
     ap.add_argument("--case", default="default-top", choices=sorted(ROBOTS), help="the robot and effects "
                     "of --repro (bench_generalisation.ROBOTS), for the reversals")
     ap.add_argument("--out", type=Path, required=True, help="folder of the arms' model folders")
@@ -192,9 +214,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     bad = [a for a in arms if ARM.match(a) is None]
     if bad:
         ap.error(f"arms {bad} are not ibN, ibNeE or either with p (e.g. ib8, ib2e160, ib2p)")
+    if args.collect is not None:
+        args.repro = collect_repro(args.collect, args.scale, args.settings)
     if args.data is None and args.repro is None:
         ap.error("give --data or --repro")
-    data = args.data if args.data is not None else args.repro / "data" / "paper"
+    training = args.repro / "data" / "paper+excitation" if args.repro is not None else None
+    data = (args.data if args.data is not None else         # what reproduce trains the recommended FK on
+            training if training is not None and training.is_dir() else args.repro / "data" / "paper")
     ds = Dataset.load(data)
     if ds.split is None or not ds.has_truth:
         ap.error(f"{data} needs a split.json and true pose columns (a virtual robot's reproduction "

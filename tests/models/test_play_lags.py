@@ -96,9 +96,27 @@ def play_fk(sweeps, tmp_path_factory):
     return Kinematics.load(out)
 
 
+def test_the_fused_step_of_a_play_fk_is_the_reference_path_and_shares_its_state(play_fk, sweeps):
+    from ctrkin.inference import Kinematics
+
+    fused, ref = play_fk.copy(), Kinematics.load(play_fk.path, fused=False)
+    assert fused.predictor.fused and not ref.predictor.fused
+    a, b = sweeps.sequence_bounds()[2]
+    q = sweeps.joints()[a:b]
+    for kin in (fused, ref):
+        kin.reset()
+    for t, row in enumerate(q):
+        given = list(row) if t % 7 == 3 else row        # a list: this step takes the reference path
+        np.testing.assert_array_equal(fused.step(given), ref.step(row))
+    fused.reset(continue_run=True)                      # the operators carry over, not from rest
+    ref.reset(continue_run=True)
+    np.testing.assert_array_equal(fused.step(q[-1] + 2.0 * np.r_[1.0, 0.0, 0.0, 0.0]),
+                                  ref.step(q[-1] + 2.0 * np.r_[1.0, 0.0, 0.0, 0.0]))
+
+
 def test_a_play_fk_streams_what_it_predicts_and_probes_what_it_would_step(play_fk, sweeps, rng):
     kin = play_fk
-    assert kin.predictor.layout.play and not kin.predictor.fused        # the reference path streams it
+    assert kin.predictor.layout.play
     a, b = sweeps.sequence_bounds()[1]
     q = sweeps.joints()[a:b]
     batch = np.asarray(kin.predict(q))

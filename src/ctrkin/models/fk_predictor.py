@@ -12,8 +12,8 @@ run torch on windows. An LSTM-MLP with one LSTM layer runs each whole step in on
 Streaming state: the previous joints as the network saw them, the sequence's whole-turn shift, the
 relay state of a model with a tabulated gate (−1 at a start), the direction m_N in which the outer
 motor last turned and its previous angle (ctrkin.models.motion), the outer lag λ(β) of the last β,
-and for a model with play-lag inputs the play operators' outputs (ctrkin.models.play_lags; such a
-model takes the reference path, not the fused step, and is not exported to ONNX).
+and for a model with play-lag inputs the play operators' outputs (ctrkin.models.play_lags: in the
+fused step's buffer, so both paths share them; such a model is not exported to ONNX).
 """
 
 from __future__ import annotations
@@ -71,9 +71,9 @@ class FKPredictor(BasePredictor):
         self._shift: np.ndarray | None = None
         self._gate_state, self._outer_motion, self._outer_prev = -1, 0, math.nan
         self._lag_beta, self._lag = b"", 0.0      # the outer lag λ(β) of the last β (ctrkin.models.frame)
-        self._play = PlayState(self.layout.n_tubes) if self.layout.play else None
         self._use_fused = fused
         self._fused: FusedFK | None = None
+        self._play: PlayState | None = None
         self._rebuild_fused()
         # predict by chains with features and poses each in one numba pass (batch.fk_padded_rows,
         # batch.fk_poses): the paper's FK features on a SeqNet whose outputs need no family's hook
@@ -125,6 +125,24 @@ class FKPredictor(BasePredictor):
                        if self._use_fused else None)
         self._fused_lag = self.frame is not None and self.frame.has_lag      # step() reads λ(β)
         self._raw_shape = (self.layout.raw_width,)
+        self._link_play()
+
+    def _link_play(self) -> None:
+        """The play operators' streaming state (a play layout's), in the fused step's buffer where
+        there is one (both paths share it), its values kept."""
+        if not self.layout.play:
+            return
+        old = self._play
+        buf = self._fused.play_state if self._fused is not None else None
+        self._play = PlayState(self.layout.n_tubes, buf)
+        if old is not None:
+            self._play.buf[:] = old.buf
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """An unpickled predictor's fused step holds buffers of its own (FusedFK.__setstate__): the
+        play state is linked to them again."""
+        self.__dict__.update(state)
+        self._link_play()
 
     @property
     def fused(self) -> bool:

@@ -13,13 +13,15 @@ It therefore returns the reference path's numbers to the last bit (tests/models/
 Scope: an FK model whose network is one LSTM layer followed by one or more Dense layers (the "Lh|Dk…"
 structures, the paper's L128|D64 included), minmax or phase angle encoding, with or without the
 outer-tube frame, a model with a branch state from a tabulated relay (the snap-aware model's fold
-gate, ctrkin.models.relay) or from its learned gate. Other models, and any step
+gate, ctrkin.models.relay) or from its learned gate, with or without play-lag inputs
+(ctrkin.models.play_lags; not with equivariant inputs or a position field). Other models, and any step
 that the fast checks do not pass (a joint the robot cannot take, a rotation outside the trained
 range, NaN), go through the reference path, which raises with its message; a declined step has
 touched nothing.
 
 State: the streaming state stays where the reference path keeps it (FKPredictor: previous joints,
-whole-turn shift, relay state; StreamingEngine: the LSTM chains, their history and the branch state),
+whole-turn shift, relay state; StreamingEngine: the LSTM chains, their history and the branch state;
+the play operators' outputs are PlayState's buffer, a piece of this one's),
 so both paths can alternate within one sequence and `probe()` sees the same history.
 """
 
@@ -35,6 +37,7 @@ from ctrkin.models.engine import StreamingEngine, _dense_rows, _lstm_rows, _push
 from ctrkin.models.feature_row import paper_feature_row
 from ctrkin.models.frame import OuterFrame, pose_to_world
 from ctrkin.models.guards import MAX_ABS_ALPHA_DEG, TURN_DEG, FKGuard
+from ctrkin.models.play_lags import input_operators
 from ctrkin.models.relay import GateTables, gate_step
 from ctrkin.models.seqnet import UNKNOWN_STATE
 from ctrkin.models.store import ModelBundle
@@ -89,21 +92,22 @@ def _joints_ok(raw: np.ndarray, shift: np.ndarray, n: int, lengths: np.ndarray, 
 # view is C-contiguous, so the kernels run the same specialisations (and give the same bits) as on the
 # engine's own arrays. The int64 buffer starts with the model's settings (cfg) and the three
 # directories, then its own pieces.
-# constants (float64): guard, normalisation, network, gate tables, registration; head layer l's
-# weights at HEAD + 2l and biases at HEAD + 2l + 1
+# constants (float64): guard, normalisation, network, gate tables, registration, the play operators'
+# widths and inputs (ctrkin.models.play_lags.input_operators); head layer l's weights at HEAD + 2l and
+# biases at HEAD + 2l + 1
 (LENGTHS, ALPHA_LO, ALPHA_HI, XLO, XSPAN, CLIP_LO, CLIP_HI, YLO, YSPAN, W_IH, W_HH, BIAS, OUT_W, OUT_B,
  GATE_W0, GATE_W1, GATE_B0, GATE_B1, T_AXES, T_FORWARD, T_BACKWARD, ROT, TRANS, GATE_CONSTS, TRAIN_LO,
- TRAIN_HI, HEAD) = range(27)
+ TRAIN_HI, PLAY_W, PLAY_SRC, HEAD) = range(29)
 # the streaming state (float64; the engine's arrays are views of it), the step's previous joints as
-# the network saw them, its result and its scratch (predict's rows: SHIFT, PREV_IN); head layer l's
-# output buffer at HEAD_OUT + l
-(H, C, H2, C2, G, T, HIST, X, PREV, Q, Y, LOCAL, YN, ZS, G1, G2, SHIFT, PREV_IN, HEAD_OUT) = range(19)
+# the network saw them, its result and its scratch (predict's rows: SHIFT, PREV_IN), the play
+# operators' outputs and at-rest flag (PlayState's buffer); head layer l's output buffer at HEAD_OUT + l
+(H, C, H2, C2, G, T, HIST, X, PREV, Q, Y, LOCAL, YN, ZS, G1, G2, SHIFT, PREV_IN, PLAY_Y, HEAD_OUT) = range(20)
 # the int64 buffer's pieces: the gate tables' start and size, the sigmoid's scratch
 T_START, T_SIZE, BITS = range(3)
 # the model's settings at the int64 buffer's start, then where each directory starts (C_DIR, S_DIR,
 # I_DIR) and ends (END_DIR)
-(N_TUBES, PHASE, DELTA, FLATTEN, RELU_OUT, GATE_KIND, OUTER_FRAME, HAS_LAG, LAGGED_INPUTS, N_HEAD,
- C_DIR, S_DIR, I_DIR, END_DIR, N_CFG) = range(15)
+(N_TUBES, PHASE, DELTA, FLATTEN, RELU_OUT, GATE_KIND, OUTER_FRAME, HAS_LAG, LAGGED_INPUTS, N_PLAY, N_HEAD,
+ C_DIR, S_DIR, I_DIR, END_DIR, N_CFG) = range(16)
 
 
 # explicit signatures: one compiled version each, not one per piece number (numba would otherwise
@@ -173,6 +177,10 @@ def _fk_step(raw, shift, prev, consts, state, ints, started, fresh, branch, gate
     f = x[0]
     prev_a0 = prev[0] - prev[n - 1] if started else 0.0
     paper_feature_row(q, n, prev_a0, started, phase, delta, f)
+    n_play = ints[N_PLAY]
+    if n_play:                  # the play lags of the joints as given (PlayState.after, then advance)
+        _play_step(raw, n, _piece(consts, cwhere, PLAY_W), _piece(consts, cwhere, PLAY_SRC),
+                   _piece(state, swhere, PLAY_Y), f[f.size - n_play:])
     _piece(state, swhere, PREV)[:] = q
     for j in range(f.size):
         f[j] = (min(max(f[j], clip_lo[j]), clip_hi[j]) - xlo[j]) / xspan[j]
@@ -225,6 +233,22 @@ def _fk_step(raw, shift, prev, consts, state, ints, started, fresh, branch, gate
 
 
 @njit(cache=True)
+def _play_step(raw, n, widths, source, y, lags):
+    """One step of the play operators (ctrkin.models.play_lags.PlayState, the same arithmetic): their
+    outputs y (P + 1,: the last the at-rest flag) advanced to joints raw (2N,), lags (P,) written."""
+    p = widths.size
+    rest = y[p] != 0.0
+    for k in range(p):
+        s = source[k]
+        x = raw[0] if s == 0.0 else (raw[n - 1] if s == 1.0 else raw[2 * n - 1] - raw[n])
+        yk = x if rest else y[k]
+        yk = min(max(yk, x - widths[k]), x + widths[k])
+        y[k] = yk
+        lags[k] = (x - yk) / widths[k]
+    y[p] = 0.0
+
+
+@njit(cache=True)
 def _first_shift(first, n, lo, hi, shift):
     """FKGuard.shift in numba: shift (2N,) <- the whole turns (deg) that bring each α of a sequence's
     first step `first` (2N,) into the trained range [lo, hi] (N,) (±inf: a sin/cos encoding)."""
@@ -251,6 +275,8 @@ def _fk_rows(rows, consts, state, ints, out):
     _first_shift(rows[0], ints[N_TUBES], _piece(consts, cwhere, TRAIN_LO), _piece(consts, cwhere, TRAIN_HI),
                  shift)
     prev_out, y = _piece(state, swhere, PREV), _piece(state, swhere, Y)
+    play = _piece(state, swhere, PLAY_Y)
+    play[play.size - 1] = 1.0                   # the play operators start at rest
     for r in range(rows.shape[0]):
         gate_state, motion, outer_prev, branch = _fk_step(
             rows[r], shift, prev, consts, state, ints, r > 0, r == 0, branch, gate_state, motion, outer_prev,
@@ -330,9 +356,11 @@ class FusedFK:
         reg = frame.registration if frame is not None else None
         self.rot = np.eye(3) if reg is None else np.ascontiguousarray(reg.rotation, dtype=np.float64)
         self.trans = np.zeros(3) if reg is None else np.ascontiguousarray(reg.translation, dtype=np.float64)
+        widths, source = input_operators()
+        self.play = (widths, source.astype(float)) if layout.play else (np.ones(1), np.zeros(1))
         self.cfg = (n, layout.angle_encoding == "phase", layout.delta, engine.pooling == "flatten",
                     engine.relu_out, gate_kind, reg is not None, frame is not None and frame.has_lag,
-                    frame is not None and frame.lags_inputs)
+                    frame is not None and frame.lags_inputs, len(widths) if layout.play else 0)
         self.prev = np.zeros(2 * n)        # the last step's shifted joints (FKPredictor._prev)
         self._none = np.zeros(2 * n)
         self._pack(n_layers)
@@ -343,7 +371,7 @@ class FusedFK:
         w_ih, w_hh, b = self.lstm
         self.consts = _Packed([*self.guard, *self.norm, w_ih, w_hh, b, self.out_w, self.out_b, *self.gate_w,
                                *self.gate_b, self.tables[0], self.tables[3], self.tables[4], self.rot,
-                               self.trans, np.array(self.gate_consts, float), *self.trained,
+                               self.trans, np.array(self.gate_consts, float), *self.trained, *self.play,
                                *(a for i in range(n_layers) for a in (self.head_w[i], self.head_b[i]))],
                               np.float64)
         e = self.engine
@@ -352,6 +380,7 @@ class FusedFK:
         scratch = [np.zeros(len(self.prev)), np.zeros(len(self.prev)), np.zeros(6), np.zeros(n_out),
                    np.zeros((1, n_out)), np.zeros((1, width + 1)), np.zeros((1, self.gate_w[0].shape[0])),
                    np.zeros((1, 1)), np.zeros(len(self.prev)), np.zeros(len(self.prev)),
+                   np.r_[np.zeros(len(self.play[0])), 1.0],
                    *(np.zeros((1, self.head_w[i].shape[1])) for i in range(n_layers))]
         self.state = _Packed([*self._engine_state(), *scratch], np.float64)
         ints = [self.tables[1], self.tables[2], e._bits[0]]
@@ -381,6 +410,7 @@ class FusedFK:
         e._bits[0] = self.ints.view(BITS, e._bits[0].shape)
         self.prev = self.state.view(PREV, self.prev.shape)
         self._y = self.state.view(Y, (6,))
+        self.play_state = self.state.view(PLAY_Y, (len(self.play[0]) + 1,))  # PlayState's buffer
         self._bufs = (self.consts.buf, self.state.buf, self.ints.buf)
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -396,8 +426,8 @@ class FusedFK:
         clip and outer frame; the branch state from `relay` where given), or None where it does not
         apply (module docstring)."""
         eng = engine
-        if (eng is None or bundle.layout.angle_encoding not in ("minmax", "phase") or bundle.layout.play
-                or (frame is not None and frame.field is not None)
+        if (eng is None or bundle.layout.angle_encoding not in ("minmax", "phase")
+                or bundle.layout.equivariant or (frame is not None and frame.field is not None)
                 or len(eng.seq) != 1 or eng.seq[0][0] != "lstm" or not eng.heads[0][0]
                 or len(eng.heads) > 2):
             return None

@@ -114,21 +114,37 @@ def play_names(n_tubes: int) -> list[str]:
             + [f"play_d_{w(r)}" for r in INPUT_SLIDE_WIDTHS_MM])
 
 
+def input_operators() -> tuple[np.ndarray, np.ndarray]:
+    """(widths (P,), the input each operator follows (P,): 0 α1, 1 αN, 2 d) of an FK's play inputs,
+    in `play_names` order."""
+    k, j = len(INPUT_ANGLE_WIDTHS_DEG), len(INPUT_SLIDE_WIDTHS_MM)
+    return (np.array(INPUT_ANGLE_WIDTHS_DEG * 2 + INPUT_SLIDE_WIDTHS_MM, float),
+            np.repeat(np.arange(3), (k, k, j)))
+
+
 class PlayState:
     """The play operators of an FK's inputs while streaming: `after` gives the lags (P,) a step to
     joints (2N,) would leave, `advance` takes that step, `peek` the lags (K, P) of K candidate next
     steps (the refined IK's probes); `reset` starts at rest (the next step sets every output to its
-    input)."""
+    input). buf (P + 1,): where the outputs and, last, the at-rest flag live (the fused step's state,
+    ctrkin.models.fused, so that both paths share one state; taken as it is); default its own, at
+    rest."""
 
-    def __init__(self, n_tubes: int) -> None:
+    def __init__(self, n_tubes: int, buf: np.ndarray | None = None) -> None:
         self.n = n_tubes
-        k, j = len(INPUT_ANGLE_WIDTHS_DEG), len(INPUT_SLIDE_WIDTHS_MM)
-        self.widths = np.array(INPUT_ANGLE_WIDTHS_DEG * 2 + INPUT_SLIDE_WIDTHS_MM, float)
-        self.which = np.repeat(np.arange(3), (k, k, j))      # the input each operator follows
-        self.y: np.ndarray | None = None
+        self.widths, self.which = input_operators()
+        p = len(self.widths)
+        self.buf = np.r_[np.zeros(p), 1.0] if buf is None else buf
+        if self.buf.shape != (p + 1,):
+            raise ValueError(f"a play state's buffer holds {p + 1} values, got shape {self.buf.shape}")
+
+    @property
+    def y(self) -> np.ndarray | None:
+        """The operators' outputs (P,), None at rest."""
+        return None if self.buf[-1] != 0.0 else self.buf[:-1]
 
     def reset(self) -> None:
-        self.y = None
+        self.buf[-1] = 1.0
 
     def _inputs(self, Q: np.ndarray) -> np.ndarray:
         """(K, P): each operator's input at K joints Q (K, 2N)."""
@@ -146,7 +162,8 @@ class PlayState:
 
     def advance(self, y: np.ndarray) -> None:
         """Take the step whose outputs `after` gave."""
-        self.y = y
+        self.buf[:-1] = y
+        self.buf[-1] = 0.0
 
     def peek(self, Q: np.ndarray) -> np.ndarray:
         """(K, P) lags after a step to each of K joints Q (K, 2N), nothing changed."""
