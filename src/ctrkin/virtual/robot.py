@@ -142,6 +142,8 @@ class VirtualRobot:
             eq = solve(self.true_robot, base[t], guess=before, state=before.friction_state)
             if not eq.converged:   # no branch near it: the lowest-energy stable one, same friction state
                 eq = solve(self.true_robot, base[t], state=before.friction_state)
+            if not eq.converged:   # no equilibrium holds that friction state: the tubes slip, and the
+                eq = solve(self.true_robot, base[t])    # step is the lowest-energy one from rest
             if not eq.converged:   # none at all: the step stays unconverged (NaN pose), as follow said
                 continue
             eqs[t] = eq
