@@ -132,11 +132,23 @@ def test_a_play_fk_streams_what_it_predicts_and_probes_what_it_would_step(play_f
     np.testing.assert_allclose(batch, np.array(stream), rtol=0, atol=1e-4)   # float32 batch, float64 step
 
 
-def test_a_play_fk_follows_a_datasets_runs_and_is_not_exported(play_fk, sweeps, tmp_path):
+def test_a_play_fk_follows_a_datasets_runs_and_exports_with_the_lags_in_its_window(play_fk, sweeps, tmp_path):
+    import onnxruntime as ort
+
     from ctrkin.inference.onnx_export import export_onnx
 
     kin = play_fk
     by_rows = np.asarray(kin.predict(sweeps))
     assert np.isfinite(by_rows).all() and by_rows.shape == (len(sweeps.frame), 6)
-    with pytest.raises(ModelError, match="play-lag inputs"):
-        export_onnx(kin, tmp_path / "fk.onnx", allow_downgrade=True)
+    path = export_onnx(kin, tmp_path / "fk.onnx", allow_downgrade=True)     # the fold gate stays out
+    sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    a, b = sweeps.sequence_bounds()[1]
+    q = sweeps.joints()[a:b]
+    windows = kin.feature_windows(q).astype(np.float32)
+    assert windows.shape[2] == kin.layout.n_inputs and windows[:, :, -len(play_names(2)):].any()
+    state = np.full(1, 0.5, np.float32)                  # a sequence start
+    out = []
+    for w in windows:
+        y, state = sess.run(None, {"window": w[None], "state": state})
+        out.append(y[0])
+    np.testing.assert_allclose(np.array(out), np.asarray(kin.predict(q, gate="learned")), rtol=0, atol=1e-3)

@@ -13,7 +13,7 @@ Streaming state: the previous joints as the network saw them, the sequence's who
 relay state of a model with a tabulated gate (−1 at a start), the direction m_N in which the outer
 motor last turned and its previous angle (ctrkin.models.motion), the outer lag λ(β) of the last β,
 and for a model with play-lag inputs the play operators' outputs (ctrkin.models.play_lags: in the
-fused step's buffer, so both paths share them; such a model is not exported to ONNX).
+fused step's buffer, so both paths share them; in ONNX they are columns of the graph's window).
 """
 
 from __future__ import annotations
@@ -439,11 +439,9 @@ class FKPredictor(BasePredictor):
         write_onnx(self.bundle, self.net, path, opset, frame=self.frame)
 
     def check_exportable(self) -> None:
-        """ModelError where the ONNX graph cannot hold what the model computes (play-lag inputs: the
-        operators' state is not in the graph)."""
-        if self.layout.play:
-            raise ModelError("this FK model has play-lag inputs (ctrkin.models.play_lags), whose operators' "
-                             "state the ONNX graph does not hold: it streams in ctrkin only")
+        """ModelError where the ONNX graph cannot hold what the model computes (equivariant inputs: the
+        graph turns its poses by the window's αN column; a position field). Play lags are columns of
+        the window the graph reads, as every feature is (Kinematics.feature_windows)."""
         if self.layout.equivariant or (self.frame is not None and self.frame.field is not None):
             raise ModelError("this FK model's equivariant inputs and position field are not in the ONNX "
                              "graph: it streams in ctrkin only")

@@ -2,7 +2,9 @@
 ctrkin.inference.export_onnx; each family's predictor calls `write_onnx`).
 
 The graph maps "window": (B, IB, F) float32 raw features (Kinematics.feature_windows: the
-layout's input_names, un-normalised, oldest step first) to "output": (B, O) float32 in user units
+layout's input_names, un-normalised, oldest step first; a layout with play lags holds them among its
+columns, computed along the path by the caller as ctrkin.models.play_lags does) to "output": (B, O)
+float32 in user units
 (FK: tip pose with unit quaternion; IK: joints). Metadata props record the task, IB, feature and output
 names and the robot fingerprint. A network that carries a state (`stateful`: the snap-aware model,
 whose net has `forward_state`) has a second input "state": (B,) float32, the previous state (0.5 at
