@@ -32,6 +32,10 @@ def test_the_memory_benchmarks_arms_are_the_reproductions_recipe_with_their_ib_a
     ib4 = bench.arm_config("quick", "ib4")
     assert (ib4.ib, ib4.max_epochs, ib4.threads) == (4, quick.max_epochs, 1)
     same = {"ib": quick.ib, "threads": quick.threads, "device": quick.device}
-    assert ib4.to_dict() | same == quick.to_dict()
+    assert quick.play_lags                               # the recommended FK's memory (FK_PLAY_LAGS)
+    assert ib4.to_dict() | same | {"play_lags": True} == quick.to_dict()    # an arm without p: no lags
+    assert not ib4.play_lags
+    assert bench.arm_config("quick", "ib2p").to_dict() | same == quick.to_dict()   # ib2p: the recipe
+    assert bench.arm_config("quick", "ib2ps3").seed == 3 and bench.arm_config("quick", "ib2pq").equivariant
     long = bench.arm_config("quick", "ib2e160")
     assert (long.ib, long.max_epochs, long.patience) == (2, 160, 160)
