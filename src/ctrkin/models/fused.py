@@ -37,7 +37,7 @@ from ctrkin.models.engine import StreamingEngine, _dense_rows, _lstm_rows, _push
 from ctrkin.models.feature_row import paper_feature_row
 from ctrkin.models.frame import OuterFrame, pose_to_world
 from ctrkin.models.guards import MAX_ABS_ALPHA_DEG, TURN_DEG, FKGuard
-from ctrkin.models.play_lags import input_operators
+from ctrkin.models.play_lags import input_operators, play_step
 from ctrkin.models.relay import GateTables, gate_step
 from ctrkin.models.seqnet import UNKNOWN_STATE
 from ctrkin.models.store import ModelBundle
@@ -179,8 +179,8 @@ def _fk_step(raw, shift, prev, consts, state, ints, started, fresh, branch, gate
     paper_feature_row(q, n, prev_a0, started, phase, delta, f)
     n_play = ints[N_PLAY]
     if n_play:                  # the play lags of the joints as given (PlayState.after, then advance)
-        _play_step(raw, n, _piece(consts, cwhere, PLAY_W), _piece(consts, cwhere, PLAY_SRC),
-                   _piece(state, swhere, PLAY_Y), f[f.size - n_play:])
+        play_step(raw, n, _piece(consts, cwhere, PLAY_W), _piece(consts, cwhere, PLAY_SRC),
+                  _piece(state, swhere, PLAY_Y), f[f.size - n_play:])
     _piece(state, swhere, PREV)[:] = q
     for j in range(f.size):
         f[j] = (min(max(f[j], clip_lo[j]), clip_hi[j]) - xlo[j]) / xspan[j]
@@ -230,22 +230,6 @@ def _fk_step(raw, shift, prev, consts, state, ints, started, fresh, branch, gate
         if nq > 1e-12:
             y[3:6] /= nq
     return gate_state, motion, outer_prev, branch
-
-
-@njit(cache=True)
-def _play_step(raw, n, widths, source, y, lags):
-    """One step of the play operators (ctrkin.models.play_lags.PlayState, the same arithmetic): their
-    outputs y (P + 1,: the last the at-rest flag) advanced to joints raw (2N,), lags (P,) written."""
-    p = widths.size
-    rest = y[p] != 0.0
-    for k in range(p):
-        s = source[k]
-        x = raw[0] if s == 0.0 else (raw[n - 1] if s == 1.0 else raw[2 * n - 1] - raw[n])
-        yk = x if rest else y[k]
-        yk = min(max(yk, x - widths[k]), x + widths[k])
-        y[k] = yk
-        lags[k] = (x - yk) / widths[k]
-    y[p] = 0.0
 
 
 @njit(cache=True)

@@ -122,6 +122,23 @@ def input_operators() -> tuple[np.ndarray, np.ndarray]:
             np.repeat(np.arange(3), (k, k, j)))
 
 
+@njit(cache=True)
+def play_step(raw, n, widths, source, y, lags):
+    """One step of the play operators: their outputs y (P + 1,: the last the at-rest flag) advanced to
+    joints raw (2N,) (the inputs `source` (P,): 0 α1, 1 αN, 2 d; half widths `widths` (P,)), their
+    lags written into lags (P,). PlayState and the fused step (ctrkin.models.fused) both run it."""
+    p = widths.size
+    rest = y[p] != 0.0
+    for k in range(p):
+        s = source[k]
+        x = raw[0] if s == 0.0 else (raw[n - 1] if s == 1.0 else raw[2 * n - 1] - raw[n])
+        yk = x if rest else y[k]
+        yk = min(max(yk, x - widths[k]), x + widths[k])
+        y[k] = yk
+        lags[k] = (x - yk) / widths[k]
+    y[p] = 0.0
+
+
 class PlayState:
     """The play operators of an FK's inputs while streaming: `after` gives the lags (P,) a step to
     joints (2N,) would leave, `advance` takes that step, `peek` the lags (K, P) of K candidate next
@@ -132,33 +149,22 @@ class PlayState:
 
     def __init__(self, n_tubes: int, buf: np.ndarray | None = None) -> None:
         self.n = n_tubes
-        self.widths, self.which = input_operators()
+        self.widths, which = input_operators()
+        self.source = which.astype(float)
         p = len(self.widths)
         self.buf = np.r_[np.zeros(p), 1.0] if buf is None else buf
         if self.buf.shape != (p + 1,):
             raise ValueError(f"a play state's buffer holds {p + 1} values, got shape {self.buf.shape}")
 
-    @property
-    def y(self) -> np.ndarray | None:
-        """The operators' outputs (P,), None at rest."""
-        return None if self.buf[-1] != 0.0 else self.buf[:-1]
-
     def reset(self) -> None:
         self.buf[-1] = 1.0
 
-    def _inputs(self, Q: np.ndarray) -> np.ndarray:
-        """(K, P): each operator's input at K joints Q (K, 2N)."""
-        return np.stack(play_inputs(Q, self.n), axis=1)[:, self.which]
-
-    def _outputs(self, x: np.ndarray) -> np.ndarray:
-        y = x if self.y is None else self.y
-        return np.minimum(np.maximum(y, x - self.widths), x + self.widths)
-
     def after(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(lags (P,), the operators' outputs (P,)) after a step to joints q (2N,), nothing changed."""
-        x = self._inputs(np.asarray(q, float)[None])[0]
-        y = self._outputs(x)
-        return (x - y) / self.widths, y
+        y = self.buf.copy()
+        lags = np.empty(len(self.widths))
+        play_step(np.ascontiguousarray(q, dtype=np.float64), self.n, self.widths, self.source, y, lags)
+        return lags, y[:-1]
 
     def advance(self, y: np.ndarray) -> None:
         """Take the step whose outputs `after` gave."""
@@ -167,5 +173,5 @@ class PlayState:
 
     def peek(self, Q: np.ndarray) -> np.ndarray:
         """(K, P) lags after a step to each of K joints Q (K, 2N), nothing changed."""
-        x = self._inputs(np.atleast_2d(np.asarray(Q, float)))
-        return (x - self._outputs(x)) / self.widths
+        Q = np.atleast_2d(np.asarray(Q, float))
+        return np.array([self.after(q)[0] for q in Q]).reshape(len(Q), len(self.widths))
