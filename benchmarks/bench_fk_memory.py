@@ -177,13 +177,11 @@ def collect_repro(folder: Path, scale: str, settings: list[str]) -> Path:
     """`folder` holding a reproduction's data (data/paper with its split, data/paper+excitation, the
     sweeps and snap turns), recorded as `ctrkin reproduce --scale S --set ...` records them."""
     from ctrkin.cli.from_config import virtual_config
-    from ctrkin.evaluation.datasets import TRAINING_FOLDER, collect, save_training_set
+    from ctrkin.evaluation.datasets import collect_training_data
     from ctrkin.robots import paper_robot
 
-    data = collect(paper_robot(), get_scale(scale), folder / "data", 0, progress=False,
-                   config=virtual_config(settings))
-    data.paper.save_split(folder / "data" / "paper", data.paper.get_split(seed=0))
-    save_training_set(data, folder / "data" / TRAINING_FOLDER)
+    collect_training_data(paper_robot(), get_scale(scale), folder / "data", 0, virtual_config(settings),
+                          progress=False)
     return folder
 
 

@@ -162,6 +162,17 @@ def save_training_set(data: ReproData, folder: Path) -> Path:
     return folder
 
 
+def collect_training_data(robot: Robot, scale: ReproScale, data_dir: Path, robot_seed: int = 0,
+                          config: VirtualConfig | None = None, progress: bool = True
+                          ) -> tuple[ReproData, Path]:
+    """What `ctrkin reproduce` records before it trains: every dataset (`collect`) into data_dir, the
+    paper data's split (seed 0) saved beside it, and the recommended models' training set
+    (`save_training_set`, data_dir/TRAINING_FOLDER); the data and that folder."""
+    data = collect(robot, scale, data_dir, robot_seed=robot_seed, progress=progress, config=config)
+    data.paper.save_split(data_dir / "paper", data.paper.get_split(seed=0))
+    return data, save_training_set(data, data_dir / TRAINING_FOLDER)
+
+
 def virtual_overrides(config: VirtualConfig | None) -> dict[str, Any]:
     """The effect magnitudes of `config` that differ from VirtualConfig()'s: {} for the default (what
     `--set` changed, whatever way it was spelled)."""

@@ -18,13 +18,7 @@ from ctrkin.calibration.fit import CalibrationResult, calibrate
 from ctrkin.calibration.params import FRICTION, GROUPS
 from ctrkin.errors import OutputError
 from ctrkin.evaluation.context import Context
-from ctrkin.evaluation.datasets import (
-    TRAINING_FOLDER,
-    ReproData,
-    collect,
-    save_training_set,
-    virtual_overrides,
-)
+from ctrkin.evaluation.datasets import ReproData, collect_training_data, virtual_overrides
 from ctrkin.evaluation.experiments import EXPERIMENTS
 from ctrkin.evaluation.experiments_fk import SNAP_TURNS, SWEEPS
 from ctrkin.evaluation.report import write_report
@@ -124,9 +118,7 @@ def _reproduce(robot: Robot, scale: ReproScale, out: Path, robot_seed: int, work
     figures.mkdir(parents=True, exist_ok=True)
     st = _Stages(log)
     with st.stage("collect data on the virtual robot"):
-        data = collect(robot, scale, out / "data", robot_seed=robot_seed, config=virtual)
-        data.paper.save_split(out / "data" / "paper", data.paper.get_split(seed=0))
-        training = save_training_set(data, out / "data" / TRAINING_FOLDER)
+        data, training = collect_training_data(robot, scale, out / "data", robot_seed, virtual)
     with st.stage("train models"):
         models = train_all(out / "data" / "paper", scale, out / "models", workers=workers, log=log,
                            executor=executor, device=device, training_dir=training)
