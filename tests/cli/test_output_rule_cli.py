@@ -210,7 +210,7 @@ def test_reproduce_refuses_a_folder_of_other_settings_before_any_work(tmp_path, 
     def no_work(*_a, **_k):
         raise RuntimeError("reproduce started recording")
 
-    monkeypatch.setattr(rep, "collect", no_work)
+    monkeypatch.setattr(rep, "collect_training_data", no_work)
     out = tmp_path / "tiny_run"
     (out / "data").mkdir(parents=True)
     paper = out / "data" / "paper"
