@@ -48,8 +48,10 @@ from ctrkin.data.dataset import Dataset
 
 
 def snap_residuals(gate: Any, ds: Dataset, rows: np.ndarray | None = None) -> dict[str, Any]:
-    """Residuals (deg) of ds's snaps at `rows` (default all) from the gate's θ±, and the snaps in
-    the band where the nominal robot has no fold (module docstring)."""
+    """Residuals (deg) of ds's snaps at `rows` (default all) from the gate's θ± (its slide memory
+    included, mid-way as the fit takes it), and the snaps in the band where the nominal robot has no
+    fold (module docstring)."""
+    from ctrkin.families.snap_aware.fold_gate import slide_lags
     from ctrkin.families.snap_aware.labels import phase_deg, snap_events
     from ctrkin.models.motion import recorded_motion
     from ctrkin.models.relay import MIN_FOLD_DEG
@@ -61,6 +63,11 @@ def snap_residuals(gate: Any, ds: Dataset, rows: np.ndarray | None = None) -> di
     alpha0 = q[:, 0] - q[:, n - 1]
     phi = phase_deg(alpha0)
     fwd, bwd = gate.folds(q[:, n:])
+    widen = gate.widen(slide_lags(ds, q, bounds, n) if gate.slides else None)   # c, less the slide memory
+    if len(widen) == 1:
+        widen = np.broadcast_to(widen, len(q))
+    else:
+        widen = 0.5 * (widen + np.r_[widen[:1], widen[:-1]])
     resid, no_fold = [], 0
     for a, b in bounds:
         for t in snap_events(snap, a, b):
@@ -72,7 +79,7 @@ def snap_residuals(gate: Any, ds: Dataset, rows: np.ndarray | None = None) -> di
                 no_fold += 1
                 continue
             mid = phi[t] - 0.5 * (alpha0[t] - alpha0[t - 1])
-            resid.append(mid - fold - (sign * gate.widen_deg - gate.outer_lag_deg * motion[t]))
+            resid.append(mid - fold - (sign * widen[t] - gate.outer_lag_deg * motion[t]))
     r = np.asarray(resid, float)
     return {"gate_snaps": int(len(r) + no_fold), "gate_no_fold_snaps": no_fold,
             "gate_residual_rms_deg": float(np.sqrt(np.mean(r ** 2))) if len(r) else None,
@@ -84,6 +91,7 @@ def gate_switches(gate: Any, ds: Dataset, states: np.ndarray | None = None) -> d
     of another form) against the recorded snaps (within ±2 steps, ctrkin.evaluation.snapping's
     matching): precision, recall, counts."""
     from ctrkin.evaluation.snapping import snap_score
+    from ctrkin.families.snap_aware.fold_gate import slide_lags
     from ctrkin.families.snap_aware.labels import phase_deg
     from ctrkin.models.motion import recorded_motion, run_continues
 
@@ -91,7 +99,9 @@ def gate_switches(gate: Any, ds: Dataset, states: np.ndarray | None = None) -> d
     bounds = ds.sequence_bounds()
     if states is None:
         motion, runs = recorded_motion(ds.frame, q, bounds, n)
-        states = gate.states(q[:, 0] - q[:, n - 1], q[:, n:], motion, bounds, run_continues(bounds, runs))
+        ell = slide_lags(ds, q, bounds, n) if gate.slides else None
+        states = gate.states(q[:, 0] - q[:, n - 1], q[:, n:], motion, bounds, run_continues(bounds, runs),
+                             ell)
     # a switch or a recorded snap as a 20° step of a pseudo-azimuth, which snap_score counts as an event
     # only inside the bistable band: outside it the state follows the sign of φ (one branch), and
     # its flip where α0 passes 0° (φ = ±180°) is no snap

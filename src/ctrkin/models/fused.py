@@ -13,8 +13,9 @@ It therefore returns the reference path's numbers to the last bit (tests/models/
 Scope: an FK model whose network is one LSTM layer followed by one or more Dense layers (the "Lh|Dk…"
 structures, the paper's L128|D64 included), minmax or phase angle encoding, with or without the
 outer-tube frame, a model with a branch state from a tabulated relay (the snap-aware model's fold
-gate, ctrkin.models.relay) or from its learned gate, with or without play-lag inputs
-(ctrkin.models.play_lags; not with equivariant inputs or a position field). Other models, and any step
+gate, ctrkin.models.relay; not a fold gate with a slide memory) or from its learned gate, with or
+without play-lag inputs (ctrkin.models.play_lags; not with equivariant inputs or a position field).
+Other models, and any step
 that the fast checks do not pass (a joint the robot cannot take, a rotation outside the trained
 range, NaN), go through the reference path, which raises with its message; a declined step has
 touched nothing.
@@ -62,6 +63,7 @@ class Relay(NamedTuple):
     widen_deg: float
     outer_lag_deg: float
     band_deg: float
+    slides: bool = False        # a fold gate's slide memory: not in the fused step (it declines)
 
 
 @njit(cache=True)
@@ -413,7 +415,7 @@ class FusedFK:
         if (eng is None or bundle.layout.angle_encoding not in ("minmax", "phase")
                 or bundle.layout.equivariant or (frame is not None and frame.field is not None)
                 or len(eng.seq) != 1 or eng.seq[0][0] != "lstm" or not eng.heads[0][0]
-                or len(eng.heads) > 2):
+                or len(eng.heads) > 2 or (relay is not None and relay.slides)):
             return None
         return cls(bundle, eng, guard, clip, frame, relay)
 

@@ -145,12 +145,15 @@ class PlayState:
     steps (the refined IK's probes); `reset` starts at rest (the next step sets every output to its
     input). buf (P + 1,): where the outputs and, last, the at-rest flag live (the fused step's state,
     ctrkin.models.fused, so that both paths share one state; taken as it is); default its own, at
-    rest."""
+    rest. operators: (half widths (P,), inputs (P,): 0 α1, 1 αN, 2 d), default an FK's play inputs
+    (`input_operators`; the fold gate's slide memory runs its own)."""
 
-    def __init__(self, n_tubes: int, buf: np.ndarray | None = None) -> None:
+    def __init__(self, n_tubes: int, buf: np.ndarray | None = None,
+                 operators: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         self.n = n_tubes
-        self.widths, which = input_operators()
-        self.source = which.astype(float)
+        self.widths, which = input_operators() if operators is None else operators
+        self.widths = np.ascontiguousarray(self.widths, dtype=np.float64)
+        self.source = np.ascontiguousarray(which, dtype=np.float64)
         p = len(self.widths)
         self.buf = np.r_[np.zeros(p), 1.0] if buf is None else buf
         if self.buf.shape != (p + 1,):

@@ -1,7 +1,8 @@
 """A hysteresis relay whose thresholds are tabulated over the translations: the numba kernels a
 state-carrying FK model's streaming step runs (ctrkin.models.fused) and its batch path scans.
 
-    θ+ = φ+(β) + c − κ·m_N ,  θ− = φ−(β) − c − κ·m_N        (thresholds from tables φ±(β), deg)
+    θ+ = φ+(β) + w − κ·m_N ,  θ− = φ−(β) − w − κ·m_N        (thresholds from tables φ±(β), deg;
+                                                             w = c, less a slide memory's term)
     s_t = 1 if φ_t > band, 0 if φ_t < −band                 (outside the band one state exists)
         = 1 if s_{t−1} = 0 and φ_t ≥ θ+ ;  0 if s_{t−1} = 1 and φ_t < θ−
         = s_{t−1} otherwise;  at a sequence start 1[φ > 0]
@@ -117,11 +118,13 @@ def _threshold_pair(fwd: float, bwd: float, motion: float, widen: float, lag: fl
 
 
 @njit(cache=True)
-def threshold_rows(fwd: np.ndarray, bwd: np.ndarray, motion: np.ndarray, widen: float, lag: float,
+def threshold_rows(fwd: np.ndarray, bwd: np.ndarray, motion: np.ndarray, widen: np.ndarray, lag: float,
                     band: float) -> tuple[np.ndarray, np.ndarray]:
+    """θ+, θ− (T,) at each row; widen (T,): the half-width term of each row (c, less a fold gate's
+    slide memory)."""
     hi, lo = np.empty(len(fwd)), np.empty(len(fwd))
     for r in range(len(fwd)):
-        hi[r], lo[r] = _threshold_pair(fwd[r], bwd[r], motion[r], widen, lag, band)
+        hi[r], lo[r] = _threshold_pair(fwd[r], bwd[r], motion[r], widen[r], lag, band)
     return hi, lo
 
 

@@ -1,4 +1,5 @@
-"""The fold gate: its relay, the outer tube's last rotation, the fit of its offsets, its file."""
+"""The fold gate: its relay, the outer tube's last rotation, its slide memory, the fit of its offsets,
+its file."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import numpy as np
 import pytest
 
 from ctrkin.errors import ModelError
-from ctrkin.families.snap_aware.fold_gate import FoldGate, _fit_offsets
+from ctrkin.families.snap_aware.fold_gate import SLIDE_WIDTHS_MM, FoldGate, _fit_offsets, slide_lags
 
 
 def _gate(fold: float = 20.0, c: float = 0.0, lag: float = 0.0) -> FoldGate:
@@ -76,7 +77,8 @@ def test_offsets_are_recovered_from_the_snaps() -> None:
         snap.extend(flags)
         motion.extend([m] * len(a0))
         bounds.append((start, len(rows)))
-    c_fit, lag_fit = _fit_offsets(gate, np.array(rows), np.array(snap), bounds, np.array(motion), 2)
+    c_fit, lag_fit, slide = _fit_offsets(gate, np.array(rows), np.array(snap), bounds, np.array(motion), 2)
+    assert slide == ()                              # no slide memory asked for
     assert c_fit == pytest.approx(c, abs=1.0)
     assert lag_fit == pytest.approx(lag, abs=1.0)
 
@@ -109,3 +111,87 @@ def test_a_sequence_that_continues_its_run_keeps_the_branch() -> None:
     fresh = gate.states(a0, betas, motion, bounds, [False, False])
     assert kept[len(first) - 1] == 1 and kept[len(first):].tolist() == [1] * len(second)
     assert fresh[len(first):].tolist() == [0] * len(second)
+
+
+def _slid_turns(c: float, u_total: float, slid: tuple[bool, ...]
+                ) -> tuple[np.ndarray, np.ndarray, list, np.ndarray]:
+    """One run per turn (α0 90 → 270 → 90°, d = 20 mm); a turn after a slide of the inner tube onto d
+    (d − 2 → d: each play taken up) snaps at ±(20 + c − u_total), one from rest at ±(20 + c).
+    Returns joints (T, 4) [α1, α2, β1, β2], snap flags, bounds, runs."""
+    rows, snap, bounds, runs = [], [], [], []
+    for k, s in enumerate(slid):
+        start = len(rows)
+        if s:                                   # the slide: d from 18 to 20 mm at α0 = 90° (no snap)
+            for d in np.linspace(18.0, 20.0, 9):
+                rows.append([90.0, 0.0, -d, 0.0])
+                snap.append(False)
+        a0 = _turn()
+        phi = a0 - 180.0
+        up = np.arange(len(a0)) < len(a0) // 2
+        w = 20.0 + c - (u_total if s else 0.0)
+        flags = np.zeros(len(a0), bool)
+        flags[np.argmax(up & (phi >= w))] = True
+        flags[np.argmax(~up & (phi < -w))] = True
+        rows.extend([[a, 0.0, -20.0, 0.0] for a in a0])
+        snap.extend(flags)
+        bounds.append((start, len(rows)))
+        runs.extend([k] * (len(rows) - start))
+    return np.array(rows), np.array(snap), bounds, np.array(runs)
+
+
+def test_the_slide_memory_is_identified_from_snaps_after_slides_and_moves_the_switch() -> None:
+    """Turns from rest snap 8° later than turns after a slide: the fit finds c and u (Σu ≈ 8°), the
+    gate then switches at each turn's own snap in batch and in streaming alike."""
+    c, u_total = 5.0, 8.0
+    q, snap, bounds, runs = _slid_turns(c, u_total, (False, True, False, True, True, False))
+    ell = slide_lags(None, q, bounds, 2)                # each run from rest
+    assert np.abs(ell[bounds[1][0] + 9]) == pytest.approx(np.ones(len(SLIDE_WIDTHS_MM)))   # after the slide
+    assert not ell[bounds[2][0]:bounds[2][1]].any()                                    # a run from rest
+    table = _gate(20.0)
+    c_fit, lag_fit, u = _fit_offsets(table, q, snap, bounds, np.zeros(len(q)), 2, ell, runs)
+    assert c_fit == pytest.approx(c, abs=1.0) and sum(u) == pytest.approx(u_total, abs=1.0)
+    gate = FoldGate(table.axes, table.forward, table.backward, c_fit, lag_fit, slide_weights_deg=u)
+    assert gate.slides
+    a0 = q[:, 0] - q[:, 1]
+    motion = np.zeros(len(q))
+    states = gate.states(a0, q[:, 2:], motion, bounds, [False] * len(bounds), ell)
+    switched = np.nonzero(np.diff(states.astype(int)))[0] + 1
+    snapped = np.nonzero(snap)[0]
+    assert len(switched) == len(snapped) and np.abs(switched - snapped).max() <= 1
+    play, stream = gate.slide_state(2), []
+    for a, b in bounds:
+        assert play is not None
+        play.reset()
+        cur = -1
+        for t in range(a, b):
+            lags, y = play.after(q[t])
+            play.advance(y)
+            cur = gate.step(cur, a0[t], q[t, 2:], 0, lags)
+            stream.append(cur)
+    np.testing.assert_array_equal(states, stream)
+    with pytest.raises(ModelError, match="slide"):
+        gate.states(a0, q[:, 2:], motion, bounds)
+
+
+def test_no_slide_memory_where_no_snap_follows_a_slide_or_it_does_not_help() -> None:
+    """Every turn from rest: no lag to identify, u = (); slides that do not move the snaps: the
+    leave-one-run-out check keeps the form without the memory."""
+    table = _gate(20.0)
+    for slid in ((False,) * 4, (False, True, False, True)):
+        q, snap, bounds, runs = _slid_turns(5.0, 0.0, slid)
+        ell = slide_lags(None, q, bounds, 2)
+        assert _fit_offsets(table, q, snap, bounds, np.zeros(len(q)), 2, ell, runs)[2] == ()
+
+
+def test_a_slide_memory_round_trips_and_a_malformed_one_is_refused(tmp_path) -> None:
+    table = _gate(20.0)
+    gate = FoldGate(table.axes, table.forward, table.backward, 3.0, 1.0, slide_weights_deg=(2.0, 1.0, 0.0))
+    gate.save(tmp_path)
+    assert FoldGate.load(tmp_path).slide_weights_deg == (2.0, 1.0, 0.0)
+    d = gate.to_dict()
+    d.pop("slide_weights_deg"), d.pop("slide_widths_mm")        # a gate written before the memory
+    assert FoldGate.from_dict(d).slide_weights_deg == () and not FoldGate.from_dict(d).slides
+    for bad in ({"slide_weights_deg": [2.0, -1.0, 0.0]}, {"slide_widths_mm": [0.1, 0.2, 1.0]},
+                {"slide_weights_deg": [1.0]}):
+        with pytest.raises(ModelError):
+            FoldGate.from_dict({**gate.to_dict(), **bad})

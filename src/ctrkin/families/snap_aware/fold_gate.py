@@ -5,11 +5,16 @@ A learned gate (ctrkin.families.snap_aware.net) places each switch where its cla
 degrees from the fold, and it has to learn from a few dozen snaps how the fold moves with the
 translations. The fold gate takes that dependence from the physics and the offsets from the data:
 
-    θ+ = φ+(β) + c − κ·m_N ,  θ− = φ−(β) − c − κ·m_N
+    θ+ = φ+(β) + w − κ·m_N ,  θ− = φ−(β) − w − κ·m_N ,   w = c − Σ_k u_k·|ℓ_k|
         φ±: folds of the nominal TCM (ctrkin.mechanics.folds), tabulated over the training translations
         m_N ∈ {−1, 0, +1}: direction of the outer tube's last rotation (0: at rest since the run began)
-        c, κ: least-squares fit to the training snaps, each weighted by φ±² (near the critical overlap
-              the fold moves fast with the tube parameters, so there it says little about the offset)
+        ℓ_k ∈ [−1, 1]: the slide memory, play-operator lags of the relative translation d = βN − β1 at
+              half widths SLIDE_WIDTHS_MM (ctrkin.models.play_lags, along the commanded joints): how far
+              a slide of one tube against the other since the last reversal of d has taken up each play
+        c, κ, u_k ≥ 0: bounded least squares on the training snaps, each weighted by φ±² (near the
+              critical overlap the fold moves fast with the tube parameters, so there it says little
+              about the offset); the slide memory is kept only where it lowers the leave-one-run-out
+              residual of the training snaps (`_fit_offsets`), else u = 0 (the form without it)
     a snap flagged at row t lies between rows t−1 and t: the fold is taken mid-way, for the table
     (sweeps at 0.5°) and for the data alike.
     s_t = 1 if φ_t > band, 0 if φ_t < −band          outside the bistable band one branch exists
@@ -20,6 +25,12 @@ translations. The fold gate takes that dependence from the physics and the offse
     outside the band, as the labels the heads learned from do (ctrkin.families.snap_aware.labels).
 
 with φ = α0 − 180° wrapped (ctrkin.families.snap_aware.labels, the labels the heads were trained on).
+Why |ℓ|: on the default robot a slide of either tube, of 0.2 mm or of 4 mm, either way, before a turn
+moves both of its snaps towards the nominal folds by the same 6–9° (docs/learned_kinematics.md: the
+history probe): the friction the slide left along the tubes, a state that no joint reading shows. The
+form assumes only that the delay's change saturates with the slide (a play's lag) and does not
+depend on its direction (|ℓ|); the sizes u_k are identified from the snaps that follow slides (the
+excitation runs) and are 0 where no training snap follows one.
 Why m_N: the encoders read the motors, and a tube base lags its motor by up to half the transmission's
 dead band, on the side it last moved from (backlash and friction wind-up, a play operator). The inner
 tube's lag is set by the turn itself: it widens the band symmetrically, as does a fold of the real
@@ -38,12 +49,15 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from scipy.optimize import lsq_linear
 
 from ctrkin.errors import ModelError
 from ctrkin.families.snap_aware.labels import BAND_DEG, phase_deg, snap_events
 from ctrkin.mechanics.folds import fold_angles
+from ctrkin.models.play_lags import INPUT_SLIDE_WIDTHS_MM, PlayState, path_lags, recorded_lags
 from ctrkin.models.relay import (
     MIN_FOLD_DEG,
     GateTables,
@@ -58,6 +72,21 @@ from ctrkin.robots.robot import Robot
 FOLD_GATE_FILE = "fold_gate.json"
 MAX_GRID_POINTS = 400       # translations at which the folds are computed (≈ 0.07 s each, paper robot)
 FOLD_STEP_DEG = 0.5         # the table's sweep step
+SLIDE_WIDTHS_MM = INPUT_SLIDE_WIDTHS_MM    # the slide memory's play widths: an FK's play inputs of d
+
+
+def slide_operators() -> tuple[np.ndarray, np.ndarray]:
+    """(half widths (K,), inputs (K,): all d) of the slide memory's play operators (PlayState)."""
+    return np.array(SLIDE_WIDTHS_MM, float), np.full(len(SLIDE_WIDTHS_MM), 2.0)
+
+
+def slide_lags(data: Any, joints: np.ndarray, bounds: list[tuple[int, int]], n_tubes: int) -> np.ndarray:
+    """(T, K) the slide memory's lags ℓ along joints (T, 2N): of a Dataset (`data`) as recorded, its
+    runs followed and glitch rows skipped (ctrkin.models.play_lags.recorded_lags); of an array, each
+    sequence from rest."""
+    if hasattr(data, "frame"):
+        return recorded_lags(data.frame, joints, bounds, n_tubes, (), SLIDE_WIDTHS_MM).slide
+    return path_lags(joints, bounds, n_tubes, angle_widths=(), slide_widths=SLIDE_WIDTHS_MM).slide
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,10 +102,26 @@ class FoldGate:
     widen_deg: float = 0.0
     outer_lag_deg: float = 0.0
     band_deg: float = BAND_DEG
+    slide_weights_deg: tuple[float, ...] = ()
     tables: GateTables = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "tables", GateTables.of(self))
+        if self.slide_weights_deg and len(self.slide_weights_deg) != len(SLIDE_WIDTHS_MM):
+            raise ModelError(f"a fold gate's slide memory has {len(SLIDE_WIDTHS_MM)} weights, got "
+                             f"{len(self.slide_weights_deg)}")
+
+    @property
+    def slides(self) -> bool:
+        """Whether the gate has a slide memory (some u_k > 0): it then needs the lags ℓ of d."""
+        return any(u > 0 for u in self.slide_weights_deg)
+
+    def widen(self, slide_lags: np.ndarray | None = None) -> np.ndarray:
+        """w = c − Σ u_k |ℓ_k| (deg) at each row of slide_lags (T, K) (None or no memory: c), (T,) or
+        (1,)."""
+        if not self.slides or slide_lags is None:
+            return np.full(1 if slide_lags is None else len(slide_lags), self.widen_deg)
+        return self.widen_deg - np.abs(np.atleast_2d(slide_lags)) @ np.asarray(self.slide_weights_deg)
 
     def folds(self, betas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """betas (T, N) -> the nominal folds φ+ (T,), φ− (T,) in deg, interpolated."""
@@ -89,36 +134,51 @@ class FoldGate:
         return (interpolate_rows(tb.axes, tb.start, tb.size, tb.forward, x),
                 interpolate_rows(tb.axes, tb.start, tb.size, tb.backward, x))
 
-    def thresholds(self, betas: np.ndarray, outer_motion: np.ndarray | float = 0.0
-                   ) -> tuple[np.ndarray, np.ndarray]:
-        """betas (T, N), outer_motion m_N (T,) or scalar -> switching phases θ+, θ− (T,) deg, θ+ ≥ θ−."""
+    def thresholds(self, betas: np.ndarray, outer_motion: np.ndarray | float = 0.0,
+                   slide_lags: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """betas (T, N), outer_motion m_N (T,) or scalar, slide_lags ℓ (T, K) (`slide_lags`; needed
+        where the gate `slides`) -> switching phases θ+, θ− (T,) deg, θ+ ≥ θ−."""
         fwd, bwd = self.folds(betas)
         motion = np.ascontiguousarray(np.broadcast_to(np.asarray(outer_motion, float), fwd.shape))
-        return threshold_rows(fwd, bwd, motion, self.widen_deg, self.outer_lag_deg, self.band_deg)
+        widen = np.ascontiguousarray(np.broadcast_to(self.widen(slide_lags), fwd.shape), dtype=np.float64)
+        return threshold_rows(fwd, bwd, motion, widen, self.outer_lag_deg, self.band_deg)
 
     def states(self, alpha0: np.ndarray, betas: np.ndarray, outer_motion: np.ndarray,
-               bounds: list[tuple[int, int]], continues: list[bool] | None = None) -> np.ndarray:
+               bounds: list[tuple[int, int]], continues: list[bool] | None = None,
+               slide_lags: np.ndarray | None = None) -> np.ndarray:
         """(T,) int8 branch states along each sequence. alpha0 (T,) deg, betas (T, N) mm,
         outer_motion (T,) m_N (ctrkin.models.motion.outer_motion); continues: per sequence, True
-        where it continues the previous one's run (the branch is kept across the unrecorded move)."""
+        where it continues the previous one's run (the branch is kept across the unrecorded move);
+        slide_lags (T, K): ℓ along the same path (`slide_lags`), where the gate `slides`."""
+        if self.slides and slide_lags is None:
+            raise ModelError("this fold gate has a slide memory: states() needs the slide lags")
         phi = np.ascontiguousarray(phase_deg(alpha0), dtype=np.float64)
-        hi, lo = self.thresholds(betas, outer_motion)
+        hi, lo = self.thresholds(betas, outer_motion, slide_lags)
         keep = np.zeros(len(bounds), dtype=np.bool_) if continues is None else np.asarray(continues, np.bool_)
         edges = np.asarray(bounds, dtype=np.int64).reshape(-1, 2)
         return relay_scan(phi, hi, lo, edges, keep, self.band_deg)
 
-    def step(self, state: int, alpha0: float, betas: np.ndarray, outer_motion: int) -> int:
-        """The state after one step from `state` (−1: a sequence start)."""
+    def step(self, state: int, alpha0: float, betas: np.ndarray, outer_motion: int,
+             slide_lags: np.ndarray | None = None) -> int:
+        """The state after one step from `state` (−1: a sequence start); slide_lags (K,): ℓ after
+        this step (a `slide_state`'s), where the gate `slides`."""
+        if self.slides and slide_lags is None:
+            raise ModelError("this fold gate has a slide memory: step() needs the slide lags")
         tb = self.tables
         return int(gate_step(state, float(alpha0), np.ascontiguousarray(betas, dtype=np.float64),
                              float(outer_motion), tb.axes, tb.start, tb.size, tb.forward, tb.backward,
-                             self.widen_deg, self.outer_lag_deg, self.band_deg))
+                             float(self.widen(slide_lags)[0]), self.outer_lag_deg, self.band_deg))
+
+    def slide_state(self, n_tubes: int) -> PlayState | None:
+        """The slide memory's operators for streaming (at rest), None where the gate has none."""
+        return PlayState(n_tubes, operators=slide_operators()) if self.slides else None
 
     # --- files -----------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, object]:
         return {"axes_mm": [a.tolist() for a in self.axes], "forward_deg": self.forward.tolist(),
                 "backward_deg": self.backward.tolist(), "widen_deg": self.widen_deg,
-                "outer_lag_deg": self.outer_lag_deg, "band_deg": self.band_deg}
+                "outer_lag_deg": self.outer_lag_deg, "band_deg": self.band_deg,
+                "slide_widths_mm": list(SLIDE_WIDTHS_MM), "slide_weights_deg": list(self.slide_weights_deg)}
 
     @classmethod
     def from_dict(cls, d: dict) -> FoldGate:
@@ -130,13 +190,18 @@ class FoldGate:
             widen = float(d["widen_deg"])
             lag = float(d["outer_lag_deg"])
             band = float(d["band_deg"])
+            slide = tuple(float(u) for u in d.get("slide_weights_deg", ()))     # absent: an older gate
+            widths = tuple(float(r) for r in d.get("slide_widths_mm", SLIDE_WIDTHS_MM))
         except (KeyError, ValueError, TypeError, IndexError) as e:
             raise ModelError(f"malformed fold gate ({type(e).__name__}: {e})") from None
         if not all(np.all(np.diff(a) > 0) for a in axes) or not (
                 np.isfinite(fwd).all() and np.isfinite(bwd).all()
                 and math.isfinite(widen) and math.isfinite(lag)):
             raise ModelError("malformed fold gate: axes must increase and tables be finite")
-        return cls(axes, fwd, bwd, widen, lag, band)
+        if slide and (widths != SLIDE_WIDTHS_MM or not all(math.isfinite(u) and u >= 0 for u in slide)):
+            raise ModelError(f"malformed fold gate: a slide memory at widths {list(SLIDE_WIDTHS_MM)} mm with "
+                             f"finite weights ≥ 0, got widths {list(widths)} and weights {list(slide)}")
+        return cls(axes, fwd, bwd, widen, lag, band, slide)
 
     def save(self, folder: str | Path) -> None:
         write_json(Path(folder) / FOLD_GATE_FILE, self.to_dict())
@@ -148,11 +213,14 @@ class FoldGate:
 
 def build_fold_gate(robot: Robot, joints: np.ndarray, snap: np.ndarray, bounds: list[tuple[int, int]],
                     motion: np.ndarray, spacing_mm: float = 1.0,
-                    progress: Callable[[int, int], None] | None = None) -> FoldGate:
+                    progress: Callable[[int, int], None] | None = None,
+                    slide: np.ndarray | None = None, groups: np.ndarray | None = None) -> FoldGate:
     """The fold gate of `robot` over the translations of `joints` (T, 2N) (the training rows), its
     offsets fitted to the snaps flagged in `snap` (T,) within `bounds`; motion (T,): m_N of each row
     (ctrkin.models.motion.outer_motion, computed on the whole dataset so that runs are followed
-    across the split).
+    across the split); slide (T, K): the slide memory's lags ℓ of each row (`slide_lags`, on the
+    whole dataset likewise; None: no slide memory); groups (T,): each row's run, the folds of the
+    leave-one-run-out check that decides whether the slide memory is kept (`_fit_offsets`).
     spacing_mm: grid step, widened until the grid has at most MAX_GRID_POINTS points.
     progress(done, total) after each grid point."""
     joints = np.asarray(joints, float)
@@ -173,31 +241,64 @@ def build_fold_gate(robot: Robot, joints: np.ndarray, snap: np.ndarray, bounds: 
     half = 0.5 * FOLD_STEP_DEG                    # mid-way between the last row before and the snap
     fwd, bwd = np.where(fwd > 0, fwd - half, 0.0), np.where(bwd < 0, bwd + half, 0.0)
     table = FoldGate(axes, fwd.reshape(shape), bwd.reshape(shape))
-    widen, lag = _fit_offsets(table, joints, snap, bounds, np.asarray(motion), n)
-    return FoldGate(axes, table.forward, table.backward, widen, lag)
+    widen, lag, weights = _fit_offsets(table, joints, snap, bounds, np.asarray(motion), n, slide, groups)
+    return FoldGate(axes, table.forward, table.backward, widen, lag, slide_weights_deg=weights)
 
 
 def _fit_offsets(gate: FoldGate, joints: np.ndarray, snap: np.ndarray, bounds: list[tuple[int, int]],
-                 motion: np.ndarray, n: int) -> tuple[float, float]:
-    """c, κ: weighted least squares of the data's snaps, φ_e − φ±(β_e) = ±c − κ·m_N, weights
-    φ±(β_e)² (module docstring), φ_e mid-way between the snap row and the one before. κ is 0 where
-    the snaps cannot separate it from c (all of one direction and one m_N, or none with m_N ≠ 0)."""
+                 motion: np.ndarray, n: int, slide: np.ndarray | None = None,
+                 groups: np.ndarray | None = None) -> tuple[float, float, tuple[float, ...]]:
+    """c, κ and the slide weights u: weighted least squares of the data's snaps,
+    φ_e − φ±(β_e) = ±(c − Σ u_k |ℓ_k|) − κ·m_N with u ≥ 0, weights φ±(β_e)² (module docstring), φ_e
+    and ℓ mid-way between the snap row and the one before. κ is 0 where the snaps cannot separate it
+    from c (all of one direction and one m_N, or none with m_N ≠ 0). The slide memory is fitted only
+    with `slide` and kept only where its leave-one-run-out weighted RMS residual over the snaps (runs:
+    `groups`; at least two with snaps) is below the form's without it; else u = ()."""
     alpha0 = joints[:, 0] - joints[:, n - 1]
     phi = phase_deg(alpha0)
     fwd, bwd = gate.folds(joints[:, n:])
-    rows: list[tuple[int, float, float, float]] = []      # direction, m_N, residual, weight
+    rows: list[tuple[int, float, float, float, int]] = []      # direction, m_N, residual, weight, row
     for a, b in bounds:
         for t in snap_events(snap, a, b):
             sign = int(np.sign(alpha0[t] - alpha0[t - 1]))
             fold = fwd[t] if sign > 0 else bwd[t]
             mid = phi[t] - 0.5 * (alpha0[t] - alpha0[t - 1])
             if sign != 0 and abs(phi[t]) < gate.band_deg and abs(fold) >= MIN_FOLD_DEG:
-                rows.append((sign, float(motion[t]), float(mid - fold), float(fold) ** 2))
+                rows.append((sign, float(motion[t]), float(mid - fold), float(fold) ** 2, t))
     if not rows:
-        return 0.0, 0.0
-    d, m, r, w = (np.array(c, dtype=float) for c in zip(*rows, strict=True))
-    A = np.stack([d, -m], axis=1) * np.sqrt(w)[:, None]
-    if np.linalg.matrix_rank(A) < 2:
+        return 0.0, 0.0, ()
+    d, m, r, w = (np.array(c, dtype=float) for c in list(zip(*rows, strict=True))[:4])
+    at = np.array([row[4] for row in rows])
+    sw = np.sqrt(w)
+    A = np.stack([d, -m], axis=1)
+    if np.linalg.matrix_rank(A * sw[:, None]) < 2:
         A = A[:, :1]
-    coef = np.linalg.lstsq(A, r * np.sqrt(w), rcond=None)[0]
-    return float(coef[0]), float(coef[1]) if len(coef) > 1 else 0.0
+    base = _weighted_fit(A, r, sw, len(A[0]))
+    c, lag = float(base[0]), float(base[1]) if len(base) > 1 else 0.0
+    if slide is None or groups is None:
+        return c, lag, ()
+    ell = np.abs(0.5 * (slide[at] + slide[at - 1]))             # |ℓ| mid-way, (E, K)
+    B = np.concatenate([A, -d[:, None] * ell], axis=1)
+    runs = np.asarray(groups)[at]
+    if len(np.unique(runs)) < 2 or not (ell > 0).any():
+        return c, lag, ()
+    if _loro_rms(B, r, sw, runs, len(A[0])) >= _loro_rms(A, r, sw, runs, len(A[0])):
+        return c, lag, ()
+    x = _weighted_fit(B, r, sw, len(A[0]))
+    u = tuple(float(v) for v in x[len(A[0]):])
+    return float(x[0]), float(x[1]) if len(A[0]) > 1 else 0.0, u if any(v > 0 for v in u) else ()
+
+
+def _weighted_fit(A: np.ndarray, r: np.ndarray, sw: np.ndarray, free: int) -> np.ndarray:
+    """Least squares of A·x = r, rows weighted by sw, the first `free` unknowns free, the rest ≥ 0."""
+    lo = np.r_[np.full(free, -np.inf), np.zeros(A.shape[1] - free)]
+    return lsq_linear(A * sw[:, None], r * sw, bounds=(lo, np.full(A.shape[1], np.inf))).x
+
+
+def _loro_rms(A: np.ndarray, r: np.ndarray, sw: np.ndarray, runs: np.ndarray, free: int) -> float:
+    """The weighted RMS residual of each run's snaps under the fit to the other runs' (deg)."""
+    err = np.empty(len(r))
+    for g in np.unique(runs):
+        out = runs == g
+        err[out] = A[out] @ _weighted_fit(A[~out], r[~out], sw[~out], free) - r[out]
+    return float(np.sqrt(np.sum(sw ** 2 * err ** 2) / np.sum(sw ** 2)))

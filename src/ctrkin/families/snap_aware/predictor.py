@@ -20,7 +20,7 @@ import torch
 
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import ModelError
-from ctrkin.families.snap_aware.fold_gate import FoldGate
+from ctrkin.families.snap_aware.fold_gate import FoldGate, slide_lags
 from ctrkin.families.snap_aware.labels import branch_labels
 from ctrkin.families.snap_aware.net import BranchNet
 from ctrkin.models.batch import padded_rows, seqnet_trunk
@@ -44,6 +44,7 @@ class SnapAwarePredictor(FKPredictor):
             raise ModelError(f"a snap-aware model needs its branch network, not {type(bundle.net).__name__}")
         self._branch_net: BranchNet = bundle.net
         self._fold_gate = fold_gate
+        self._slide_play = None if fold_gate is None else fold_gate.slide_state(bundle.layout.n_tubes)
         super().__init__(bundle, bundle.net, fused)
 
     @property
@@ -54,6 +55,7 @@ class SnapAwarePredictor(FKPredictor):
     @fold_gate.setter
     def fold_gate(self, gate: FoldGate | None) -> None:
         self._fold_gate = gate
+        self._slide_play = None if gate is None else gate.slide_state(self.layout.n_tubes)
         self._rebuild_fused()                       # it holds the gate's tables
 
     def describe(self) -> str:
@@ -87,8 +89,12 @@ class SnapAwarePredictor(FKPredictor):
         assert self._fold_gate is not None
         n = self.layout.n_tubes
         motion, runs = self._recorded_motion(data, raw, bounds)
+        slide = None
+        if self._fold_gate.slides:         # the slide memory along the joints as recorded, as m_N
+            slide = (slide_lags(data, data.joints(), bounds, n) if isinstance(data, Dataset)
+                     else slide_lags(None, raw, bounds, n))
         return self._fold_gate.states(raw[:, 0] - raw[:, n - 1], raw[:, n:], motion, bounds,
-                                      run_continues(bounds, runs))
+                                      run_continues(bounds, runs), slide)
 
     def _snap_states(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]],
                      snaps: np.ndarray) -> np.ndarray:
@@ -101,21 +107,30 @@ class SnapAwarePredictor(FKPredictor):
         return states
 
     # --- streaming -------------------------------------------------------------------------------
-    def _fold_step(self, raw: np.ndarray, outer: float | None = None) -> tuple[int, int, float]:
-        """The fold gate's (state, m_N, αN) after joints raw (2N,) as the next step, nothing changed.
-        outer: αN as the caller gave it (default raw's)."""
+    def _fold_step(self, raw: np.ndarray, outer: float | None = None
+                   ) -> tuple[int, int, float, np.ndarray | None]:
+        """The fold gate's (state, m_N, αN, its slide memory's operator outputs or None) after joints
+        raw (2N,) as the next step, nothing changed. outer: αN as the caller gave it (default raw's)."""
         assert self._fold_gate is not None
         n = self.layout.n_tubes
         a_n = float(raw[n - 1]) if outer is None else outer
         motion = self._motion_after(a_n)
-        state = self._fold_gate.step(self._gate_state, float(raw[0] - raw[n - 1]), raw[n:], motion)
-        return state, motion, a_n
+        lags, play_out = (None, None) if self._slide_play is None else self._slide_play.after(raw)
+        state = self._fold_gate.step(self._gate_state, float(raw[0] - raw[n - 1]), raw[n:], motion, lags)
+        return state, motion, a_n, play_out
 
     def _state_before(self, raw: np.ndarray, outer: float) -> float | None:
         if self._fold_gate is None:
             return None
-        self._gate_state, self._outer_motion, self._outer_prev = self._fold_step(raw, outer)
+        self._gate_state, self._outer_motion, self._outer_prev, play_out = self._fold_step(raw, outer)
+        if self._slide_play is not None and play_out is not None:
+            self._slide_play.advance(play_out)
         return float(self._gate_state)
+
+    def reset(self, outer_motion: int = 0, continue_run: bool = False) -> None:
+        super().reset(outer_motion, continue_run)
+        if not continue_run and self._slide_play is not None:
+            self._slide_play.reset()            # a new run: the slide memory starts at rest
 
     def _probe_states(self, Q: np.ndarray, outer: np.ndarray) -> np.ndarray | None:
         if self._fold_gate is None:
@@ -129,7 +144,9 @@ class SnapAwarePredictor(FKPredictor):
 
     def _relay(self) -> Relay | None:
         fg = self._fold_gate
-        return None if fg is None else Relay(fg.tables, fg.widen_deg, fg.outer_lag_deg, fg.band_deg)
+        if fg is None:
+            return None
+        return Relay(fg.tables, fg.widen_deg, fg.outer_lag_deg, fg.band_deg, fg.slides)
 
     def export_onnx(self, path: Path, opset: int) -> None:
         self.check_exportable()

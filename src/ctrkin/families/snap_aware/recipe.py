@@ -19,7 +19,7 @@ import numpy as np
 import torch
 
 from ctrkin.data.schema import sequence_bounds
-from ctrkin.families.snap_aware.fold_gate import FoldGate, build_fold_gate
+from ctrkin.families.snap_aware.fold_gate import FoldGate, build_fold_gate, slide_lags
 from ctrkin.families.snap_aware.labels import branch_labels, previous_labels
 from ctrkin.families.snap_aware.net import BranchNet
 from ctrkin.models.motion import recorded_motion
@@ -124,10 +124,13 @@ class BranchRecipe(WindowRecipe):
 def fold_gate(ds: Any, rows: np.ndarray) -> FoldGate:
     """The fold gate of a snap-aware model (ctrkin.families.snap_aware.fold_gate): folds of the
     dataset's nominal robot over the translations of `rows` (the training rows, sorted), fitted to
-    their snaps; the outer tube's last rotation is followed over the whole dataset (runs cross the
-    split)."""
+    their snaps; the outer tube's last rotation and the slide memory's lags are followed over the
+    whole dataset (runs cross the split), and the runs are the slide memory's cross-validation folds."""
     f = ds.frame
     q = ds.joints()
     motion, _ = recorded_motion(f, q, ds.sequence_bounds(), ds.n_tubes)
+    slide = slide_lags(ds, q, ds.sequence_bounds(), ds.n_tubes)
+    runs = (f["run"] if "run" in f.columns else f["sequence_id"]).to_numpy()
     bounds = sequence_bounds(f["sequence_id"].to_numpy()[rows])
-    return build_fold_gate(ds.robot, q[rows], f["snap"].to_numpy()[rows], bounds, motion[rows])
+    return build_fold_gate(ds.robot, q[rows], f["snap"].to_numpy()[rows], bounds, motion[rows],
+                           slide=slide[rows], groups=runs[rows])
