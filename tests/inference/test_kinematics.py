@@ -294,8 +294,8 @@ def test_onnx_takes_the_outer_lag(model_dirs, sweeps, tmp_path, inputs):
 
 def test_a_fold_gate_with_a_slide_memory_streams_as_in_batch(model_dirs, sweeps):
     """The snap-aware FK whose fold gate has a slide memory (ctrkin.families.snap_aware.fold_gate):
-    the reference path streams what batch predicts (the memory's operators reset with each run), the
-    fused step declines such a gate, and the memory moves the switches on the sweeps (they slide)."""
+    streaming (fused and reference path) gives what batch predicts (the memory's operators reset with
+    each run), and the memory moves the switches on the sweeps (they slide)."""
     from dataclasses import replace
 
     kin = ctrkin.Kinematics.load(model_dirs["fk_branch"])
@@ -303,8 +303,11 @@ def test_a_fold_gate_with_a_slide_memory_streams_as_in_batch(model_dirs, sweeps)
     plain = kin.predict(sweeps)
     kin.predictor.fold_gate = replace(gate, widen_deg=gate.widen_deg + 10.0,
                                       slide_weights_deg=(6.0, 4.0, 0.0))
-    assert kin.predictor._fused is None
+    ref = ctrkin.Kinematics.load(model_dirs["fk_branch"], fused=False)
+    ref.predictor.fold_gate = kin.predictor.fold_gate
+    assert kin.fused and not ref.fused
     batch = kin.predict(sweeps)
-    stream = _stream(kin, sweeps.joints(), sweeps.sequence_bounds())
-    assert np.abs(batch - stream).max() < STREAM_TOL
+    for k in (kin, ref):
+        stream = _stream(k, sweeps.joints(), sweeps.sequence_bounds())
+        assert np.abs(batch - stream).max() < STREAM_TOL
     assert np.abs(batch - plain).max() > 1e-3

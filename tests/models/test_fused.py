@@ -34,7 +34,8 @@ def _load(folder, name: str, fused: bool) -> Kinematics:
     """name "learned": the snap-aware model without its fold gate (Kinematics from the bundle alone),
     so that its learned gate decides; "lagged…": its outer frame given an outer lag λ(β) = 2° +
     0.4°/mm · overlap (ctrkin.models.outer_lag), with the fold gate and lagged inputs (as trained) or
-    ("lagged_learned") without either (commanded inputs: a folder from before lagged_inputs)."""
+    ("lagged_learned") without either (commanded inputs: a folder from before lagged_inputs); "slide":
+    its fold gate given a slide memory."""
     if name == "learned":
         return Kinematics(open_bundle(folder), fused=fused)
     if name == "lagged":               # the frame replaced after loading: the fused step follows
@@ -42,6 +43,12 @@ def _load(folder, name: str, fused: bool) -> Kinematics:
         assert kin.frame is not None
         kin.predictor.frame = replace(kin.frame, lag=(2.0, 0.4))
         assert kin.frame.lags_inputs
+        return kin
+    if name == "slide":                # a fold gate with a slide memory (its play operators of d)
+        kin = Kinematics.load(folder, fused=fused)
+        gate = kin.predictor.fold_gate
+        kin.predictor.fold_gate = replace(gate, widen_deg=gate.widen_deg + 10.0,
+                                          slide_weights_deg=(6.0, 4.0, 0.5))
         return kin
     if name == "lagged_learned":       # and a fold gate attached after construction, then removed
         bundle = open_bundle(folder)
@@ -107,13 +114,13 @@ def _script(sweeps, seed: int) -> list[tuple[str, object]]:
 
 
 @pytest.mark.parametrize("name", ["fk", "fk_default", "fk_branch", "phase", "learned", "lagged",
-                                  "lagged_learned"])
+                                  "lagged_learned", "slide"])
 def test_fused_step_equals_the_reference_path(fused_dirs, sweeps, name):
-    folder = fused_dirs["fk_branch" if name in ("learned", "lagged", "lagged_learned") else name]
+    folder = fused_dirs["fk_branch" if name in ("learned", "lagged", "lagged_learned", "slide") else name]
     fast, ref = _load(folder, name, True), _load(folder, name, False)
     assert fast.fused and not ref.fused
     learned = name in ("learned", "lagged_learned")
-    branch = learned or name in ("fk_branch", "phase", "lagged")
+    branch = learned or name in ("fk_branch", "phase", "lagged", "slide")
     assert (getattr(fast, "fold_gate", None) is not None) == (branch and not learned)   # a family attribute
     assert (fast.frame is not None and fast.frame.has_lag) == name.startswith("lagged")
     script = _script(sweeps, seed=7)

@@ -13,7 +13,7 @@ It therefore returns the reference path's numbers to the last bit (tests/models/
 Scope: an FK model whose network is one LSTM layer followed by one or more Dense layers (the "Lh|Dk…"
 structures, the paper's L128|D64 included), minmax or phase angle encoding, with or without the
 outer-tube frame, a model with a branch state from a tabulated relay (the snap-aware model's fold
-gate, ctrkin.models.relay; not a fold gate with a slide memory) or from its learned gate, with or
+gate, ctrkin.models.relay, with its slide memory where it has one) or from its learned gate, with or
 without play-lag inputs (ctrkin.models.play_lags; not with equivariant inputs or a position field).
 Other models, and any step
 that the fast checks do not pass (a joint the robot cannot take, a rotation outside the trained
@@ -38,7 +38,7 @@ from ctrkin.models.engine import StreamingEngine, _dense_rows, _lstm_rows, _push
 from ctrkin.models.feature_row import paper_feature_row
 from ctrkin.models.frame import OuterFrame, pose_to_world
 from ctrkin.models.guards import MAX_ABS_ALPHA_DEG, TURN_DEG, FKGuard
-from ctrkin.models.play_lags import input_operators, play_step
+from ctrkin.models.play_lags import input_operators, play_step, slide_operators
 from ctrkin.models.relay import GateTables, gate_step
 from ctrkin.models.seqnet import UNKNOWN_STATE
 from ctrkin.models.store import ModelBundle
@@ -63,7 +63,7 @@ class Relay(NamedTuple):
     widen_deg: float
     outer_lag_deg: float
     band_deg: float
-    slides: bool = False        # a fold gate's slide memory: not in the fused step (it declines)
+    slide_weights: tuple[float, ...] = ()     # a fold gate's slide memory u (deg), () none
 
 
 @njit(cache=True)
@@ -95,21 +95,24 @@ def _joints_ok(raw: np.ndarray, shift: np.ndarray, n: int, lengths: np.ndarray, 
 # engine's own arrays. The int64 buffer starts with the model's settings (cfg) and the three
 # directories, then its own pieces.
 # constants (float64): guard, normalisation, network, gate tables, registration, the play operators'
-# widths and inputs (ctrkin.models.play_lags.input_operators); head layer l's weights at HEAD + 2l and
-# biases at HEAD + 2l + 1
+# widths and inputs (ctrkin.models.play_lags.input_operators), the fold gate's slide memory (its play
+# operators' widths and inputs, its weights u); head layer l's weights at HEAD + 2l and biases at
+# HEAD + 2l + 1
 (LENGTHS, ALPHA_LO, ALPHA_HI, XLO, XSPAN, CLIP_LO, CLIP_HI, YLO, YSPAN, W_IH, W_HH, BIAS, OUT_W, OUT_B,
  GATE_W0, GATE_W1, GATE_B0, GATE_B1, T_AXES, T_FORWARD, T_BACKWARD, ROT, TRANS, GATE_CONSTS, TRAIN_LO,
- TRAIN_HI, PLAY_W, PLAY_SRC, HEAD) = range(29)
+ TRAIN_HI, PLAY_W, PLAY_SRC, GATE_PLAY_W, GATE_PLAY_SRC, GATE_SLIDE_U, HEAD) = range(32)
 # the streaming state (float64; the engine's arrays are views of it), the step's previous joints as
 # the network saw them, its result and its scratch (predict's rows: SHIFT, PREV_IN), the play
-# operators' outputs and at-rest flag (PlayState's buffer); head layer l's output buffer at HEAD_OUT + l
-(H, C, H2, C2, G, T, HIST, X, PREV, Q, Y, LOCAL, YN, ZS, G1, G2, SHIFT, PREV_IN, PLAY_Y, HEAD_OUT) = range(20)
+# operators' outputs and at-rest flag (PlayState's buffer), the slide memory's likewise and its lags'
+# scratch; head layer l's output buffer at HEAD_OUT + l
+(H, C, H2, C2, G, T, HIST, X, PREV, Q, Y, LOCAL, YN, ZS, G1, G2, SHIFT, PREV_IN, PLAY_Y, GATE_PLAY_Y,
+ GATE_LAGS, HEAD_OUT) = range(22)
 # the int64 buffer's pieces: the gate tables' start and size, the sigmoid's scratch
 T_START, T_SIZE, BITS = range(3)
 # the model's settings at the int64 buffer's start, then where each directory starts (C_DIR, S_DIR,
 # I_DIR) and ends (END_DIR)
-(N_TUBES, PHASE, DELTA, FLATTEN, RELU_OUT, GATE_KIND, OUTER_FRAME, HAS_LAG, LAGGED_INPUTS, N_PLAY, N_HEAD,
- C_DIR, S_DIR, I_DIR, END_DIR, N_CFG) = range(16)
+(N_TUBES, PHASE, DELTA, FLATTEN, RELU_OUT, GATE_KIND, OUTER_FRAME, HAS_LAG, LAGGED_INPUTS, N_PLAY,
+ N_GATE_PLAY, N_HEAD, C_DIR, S_DIR, I_DIR, END_DIR, N_CFG) = range(17)
 
 
 # explicit signatures: one compiled version each, not one per piece number (numba would otherwise
@@ -188,10 +191,21 @@ def _fk_step(raw, shift, prev, consts, state, ints, started, fresh, branch, gate
         f[j] = (min(max(f[j], clip_lo[j]), clip_hi[j]) - xlo[j]) / xspan[j]
     if gate_kind == GATE_FOLD:          # the relay on the shifted joints (SnapAwarePredictor._fold_step)
         gc = _piece(consts, cwhere, GATE_CONSTS)
+        widen = gc[0]
+        n_slide = ints[N_GATE_PLAY]
+        if n_slide:             # the slide memory: w = c − Σ u_k |ℓ_k| (FoldGate.widen, same order)
+            ell = _piece(state, swhere, GATE_LAGS)
+            play_step(raw, n, _piece(consts, cwhere, GATE_PLAY_W), _piece(consts, cwhere, GATE_PLAY_SRC),
+                      _piece(state, swhere, GATE_PLAY_Y), ell)
+            u = _piece(consts, cwhere, GATE_SLIDE_U)
+            total = 0.0
+            for k in range(n_slide):
+                total += u[k] * abs(ell[k])
+            widen = gc[0] - total
         gate_state = gate_step(gate_state, a0_cmd, q[n:], float(motion), _piece(consts, cwhere, T_AXES),
                                _piece(ints, iwhere, T_START), _piece(ints, iwhere, T_SIZE),
                                _piece(consts, cwhere, T_FORWARD), _piece(consts, cwhere, T_BACKWARD),
-                               gc[0], gc[1], gc[2])
+                               widen, gc[1], gc[2])
         branch = 1.0 if gate_state > 0.5 else 0.0
     # the engine (StreamingEngine.step, one LSTM layer): a fresh sequence feeds its first step IB times
     w_ih, w_hh, b = _v2(consts, cwhere, W_IH), _v2(consts, cwhere, W_HH), _piece(consts, cwhere, BIAS)
@@ -330,11 +344,15 @@ class FusedFK:
         self.tables: tuple[np.ndarray, ...] = (np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64),
                                                np.zeros(1), np.zeros(1))
         self.gate_consts = (0.0, 0.0, 0.0)
+        self.slide: tuple[np.ndarray, ...] = (np.ones(1), np.full(1, 2.0), np.zeros(1))   # widths, inputs, u
         if relay is not None:
             gate_kind = GATE_FOLD
             tb = relay.tables
             self.tables = (tb.axes, tb.start, tb.size, tb.forward, tb.backward)
             self.gate_consts = (float(relay.widen_deg), float(relay.outer_lag_deg), float(relay.band_deg))
+            if any(u > 0 for u in relay.slide_weights):
+                widths, inputs = slide_operators()
+                self.slide = (widths, inputs, np.asarray(relay.slide_weights, float))
         elif engine.gate:
             gate_kind = GATE_LEARNED
             self.gate_w = (engine.gate[0][0], engine.gate[1][0])
@@ -346,7 +364,8 @@ class FusedFK:
         self.play = (widths, source.astype(float)) if layout.play else (np.ones(1), np.zeros(1))
         self.cfg = (n, layout.angle_encoding == "phase", layout.delta, engine.pooling == "flatten",
                     engine.relu_out, gate_kind, reg is not None, frame is not None and frame.has_lag,
-                    frame is not None and frame.lags_inputs, len(widths) if layout.play else 0)
+                    frame is not None and frame.lags_inputs, len(widths) if layout.play else 0,
+                    int(self.slide[2].any()) * len(self.slide[0]))
         self.prev = np.zeros(2 * n)        # the last step's shifted joints (FKPredictor._prev)
         self._none = np.zeros(2 * n)
         self._pack(n_layers)
@@ -358,6 +377,7 @@ class FusedFK:
         self.consts = _Packed([*self.guard, *self.norm, w_ih, w_hh, b, self.out_w, self.out_b, *self.gate_w,
                                *self.gate_b, self.tables[0], self.tables[3], self.tables[4], self.rot,
                                self.trans, np.array(self.gate_consts, float), *self.trained, *self.play,
+                               *self.slide,
                                *(a for i in range(n_layers) for a in (self.head_w[i], self.head_b[i]))],
                               np.float64)
         e = self.engine
@@ -366,7 +386,8 @@ class FusedFK:
         scratch = [np.zeros(len(self.prev)), np.zeros(len(self.prev)), np.zeros(6), np.zeros(n_out),
                    np.zeros((1, n_out)), np.zeros((1, width + 1)), np.zeros((1, self.gate_w[0].shape[0])),
                    np.zeros((1, 1)), np.zeros(len(self.prev)), np.zeros(len(self.prev)),
-                   np.r_[np.zeros(len(self.play[0])), 1.0],
+                   np.r_[np.zeros(len(self.play[0])), 1.0], np.r_[np.zeros(len(self.slide[0])), 1.0],
+                   np.zeros(len(self.slide[0])),
                    *(np.zeros((1, self.head_w[i].shape[1])) for i in range(n_layers))]
         self.state = _Packed([*self._engine_state(), *scratch], np.float64)
         ints = [self.tables[1], self.tables[2], e._bits[0]]
@@ -397,6 +418,7 @@ class FusedFK:
         self.prev = self.state.view(PREV, self.prev.shape)
         self._y = self.state.view(Y, (6,))
         self.play_state = self.state.view(PLAY_Y, (len(self.play[0]) + 1,))  # PlayState's buffer
+        self.slide_state = self.state.view(GATE_PLAY_Y, (len(self.slide[0]) + 1,))   # the slide memory's
         self._bufs = (self.consts.buf, self.state.buf, self.ints.buf)
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -415,7 +437,7 @@ class FusedFK:
         if (eng is None or bundle.layout.angle_encoding not in ("minmax", "phase")
                 or bundle.layout.equivariant or (frame is not None and frame.field is not None)
                 or len(eng.seq) != 1 or eng.seq[0][0] != "lstm" or not eng.heads[0][0]
-                or len(eng.heads) > 2 or (relay is not None and relay.slides)):
+                or len(eng.heads) > 2):
             return None
         return cls(bundle, eng, guard, clip, frame, relay)
 

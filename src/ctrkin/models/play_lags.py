@@ -122,6 +122,13 @@ def input_operators() -> tuple[np.ndarray, np.ndarray]:
             np.repeat(np.arange(3), (k, k, j)))
 
 
+def slide_operators() -> tuple[np.ndarray, np.ndarray]:
+    """(half widths (J,), inputs (J,): all d) of the play operators of d alone at an FK's widths: a
+    fold gate's slide memory (ctrkin.families.snap_aware.fold_gate), run by PlayState and the fused
+    step."""
+    return np.array(INPUT_SLIDE_WIDTHS_MM, float), np.full(len(INPUT_SLIDE_WIDTHS_MM), 2.0)
+
+
 @njit(cache=True)
 def play_step(raw, n, widths, source, y, lags):
     """One step of the play operators: their outputs y (P + 1,: the last the at-rest flag) advanced to

@@ -57,7 +57,13 @@ from scipy.optimize import lsq_linear
 from ctrkin.errors import ModelError
 from ctrkin.families.snap_aware.labels import BAND_DEG, phase_deg, snap_events
 from ctrkin.mechanics.folds import fold_angles
-from ctrkin.models.play_lags import INPUT_SLIDE_WIDTHS_MM, PlayState, path_lags, recorded_lags
+from ctrkin.models.play_lags import (
+    INPUT_SLIDE_WIDTHS_MM,
+    PlayState,
+    path_lags,
+    recorded_lags,
+    slide_operators,
+)
 from ctrkin.models.relay import (
     MIN_FOLD_DEG,
     GateTables,
@@ -73,11 +79,6 @@ FOLD_GATE_FILE = "fold_gate.json"
 MAX_GRID_POINTS = 400       # translations at which the folds are computed (≈ 0.07 s each, paper robot)
 FOLD_STEP_DEG = 0.5         # the table's sweep step
 SLIDE_WIDTHS_MM = INPUT_SLIDE_WIDTHS_MM    # the slide memory's play widths: an FK's play inputs of d
-
-
-def slide_operators() -> tuple[np.ndarray, np.ndarray]:
-    """(half widths (K,), inputs (K,): all d) of the slide memory's play operators (PlayState)."""
-    return np.array(SLIDE_WIDTHS_MM, float), np.full(len(SLIDE_WIDTHS_MM), 2.0)
 
 
 def slide_lags(data: Any, joints: np.ndarray, bounds: list[tuple[int, int]], n_tubes: int) -> np.ndarray:
@@ -121,7 +122,11 @@ class FoldGate:
         (1,)."""
         if not self.slides or slide_lags is None:
             return np.full(1 if slide_lags is None else len(slide_lags), self.widen_deg)
-        return self.widen_deg - np.abs(np.atleast_2d(slide_lags)) @ np.asarray(self.slide_weights_deg)
+        ell = np.atleast_2d(slide_lags)
+        total = np.zeros(len(ell))
+        for k, u in enumerate(self.slide_weights_deg):      # term by term: the fused step's order
+            total += u * np.abs(ell[:, k])
+        return self.widen_deg - total
 
     def folds(self, betas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """betas (T, N) -> the nominal folds φ+ (T,), φ− (T,) in deg, interpolated."""

@@ -28,6 +28,7 @@ from ctrkin.models.fk_predictor import FKPredictor
 from ctrkin.models.fused import Relay
 from ctrkin.models.motion import run_continues
 from ctrkin.models.onnx_graph import write_onnx
+from ctrkin.models.play_lags import PlayState, slide_operators
 from ctrkin.models.store import ModelBundle
 
 GATES = ("fold", "learned")
@@ -44,7 +45,7 @@ class SnapAwarePredictor(FKPredictor):
             raise ModelError(f"a snap-aware model needs its branch network, not {type(bundle.net).__name__}")
         self._branch_net: BranchNet = bundle.net
         self._fold_gate = fold_gate
-        self._slide_play = None if fold_gate is None else fold_gate.slide_state(bundle.layout.n_tubes)
+        self._slide_play: PlayState | None = None       # the gate's slide memory (_link_play)
         super().__init__(bundle, bundle.net, fused)
 
     @property
@@ -55,7 +56,6 @@ class SnapAwarePredictor(FKPredictor):
     @fold_gate.setter
     def fold_gate(self, gate: FoldGate | None) -> None:
         self._fold_gate = gate
-        self._slide_play = None if gate is None else gate.slide_state(self.layout.n_tubes)
         self._rebuild_fused()                       # it holds the gate's tables
 
     def describe(self) -> str:
@@ -119,6 +119,19 @@ class SnapAwarePredictor(FKPredictor):
         state = self._fold_gate.step(self._gate_state, float(raw[0] - raw[n - 1]), raw[n:], motion, lags)
         return state, motion, a_n, play_out
 
+    def _link_play(self) -> None:
+        """The play states (FKPredictor._link_play) and the fold gate's slide memory, in the fused
+        step's buffer where there is one (both paths share it), its values kept."""
+        super()._link_play()
+        gate, old = self.__dict__.get("_fold_gate"), self.__dict__.get("_slide_play")
+        if gate is None or not gate.slides:
+            self._slide_play = None
+            return
+        buf = self._fused.slide_state if self._fused is not None else None
+        self._slide_play = PlayState(self.layout.n_tubes, buf, slide_operators())
+        if old is not None:
+            self._slide_play.buf[:] = old.buf
+
     def _state_before(self, raw: np.ndarray, outer: float) -> float | None:
         if self._fold_gate is None:
             return None
@@ -146,7 +159,7 @@ class SnapAwarePredictor(FKPredictor):
         fg = self._fold_gate
         if fg is None:
             return None
-        return Relay(fg.tables, fg.widen_deg, fg.outer_lag_deg, fg.band_deg, fg.slides)
+        return Relay(fg.tables, fg.widen_deg, fg.outer_lag_deg, fg.band_deg, fg.slide_weights_deg)
 
     def export_onnx(self, path: Path, opset: int) -> None:
         self.check_exportable()
