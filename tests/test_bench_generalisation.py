@@ -36,6 +36,23 @@ def test_reversal_plan_reverses_mid_turn_inside_each_robot(bench) -> None:
             assert np.ptp(q[:, robot.n_tubes:], axis=0).max() == 0.0                      # β held
 
 
+def test_small_moves_go_back_and_forth_in_small_steps_inside_each_robot(bench) -> None:
+    for case in bench.ROBOTS.values():
+        robot = bench._robot(case)
+        plan, kinds = bench.small_moves_plan(robot)
+        assert kinds == list(bench.SMALL_KINDS) * len(bench.REVERSAL_OUTER)
+        for run, kind in zip(plan.runs, kinds, strict=True):
+            q = run.segments[0].q
+            robot.check_joints(q)
+            n = robot.n_tubes
+            moving = {"outer": q[:, n - 1], "inner": q[:, 0], "d": q[:, 2 * n - 1] - q[:, n]}[kind]
+            step = np.abs(np.diff(moving))
+            assert 0 < step.max() <= (bench.SMALL_STEP_DEG if kind != "d" else bench.SMALL_STEP_MM) + 1e-9
+            assert np.count_nonzero(np.diff(np.sign(np.diff(moving)))) == 2        # back and forth
+            a0 = q[:, 0] - q[:, n - 1]
+            assert np.ptp(a0) == (0.0 if kind != "inner" else bench.SMALL_ANGLE_DEG)
+
+
 def test_figures_of_reads_the_goal_figures_and_marks_misses(bench) -> None:
     res = json.loads(TINY_RESULTS.read_text())
     f = bench.figures_of(res)
@@ -76,6 +93,7 @@ def test_reuse_reports_one_robot_end_to_end(bench, tmp_path, capsys, model_dirs,
     assert "errors" not in row, row.get("errors")
     assert row["robot"] == "default-top" and row["wall_s"] == res["seconds"]["total"]
     assert np.isfinite(row["reversal_rmse_true_mm"]) and row["reversal_samples"] == 3 * 881
+    assert all(np.isfinite(row[f"small_{k}_rmse_true_mm"]) for k in bench.SMALL_KINDS)
     snaps = int(sweeps.frame["snap"].sum())
     assert 0 < row["gate_snaps"] <= snaps and row["gate_snaps"] == row["sweeps_gate_snaps"]
     assert row["gate_residual_rms_deg"] >= 0 and row["gate_residual_max_deg"] >= row["gate_residual_rms_deg"]
