@@ -25,7 +25,8 @@ folder: its data/paper is the training data) also the reproduction's FK experime
 model, as `ctrkin reproduce` and benchmarks/bench_generalisation.py score them against the truth:
 snap precision / recall within ±2 steps on the held-out sweeps and on the snap turns (the worse of
 the two rotation directions, ctrkin.evaluation.snapping), and the position RMSE along mid-turn
-reversals recorded on the same virtual robot (bench_generalisation.reversals). Ends with one JSON
+reversals recorded on the same virtual robot (bench_generalisation.reversals) and along its small
+back-and-forth moves (bench_generalisation.small_moves). Ends with one JSON
 line of the figures.
 """
 
@@ -57,7 +58,7 @@ from ctrkin.training.data import data_signature, split_rows, split_signature
 from ctrkin.training.engine import setup_differences, train
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))   # the benchmark beside this one
-from bench_generalisation import ROBOTS, reversals
+from bench_generalisation import ROBOTS, reversals, small_moves
 
 # ib8: IB 8 at the scale's epochs; ib2e160: 160 epochs; ib2p: IB 2 with the play-lag inputs;
 # ib2pq: and equivariant inputs with a position field; ib2ps1: training seed 1
@@ -132,6 +133,7 @@ def experiments(kin: Kinematics, folder: Path, repro: Path, case: str) -> dict[s
         out[name] = snap_scores(kin, Dataset.load(repro / "data" / name))
     c = ROBOTS[case]
     out["reversals"] = reversals(kin.robot, c, folder)
+    out["small"] = small_moves(kin.robot, c, folder)
     return out
 
 
@@ -239,11 +241,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
               f"{r['train_seconds']:6.0f} {r['step_us']:7.1f} "
               f"{r['load']:5.1f}   {r['verdict']}", flush=True)
         if args.repro is not None:
-            sw, tu, rv = r["sweeps"], r["snap-turns"], r["reversals"]
+            sw, tu, rv, sm = r["sweeps"], r["snap-turns"], r["reversals"], r["small"]
             print(f"{'':9s} sweeps P/R {_f(sw['precision'])}/{_f(sw['recall'])} ({sw['snaps']} snaps), "
                   f"snap turns P/R {_f(tu['precision'])}/{_f(tu['recall'])} ({tu['snaps']}), magnitude "
                   f"{_f(sw['magnitude_deg'])}/{_f(tu['magnitude_deg'])}°, reversals "
-                  f"{rv['reversal_rmse_true_mm']:.2f} mm RMSE ({rv['reversal_max_true_mm']:.1f} max)",
+                  f"{rv['reversal_rmse_true_mm']:.2f} mm RMSE ({rv['reversal_max_true_mm']:.1f} max), small "
+                  f"moves {sm['small_rmse_true_mm']:.2f} mm (outer {sm['small_outer_rmse_true_mm']:.2f}, "
+                  f"inner {sm['small_inner_rmse_true_mm']:.2f}, d {sm['small_d_rmse_true_mm']:.2f})",
                   flush=True)
     best = min(rows, key=lambda a: rows[a]["val_predict"])
     print(f"lowest validation RMSE as predict gives it: {best} ({rows[best]['val_predict']:.3f} mm)")
