@@ -26,11 +26,12 @@ translations. The fold gate takes that dependence from the physics and the offse
 
 with φ = α0 − 180° wrapped (ctrkin.families.snap_aware.labels, the labels the heads were trained on).
 Why |ℓ|: on the default robot a slide of either tube, of 0.2 mm or of 4 mm, either way, before a turn
-moves both of its snaps towards the nominal folds by the same 6–9° (docs/learned_kinematics.md: the
-history probe): the friction the slide left along the tubes, a state that no joint reading shows. The
-form assumes only that the delay's change saturates with the slide (a play's lag) and does not
-depend on its direction (|ℓ|); the sizes u_k are identified from the snaps that follow slides (the
-excitation runs) and are 0 where no training snap follows one.
+moves both of its snaps towards the nominal folds by the same 6–9° (the history probe in
+docs/learned_kinematics.md: What the learned models assume about the robot): the friction the slide
+left along the tubes, a state that no joint reading shows. The form assumes only that the delay's
+change saturates with the slide (a play's lag) and does not depend on its direction (|ℓ|); the sizes
+u_k are identified from the snaps that follow slides (the excitation runs) and are 0 where no training
+snap follows one.
 Why m_N: the encoders read the motors, and a tube base lags its motor by up to half the transmission's
 dead band, on the side it last moved from (backlash and friction wind-up, a play operator). The inner
 tube's lag is set by the turn itself: it widens the band symmetrically, as does a fold of the real
