@@ -46,10 +46,12 @@ class FamilyLayout:
     not a function of the raw steps alone (the follow IK's depend on the robot's current joints).
 
     names: (inputs, outputs) names of a FeatureLayout of this kind, ModelError where its other
-    settings do not suit it; why: why the shared feature functions refuse it (their message)."""
+    settings do not suit it; why: why the shared feature functions refuse it (their message); play:
+    whether a layout of this kind may take the play lags (its names then end with `play_names`)."""
 
     names: Callable[[FeatureLayout], tuple[list[str], list[str]]]
     why: str
+    play: bool = False     # its inputs may end with the play lags (FeatureLayout.play)
 
 
 # name -> a family's own layout; a family registers it when it is imported (ctrkin.families.registry
@@ -75,7 +77,8 @@ class FeatureLayout:
     equivariant: an FK's inputs without the absolute angles α1..αN (module docstring).
     play: an FK's inputs end with the play-operator lags of α1, αN and βN − β1
     (ctrkin.models.play_lags): a memory of the joint path beyond the window, which the features of a
-    step cannot hold, so `sequence_features` and `step_features` are then given them.
+    step cannot hold, so `sequence_features` and `step_features` are then given them; a family's
+    layout that takes them (FamilyLayout.play: the follow IK's) computes them itself.
     """
 
     task: Task = "fk"
@@ -101,8 +104,9 @@ class FeatureLayout:
         if self.task == "ik" and self.angle_encoding != "minmax":
             raise ModelError(f"angle_encoding={self.angle_encoding!r} applies to FK inputs only; use "
                              "'minmax' for IK")
-        if self.play and (self.task != "fk" or self.family is not None):
-            raise ModelError("play lags are inputs of the paper's FK layout only (task 'fk', no family)")
+        if self.play and (self.task != "fk" if self.family is None else not family_layout(self.family).play):
+            raise ModelError("play lags are inputs of the paper's FK layout and of the families' layouts "
+                             "that take them (the follow IK's) only")
         if self.equivariant and (self.task != "fk" or self.family is not None
                                  or self.angle_encoding == "sincos"):
             raise ModelError("equivariant inputs are an FK layout's with the minmax or phase encoding")

@@ -89,3 +89,20 @@ def test_the_layout_is_the_familys_and_old_folders_read_as_it():
     assert FeatureLayout.from_dict(plain).family is None
     with pytest.raises(ModelError, match="not one a model family registered"):
         FeatureLayout(task="ik", ib=1, family="nope")
+
+
+def test_a_play_layout_ends_with_the_path_lags():
+    from ctrkin.models.play_lags import play_names
+
+    plain = FeatureLayout(task="ik", n_tubes=2, ib=1, family=LAYOUT)
+    play = FeatureLayout(task="ik", n_tubes=2, ib=1, family=LAYOUT, play=True)
+    assert play.input_names == plain.input_names + tuple(play_names(2))
+    target = np.array([[10.0, 5.0, 80.0, *quat_from_tangent(np.array([0.1, 0.2, 1.0]))]])
+    q = np.array([[30.0, 10.0, -20.0, -12.0]])
+    lags = np.linspace(-1.0, 1.0, len(play_names(2)))[None]
+    f = follow_features(_frame(), 2, target, target, q, lags)
+    assert f.shape == (1, play.n_inputs)
+    np.testing.assert_array_equal(f[0, plain.n_inputs:], lags[0])
+    np.testing.assert_array_equal(f[0, :plain.n_inputs], follow_features(_frame(), 2, target, target, q)[0])
+    with pytest.raises(ModelError, match="play lags are inputs"):
+        FeatureLayout(task="ik", ib=1, play=True)                   # the paper's IK layout takes none

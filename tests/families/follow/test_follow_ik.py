@@ -139,3 +139,39 @@ def test_follower_holds_the_motor_through_small_reversals(follow_dir):
     assert motor(31.1) == pytest.approx(33.1)      # on along the taken-up side, however small
     assert motor(30.8) == pytest.approx(33.1) and f.tube == pytest.approx(31.1)   # small reversal: held
     assert motor(30.0) == pytest.approx(28.0)      # a reversal beyond hold_deg: θ − λ
+
+
+@pytest.fixture(scope="module")
+def follow_play_dir(sweeps, tmp_path_factory):
+    out = tmp_path_factory.mktemp("follow_play") / "ik_follow_play"
+    cfg = TrainConfig(task="ik", model="follow_mlp", max_epochs=6, patience=6, batch_size=128, lr=2e-3,
+                      lr_schedule="cosine", threads=1, play_lags=True, options={"structure": "|D32"})
+    train(sweeps, cfg, out, progress=False)
+    return out
+
+
+def test_a_play_lag_follow_ik_carries_the_lags_of_its_own_answers(follow_play_dir, sweeps):
+    from ctrkin.models.play_lags import path_lags
+
+    a, b = sweeps.sequence_bounds()[2]
+    targets, joints = sweeps.poses(true=True)[a:b], sweeps.joints()[a:b]
+    kin = Kinematics.load(follow_play_dir)
+    assert kin.layout.play and kin.layout.family == "follow"
+    kin.predictor.follower.max_step_mm = np.inf        # one application per target (no sub-steps)
+    batch = kin.predict(targets, start_joints=joints[0]).joints
+    kin.reset(joints[0])
+    follower = kin.predictor.follower
+    np.testing.assert_array_equal(follower.lags, 0.0)                 # at rest
+    stream, lags = [], []
+    for t in targets:
+        stream.append(kin.step(t).joints)
+        lags.append(follower.lags.copy())
+    np.testing.assert_allclose(np.array(stream), batch, atol=1e-9)
+    # the lags are the play operators' along the joints the network answered (its own path, from
+    # the start joints at rest; sub-steps would add their answers), with no outer lag to invert on a
+    # frictionless robot's sweeps
+    assert follower.lag == (0.0, 0.0)
+    path = np.vstack([joints[0], np.array(stream)])
+    expected = path_lags(path, [(0, len(path))], 2).columns()[1:]
+    np.testing.assert_allclose(np.array(lags), expected, atol=1e-12)
+    assert np.abs(expected).max() > 0.5                                # the sweep took up the plays

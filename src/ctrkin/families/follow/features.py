@@ -18,6 +18,12 @@ start from the joints of the nearest training target.
 
 Targets farther than the training steps apart are followed through intermediate targets
 (`substeps`), as a path planner would interpolate them.
+
+With the play lags (FeatureLayout.play; ctrkin.models.play_lags) the inputs also hold the
+play-operator lags of α1, αN and βN − β1 along the joints the robot has been sent to: the friction
+and backlash state the history left, which the current joints alone do not show (the same joints
+put the tip millimetres apart after a turn one way or the other). No friction law is assumed: the
+lags are the commanded path's, and what they mean for the joints that reach a target is learned.
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ from ctrkin.errors import ModelError
 from ctrkin.geometry import POSE_COLUMNS, quat_from_tangent, tangent_from_quat
 from ctrkin.models.features import FamilyLayout, FeatureLayout, register_layout
 from ctrkin.models.frame import OuterFrame
+from ctrkin.models.play_lags import play_names
 from ctrkin.robots.robot import alpha_names, beta_names
 
 # perturbation of the current joints in training: σ per level (deg for α, SIGMA_BETA_PER_DEG × σ mm
@@ -51,19 +58,22 @@ def layout_names(layout: FeatureLayout) -> tuple[list[str], list[str]]:
     local = [f"{p}_local" for p in POSE_COLUMNS]
     ins = local + [f"step_{p}" for p in local]
     ins += [f"{f}_alpha_{i + 1}{n}" for i in range(n - 1) for f in ("sin", "cos")] + beta_names(n)
+    if layout.play:
+        ins += play_names(n)
     return ins, [f"step_{j}" for j in alpha_names(n) + beta_names(n)]
 
 
 register_layout(LAYOUT, FamilyLayout(
-    layout_names, "they depend on the current joints (follow_features, ctrkin.families.follow)"))
+    layout_names, "they depend on the current joints (follow_features, ctrkin.families.follow)", play=True))
 
 
 def follow_features(frame: OuterFrame, n_tubes: int, target: np.ndarray, previous: np.ndarray,
-                    joints: np.ndarray) -> np.ndarray:
-    """Inputs (M, 12 + 2(N−1) + N) of the follow IK (FeatureLayout(family=LAYOUT).input_names).
+                    joints: np.ndarray, lags: np.ndarray | None = None) -> np.ndarray:
+    """Inputs (M, 12 + 2(N−1) + N [+ P]) of the follow IK (FeatureLayout(family=LAYOUT).input_names).
 
     target, previous: (M, 6) tracker-frame poses of this and the previous target (equal at a start);
-    joints: (M, 2N) the current joints (deg, mm), whose outer angle αN sets the local frame.
+    joints: (M, 2N) the current joints (deg, mm), whose outer angle αN sets the local frame; lags:
+    (M, P) the play lags of the path that led to them (a play layout's, appended as they are).
     """
     n = n_tubes
     q = np.asarray(joints, float)
@@ -72,7 +82,8 @@ def follow_features(frame: OuterFrame, n_tubes: int, target: np.ndarray, previou
     local, local_prev = both[:m], both[m:]
     rel = np.radians(q[:, : n - 1] - q[:, n - 1: n])
     sc = np.stack([np.sin(rel), np.cos(rel)], axis=2).reshape(len(q), -1)
-    return np.concatenate([local, local - local_prev, sc, q[:, n:]], axis=1)
+    parts = [local, local - local_prev, sc, q[:, n:]]
+    return np.concatenate(parts if lags is None else [*parts, np.asarray(lags, float)], axis=1)
 
 
 def joint_noise(rng: np.random.Generator, m: int, n_tubes: int) -> np.ndarray:

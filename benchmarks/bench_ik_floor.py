@@ -1,0 +1,221 @@
+"""Benchmark: where the IK's tip error via the robot comes from (issue 21, goal 1's IK figures;
+docs/learned_kinematics.md: Where the follow IK's error comes from).
+
+    python benchmarks/bench_ik_floor.py --repro out/gen/default-top          # a finished reproduction
+    python benchmarks/bench_ik_floor.py --collect /tmp/ikfloor --set noise_mm=0.4   # record + train first
+    python benchmarks/bench_ik_floor.py --repro DIR --ik DIR/models/ik_follow_mlp,/tmp/ik_play
+
+The reproduction's IK experiments (ctrkin.evaluation.experiments_ik) drive the virtual robot through
+an IK's joints, each held-out sequence from rest at its first answer. This splits that figure into
+what the experiment itself allows and what the models add, on the reproduction's own data:
+
+  recorded       the recorded joints of the held-out (test) sequences driven exactly as an IK's are
+                 (`experiments_ik.drive`): what an IK that answered the recording's joints would get;
+                 split into the first FIRST steps of each sequence (the robot starts at rest, the
+                 recording did not) and the rest
+  noise          the recording's own truth against its targets (the tracker's noise)
+  IK test / val  each IK folder driven on the test and validation sequences (the reproduction's
+                 figure, and the one to choose by); `train`: on the first TRAIN_SEQUENCES sequences of
+                 its own training rows, from their recorded start joints
+  β error        RMS of the IK's β1 … βN against the recorded joints on the test sequences (a mirror
+                 solution differs in α, not in β)
+  FK vs robot    the FK folder against the robot's noise-free tip along the IK's driven path and along
+                 the recorded joints driven from rest (both as the experiments feed the FK: 1°/0.1 mm
+                 moves between rows)
+  random         random poses within 1 mm: the recorded joints driven through the whole run, and each IK
+  iterations     with --iterations K,…: each IK's validation figure with the network applied K times
+                 per target (Follower.iterations; 1 is the model's own setting): a contraction that
+                 is weak gains from more, one towards wrong joints loses
+
+Ends with one JSON line of the figures (mm unless named otherwise).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import ctrkin.families.registry  # noqa: F401  (the families' feature layouts)
+from ctrkin.data.dataset import Dataset
+from ctrkin.data.schema import sequence_bounds
+from ctrkin.evaluation.context import valid_rows
+from ctrkin.evaluation.datasets import registered_truth
+from ctrkin.evaluation.experiments_ik import drive, joined
+from ctrkin.evaluation.table import FK_BRANCH, IK_FOLLOW
+from ctrkin.inference import Kinematics
+from ctrkin.virtual import VirtualRobot
+from ctrkin.virtual.truth import virtual_from_meta
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))   # the benchmark beside this one
+from bench_fk_memory import collect_repro
+
+FIRST = 100              # the first steps of a held-out sequence: the start from rest
+TRAIN_SEQUENCES = 6      # the IK on the first so many sequences of its own training rows
+
+
+def _rmse(e: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(e ** 2))) if len(e) else float("nan")
+
+
+def _miss(reached: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(reached[:, :3] - targets[:, :3], axis=1)
+
+
+def _part(ds: Dataset, part: str, limit: int | None = None) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """Usable rows of a split part (the first `limit` sequences) and their sequence bounds."""
+    rows = valid_rows(ds, getattr(ds.get_split(), part))
+    b = sequence_bounds(ds.frame["sequence_id"].to_numpy()[rows])
+    if limit is not None:
+        b = b[:limit]
+        rows = rows[:b[-1][1]]
+    return rows, b
+
+
+def recorded(virtual: VirtualRobot, ds: Dataset) -> dict[str, float]:
+    """The recorded test joints driven as an IK's are, against the targets; the noise floor."""
+    rows, b = _part(ds, "test")
+    targets = ds.poses()[rows]
+    reached, _ = drive(virtual, ds.joints()[rows], b)
+    e = _miss(reached, targets)
+    first = np.zeros(len(rows), bool)
+    for a, c in b:
+        first[a:min(c, a + FIRST)] = True
+    return {"recorded_mm": _rmse(e), "recorded_within_1mm": float(np.mean(e < 1.0)),
+            "recorded_first_mm": _rmse(e[first]), "recorded_after_mm": _rmse(e[~first]),
+            "noise_mm": _rmse(_miss(registered_truth(ds)[rows], targets))}
+
+
+def fk_along(virtual: VirtualRobot, fk: Kinematics, joints: np.ndarray, b: list[tuple[int, int]]
+             ) -> float:
+    """The FK against the robot's noise-free tip, both driven through joints (1°/0.1 mm moves)."""
+    reached, _ = drive(virtual, joints, b)
+    path, at, sid = joined(fk.alpha_into_range(joints), virtual.nominal.n_tubes, b)
+    via_fk = np.asarray(fk.predict(path, sequence_id=sid), float)[at]
+    return _rmse(_miss(via_fk, reached))
+
+
+def ik_figures(virtual: VirtualRobot, ds: Dataset, train: Dataset, rp: Dataset, ik: Kinematics,
+               fk: Kinematics | None, iterations: tuple[int, ...] = ()) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    sid = ds.frame["sequence_id"].to_numpy()
+    n = ds.n_tubes
+    for part in ("test", "val"):
+        rows, b = _part(ds, part)
+        res = ik.predict(ds.poses()[rows], sequence_id=sid[rows])
+        reached, _ = drive(virtual, res.joints, b)
+        e = _miss(reached, ds.poses()[rows])
+        out[f"ik_{part}_mm"], out[f"ik_{part}_within_1mm"] = _rmse(e), float(np.mean(e < 1.0))
+        if part == "test":
+            dq = res.joints[:, n:] - ds.joints()[rows][:, n:]
+            out["beta_error_mm"] = [float(x) for x in np.sqrt(np.mean(dq ** 2, axis=0))]
+            if fk is not None:
+                out["fk_vs_robot_ik_path_mm"] = fk_along(virtual, fk, res.joints, b)
+                out["fk_vs_robot_recorded_mm"] = fk_along(virtual, fk, ds.joints()[rows], b)
+    follower = ik.predictor.follower
+    own = follower.iterations
+    for k in iterations:
+        follower.iterations = k
+        rows, b = _part(ds, "val")
+        reached, _ = drive(virtual, ik.predict(ds.poses()[rows], sequence_id=sid[rows]).joints, b)
+        out.setdefault("val_by_iterations_mm", {})[k] = _rmse(_miss(reached, ds.poses()[rows]))
+    follower.iterations = own
+    rows, b = _part(train, "train", TRAIN_SEQUENCES)
+    tsid = train.frame["sequence_id"].to_numpy()
+    starts = train.joints()[rows][[a for a, _ in b]]
+    res = ik.predict(train.poses()[rows], sequence_id=tsid[rows], start_joints=starts)
+    reached, _ = drive(virtual, res.joints, b)
+    out["ik_train_mm"] = _rmse(_miss(reached, train.poses()[rows]))
+    is_t = rp.frame["is_target"].to_numpy()
+    targets = valid_rows(rp, np.nonzero(is_t)[0])
+    bb = rp.sequence_bounds()
+    whole = [(bb[0][0], bb[-1][1])]
+    reached, _ = drive(virtual, ik.predict(rp).joints, whole)
+    out["random_within_1mm"] = int(np.sum(_miss(reached[targets], rp.poses()[targets]) < 1.0))
+    return out
+
+
+def train_recommended(repro: Path, task: str, folder: Path, extra: list[str]) -> None:
+    """`ctrkin train --task TASK` on the reproduction's training set, as a user would (skipped when
+    the folder holds a finished model)."""
+    if (folder / "metrics.json").is_file():
+        return
+    cmd = [str(Path(sys.executable).with_name("ctrkin")), "train", "--task", task, "--data",
+           str(repro / "data" / "paper+excitation"), "--out", str(folder), *extra]
+    print("  ctrkin " + " ".join(cmd[1:]), flush=True)
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, env={**os.environ, "CTRKIN_NO_PROGRESS": "1"})
+
+
+def main(argv: list[str] | None = None) -> dict[str, Any]:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repro", type=Path, default=None, help="a reproduction folder (data/, models/)")
+    ap.add_argument("--collect", type=Path, default=None, help="record the quick reproduction's data on "
+                    "the paper robot (the virtual robot's defaults with --set) into COLLECT/data, train "
+                    "the recommended IK and FK into COLLECT/models (reused when there), use it as --repro")
+    ap.add_argument("--set", dest="settings", action="append", default=[], metavar="KEY=VALUE",
+                    help="a virtual robot effect for --collect (VirtualConfig's fields, as `ctrkin collect`)")
+    ap.add_argument("--ik", default=None, help="comma-separated IK folders (default: the reproduction's "
+                    f"models/{IK_FOLLOW})")
+    ap.add_argument("--fk", type=Path, default=None, help=f"the FK folder (default: models/{FK_BRANCH})")
+    ap.add_argument("--iterations", default="", help="comma-separated applications per target to score "
+                    "each IK's validation figure with (e.g. 1,2,4)")
+    args = ap.parse_args(argv)
+    iterations = tuple(int(k) for k in args.iterations.split(",") if k.strip())
+    if any(k < 1 for k in iterations):
+        ap.error("--iterations are counts of at least 1")
+    if args.collect is not None:
+        args.repro = collect_repro(args.collect, "quick", args.settings)
+        train_recommended(args.repro, "ik", args.repro / "models" / IK_FOLLOW, [])
+        train_recommended(args.repro, "fk", args.repro / "models" / FK_BRANCH, [])
+    if args.repro is None:
+        ap.error("give --repro or --collect")
+    data = args.repro / "data"
+    ds = Dataset.load(data / "paper")
+    train = Dataset.load(data / "paper+excitation")
+    rp = Dataset.load(data / "random-points")
+    if ds.split is None or not ds.has_truth:
+        ap.error(f"{data / 'paper'} needs its split and true pose columns (a virtual robot's reproduction)")
+    virtual = virtual_from_meta(ds)
+    iks = [Path(p) for p in (args.ik.split(",") if args.ik else [str(args.repro / "models" / IK_FOLLOW)])]
+    fk_dir = args.fk or args.repro / "models" / FK_BRANCH
+    fk = Kinematics.load(fk_dir) if fk_dir.is_dir() else None
+
+    floor = recorded(virtual, ds)
+    bb = rp.sequence_bounds()
+    is_t = rp.frame["is_target"].to_numpy()
+    targets = valid_rows(rp, np.nonzero(is_t)[0])
+    reached, _ = drive(virtual, rp.joints(), [(bb[0][0], bb[-1][1])])
+    floor["recorded_random_within_1mm"] = int(np.sum(_miss(reached[targets], rp.poses()[targets]) < 1.0))
+    print(f"IK error split on {data} (test sequences: {len(_part(ds, 'test')[1])}; the first {FIRST} steps "
+          "of each start from rest)")
+    print(f"  recorded joints driven as an IK's: {floor['recorded_mm']:.2f} mm RMSE "
+          f"({100 * floor['recorded_within_1mm']:.0f} % within 1 mm; first {FIRST} steps "
+          f"{floor['recorded_first_mm']:.2f}, after {floor['recorded_after_mm']:.2f}); tracker noise "
+          f"{floor['noise_mm']:.2f}; random poses {floor['recorded_random_within_1mm']}/{len(targets)}")
+    report: dict[str, Any] = {"repro": str(args.repro), **floor, "iks": {}}
+    print(f"  {'IK':38s} {'test':>6s} {'val':>6s} {'train':>6s} {'β err':>12s} {'rand':>5s} "
+          f"{'FK∥IK':>6s} {'FK∥rec':>6s}")
+    for folder in iks:
+        r = report["iks"][str(folder)] = ik_figures(virtual, ds, train, rp, Kinematics.load(folder), fk,
+                                                    iterations)
+        beta = "/".join(f"{x:.2f}" for x in r["beta_error_mm"])
+        fk_ik, fk_rec = (r.get(k, math.nan) for k in ("fk_vs_robot_ik_path_mm", "fk_vs_robot_recorded_mm"))
+        print(f"  {str(folder)[-38:]:38s} {r['ik_test_mm']:6.2f} {r['ik_val_mm']:6.2f} "
+              f"{r['ik_train_mm']:6.2f} {beta:>12s} {r['random_within_1mm']:5d} {fk_ik:6.2f} {fk_rec:6.2f}",
+              flush=True)
+        if iterations:
+            print(f"  {'':38s} validation by applications per target: " + ", ".join(
+                f"{k}: {v:.2f}" for k, v in r["val_by_iterations_mm"].items()), flush=True)
+    print(json.dumps(report, default=float))
+    return report
+
+
+if __name__ == "__main__":
+    main()
