@@ -29,6 +29,9 @@ every figure. Columns (held-out data of the reproduction; position RMSE in mm un
               and d (`small_moves`; per kind in the JSON line), judged against the FK goal (≤ 0.5)
   IK          follow IK on held-out sequences, tip reached by driving the robot; rand  random poses
               reached within 1 mm (of 20); sq / tri  square and triangle, tip via the robot
+  IK floor    the recorded joints of the same held-out sequences driven as the IK's are (each from rest
+              at its first row; benchmarks/bench_ik_floor.py): what an IK that answered the
+              recording's own joints would get (the JSON line also has its first 100 steps and the rest)
   gate res/max (no fold)  the fold gate's assumption (`gate_residuals`): RMS / largest residual (deg)
               of the training snaps from the nominal folds shifted by the fitted offsets, and the
               snaps where the nominal robot has no fold, of all snaps in the band (the JSON line
@@ -228,6 +231,19 @@ def gate_residuals(fk_folder: Path, data_folder: Path) -> dict[str, Any]:
             "gate_widen_deg": gate.widen_deg, "gate_outer_lag_deg": gate.outer_lag_deg}
 
 
+def ik_floor(data_folder: Path) -> dict[str, float]:
+    """The held-out IK experiment's floor (`IK floor`, module docstring) on a reproduction's data;
+    none for data not recorded on the virtual robot (nothing to drive)."""
+    from bench_ik_floor import recorded  # (it imports this module through bench_fk_memory)
+    from ctrkin.virtual.truth import virtual_from_meta
+
+    ds = Dataset.load(data_folder)
+    if "virtual_robot" not in ds.meta or ds.split is None:
+        return {}
+    floor = recorded(virtual_from_meta(ds), ds)
+    return {f"ik_floor_{k.removeprefix('recorded_')}": v for k, v in floor.items()}
+
+
 def _held_out(residuals: dict[str, Any]) -> dict[str, Any]:
     """gate_residuals on the held-out sweeps, under sweeps_* (the fitted offsets only once)."""
     fitted = ("gate_widen_deg", "gate_outer_lag_deg")
@@ -268,6 +284,7 @@ def _figures(name: str, case: Case, robot: Robot, out: Path, wall_s: float | Non
     fk_folder = out / name / res["recommended"]["fk"]
     for extra in (lambda: reversals(robot, case, fk_folder), lambda: small_moves(robot, case, fk_folder),
                   lambda: gate_residuals(fk_folder, out / name / "data" / "paper"),
+                  lambda: ik_floor(out / name / "data" / "paper"),
                   lambda: _held_out(gate_residuals(fk_folder, out / name / "data" / "sweeps"))):
         try:
             row |= extra()
@@ -338,7 +355,7 @@ def _cell(row: dict[str, Any], key: str, fmt: str) -> str:
 
 
 HEADER = ("robot", "FK true", "FK", "TCM (×)", "cal (×)", "sweeps P/R", "turns P/R", "mag", "rev", "small",
-          "IK", "rand", "sq", "tri", "gate res/max (no fold)", "wall s")
+          "IK", "IK floor", "rand", "sq", "tri", "gate res/max (no fold)", "wall s")
 
 
 def table_row(row: dict[str, Any]) -> list[str]:
@@ -353,6 +370,7 @@ def table_row(row: dict[str, Any]) -> list[str]:
             f"({row['turns_snaps']})",
             _cell(row, "snap_magnitude_deg", ".1f"), _cell(row, "reversal_rmse_true_mm", ".2f"),
             _cell(row, "small_rmse_true_mm", ".2f"), _cell(row, "ik_tip_mm", ".2f"),
+            _cell(row, "ik_floor_mm", ".2f"),
             f"{_cell(row, 'ik_random_within_1mm', 'd')}/{row['ik_random_points']}",
             _cell(row, "ik_square_mm", ".2f"), _cell(row, "ik_triangle_mm", ".2f"),
             f"{_cell(row, 'gate_residual_rms_deg', '.1f')}/{_cell(row, 'gate_residual_max_deg', '.1f')} "

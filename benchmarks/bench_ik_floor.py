@@ -23,6 +23,9 @@ what the experiment itself allows and what the models add, on the reproduction's
                  the recorded joints driven from rest (both as the experiments feed the FK: 1°/0.1 mm
                  moves between rows)
   random         random poses within 1 mm: the recorded joints driven through the whole run, and each IK
+  lookup         a reference without a network: each target's joints are those of one of the
+                 LOOKUP_K training rows nearest in pose and in the target's motion over the last
+                 LOOKUP_LAG steps, the one nearest the previous answer (test and validation)
   iterations     with --iterations K,…: each IK's validation figure with the network applied K times
                  per target (Follower.iterations; 1 is the model's own setting): a contraction that
                  is weak gains from more, one towards wrong joints loses
@@ -42,6 +45,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 import ctrkin.families.registry  # noqa: F401  (the families' feature layouts)
 from ctrkin.data.dataset import Dataset
@@ -50,7 +54,9 @@ from ctrkin.evaluation.context import valid_rows
 from ctrkin.evaluation.datasets import registered_truth
 from ctrkin.evaluation.experiments_ik import drive, joined
 from ctrkin.evaluation.table import FK_BRANCH, IK_FOLLOW
+from ctrkin.geometry import tangent_from_quat
 from ctrkin.inference import Kinematics
+from ctrkin.metrics import wrap_deg
 from ctrkin.virtual import VirtualRobot
 from ctrkin.virtual.truth import virtual_from_meta
 
@@ -59,6 +65,9 @@ from bench_fk_memory import collect_repro
 
 FIRST = 100              # the first steps of a held-out sequence: the start from rest
 TRAIN_SEQUENCES = 6      # the IK on the first so many sequences of its own training rows
+# the lookup reference: candidates, the motion's span (steps) and weight, the weight of the distance
+# to the previous answer (10° of α weigh like 1 mm of β) against the pose distance (mm, 10 mm per rad)
+LOOKUP_K, LOOKUP_LAG, LOOKUP_MOTION, LOOKUP_CONTINUITY = 20, 30, 0.5, 0.1
 
 
 def _rmse(e: np.ndarray) -> float:
@@ -142,6 +151,42 @@ def ik_figures(virtual: VirtualRobot, ds: Dataset, train: Dataset, rp: Dataset, 
     return out
 
 
+def _lookup_features(ds: Dataset, rows: np.ndarray) -> np.ndarray:
+    """(len(rows), 9): position (mm), 10 × tangent, LOOKUP_MOTION × the position's change over the
+    last LOOKUP_LAG steps of its sequence (from the sequence start for its first rows)."""
+    p = ds.poses()
+    tan = np.array([tangent_from_quat(q) for q in p[:, 3:6]])
+    prev = np.arange(len(p)) - LOOKUP_LAG
+    for a, c in ds.sequence_bounds():
+        prev[a:min(c, a + LOOKUP_LAG)] = a
+    return np.c_[p[:, :3], 10.0 * tan, LOOKUP_MOTION * (p[:, :3] - p[prev, :3])][rows]
+
+
+def lookup(virtual: VirtualRobot, ds: Dataset, train: Dataset) -> dict[str, float]:
+    """The lookup reference (module docstring) via the robot on the test and validation sequences."""
+    trows = valid_rows(train, train.get_split().train)
+    tree, joints = cKDTree(_lookup_features(train, trows)), train.joints()[trows]
+    n = ds.n_tubes
+    scale = np.r_[np.full(n, 10.0), np.ones(n)]
+    out = {}
+    for part in ("test", "val"):
+        rows, b = _part(ds, part)
+        feats, answer = _lookup_features(ds, rows), np.empty((len(rows), 2 * n))
+        for a, c in b:
+            for t in range(a, c):
+                dist, idx = tree.query(feats[t], k=LOOKUP_K)
+                cand = joints[idx].copy()
+                if t > a:                       # α as whole turns nearest the previous answer
+                    cand[:, :n] = answer[t - 1, :n] + wrap_deg(cand[:, :n] - answer[t - 1, :n])
+                    step = np.sum(((cand - answer[t - 1]) / scale) ** 2, axis=1)
+                    answer[t] = cand[int(np.argmin(dist ** 2 + LOOKUP_CONTINUITY * step))]
+                else:
+                    answer[t] = cand[0]
+        reached, _ = drive(virtual, answer, b)
+        out[f"lookup_{part}_mm"] = _rmse(_miss(reached, ds.poses()[rows]))
+    return out
+
+
 def train_recommended(repro: Path, task: str, folder: Path, extra: list[str]) -> None:
     """`ctrkin train --task TASK` on the reproduction's training set, as a user would (skipped when
     the folder holds a finished model)."""
@@ -187,7 +232,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     fk_dir = args.fk or args.repro / "models" / FK_BRANCH
     fk = Kinematics.load(fk_dir) if fk_dir.is_dir() else None
 
-    floor = recorded(virtual, ds)
+    floor = recorded(virtual, ds) | lookup(virtual, ds, train)
     bb = rp.sequence_bounds()
     is_t = rp.frame["is_target"].to_numpy()
     targets = valid_rows(rp, np.nonzero(is_t)[0])
@@ -199,6 +244,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
           f"({100 * floor['recorded_within_1mm']:.0f} % within 1 mm; first {FIRST} steps "
           f"{floor['recorded_first_mm']:.2f}, after {floor['recorded_after_mm']:.2f}); tracker noise "
           f"{floor['noise_mm']:.2f}; random poses {floor['recorded_random_within_1mm']}/{len(targets)}")
+    print(f"  lookup of the training joints (no network): test {floor['lookup_test_mm']:.2f}, validation "
+          f"{floor['lookup_val_mm']:.2f} mm")
     report: dict[str, Any] = {"repro": str(args.repro), **floor, "iks": {}}
     print(f"  {'IK':38s} {'test':>6s} {'val':>6s} {'train':>6s} {'β err':>12s} {'rand':>5s} "
           f"{'FK∥IK':>6s} {'FK∥rec':>6s}")

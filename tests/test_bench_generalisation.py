@@ -97,6 +97,7 @@ def test_reuse_reports_one_robot_end_to_end(bench, tmp_path, capsys, model_dirs,
     snaps = int(sweeps.frame["snap"].sum())
     assert 0 < row["gate_snaps"] <= snaps and row["gate_snaps"] == row["sweeps_gate_snaps"]
     assert row["gate_residual_rms_deg"] >= 0 and row["gate_residual_max_deg"] >= row["gate_residual_rms_deg"]
+    assert "ik_floor_mm" not in row           # sweeps of the nominal robot: no virtual robot to drive
     assert any(line.startswith("default-top") for line in lines)                # the table's row
     assert json.loads((out / "rows.jsonl").read_text())["robot"] == "default-top"
 

@@ -53,3 +53,24 @@ def test_with_friction_the_second_leg_starts_elsewhere_from_rest(bench) -> None:
     # the first leg starts from rest as recorded; the second one was wound up the other way
     assert floor["recorded_first_mm"] > 0.1
     assert floor["recorded_first_mm"] > 3 * floor["recorded_after_mm"]
+
+
+def test_the_lookup_reference_answers_a_training_sequence_with_its_own_joints(bench) -> None:
+    virtual = VirtualRobot(paper_robot(), VirtualConfig().ideal(), seed=0)
+    ds = _two_legs(virtual, 4.0)
+    rows = np.arange(len(ds.frame))
+    ds.split = Split(rows, rows, rows, "sequence", 0, (1.0, 1.0, 1.0), len(rows))
+    figures = bench.lookup(virtual, ds, ds)
+    assert figures["lookup_test_mm"] < 1e-6 and figures["lookup_val_mm"] < 1e-6
+
+
+def test_bench_generalisation_reads_the_floor_of_a_reproductions_data(bench, tmp_path) -> None:
+    gen = load_benchmark("bench_generalisation")
+    virtual = VirtualRobot(paper_robot(), VirtualConfig().ideal(), seed=0)
+    ds = _two_legs(virtual, 4.0)
+    ds.save(tmp_path / "paper")
+    ds.save_split(tmp_path / "paper", ds.split)
+    floor = gen.ik_floor(tmp_path / "paper")
+    assert set(floor) == {"ik_floor_mm", "ik_floor_within_1mm", "ik_floor_first_mm", "ik_floor_after_mm",
+                          "ik_floor_noise_mm"}
+    assert floor["ik_floor_mm"] < 1e-6 and floor["ik_floor_within_1mm"] == 1.0
