@@ -13,10 +13,15 @@ what the experiment itself allows and what the models add, on the reproduction's
                  (`experiments_ik.drive`): what an IK that answered the recording's joints would get;
                  split into the first FIRST steps of each sequence (the robot starts at rest, the
                  recording did not) and the rest
+  replayed       the same, each sequence driven after its run replayed from the run's start (every
+                 recorded row before it, glitch rows at the last believed joints, joined by the same
+                 moves): the robot brought to the state the recording was in, as far as its rows tell
   noise          the recording's own truth against its targets (the tracker's noise)
   IK test / val  each IK folder driven on the test and validation sequences (the reproduction's
-                 figure, and the one to choose by); `train`: on the first TRAIN_SEQUENCES sequences of
-                 its own training rows, from their recorded start joints
+                 figure, and the one to choose by); `repl.`: on the test sequences from the recorded
+                 state (the run replayed as above, the IK started at the recorded joints); `train`: on
+                 the first TRAIN_SEQUENCES sequences of its own training rows, from their recorded
+                 start joints
   β error        RMS of the IK's β1 … βN against the recorded joints on the test sequences (a mirror
                  solution differs in α, not in β)
   FK vs robot    the FK folder against the robot's noise-free tip along the IK's driven path and along
@@ -102,6 +107,32 @@ def recorded(virtual: VirtualRobot, ds: Dataset) -> dict[str, float]:
             "noise_mm": _rmse(_miss(registered_truth(ds)[rows], targets))}
 
 
+def drive_replayed(virtual: VirtualRobot, ds: Dataset, rows: np.ndarray, b: list[tuple[int, int]],
+                   joints: np.ndarray) -> np.ndarray:
+    """Tips (len(rows), 6) the robot reaches through joints (len(rows), 2N), each sequence [a, b) of
+    rows after its run replayed from the run's first row up to the sequence (recorded joints, glitch
+    rows at the last believed ones; joined by 1°/0.1 mm moves, as `drive`)."""
+    q = ds.joints().copy()
+    for g in np.nonzero(ds.frame["outlier"].to_numpy())[0]:
+        q[g] = q[g - 1] if g > 0 else q[g]
+    runs = ds.frame["run"].to_numpy() if "run" in ds.frame.columns else np.arange(len(q))
+    out = np.empty((len(rows), 6))
+    for a, c in b:
+        first = rows[a]
+        start = int(np.flatnonzero(runs[:first + 1] == runs[first])[0])     # the run's first row
+        path = np.vstack([q[start:first], joints[a:c]])
+        reached, _ = drive(virtual, path, [(0, len(path))])
+        out[a:c] = reached[first - start:]
+    return out
+
+
+def replayed(virtual: VirtualRobot, ds: Dataset) -> dict[str, float]:
+    """The recorded test joints driven after their run replayed (module docstring), against the targets."""
+    rows, b = _part(ds, "test")
+    err = _miss(drive_replayed(virtual, ds, rows, b, ds.joints()[rows]), ds.poses()[rows])
+    return {"replayed_mm": _rmse(err), "replayed_within_1mm": float(np.mean(err < 1.0))}
+
+
 def fk_along(virtual: VirtualRobot, fk: Kinematics, joints: np.ndarray, b: list[tuple[int, int]]
              ) -> float:
     """The FK against the robot's noise-free tip, both driven through joints (1°/0.1 mm moves)."""
@@ -123,6 +154,11 @@ def ik_figures(virtual: VirtualRobot, ds: Dataset, train: Dataset, rp: Dataset, 
         e = _miss(reached, ds.poses()[rows])
         out[f"ik_{part}_mm"], out[f"ik_{part}_within_1mm"] = _rmse(e), float(np.mean(e < 1.0))
         if part == "test":
+            # from the recorded state: the run replayed, the IK told the joints the robot is at
+            starts = ds.joints()[rows][[a for a, _ in b]]
+            joints = ik.predict(ds.poses()[rows], sequence_id=sid[rows], start_joints=starts).joints
+            e = _miss(drive_replayed(virtual, ds, rows, b, joints), ds.poses()[rows])
+            out["ik_test_replayed_mm"] = _rmse(e)
             dq = res.joints[:, n:] - ds.joints()[rows][:, n:]
             out["beta_error_mm"] = [float(x) for x in np.sqrt(np.mean(dq ** 2, axis=0))]
             if fk is not None:
@@ -232,7 +268,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     fk_dir = args.fk or args.repro / "models" / FK_BRANCH
     fk = Kinematics.load(fk_dir) if fk_dir.is_dir() else None
 
-    floor = recorded(virtual, ds) | lookup(virtual, ds, train)
+    floor = recorded(virtual, ds) | replayed(virtual, ds) | lookup(virtual, ds, train)
     bb = rp.sequence_bounds()
     is_t = rp.frame["is_target"].to_numpy()
     targets = valid_rows(rp, np.nonzero(is_t)[0])
@@ -244,19 +280,21 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
           f"({100 * floor['recorded_within_1mm']:.0f} % within 1 mm; first {FIRST} steps "
           f"{floor['recorded_first_mm']:.2f}, after {floor['recorded_after_mm']:.2f}); tracker noise "
           f"{floor['noise_mm']:.2f}; random poses {floor['recorded_random_within_1mm']}/{len(targets)}")
+    print(f"  the same after their runs replayed from rest: {floor['replayed_mm']:.2f} mm RMSE "
+          f"({100 * floor['replayed_within_1mm']:.0f} % within 1 mm)")
     print(f"  lookup of the training joints (no network): test {floor['lookup_test_mm']:.2f}, validation "
           f"{floor['lookup_val_mm']:.2f} mm")
     report: dict[str, Any] = {"repro": str(args.repro), **floor, "iks": {}}
-    print(f"  {'IK':38s} {'test':>6s} {'val':>6s} {'train':>6s} {'β err':>12s} {'rand':>5s} "
+    print(f"  {'IK':38s} {'test':>6s} {'repl.':>6s} {'val':>6s} {'train':>6s} {'β err':>12s} {'rand':>5s} "
           f"{'FK∥IK':>6s} {'FK∥rec':>6s}")
     for folder in iks:
         r = report["iks"][str(folder)] = ik_figures(virtual, ds, train, rp, Kinematics.load(folder), fk,
                                                     iterations)
         beta = "/".join(f"{x:.2f}" for x in r["beta_error_mm"])
         fk_ik, fk_rec = (r.get(k, math.nan) for k in ("fk_vs_robot_ik_path_mm", "fk_vs_robot_recorded_mm"))
-        print(f"  {str(folder)[-38:]:38s} {r['ik_test_mm']:6.2f} {r['ik_val_mm']:6.2f} "
-              f"{r['ik_train_mm']:6.2f} {beta:>12s} {r['random_within_1mm']:5d} {fk_ik:6.2f} {fk_rec:6.2f}",
-              flush=True)
+        print(f"  {str(folder)[-38:]:38s} {r['ik_test_mm']:6.2f} {r['ik_test_replayed_mm']:6.2f} "
+              f"{r['ik_val_mm']:6.2f} {r['ik_train_mm']:6.2f} {beta:>12s} {r['random_within_1mm']:5d} "
+              f"{fk_ik:6.2f} {fk_rec:6.2f}", flush=True)
         if iterations:
             print(f"  {'':38s} validation by applications per target: " + ", ".join(
                 f"{k}: {v:.2f}" for k, v in r["val_by_iterations_mm"].items()), flush=True)

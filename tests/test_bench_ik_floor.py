@@ -1,7 +1,8 @@
 """benchmarks/bench_ik_floor.py's floor (issue 21): the recorded joints driven as an IK's are, each
 sequence from rest. On a frictionless robot away from the bistable band a rest start is the recorded
 state and the floor is the noise (none here); with friction between the tubes a sequence that
-continued a run starts elsewhere from rest, and the floor is that start's transient."""
+continued a run starts elsewhere from rest, and the floor is that start's transient, which replaying
+the run up to the sequence removes."""
 
 from __future__ import annotations
 
@@ -48,11 +49,14 @@ def test_the_floor_is_the_noise_where_a_rest_start_is_the_recorded_state(bench) 
 def test_with_friction_the_second_leg_starts_elsewhere_from_rest(bench) -> None:
     sticky = dataclasses.replace(VirtualConfig().ideal(), tube_friction=0.69)
     virtual = VirtualRobot(paper_robot(), sticky, seed=0)
-    floor = bench.recorded(virtual, _two_legs(virtual, 4.0))
+    ds = _two_legs(virtual, 4.0)
+    floor = bench.recorded(virtual, ds)
     assert floor["noise_mm"] == 0.0
     # the first leg starts from rest as recorded; the second one was wound up the other way
     assert floor["recorded_first_mm"] > 0.1
     assert floor["recorded_first_mm"] > 3 * floor["recorded_after_mm"]
+    # with the run replayed up to it, the second leg starts where the recording did
+    assert bench.replayed(virtual, ds)["replayed_mm"] < 1e-6
 
 
 def test_the_lookup_reference_answers_a_training_sequence_with_its_own_joints(bench) -> None:
