@@ -175,3 +175,18 @@ def test_a_play_lag_follow_ik_carries_the_lags_of_its_own_answers(follow_play_di
     expected = path_lags(path, [(0, len(path))], 2).columns()[1:]
     np.testing.assert_allclose(np.array(lags), expected, atol=1e-12)
     assert np.abs(expected).max() > 0.5                                # the sweep took up the plays
+
+
+def test_a_follow_ik_is_refined_from_a_fresh_process(follow_dir, model_dirs, tmp_path):
+    """assemble_refined as its docstring shows it, in a process that imported nothing else: the
+    refined family reads a follow IK folder's task without the follow family (it imports no other)."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "ik_refined_follow"
+    code = ("from ctrkin.families.refined import assemble_refined; "
+            f"assemble_refined({str(follow_dir)!r}, {str(model_dirs['fk_branch'])!r}, {str(out)!r})")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    kin = Kinematics.load(out)
+    assert kin.predictor.refined and kin.layout.family == "follow"

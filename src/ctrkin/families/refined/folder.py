@@ -14,7 +14,6 @@ from pathlib import Path
 
 from ctrkin.errors import ModelError
 from ctrkin.families.refined.refine import RefineSettings
-from ctrkin.models.features import FeatureLayout
 from ctrkin.models.store import FEATURES, ROBOT, read_json
 from ctrkin.models.workspace import WORKSPACE_FILE, Workspace
 from ctrkin.robots.robot import Robot
@@ -29,9 +28,14 @@ def _task_and_robot(folder: Path) -> tuple[str, str]:
     for name in (FEATURES, ROBOT):
         if not (folder / name).is_file():
             raise ModelError(f"{folder} is not a trained ctrkin model folder: missing {name}")
-    layout = FeatureLayout.from_dict(read_json(folder / FEATURES))
+    # the task as stored: a family's own layout (the follow IK's) is only read whole once that family
+    # is imported, which this family may not do (ctrkin.families: a family imports no other)
+    stored = read_json(folder / FEATURES)
+    task = stored.get("task") if isinstance(stored, dict) else None
+    if task not in ("fk", "ik"):
+        raise ModelError(f"{folder / FEATURES} names no task 'fk' or 'ik' (got {task!r})")
     robot = Robot.from_dict(read_json(folder / ROBOT)["robot"], source=str(folder / ROBOT))
-    return layout.task, robot.mechanical_fingerprint()
+    return str(task), robot.mechanical_fingerprint()
 
 
 def check_parts(ik_dir: Path, fk_dir: Path, settings: RefineSettings) -> None:
