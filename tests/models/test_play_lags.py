@@ -53,6 +53,33 @@ def test_streaming_lags_equal_the_path_and_a_peek_changes_nothing(rng):
     assert not st.after(q[5])[0].any()                   # at rest: every lag 0
 
 
+def test_target_lags_stream_as_they_run_along_a_path_and_follow_its_runs(rng):
+    from ctrkin.models.play_lags import TARGET_WIDTHS_MM, TargetPlay, target_lags
+
+    p = np.cumsum(rng.normal(0.0, 0.8, (60, 3)), axis=0)
+    whole = target_lags(p, [(0, 60)])
+    assert whole.shape == (60, 3 * len(TARGET_WIDTHS_MM)) and np.all(np.abs(whole) <= 1.0 + 1e-12)
+    np.testing.assert_array_equal(whole[0], 0.0)                      # at rest
+    play = TargetPlay()
+    np.testing.assert_allclose([play.advance(x) for x in p], whole, atol=1e-12)
+    # the z lag of the narrowest operator after a rise of more than its width: taken up
+    assert target_lags(np.c_[np.zeros(3), np.zeros(3), [0.0, 0.2, 1.0]], [(0, 3)])[2, 8] == pytest.approx(1.0)
+    # two sequences of one run are one path; of two runs, the second starts at rest
+    two = [(0, 30), (30, 60)]
+    np.testing.assert_allclose(target_lags(p, two, runs=np.zeros(60)), whole, atol=1e-12)
+    apart = target_lags(p, two, runs=np.r_[np.zeros(30), np.ones(30)])
+    np.testing.assert_array_equal(apart[30], 0.0)
+    # a glitch row keeps the last believed position
+    skip = np.zeros(60, bool)
+    skip[10] = True
+    glitched = p.copy()
+    glitched[10] += 50.0
+    believed = p.copy()
+    believed[10] = p[9]
+    held = target_lags(glitched, [(0, 60)], skip=skip)
+    np.testing.assert_array_equal(held, target_lags(believed, [(0, 60)]))
+
+
 def test_the_play_layout_names_its_inputs_and_reads_older_layouts_without_them():
     lay = FeatureLayout(task="fk", n_tubes=2, ib=2, play=True)
     plain = FeatureLayout(task="fk", n_tubes=2, ib=2)
@@ -64,7 +91,7 @@ def test_the_play_layout_names_its_inputs_and_reads_older_layouts_without_them()
     del old["play"]                                      # a folder written before play lags
     assert FeatureLayout.from_dict(old) == plain
     assert lay.describe_difference(plain) == ["play: True vs False"]
-    with pytest.raises(ModelError, match="FK layout only"):
+    with pytest.raises(ModelError, match="paper's FK layout and of the families"):
         FeatureLayout(task="ik", play=True)
 
 

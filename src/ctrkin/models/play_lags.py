@@ -105,6 +105,56 @@ def recorded_lags(frame: Any, joints: np.ndarray, bounds: list[tuple[int, int]],
     return path_lags(joints, bounds, n_tubes, runs, frame["outlier"].to_numpy(), angle_widths, slide_widths)
 
 
+# the half widths (mm) of the play operators of a target path's position (the follow IK's play
+# inputs, `target_lags`): from the tracker's noise to the size of a tube's hysteresis loop at the tip
+TARGET_WIDTHS_MM = (0.3, 1.0, 3.0, 10.0)
+TARGET_AXES = ("x", "y", "z")
+
+
+def target_lags(positions: np.ndarray, bounds: list[tuple[int, int]], runs: np.ndarray | None = None,
+                skip: np.ndarray | None = None) -> np.ndarray:
+    """(T, 3K) lags of the play operators (TARGET_WIDTHS_MM) of a path of tip positions (T, 3) (mm,
+    tracker frame), x then y then z: a memory of where the targets came from, which a follow IK has
+    exactly (they are its inputs). Sequences of one run (runs (T,), file order) are one path, else
+    each starts at rest; skip (T,): rows whose positions are not to be believed (the last believed
+    ones are kept)."""
+    x = np.asarray(positions, float)[:, :3].copy()
+    if skip is not None:
+        for g in np.nonzero(skip)[0]:
+            x[g] = x[g - 1] if g > 0 else x[g]
+    starts = np.zeros(len(x), dtype=np.bool_)
+    for (a, b), cont in zip(bounds, run_continues(bounds, runs), strict=True):
+        if b > a and not cont:
+            starts[a] = True
+    widths = np.asarray(TARGET_WIDTHS_MM, float)
+    if not len(x):
+        return np.empty((0, 3 * len(widths)))
+    return np.concatenate([_lags(np.ascontiguousarray(x[:, k]), starts, widths) for k in range(3)], axis=1)
+
+
+def target_play_names() -> list[str]:
+    """Names of a follow IK's play-lag inputs, in `target_lags` order (widths in mm)."""
+    return [f"play_{a}_{r:g}" for a in TARGET_AXES for r in TARGET_WIDTHS_MM]
+
+
+class TargetPlay:
+    """The play operators of `target_lags` while streaming: `reset` starts at rest (the next position
+    sets every output to itself), `advance(p)` moves them to position p (3,) and gives the lags (3K,)."""
+
+    def __init__(self) -> None:
+        self.widths = np.asarray(TARGET_WIDTHS_MM, float)
+        self.y: np.ndarray | None = None
+
+    def reset(self) -> None:
+        self.y = None
+
+    def advance(self, p: np.ndarray) -> np.ndarray:
+        x = np.asarray(p, float)[:3, None]
+        y = np.repeat(x, len(self.widths), axis=1) if self.y is None else self.y
+        self.y = np.minimum(np.maximum(y, x - self.widths), x + self.widths)
+        return ((x - self.y) / self.widths).reshape(-1)
+
+
 def play_names(n_tubes: int) -> list[str]:
     """Names of an FK's play-lag inputs, in `Lags.columns` order (widths in deg, mm)."""
     def w(x: float) -> str:

@@ -94,9 +94,9 @@ class TrainConfig:
         "tube's frame), and what depends on the tip's place in space is fitted as a field of its "
         "position after training (ctrkin.models.field)."))
     play_lags: bool = field(default=False, metadata=_help(
-        "FK, and the follow IK (follow_mlp): the inputs also hold the play-operator lags of α1, αN and "
-        "βN − β1 along the joint path (ctrkin.models.play_lags: a memory of the path beyond the window, "
-        "no friction law assumed; the follow IK's along the joints it answers)."))
+        "FK: the inputs also hold the play-operator lags of α1, αN and βN − β1 along the joint path; "
+        "the follow IK (follow_mlp): those of the target path's position (ctrkin.models.play_lags: a "
+        "memory of the path beyond the window, no friction law assumed)."))
     output_activation: OutputActivation = field(default="relu", metadata=_help(
         "Output layer activation: relu (paper eq. 7) or linear."))
     pose_source: PoseSource = field(default="measured", metadata=_help(

@@ -91,15 +91,16 @@ def test_the_layout_is_the_familys_and_old_folders_read_as_it():
         FeatureLayout(task="ik", ib=1, family="nope")
 
 
-def test_a_play_layout_ends_with_the_path_lags():
-    from ctrkin.models.play_lags import play_names
+def test_a_play_layout_ends_with_the_target_path_lags():
+    from ctrkin.models.play_lags import target_play_names
 
     plain = FeatureLayout(task="ik", n_tubes=2, ib=1, family=LAYOUT)
     play = FeatureLayout(task="ik", n_tubes=2, ib=1, family=LAYOUT, play=True)
-    assert play.input_names == plain.input_names + tuple(play_names(2))
+    assert play.input_names == plain.input_names + tuple(target_play_names())
+    assert target_play_names()[:2] == ["play_x_0.3", "play_x_1"]
     target = np.array([[10.0, 5.0, 80.0, *quat_from_tangent(np.array([0.1, 0.2, 1.0]))]])
     q = np.array([[30.0, 10.0, -20.0, -12.0]])
-    lags = np.linspace(-1.0, 1.0, len(play_names(2)))[None]
+    lags = np.linspace(-1.0, 1.0, len(target_play_names()))[None]
     f = follow_features(_frame(), 2, target, target, q, lags)
     assert f.shape == (1, play.n_inputs)
     np.testing.assert_array_equal(f[0, plain.n_inputs:], lags[0])

@@ -150,30 +150,33 @@ def follow_play_dir(sweeps, tmp_path_factory):
     return out
 
 
-def test_a_play_lag_follow_ik_carries_the_lags_of_its_own_answers(follow_play_dir, sweeps):
-    from ctrkin.models.play_lags import path_lags
+def test_a_play_lag_follow_ik_sees_the_lags_of_its_target_path(follow_play_dir, sweeps, monkeypatch):
+    from ctrkin.families.follow import stepper
+    from ctrkin.models.play_lags import target_lags
 
     a, b = sweeps.sequence_bounds()[2]
     targets, joints = sweeps.poses(true=True)[a:b], sweeps.joints()[a:b]
     kin = Kinematics.load(follow_play_dir)
     assert kin.layout.play and kin.layout.family == "follow"
     kin.predictor.follower.max_step_mm = np.inf        # one application per target (no sub-steps)
+    kin.predictor.follower.settle = 1
     batch = kin.predict(targets, start_joints=joints[0]).joints
+    seen = []
+    real = stepper.follow_features
+
+    def spy(frame, n, target, previous, q, lags=None):
+        seen.append(lags[0].copy())
+        return real(frame, n, target, previous, q, lags)
+
+    monkeypatch.setattr(stepper, "follow_features", spy)
     kin.reset(joints[0])
-    follower = kin.predictor.follower
-    np.testing.assert_array_equal(follower.lags, 0.0)                 # at rest
-    stream, lags = [], []
-    for t in targets:
-        stream.append(kin.step(t).joints)
-        lags.append(follower.lags.copy())
-    np.testing.assert_allclose(np.array(stream), batch, atol=1e-9)
-    # the lags are the play operators' along the joints the network answered (its own path, from
-    # the start joints at rest; sub-steps would add their answers), with no outer lag to invert on a
-    # frictionless robot's sweeps
-    assert follower.lag == (0.0, 0.0)
-    path = np.vstack([joints[0], np.array(stream)])
-    expected = path_lags(path, [(0, len(path))], 2).columns()[1:]
-    np.testing.assert_allclose(np.array(lags), expected, atol=1e-12)
+    stream = np.array([kin.step(t).joints for t in targets])
+    np.testing.assert_allclose(stream, batch, atol=1e-9)
+    # the lags of the targets' positions up to each target, from rest at the first one (as the
+    # recipe computes them along a recorded sequence), not of the joints the network answered
+    expected = target_lags(targets[:, :3], [(0, len(targets))])
+    np.testing.assert_allclose(np.array(seen), expected, atol=1e-12)
+    np.testing.assert_array_equal(expected[0], 0.0)
     assert np.abs(expected).max() > 0.5                                # the sweep took up the plays
 
 

@@ -19,11 +19,12 @@ start from the joints of the nearest training target.
 Targets farther than the training steps apart are followed through intermediate targets
 (`substeps`), as a path planner would interpolate them.
 
-With the play lags (FeatureLayout.play; ctrkin.models.play_lags) the inputs also hold the
-play-operator lags of α1, αN and βN − β1 along the joints the robot has been sent to: the friction
-and backlash state the history left, which the current joints alone do not show (the same joints
-put the tip millimetres apart after a turn one way or the other). No friction law is assumed: the
-lags are the commanded path's, and what they mean for the joints that reach a target is learned.
+With the play lags (FeatureLayout.play; ctrkin.models.play_lags.target_lags) the inputs also hold
+the play-operator lags of the target path's position (x, y, z at half widths of 0.3–10 mm, up to and
+including this target): where the targets came from, which sets the friction state the robot will
+be in when it gets there (on a hysteretic robot one pose and current joints are reached with other
+joints after other histories). A follow IK has its targets exactly, so their lags carry none of its
+own errors (the lags of the joints it answered did: measured no better). No friction law is assumed.
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from ctrkin.errors import ModelError
 from ctrkin.geometry import POSE_COLUMNS, quat_from_tangent, tangent_from_quat
 from ctrkin.models.features import FamilyLayout, FeatureLayout, register_layout
 from ctrkin.models.frame import OuterFrame
-from ctrkin.models.play_lags import play_names
+from ctrkin.models.play_lags import target_play_names
 from ctrkin.robots.robot import alpha_names, beta_names
 
 # perturbation of the current joints in training: σ per level (deg for α, SIGMA_BETA_PER_DEG × σ mm
@@ -59,7 +60,7 @@ def layout_names(layout: FeatureLayout) -> tuple[list[str], list[str]]:
     ins = local + [f"step_{p}" for p in local]
     ins += [f"{f}_alpha_{i + 1}{n}" for i in range(n - 1) for f in ("sin", "cos")] + beta_names(n)
     if layout.play:
-        ins += play_names(n)
+        ins += target_play_names()
     return ins, [f"step_{j}" for j in alpha_names(n) + beta_names(n)]
 
 
@@ -73,7 +74,7 @@ def follow_features(frame: OuterFrame, n_tubes: int, target: np.ndarray, previou
 
     target, previous: (M, 6) tracker-frame poses of this and the previous target (equal at a start);
     joints: (M, 2N) the current joints (deg, mm), whose outer angle αN sets the local frame; lags:
-    (M, P) the play lags of the path that led to them (a play layout's, appended as they are).
+    (M, P) a play layout's lags of the target path up to this target (appended as they are).
     """
     n = n_tubes
     q = np.asarray(joints, float)

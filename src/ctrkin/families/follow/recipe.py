@@ -7,10 +7,9 @@ Rollouts (DAgger-like): at ROLLOUT_AT of the epochs the network follows the trai
 from then on part of each epoch starts from the joints it reached, where it stayed near the recorded
 branch: training then covers the states its own errors lead to.
 
-With the play lags (FeatureLayout.play) each row's inputs hold the lags of the recorded path up to
-its previous row (ctrkin.models.play_lags.recorded_lags: along each run, from rest), the state the
-robot was in when it was sent on; a perturbed or rolled-out start keeps the recorded row's lags (the
-perturbation is of the joints only; 95 % of it is within 20° of the recorded path).
+With the play lags (FeatureLayout.play) each row's inputs hold the lags of the recorded target path
+up to and including its target (ctrkin.models.play_lags.target_lags: along each run from rest, glitch
+rows at the last believed position), as the stepper computes them from the targets it is given.
 
 It keeps no per-epoch checkpoint (`checkpoints = False`): a killed run starts over (the quick budget
 trains in about a minute), and a finished folder of the same configuration and data is reused.
@@ -32,7 +31,7 @@ from ctrkin.families.follow.stepper import Follower
 from ctrkin.metrics import metrics_json_joint_errors, wrap_deg
 from ctrkin.models.features import check_raw
 from ctrkin.models.normalize import MinMax
-from ctrkin.models.play_lags import recorded_lags
+from ctrkin.models.play_lags import target_lags
 from ctrkin.models.recipe import (
     Log,
     Prepared,
@@ -69,7 +68,8 @@ class FollowRecipe:
         self.poses, self.joints = inputs_and_targets(ds, "ik", cfg.pose_source)
         self.bounds = ds.sequence_bounds()
         self.prev = previous_rows(self.bounds)
-        self.lags = (recorded_lags(ds.frame, self.joints, self.bounds, self.n).columns()
+        runs = ds.frame["run"].to_numpy() if "run" in ds.frame.columns else None
+        self.lags = (target_lags(self.poses, self.bounds, runs, ds.frame["outlier"].to_numpy())
                      if cfg.layout(self.n).play else None)
         tr, va = self.rows["train"], self.rows["val"]
         lagged, _ = fit_outer_frame(ds, self.joints, self.poses, tr, cfg.seed)  # the stepper inverts its lag
@@ -97,7 +97,7 @@ class FollowRecipe:
             own = self.visited[prev[r]]
             near = _on_branch(own, joints[prev[r]], self.n) & (rng.random(len(r)) < ONPOLICY_FRACTION)
             current[near] = own[near]
-        lags = None if self.lags is None else self.lags[prev[r]]
+        lags = None if self.lags is None else self.lags[r]
         return (follow_features(self.frame, self.n, self.poses[r], self.poses[prev[r]], current, lags),
                 joints[r] - current)
 

@@ -12,10 +12,9 @@ after a forward outer step, so its joints are those of a tube lagging by +λ; th
 returns is the play's inverse for the tube angle the network means (Follower._backlash_inverse), and
 a start at rest is seen by the network with the tube's angle + λ.
 
-With the play lags (FeatureLayout.play) the follower carries the play operators of the joints it
-has answered (ctrkin.models.play_lags.PlayState, in the network's joints as the recorded ones are):
-at a start the robot is at rest (every lag 0, as a recorded run starts); each application of the
-network sees the lags of the path so far and then advances them to its answer.
+With the play lags (FeatureLayout.play) the follower carries the play operators of its targets'
+positions (ctrkin.models.play_lags.TargetPlay): at rest at a sequence's first target (every lag 0, as
+a recorded run starts), then advanced to each (sub-)target before the network sees it.
 
 Both sides of the family run it (a policy's reset() / step()): its recipe rolls the network out along
 the training sequences and scores it (ctrkin.families.follow.recipe), and its predictor predicts with
@@ -35,7 +34,7 @@ from ctrkin.models.engine import StreamingEngine
 from ctrkin.models.features import real_array
 from ctrkin.models.guards import check_joints
 from ctrkin.models.outer_lag import lag_one
-from ctrkin.models.play_lags import PlayState
+from ctrkin.models.play_lags import TargetPlay
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle
 from ctrkin.models.workspace import Workspace
@@ -67,8 +66,7 @@ class Follower:
         self.hold_deg = HOLD_DEG
         self.tube = np.nan                           # the outer tube's angle (deg), NaN: not known yet
         self.motor = np.nan                          # the outer motor's last command (deg)
-        self.play = PlayState(self.n) if bundle.layout.play else None   # the path's play operators
-        self.lags = None if self.play is None else np.zeros(len(self.play.widths))  # ... where it is now
+        self.play = TargetPlay() if bundle.layout.play else None      # the target path's operators
 
     def reset(self, joints: np.ndarray | None = None) -> None:
         """Start a sequence, at `joints` (2N,) (deg, mm) if the robot's joints are known."""
@@ -79,7 +77,8 @@ class Follower:
                                  f"{np.asarray(joints).tolist()}")
             joints = check_joints(self.robot, q)       # as every model input of joints
         self.joints, self.target, self.tube, self.motor = None, None, np.nan, np.nan
-        self.lags = None if self.play is None else np.zeros(len(self.play.widths))
+        if self.play is not None:
+            self.play.reset()
         if joints is not None:
             self._at_rest(joints)
 
@@ -88,7 +87,7 @@ class Follower:
         state of its own, at a sequence start."""
         twin = copy.copy(self)
         twin.engine = StreamingEngine(self.net)
-        twin.play, twin.lags = (None if self.play is None else PlayState(self.n)), None
+        twin.play = None if self.play is None else TargetPlay()
         twin.reset()
         return twin
 
@@ -117,18 +116,6 @@ class Follower:
         self.tube = self.motor = float(q[self.n - 1])
         self.joints = q.copy()
         self.joints[self.n - 1] += self._lag(q)
-        self._rest_play(self.joints)
-
-    def _rest_play(self, q: np.ndarray) -> None:
-        """The play operators at rest at the network's joints q: every one centred on its input."""
-        if self.play is not None:
-            self.play.reset()
-            self._advance_play(q)
-
-    def _advance_play(self, q: np.ndarray) -> None:
-        if self.play is not None:
-            self.lags, y = self.play.after(q)
-            self.play.advance(y)
 
     def _backlash_inverse(self, q: np.ndarray) -> np.ndarray:
         """Motor joints for the network's answer q: the tube is to stand at θ = q_N − λ(β); the motor
@@ -153,40 +140,36 @@ class Follower:
         """target (6,) tracker-frame pose -> (joints (2N,) within the robot's limits, whether the
         network's answer had to be projected onto them)."""
         if self.target is None:
-            placed = self.joints is None     # no start joints: the robot is to be placed at the answer
-            if placed:
+            if self.joints is None:
                 if self.workspace is None:
                     raise ModelError("a follow IK without its workspace needs start joints (reset(joints))")
                 self._at_rest(self.workspace.nearest_joints(target))
             assert self.joints is not None
             q, projected = self.joints, False
-            for _ in range(self.settle):      # the lags stay where the robot stands while it settles
-                q, projected = self._apply(target, target, q, advance=False)
-            if placed:
-                self._rest_play(q)            # placed at rest at the answer
-            else:
-                self._advance_play(q)         # moved there from the start joints
+            lags = self._target_lags(target)
+            for _ in range(self.settle):
+                q, projected = self._apply(target, target, q, lags)
         else:
             assert self.joints is not None
             q, projected, previous = self.joints, False, self.target
             for sub in substeps(previous, target, self.max_step_mm):
+                lags = self._target_lags(sub)
                 for _ in range(self.iterations):
-                    q, projected = self._apply(sub, previous, q)
+                    q, projected = self._apply(sub, previous, q, lags)
                     previous = sub
         self.joints, self.target = q, np.array(target, dtype=np.float64)
         motor = self._backlash_inverse(q)
         valid = self.robot.project_joints(motor[None])[0]
         return valid, projected or bool(np.any(np.abs(valid - motor) > 1e-9))
 
+    def _target_lags(self, target: np.ndarray) -> np.ndarray | None:
+        """With the play lags: their operators advanced to this (sub-)target's position, the lags."""
+        return None if self.play is None else self.play.advance(target[:3])[None]
+
     def _apply(self, target: np.ndarray, previous: np.ndarray, q: np.ndarray,
-               advance: bool = True) -> tuple[np.ndarray, bool]:
-        """One application of the network from joints q; with the play lags, the lags where the
-        robot is are inputs and (advance) are then advanced to the answer."""
-        lags = None if self.lags is None else self.lags[None]
+               lags: np.ndarray | None = None) -> tuple[np.ndarray, bool]:
         feat = follow_features(self.frame, self.n, target[None], previous[None], q[None], lags)[0]
         dq = self.y_norm.inverse(self.engine.step(self.x_norm.transform(feat)))
         new = q + dq
         valid = self.robot.project_joints(new[None])[0]
-        if advance:
-            self._advance_play(valid)
         return valid, bool(np.any(np.abs(valid - new) > 1e-9))
