@@ -76,6 +76,21 @@ def play_inputs(joints: np.ndarray, n_tubes: int) -> tuple[np.ndarray, np.ndarra
     return q[:, 0], q[:, n - 1], q[:, 2 * n - 1] - q[:, n]
 
 
+def _believed_path(values: np.ndarray, bounds: list[tuple[int, int]], runs: np.ndarray | None,
+                   skip: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """A copy of the path's rows (T, K) with each skipped row at the last believed one, and (T,) where
+    the operators start at rest: each sequence that does not continue its run (runs (T,), file order)."""
+    x = np.asarray(values, float).copy()
+    if skip is not None:
+        for g in np.nonzero(skip)[0]:
+            x[g] = x[g - 1] if g > 0 else x[g]
+    starts = np.zeros(len(x), dtype=np.bool_)
+    for (a, b), cont in zip(bounds, run_continues(bounds, runs), strict=True):
+        if b > a and not cont:
+            starts[a] = True
+    return x, starts
+
+
 def path_lags(joints: np.ndarray, bounds: list[tuple[int, int]], n_tubes: int,
               runs: np.ndarray | None = None, skip: np.ndarray | None = None,
               angle_widths: tuple[float, ...] = INPUT_ANGLE_WIDTHS_DEG,
@@ -83,14 +98,7 @@ def path_lags(joints: np.ndarray, bounds: list[tuple[int, int]], n_tubes: int,
     """The play lags of α1, αN and d = βN − β1 along the joint path (T, 2N) (module docstring):
     sequences of one run (runs (T,), file order) are one path, else each starts at rest; skip (T,):
     rows whose joints are not to be believed."""
-    q = np.asarray(joints, float).copy()
-    if skip is not None:
-        for g in np.nonzero(skip)[0]:
-            q[g] = q[g - 1] if g > 0 else q[g]
-    starts = np.zeros(len(q), dtype=np.bool_)
-    for (a, b), cont in zip(bounds, run_continues(bounds, runs), strict=True):
-        if b > a and not cont:
-            starts[a] = True
+    q, starts = _believed_path(joints, bounds, runs, skip)
     widths = (angle_widths, angle_widths, slide_widths)
     return Lags(*(_lags(np.ascontiguousarray(x), starts, np.asarray(w, float))
                   for x, w in zip(play_inputs(q, n_tubes), widths, strict=True)))
@@ -118,14 +126,7 @@ def target_lags(positions: np.ndarray, bounds: list[tuple[int, int]], runs: np.n
     exactly (they are its inputs). Sequences of one run (runs (T,), file order) are one path, else
     each starts at rest; skip (T,): rows whose positions are not to be believed (the last believed
     ones are kept)."""
-    x = np.asarray(positions, float)[:, :3].copy()
-    if skip is not None:
-        for g in np.nonzero(skip)[0]:
-            x[g] = x[g - 1] if g > 0 else x[g]
-    starts = np.zeros(len(x), dtype=np.bool_)
-    for (a, b), cont in zip(bounds, run_continues(bounds, runs), strict=True):
-        if b > a and not cont:
-            starts[a] = True
+    x, starts = _believed_path(np.asarray(positions, float)[:, :3], bounds, runs, skip)
     widths = np.asarray(TARGET_WIDTHS_MM, float)
     if not len(x):
         return np.empty((0, 3 * len(widths)))
