@@ -31,9 +31,10 @@ what the experiment itself allows and what the models add, on the reproduction's
   lookup         a reference without a network: each target's joints are those of one of the
                  LOOKUP_K training rows nearest in pose and in the target's motion over the last
                  LOOKUP_LAG steps, the one nearest the previous answer (test and validation)
-  iterations     with --iterations K,…: each IK's validation figure with the network applied K times
-                 per target (Follower.iterations; 1 is the model's own setting): a contraction that
-                 is weak gains from more, one towards wrong joints loses
+  iterations     with --iterations K,…: each follow IK's validation figure with the network applied K
+                 times per target (Follower.iterations; 1 is the model's own setting): a contraction
+                 that is weak gains from more, one towards wrong joints loses
+An IK that takes no start joints (the paper's, the refined one) is scored from its own start there.
 
 Ends with one JSON line of the figures (mm unless named otherwise).
 """
@@ -147,6 +148,11 @@ def ik_figures(virtual: VirtualRobot, ds: Dataset, train: Dataset, rp: Dataset, 
     out: dict[str, Any] = {}
     sid = ds.frame["sequence_id"].to_numpy()
     n = ds.n_tubes
+    follower = getattr(ik.predictor, "follower", None)     # a follow IK: it takes start joints
+
+    def started(starts: np.ndarray) -> dict[str, Any]:
+        return {} if follower is None else {"start_joints": starts}
+
     for part in ("test", "val"):
         rows, b = _part(ds, part)
         res = ik.predict(ds.poses()[rows], sequence_id=sid[rows])
@@ -156,7 +162,7 @@ def ik_figures(virtual: VirtualRobot, ds: Dataset, train: Dataset, rp: Dataset, 
         if part == "test":
             # from the recorded state: the run replayed, the IK told the joints the robot is at
             starts = ds.joints()[rows][[a for a, _ in b]]
-            joints = ik.predict(ds.poses()[rows], sequence_id=sid[rows], start_joints=starts).joints
+            joints = ik.predict(ds.poses()[rows], sequence_id=sid[rows], **started(starts)).joints
             e = _miss(drive_replayed(virtual, ds, rows, b, joints), ds.poses()[rows])
             out["ik_test_replayed_mm"] = _rmse(e)
             dq = res.joints[:, n:] - ds.joints()[rows][:, n:]
@@ -164,18 +170,18 @@ def ik_figures(virtual: VirtualRobot, ds: Dataset, train: Dataset, rp: Dataset, 
             if fk is not None:
                 out["fk_vs_robot_ik_path_mm"] = fk_along(virtual, fk, res.joints, b)
                 out["fk_vs_robot_recorded_mm"] = fk_along(virtual, fk, ds.joints()[rows], b)
-    follower = ik.predictor.follower
-    own = follower.iterations
-    for k in iterations:
+    own = None if follower is None else follower.iterations
+    for k in iterations if follower is not None else ():
         follower.iterations = k
         rows, b = _part(ds, "val")
         reached, _ = drive(virtual, ik.predict(ds.poses()[rows], sequence_id=sid[rows]).joints, b)
         out.setdefault("val_by_iterations_mm", {})[k] = _rmse(_miss(reached, ds.poses()[rows]))
-    follower.iterations = own
+    if follower is not None:
+        follower.iterations = own
     rows, b = _part(train, "train", TRAIN_SEQUENCES)
     tsid = train.frame["sequence_id"].to_numpy()
     starts = train.joints()[rows][[a for a, _ in b]]
-    res = ik.predict(train.poses()[rows], sequence_id=tsid[rows], start_joints=starts)
+    res = ik.predict(train.poses()[rows], sequence_id=tsid[rows], **started(starts))
     reached, _ = drive(virtual, res.joints, b)
     out["ik_train_mm"] = _rmse(_miss(reached, train.poses()[rows]))
     is_t = rp.frame["is_target"].to_numpy()
@@ -295,7 +301,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         print(f"  {str(folder)[-38:]:38s} {r['ik_test_mm']:6.2f} {r['ik_test_replayed_mm']:6.2f} "
               f"{r['ik_val_mm']:6.2f} {r['ik_train_mm']:6.2f} {beta:>12s} {r['random_within_1mm']:5d} "
               f"{fk_ik:6.2f} {fk_rec:6.2f}", flush=True)
-        if iterations:
+        if "val_by_iterations_mm" in r:
             print(f"  {'':38s} validation by applications per target: " + ", ".join(
                 f"{k}: {v:.2f}" for k, v in r["val_by_iterations_mm"].items()), flush=True)
     print(json.dumps(report, default=float))
