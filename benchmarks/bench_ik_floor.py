@@ -94,6 +94,15 @@ def _part(ds: Dataset, part: str, limit: int | None = None) -> tuple[np.ndarray,
     return rows, b
 
 
+def random_within_1mm(virtual: VirtualRobot, rp: Dataset, joints: np.ndarray) -> int:
+    """Random-points targets reached within 1 mm with the robot driven through joints (the whole run's
+    rows, from rest at its first, as experiments_ik drives an IK's)."""
+    bb = rp.sequence_bounds()
+    targets = valid_rows(rp, np.nonzero(rp.frame["is_target"].to_numpy())[0])
+    reached, _ = drive(virtual, joints, [(bb[0][0], bb[-1][1])])
+    return int(np.sum(_miss(reached[targets], rp.poses()[targets]) < 1.0))
+
+
 def recorded(virtual: VirtualRobot, ds: Dataset) -> dict[str, float]:
     """The recorded test joints driven as an IK's are, against the targets; the noise floor."""
     rows, b = _part(ds, "test")
@@ -184,12 +193,7 @@ def ik_figures(virtual: VirtualRobot, ds: Dataset, train: Dataset, rp: Dataset, 
     res = ik.predict(train.poses()[rows], sequence_id=tsid[rows], **started(starts))
     reached, _ = drive(virtual, res.joints, b)
     out["ik_train_mm"] = _rmse(_miss(reached, train.poses()[rows]))
-    is_t = rp.frame["is_target"].to_numpy()
-    targets = valid_rows(rp, np.nonzero(is_t)[0])
-    bb = rp.sequence_bounds()
-    whole = [(bb[0][0], bb[-1][1])]
-    reached, _ = drive(virtual, ik.predict(rp).joints, whole)
-    out["random_within_1mm"] = int(np.sum(_miss(reached[targets], rp.poses()[targets]) < 1.0))
+    out["random_within_1mm"] = random_within_1mm(virtual, rp, ik.predict(rp).joints)
     return out
 
 
@@ -275,17 +279,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     fk = Kinematics.load(fk_dir) if fk_dir.is_dir() else None
 
     floor = recorded(virtual, ds) | replayed(virtual, ds) | lookup(virtual, ds, train)
-    bb = rp.sequence_bounds()
-    is_t = rp.frame["is_target"].to_numpy()
-    targets = valid_rows(rp, np.nonzero(is_t)[0])
-    reached, _ = drive(virtual, rp.joints(), [(bb[0][0], bb[-1][1])])
-    floor["recorded_random_within_1mm"] = int(np.sum(_miss(reached[targets], rp.poses()[targets]) < 1.0))
+    floor["recorded_random_within_1mm"] = random_within_1mm(virtual, rp, rp.joints())
+    n_random = len(valid_rows(rp, np.nonzero(rp.frame["is_target"].to_numpy())[0]))
     print(f"IK error split on {data} (test sequences: {len(_part(ds, 'test')[1])}; the first {FIRST} steps "
           "of each start from rest)")
     print(f"  recorded joints driven as an IK's: {floor['recorded_mm']:.2f} mm RMSE "
           f"({100 * floor['recorded_within_1mm']:.0f} % within 1 mm; first {FIRST} steps "
           f"{floor['recorded_first_mm']:.2f}, after {floor['recorded_after_mm']:.2f}); tracker noise "
-          f"{floor['noise_mm']:.2f}; random poses {floor['recorded_random_within_1mm']}/{len(targets)}")
+          f"{floor['noise_mm']:.2f}; random poses {floor['recorded_random_within_1mm']}/{n_random}")
     print(f"  the same after their runs replayed from rest: {floor['replayed_mm']:.2f} mm RMSE "
           f"({100 * floor['replayed_within_1mm']:.0f} % within 1 mm)")
     print(f"  lookup of the training joints (no network): test {floor['lookup_test_mm']:.2f}, validation "

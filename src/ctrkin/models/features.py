@@ -47,11 +47,12 @@ class FamilyLayout:
 
     names: (inputs, outputs) names of a FeatureLayout of this kind, ModelError where its other
     settings do not suit it; why: why the shared feature functions refuse it (their message); play:
-    whether a layout of this kind may take the play lags (its names then end with `play_names`)."""
+    whether a layout of this kind may take play lags (FeatureLayout.play; the family names and
+    computes its own, e.g. the follow IK's of its target path)."""
 
     names: Callable[[FeatureLayout], tuple[list[str], list[str]]]
     why: str
-    play: bool = False     # its inputs may end with the play lags (FeatureLayout.play)
+    play: bool = False
 
 
 # name -> a family's own layout; a family registers it when it is imported (ctrkin.families.registry

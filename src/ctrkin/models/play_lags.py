@@ -133,6 +133,13 @@ def target_lags(positions: np.ndarray, bounds: list[tuple[int, int]], runs: np.n
     return np.concatenate([_lags(np.ascontiguousarray(x[:, k]), starts, widths) for k in range(3)], axis=1)
 
 
+def recorded_target_lags(frame: Any, poses: np.ndarray, bounds: list[tuple[int, int]]) -> np.ndarray:
+    """target_lags of a Dataset's rows (its frame, poses (T, ≥3) as recorded, its sequences): runs
+    followed across sequences, glitch rows skipped (as `recorded_lags` for the joints)."""
+    runs = frame["run"].to_numpy() if "run" in frame.columns else None
+    return target_lags(poses, bounds, runs, frame["outlier"].to_numpy())
+
+
 def target_play_names() -> list[str]:
     """Names of a follow IK's play-lag inputs, in `target_lags` order (widths in mm)."""
     return [f"play_{a}_{r:g}" for a in TARGET_AXES for r in TARGET_WIDTHS_MM]

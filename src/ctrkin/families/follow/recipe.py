@@ -31,7 +31,7 @@ from ctrkin.families.follow.stepper import Follower
 from ctrkin.metrics import metrics_json_joint_errors, wrap_deg
 from ctrkin.models.features import check_raw
 from ctrkin.models.normalize import MinMax
-from ctrkin.models.play_lags import target_lags
+from ctrkin.models.play_lags import recorded_target_lags
 from ctrkin.models.recipe import (
     Log,
     Prepared,
@@ -68,8 +68,7 @@ class FollowRecipe:
         self.poses, self.joints = inputs_and_targets(ds, "ik", cfg.pose_source)
         self.bounds = ds.sequence_bounds()
         self.prev = previous_rows(self.bounds)
-        runs = ds.frame["run"].to_numpy() if "run" in ds.frame.columns else None
-        self.lags = (target_lags(self.poses, self.bounds, runs, ds.frame["outlier"].to_numpy())
+        self.lags = (recorded_target_lags(ds.frame, self.poses, self.bounds)
                      if cfg.layout(self.n).play else None)
         tr, va = self.rows["train"], self.rows["val"]
         lagged, _ = fit_outer_frame(ds, self.joints, self.poses, tr, cfg.seed)  # the stepper inverts its lag
