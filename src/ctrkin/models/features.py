@@ -48,11 +48,13 @@ class FamilyLayout:
     names: (inputs, outputs) names of a FeatureLayout of this kind, ModelError where its other
     settings do not suit it; why: why the shared feature functions refuse it (their message); play:
     whether a layout of this kind may take play lags (FeatureLayout.play; the family names and
-    computes its own, e.g. the follow IK's of its target path)."""
+    computes its own, e.g. the follow IK's of its target path); outer_angle: whether it may take the
+    outer tube's absolute angle (FeatureLayout.outer_angle)."""
 
     names: Callable[[FeatureLayout], tuple[list[str], list[str]]]
     why: str
     play: bool = False
+    outer_angle: bool = False
 
 
 # name -> a family's own layout; a family registers it when it is imported (ctrkin.families.registry
@@ -80,6 +82,10 @@ class FeatureLayout:
     (ctrkin.models.play_lags): a memory of the joint path beyond the window, which the features of a
     step cannot hold, so `sequence_features` and `step_features` are then given them; a family's
     layout that takes them (FamilyLayout.play: the follow IK's) computes them itself.
+    outer_angle: a family's inputs also hold sin/cos of the outer tube's absolute angle αN, for what
+    is not rotation-equivariant about the insertion axis (the tracker's field, a registration error);
+    only layouts whose family takes it (FamilyLayout.outer_angle: the follow IK's, otherwise
+    equivariant by construction).
     """
 
     task: Task = "fk"
@@ -90,6 +96,7 @@ class FeatureLayout:
     family: str | None = None
     play: bool = False
     equivariant: bool = False
+    outer_angle: bool = False
     input_names: tuple[str, ...] = field(init=False)
     output_names: tuple[str, ...] = field(init=False)
 
@@ -108,6 +115,9 @@ class FeatureLayout:
         if self.play and (self.task != "fk" if self.family is None else not family_layout(self.family).play):
             raise ModelError("play lags are inputs of the paper's FK layout and of the families' layouts "
                              "that take them (the follow IK's) only")
+        if self.outer_angle and (self.family is None or not family_layout(self.family).outer_angle):
+            raise ModelError("the outer tube's absolute angle is an input of the families' layouts that "
+                             "take it (the follow IK's) only")
         if self.equivariant and (self.task != "fk" or self.family is not None
                                  or self.angle_encoding == "sincos"):
             raise ModelError("equivariant inputs are an FK layout's with the minmax or phase encoding")
@@ -158,7 +168,7 @@ class FeatureLayout:
     def to_dict(self) -> dict[str, object]:
         return {"task": self.task, "n_tubes": self.n_tubes, "ib": self.ib, "delta": self.delta,
                 "angle_encoding": self.angle_encoding, "family": self.family, "play": self.play,
-                "equivariant": self.equivariant,
+                "equivariant": self.equivariant, "outer_angle": self.outer_angle,
                 "input_names": list(self.input_names),
                 "output_names": list(self.output_names)}
 
@@ -175,7 +185,8 @@ class FeatureLayout:
             layout = cls(task=d["task"], n_tubes=int(d["n_tubes"]), ib=int(d["ib"]),
                          delta=bool(d["delta"]), angle_encoding=d["angle_encoding"],
                          family=None if family is None else str(family), play=bool(d.get("play", False)),
-                         equivariant=bool(d.get("equivariant", False)))
+                         equivariant=bool(d.get("equivariant", False)),
+                         outer_angle=bool(d.get("outer_angle", False)))
         except KeyError as e:
             raise ModelError(f"feature layout lacks {e}") from None
         if "input_names" in d and tuple(d["input_names"]) != layout.input_names:
@@ -186,7 +197,8 @@ class FeatureLayout:
     def describe_difference(self, other: FeatureLayout) -> list[str]:
         """Human-readable list of what differs between two layouts (empty if equal)."""
         diffs = []
-        for k in ("task", "n_tubes", "ib", "delta", "angle_encoding", "family", "play", "equivariant"):
+        for k in ("task", "n_tubes", "ib", "delta", "angle_encoding", "family", "play", "equivariant",
+                  "outer_angle"):
             a, b = getattr(self, k), getattr(other, k)
             if a != b:
                 diffs.append(f"{k}: {a!r} vs {b!r}")
@@ -194,7 +206,7 @@ class FeatureLayout:
 
 
 _LAYOUT_KEYS = ("task", "n_tubes", "ib", "delta", "angle_encoding", "family", "play", "equivariant",
-                "input_names", "output_names")
+                "outer_angle", "input_names", "output_names")
 
 
 def family_layout(name: str) -> FamilyLayout:

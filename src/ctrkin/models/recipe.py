@@ -95,6 +95,10 @@ class TrainSettings(Protocol):
     def unknown_prob(self) -> float:
         ...
 
+    @property
+    def catch_up(self) -> float:
+        ...
+
     def layout(self, n_tubes: int) -> FeatureLayout:
         ...
 

@@ -45,13 +45,20 @@ PATIENCE_STEPS = 1_000     # early stopping's least optimiser steps without an i
 # reversals and in snap magnitude, ×3.6 the training time and ×3-4.6 the streaming step; kept at 2.
 # Its memory beyond the window is the play-operator lags of the joint path (FK_PLAY_LAGS;
 # ctrkin.models.play_lags; bench_fk_memory.py, docs/learned_kinematics.md: Play lags as FK inputs).
+# The follow IK sees the outer tube's absolute angle (FeatureLayout.outer_angle) and trains a quarter
+# of its rows from joints the recording had earlier on its path (catch_up): on the top-of-range robot,
+# validation over two seeds 5.07 mm (neither) -> 3.38 mm (both) (docs/learned_kinematics.md: The outer
+# angle and catch-up rows).
 FK_MEMORY_IB = 2
 FK_PLAY_LAGS = True
+IK_OUTER_ANGLE = True
+IK_CATCH_UP = 0.25
 RECOMMENDED: dict[str, dict[str, Any]] = {
     "fk": {"model": "lstm_mlp_branch", "batch_size": 256, "lr": 2e-3, "lr_schedule": "cosine",
            "base_epochs": 80, "patience": 80, "ib": FK_MEMORY_IB, "play_lags": FK_PLAY_LAGS},
     "ik": {"model": "follow_mlp", "batch_size": 512, "lr": 2e-3, "lr_schedule": "cosine",
-           "base_epochs": 40, "patience": 40, "min_steps": 0},
+           "base_epochs": 40, "patience": 40, "min_steps": 0, "outer_angle": IK_OUTER_ANGLE,
+           "catch_up": IK_CATCH_UP},
 }
 
 
@@ -97,6 +104,10 @@ class TrainConfig:
         "FK: the inputs also hold the play-operator lags of α1, αN and βN − β1 along the joint path; "
         "the follow IK (follow_mlp): those of the target path's position (ctrkin.models.play_lags: a "
         "memory of the path beyond the window, no friction law assumed)."))
+    outer_angle: bool = field(default=False, metadata=_help(
+        "The follow IK (follow_mlp) only: the inputs also hold sin/cos of the outer tube's absolute "
+        "angle αN, for what is not rotation-equivariant about the insertion axis (the tracker's field, "
+        "a registration error); without it the follow IK is equivariant by construction."))
     output_activation: OutputActivation = field(default="relu", metadata=_help(
         "Output layer activation: relu (paper eq. 7) or linear."))
     pose_source: PoseSource = field(default="measured", metadata=_help(
@@ -137,6 +148,10 @@ class TrainConfig:
         "the MAE loss."))
     unknown_prob: float = field(default=0.1, metadata=_help(
         "Branch models only: how often the previous branch state is hidden in training."))
+    catch_up: float = field(default=0.0, metadata=_help(
+        "The follow IK only: the share of its training rows that start from joints the recording had "
+        "1-60 rows earlier in the same sequence, labelled with the recorded next joints: the catch-up "
+        "after a dead band (ctrkin.families.follow.recipe); the recommended IK: 0.25."))
     follow: bool = field(default=False, metadata=_help(
         "The follow IK's feature layout (ctrkin.families.follow); model follow_mlp sets it."))
     loop: Loop = field(default="epoch", metadata=_help(
@@ -202,6 +217,9 @@ class TrainConfig:
             raise ModelError(f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
         if not (self.gate_weight >= 0 and 0 <= self.unknown_prob <= 1):
             raise ModelError("gate_weight must be >= 0 and unknown_prob in [0, 1]")
+        if not 0 <= self.catch_up <= 1 or (self.catch_up and not self.follow):
+            raise ModelError("catch_up is a share in [0, 1] of the follow IK's training rows (model "
+                             "'follow_mlp')")
         if self.loop not in LOOPS:
             raise ModelError(f"loop must be one of {LOOPS}, got {self.loop!r}")
         if not 0 <= self.val_smoothing < 1:
@@ -234,7 +252,8 @@ class TrainConfig:
 
         return FeatureLayout(task=self.task, n_tubes=n_tubes, ib=self.ib, delta=self.delta,
                              angle_encoding=self.angle_encoding, family="follow" if self.follow else None,
-                             play=self.play_lags, equivariant=self.equivariant)
+                             play=self.play_lags, equivariant=self.equivariant,
+                             outer_angle=self.outer_angle)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

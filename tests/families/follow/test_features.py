@@ -107,3 +107,28 @@ def test_a_play_layout_ends_with_the_target_path_lags():
     np.testing.assert_array_equal(f[0, :plain.n_inputs], follow_features(_frame(), 2, target, target, q)[0])
     with pytest.raises(ModelError, match="play lags are inputs"):
         FeatureLayout(task="ik", ib=1, play=True)                   # the paper's IK layout takes none
+
+
+def test_an_outer_angle_layout_adds_sin_cos_of_the_outer_tubes_angle_before_the_lags():
+    from ctrkin.models.play_lags import target_play_names
+
+    plain = FeatureLayout(task="ik", n_tubes=2, ib=1, family=LAYOUT)
+    both = FeatureLayout(task="ik", n_tubes=2, ib=1, family=LAYOUT, outer_angle=True, play=True)
+    assert both.input_names == (*plain.input_names, "sin_alpha_2", "cos_alpha_2", *target_play_names())
+    assert FeatureLayout.from_dict(both.to_dict()) == both
+    assert "outer_angle: False vs True" in plain.describe_difference(
+        FeatureLayout(task="ik", n_tubes=2, ib=1, family=LAYOUT, outer_angle=True))
+    target = np.array([[10.0, 5.0, 80.0, *quat_from_tangent(np.array([0.1, 0.2, 1.0]))]])
+    lags = np.linspace(-1.0, 1.0, len(target_play_names()))[None]
+    for outer in (-20.0, 30.0, 200.0):
+        q = np.array([[30.0, outer, -20.0, -12.0]])
+        f = follow_features(_frame(), 2, target, target, q, lags, outer_angle=True)[0]
+        assert f.shape == (both.n_inputs,)
+        np.testing.assert_allclose(f[plain.n_inputs:plain.n_inputs + 2],
+                                   [np.sin(np.radians(outer)), np.cos(np.radians(outer))], atol=1e-15)
+        np.testing.assert_array_equal(f[:plain.n_inputs], follow_features(_frame(), 2, target, target, q)[0])
+        np.testing.assert_array_equal(f[plain.n_inputs + 2:], lags[0])
+    with pytest.raises(ModelError, match="absolute angle is an input"):
+        FeatureLayout(task="ik", ib=1, outer_angle=True)            # the paper's IK layout takes none
+    with pytest.raises(ModelError, match="absolute angle is an input"):
+        FeatureLayout(task="fk", ib=2, outer_angle=True)            # an FK has its angles already

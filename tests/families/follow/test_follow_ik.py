@@ -164,9 +164,9 @@ def test_a_play_lag_follow_ik_sees_the_lags_of_its_target_path(follow_play_dir, 
     seen = []
     real = stepper.follow_features
 
-    def spy(frame, n, target, previous, q, lags=None):
+    def spy(frame, n, target, previous, q, lags=None, outer_angle=False):
         seen.append(lags[0].copy())
-        return real(frame, n, target, previous, q, lags)
+        return real(frame, n, target, previous, q, lags, outer_angle)
 
     monkeypatch.setattr(stepper, "follow_features", spy)
     kin.reset(joints[0])
@@ -178,6 +178,43 @@ def test_a_play_lag_follow_ik_sees_the_lags_of_its_target_path(follow_play_dir, 
     np.testing.assert_allclose(np.array(seen), expected, atol=1e-12)
     np.testing.assert_array_equal(expected[0], 0.0)
     assert np.abs(expected).max() > 0.5                                # the sweep took up the plays
+
+
+@pytest.fixture(scope="module")
+def follow_outer_dir(sweeps, tmp_path_factory):
+    out = tmp_path_factory.mktemp("follow_outer") / "ik_follow_outer"
+    cfg = TrainConfig(task="ik", model="follow_mlp", max_epochs=6, patience=6, batch_size=128, lr=2e-3,
+                      lr_schedule="cosine", threads=1, outer_angle=True, options={"structure": "|D32"})
+    train(sweeps, cfg, out, progress=False)
+    return out
+
+
+def test_an_outer_angle_follow_ik_sees_the_outer_angle_of_the_joints_it_is_at(follow_outer_dir, sweeps,
+                                                                             monkeypatch):
+    from ctrkin.families.follow import stepper
+
+    a, b = sweeps.sequence_bounds()[2]
+    targets, joints = sweeps.poses(true=True)[a:b], sweeps.joints()[a:b]
+    kin = Kinematics.load(follow_outer_dir)
+    assert kin.layout.outer_angle and kin.layout.input_names[-2:] == ("sin_alpha_2", "cos_alpha_2")
+    kin.predictor.follower.max_step_mm = np.inf
+    kin.predictor.follower.settle = 1
+    batch = kin.predict(targets, start_joints=joints[0]).joints
+    seen = []
+    real = stepper.follow_features
+
+    def spy(frame, n, target, previous, q, lags=None, outer_angle=False):
+        f = real(frame, n, target, previous, q, lags, outer_angle)
+        seen.append((q[0].copy(), f[0, -2:].copy()))
+        return f
+
+    monkeypatch.setattr(stepper, "follow_features", spy)
+    kin.reset(joints[0])
+    stream = np.array([kin.step(t).joints for t in targets])
+    np.testing.assert_allclose(stream, batch, atol=1e-9)
+    assert len(seen) == len(targets)
+    for q, sc in seen:          # the joints the network is at (its own answers), not the recorded ones
+        np.testing.assert_allclose(sc, [np.sin(np.radians(q[1])), np.cos(np.radians(q[1]))], atol=1e-12)
 
 
 def test_a_follow_ik_is_refined_from_a_fresh_process(follow_dir, model_dirs, tmp_path):
@@ -193,3 +230,33 @@ def test_a_follow_ik_is_refined_from_a_fresh_process(follow_dir, model_dirs, tmp
     assert done.returncode == 0, done.stderr
     kin = Kinematics.load(out)
     assert kin.predictor.refined and kin.layout.family == "follow"
+
+
+def test_catch_up_rows_start_from_the_recordings_own_earlier_joints_in_the_same_sequence(sweeps,
+                                                                                         monkeypatch):
+    """With every row a catch-up row and no perturbation, each row's current joints are the joints
+    the recording had 1..CATCH_UP_ROWS rows before it in its own sequence (a sequence's first rows
+    clamp to its start), and its label is the step from there to the recorded joints."""
+    from ctrkin.families.follow import recipe as follow_recipe
+    from ctrkin.models.recipe import TrainingData
+    from ctrkin.training.data import split_rows
+
+    monkeypatch.setattr(follow_recipe, "joint_noise", lambda rng, m, n: np.zeros((m, 2 * n)))
+    cfg = TrainConfig(task="ik", model="follow_mlp", max_epochs=2, threads=1, catch_up=1.0)
+    split, rows = split_rows(sweeps, cfg)
+    rec = follow_recipe.FollowRecipe(cfg)
+    rec.prepare(TrainingData(sweeps, cfg, split, rows))
+    r = rows["train"]
+    _, Y = rec._draw(r, np.random.default_rng(3))
+    joints = sweeps.joints()
+    current = joints[r] - Y
+    seq = sweeps.frame["sequence_id"].to_numpy()
+    start = {s: a for a, _ in sweeps.sequence_bounds() for s in [seq[a]]}
+    back = []
+    for i, row in enumerate(r):
+        lo = max(start[seq[row]], row - 1 - follow_recipe.CATCH_UP_ROWS)
+        hi = max(start[seq[row]], row - 2)          # at least one row further back than the previous
+        match = [j for j in range(lo, hi + 1) if np.allclose(joints[j], current[i], atol=1e-9)]
+        assert match, f"row {row}: its current joints are none of its sequence's earlier joints"
+        back.append(row - match[-1])
+    assert max(back) > 20 and np.mean(back) > 5            # the draws reach well back along the path

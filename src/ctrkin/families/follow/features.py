@@ -59,22 +59,28 @@ def layout_names(layout: FeatureLayout) -> tuple[list[str], list[str]]:
     local = [f"{p}_local" for p in POSE_COLUMNS]
     ins = local + [f"step_{p}" for p in local]
     ins += [f"{f}_alpha_{i + 1}{n}" for i in range(n - 1) for f in ("sin", "cos")] + beta_names(n)
+    if layout.outer_angle:
+        ins += [f"sin_alpha_{n}", f"cos_alpha_{n}"]
     if layout.play:
         ins += target_play_names()
     return ins, [f"step_{j}" for j in alpha_names(n) + beta_names(n)]
 
 
 register_layout(LAYOUT, FamilyLayout(
-    layout_names, "they depend on the current joints (follow_features, ctrkin.families.follow)", play=True))
+    layout_names, "they depend on the current joints (follow_features, ctrkin.families.follow)", play=True,
+    outer_angle=True))
 
 
 def follow_features(frame: OuterFrame, n_tubes: int, target: np.ndarray, previous: np.ndarray,
-                    joints: np.ndarray, lags: np.ndarray | None = None) -> np.ndarray:
-    """Inputs (M, 12 + 2(N−1) + N [+ P]) of the follow IK (FeatureLayout(family=LAYOUT).input_names).
+                    joints: np.ndarray, lags: np.ndarray | None = None, outer_angle: bool = False
+                    ) -> np.ndarray:
+    """Inputs (M, 12 + 2(N−1) + N [+ 2] [+ P]) of the follow IK
+    (FeatureLayout(family=LAYOUT).input_names).
 
     target, previous: (M, 6) tracker-frame poses of this and the previous target (equal at a start);
     joints: (M, 2N) the current joints (deg, mm), whose outer angle αN sets the local frame; lags:
-    (M, P) a play layout's lags of the target path up to this target (appended as they are).
+    (M, P) a play layout's lags of the target path up to this target (appended as they are);
+    outer_angle: sin/cos αN before the lags (FeatureLayout.outer_angle).
     """
     n = n_tubes
     q = np.asarray(joints, float)
@@ -84,6 +90,9 @@ def follow_features(frame: OuterFrame, n_tubes: int, target: np.ndarray, previou
     rel = np.radians(q[:, : n - 1] - q[:, n - 1: n])
     sc = np.stack([np.sin(rel), np.cos(rel)], axis=2).reshape(len(q), -1)
     parts = [local, local - local_prev, sc, q[:, n:]]
+    if outer_angle:
+        a_n = np.radians(q[:, n - 1: n])
+        parts += [np.sin(a_n), np.cos(a_n)]
     return np.concatenate(parts if lags is None else [*parts, np.asarray(lags, float)], axis=1)
 
 

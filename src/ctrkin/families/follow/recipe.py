@@ -7,6 +7,14 @@ Rollouts (DAgger-like): at ROLLOUT_AT of the epochs the network follows the trai
 from then on part of each epoch starts from the joints it reached, where it stayed near the recorded
 branch: training then covers the states its own errors lead to.
 
+Catch-up (TrainConfig.catch_up, the recommended IK's 0.25): that share of each draw's rows start,
+unperturbed, from the joints the recording had 1 to CATCH_UP_ROWS rows earlier in the same sequence,
+and are labelled with the recorded next joints: the robot behind on its own path. On a robot with
+friction between the tubes, a reversal opens a dead band in which the joints turn and the tip stays;
+an IK that followed the still targets has not turned through it when they move again, and the
+recorded steps (1° each) never teach the jump that catches up. No friction law is assumed: the
+recording's own earlier joints are the states.
+
 With the play lags (FeatureLayout.play) each row's inputs hold the lags of the recorded target path
 up to and including its target (ctrkin.models.play_lags.target_lags: along each run from rest, glitch
 rows at the last believed position), as the stepper computes them from the targets it is given.
@@ -48,6 +56,7 @@ STEP_QUANTILE = 0.95         # sub-step length: this quantile of the training ta
 ROLLOUT_AT = (0.5, 0.75)     # fractions of the epochs at which the network follows the training sequences
 ONPOLICY_FRACTION = 0.5
 ONPOLICY_DEG, ONPOLICY_MM = 20.0, 2.0
+CATCH_UP_ROWS = 60           # catch-up rows start up to this many rows back (TrainConfig.catch_up)
 
 
 class FollowRecipe:
@@ -68,6 +77,9 @@ class FollowRecipe:
         self.poses, self.joints = inputs_and_targets(ds, "ik", cfg.pose_source)
         self.bounds = ds.sequence_bounds()
         self.prev = previous_rows(self.bounds)
+        self.first = np.zeros(len(self.prev), dtype=np.int64)      # each row's sequence start
+        for a, b in self.bounds:
+            self.first[a:b] = a
         self.lags = (recorded_target_lags(ds.frame, self.poses, self.bounds)
                      if cfg.layout(self.n).play else None)
         tr, va = self.rows["train"], self.rows["val"]
@@ -88,16 +100,22 @@ class FollowRecipe:
         return Prepared(cfg.layout(self.n), self.x_norm, self.y_norm, self.frame, {"follow": follow})
 
     def _draw(self, r: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        """Features and joint changes of rows r from perturbed current joints, half of them (after a
-        rollout, where it stayed on the recorded branch) from the joints the stepper itself reached."""
+        """Features and joint changes of rows r from perturbed current joints, a share from joints
+        the recording had earlier in the sequence (catch-up), and half of them (after a rollout, where
+        it stayed on the recorded branch) from the joints the stepper itself reached."""
         prev, joints = self.prev, self.joints
         current = joints[prev[r]] + joint_noise(rng, len(r), self.n)
+        if self.cfg.catch_up > 0:                                  # behind on the path (docstring)
+            back = np.maximum(self.first[r], r - 1 - rng.integers(1, CATCH_UP_ROWS + 1, len(r)))
+            behind = rng.random(len(r)) < self.cfg.catch_up
+            current[behind] = joints[back[behind]]
         if self.visited is not None:
             own = self.visited[prev[r]]
             near = _on_branch(own, joints[prev[r]], self.n) & (rng.random(len(r)) < ONPOLICY_FRACTION)
             current[near] = own[near]
         lags = None if self.lags is None else self.lags[r]
-        return (follow_features(self.frame, self.n, self.poses[r], self.poses[prev[r]], current, lags),
+        return (follow_features(self.frame, self.n, self.poses[r], self.poses[prev[r]], current, lags,
+                                self.cfg.layout(self.n).outer_angle),
                 joints[r] - current)
 
     def _tensors(self, x: np.ndarray, y: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:

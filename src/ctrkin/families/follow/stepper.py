@@ -67,6 +67,7 @@ class Follower:
         self.tube = np.nan                           # the outer tube's angle (deg), NaN: not known yet
         self.motor = np.nan                          # the outer motor's last command (deg)
         self.play = TargetPlay() if bundle.layout.play else None      # the target path's operators
+        self.outer_angle = bundle.layout.outer_angle                 # sin/cos αN among the inputs
 
     def reset(self, joints: np.ndarray | None = None) -> None:
         """Start a sequence, at `joints` (2N,) (deg, mm) if the robot's joints are known."""
@@ -168,7 +169,8 @@ class Follower:
 
     def _apply(self, target: np.ndarray, previous: np.ndarray, q: np.ndarray,
                lags: np.ndarray | None = None) -> tuple[np.ndarray, bool]:
-        feat = follow_features(self.frame, self.n, target[None], previous[None], q[None], lags)[0]
+        feat = follow_features(self.frame, self.n, target[None], previous[None], q[None], lags,
+                               self.outer_angle)[0]
         dq = self.y_norm.inverse(self.engine.step(self.x_norm.transform(feat)))
         new = q + dq
         valid = self.robot.project_joints(new[None])[0]
