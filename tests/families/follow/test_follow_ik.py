@@ -141,13 +141,18 @@ def test_follower_holds_the_motor_through_small_reversals(follow_dir):
     assert motor(30.0) == pytest.approx(28.0)      # a reversal beyond hold_deg: θ − λ
 
 
-@pytest.fixture(scope="module")
-def follow_play_dir(sweeps, tmp_path_factory):
-    out = tmp_path_factory.mktemp("follow_play") / "ik_follow_play"
+def _small_follow_ik(sweeps, tmp_path_factory, name: str, **settings):
+    """A follow IK of a few epochs on the sweeps, with the given TrainConfig settings."""
+    out = tmp_path_factory.mktemp(name) / f"ik_{name}"
     cfg = TrainConfig(task="ik", model="follow_mlp", max_epochs=6, patience=6, batch_size=128, lr=2e-3,
-                      lr_schedule="cosine", threads=1, play_lags=True, options={"structure": "|D32"})
+                      lr_schedule="cosine", threads=1, options={"structure": "|D32"}, **settings)
     train(sweeps, cfg, out, progress=False)
     return out
+
+
+@pytest.fixture(scope="module")
+def follow_play_dir(sweeps, tmp_path_factory):
+    return _small_follow_ik(sweeps, tmp_path_factory, "follow_play", play_lags=True)
 
 
 def test_a_play_lag_follow_ik_sees_the_lags_of_its_target_path(follow_play_dir, sweeps, monkeypatch):
@@ -182,11 +187,7 @@ def test_a_play_lag_follow_ik_sees_the_lags_of_its_target_path(follow_play_dir, 
 
 @pytest.fixture(scope="module")
 def follow_outer_dir(sweeps, tmp_path_factory):
-    out = tmp_path_factory.mktemp("follow_outer") / "ik_follow_outer"
-    cfg = TrainConfig(task="ik", model="follow_mlp", max_epochs=6, patience=6, batch_size=128, lr=2e-3,
-                      lr_schedule="cosine", threads=1, outer_angle=True, options={"structure": "|D32"})
-    train(sweeps, cfg, out, progress=False)
-    return out
+    return _small_follow_ik(sweeps, tmp_path_factory, "follow_outer", outer_angle=True)
 
 
 def test_an_outer_angle_follow_ik_sees_the_outer_angle_of_the_joints_it_is_at(follow_outer_dir, sweeps,
