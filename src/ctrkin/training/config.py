@@ -47,8 +47,9 @@ PATIENCE_STEPS = 1_000     # early stopping's least optimiser steps without an i
 # ctrkin.models.play_lags; bench_fk_memory.py, docs/learned_kinematics.md: Play lags as FK inputs).
 # The follow IK sees the outer tube's absolute angle (FeatureLayout.outer_angle) and trains a quarter
 # of its rows from joints the recording had earlier on its path (catch_up): on the top-of-range robot,
-# validation over two seeds 5.07 mm (neither) -> 3.38 mm (both) (docs/learned_kinematics.md: The outer
-# angle and catch-up rows).
+# validation over two seeds 5.07 mm (neither) -> 3.38 mm (both); held-out sequences better on three
+# robots, the 10-point square and triangle worse (docs/learned_kinematics.md: The outer angle and
+# catch-up rows).
 FK_MEMORY_IB = 2
 FK_PLAY_LAGS = True
 IK_OUTER_ANGLE = True
