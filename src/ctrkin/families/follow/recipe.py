@@ -74,6 +74,7 @@ class FollowRecipe:
         cfg, ds = self.cfg, data.ds
         self.data, self.rows = data, data.rows
         self.n = ds.n_tubes
+        self.layout = cfg.layout(self.n)
         self.poses, self.joints = inputs_and_targets(ds, "ik", cfg.pose_source)
         self.bounds = ds.sequence_bounds()
         self.prev = previous_rows(self.bounds)
@@ -81,7 +82,7 @@ class FollowRecipe:
         for a, b in self.bounds:
             self.first[a:b] = a
         self.lags = (recorded_target_lags(ds.frame, self.poses, self.bounds)
-                     if cfg.layout(self.n).play else None)
+                     if self.layout.play else None)
         tr, va = self.rows["train"], self.rows["val"]
         lagged, _ = fit_outer_frame(ds, self.joints, self.poses, tr, cfg.seed)  # the stepper inverts its lag
         self.frame = replace(lagged, lag=(0.0, 0.0))                 # the network's frame: the commanded αN
@@ -97,7 +98,7 @@ class FollowRecipe:
                   "settle_iterations": SETTLE_ITERATIONS, "outer_lag_deg": list(lagged.lag)}
         epochs = cfg.max_epochs or 0       # the engine hands a recipe its resolved budget
         self.rollouts = {int(epochs * f) for f in ROLLOUT_AT} - {0}
-        return Prepared(cfg.layout(self.n), self.x_norm, self.y_norm, self.frame, {"follow": follow})
+        return Prepared(self.layout, self.x_norm, self.y_norm, self.frame, {"follow": follow})
 
     def _draw(self, r: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """Features and joint changes of rows r from perturbed current joints, a share from joints
@@ -115,7 +116,7 @@ class FollowRecipe:
             current[near] = own[near]
         lags = None if self.lags is None else self.lags[r]
         return (follow_features(self.frame, self.n, self.poses[r], self.poses[prev[r]], current, lags,
-                                self.cfg.layout(self.n).outer_angle),
+                                self.layout.outer_angle),
                 joints[r] - current)
 
     def _tensors(self, x: np.ndarray, y: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
