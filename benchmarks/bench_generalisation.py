@@ -117,6 +117,8 @@ ROBOTS: dict[str, Case] = {
     "default-top": Case("paper", 0, TOP, "paper robot, every effect at the top of its range"),
     "design-b": Case(design_b, 3, TOP, "second two-tube design, hardware seed 3, top of ranges"),
     "three-tube": Case(three_tube, 1, TOP, "three tubes, hardware seed 1, top of ranges"),
+    "three-tube-central": Case(three_tube, 1, CENTRAL,
+                               "three tubes, hardware seed 1, every effect at its central value"),
     "friction-backlash": Case("paper", 2, FRICTION_BACKLASH,
                               "paper robot seed 2, friction and backlash at the top, rest central"),
 }

@@ -34,6 +34,7 @@ def test_ideal_virtual_robot_is_the_nominal_tcm(robot):
     ref = follow(robot, Q)
     np.testing.assert_allclose(motion.true_poses, ref.tip_poses, atol=1e-9)
     np.testing.assert_array_equal(motion.snaps, ref.snaps)
+    assert motion.given_up.shape == (len(Q),) and not motion.given_up.any()
     rec = v.record(motion, np.random.default_rng(0))
     np.testing.assert_allclose(rec.measured, motion.true_poses, atol=1e-9)
     np.testing.assert_array_equal(rec.joints, Q)
@@ -126,5 +127,6 @@ def test_a_step_with_no_equilibrium_for_its_friction_state_slips_to_one_from_res
     monkeypatch.setattr(vr, "solve", no_friction_state)
     motion, _ = v.move(v.rest(Q[0]), Q)
     assert np.isfinite(motion.true_poses).all()
+    assert motion.given_up.tolist() == [t == 5 for t in range(len(Q))]   # the step follow gave up
     fresh = real_solve(v.true_robot, motion.base[5])
     np.testing.assert_allclose(motion.true_poses[5, :3], fresh.tip_position, atol=1e-9)

@@ -68,12 +68,15 @@ class VirtualState:
 class Motion:
     """A motion of the virtual robot, T steps. commanded (T, 2N) motor joints (deg, mm); base (T, 2N)
     the tube-base joints the mechanics saw; true_poses (T, 6) in the robot base frame; snaps (T,)
-    bool: a fold of the true robot's equilibrium branch was crossed on the way into the step."""
+    bool: a fold of the true robot's equilibrium branch was crossed on the way into the step;
+    given_up (T,) bool: steps whose continuation follow gave up (its budget spent) and `move` solved
+    again from the step before (the costly steps: benchmarks/bench_step_cost.py counts them)."""
 
     commanded: np.ndarray
     base: np.ndarray
     true_poses: np.ndarray
     snaps: np.ndarray
+    given_up: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -148,7 +151,8 @@ class VirtualRobot:
                 continue
             eqs[t] = eq
             poses[t] = tip_pose(eq.tip_position[None, :], eq.tip_tangent[None, :])[0]
-        motion = Motion(commanded=Qa, base=base, true_poses=poses, snaps=tr.snaps)
+        motion = Motion(commanded=Qa, base=base, true_poses=poses, snaps=tr.snaps,
+                        given_up=~tr.converged)
         return motion, VirtualState(eqs[-1], p[-1].copy())
 
     # --- sensing --------------------------------------------------------------------------------

@@ -1,0 +1,97 @@
+"""Benchmark: what one step of the virtual robot costs on a robot and effect mix (issue 21, goal 4:
+the three-tube row; docs/reproduction.md: Other robots).
+
+    python benchmarks/bench_step_cost.py --case three-tube --segments 8      # μ 0.69: slow steps
+    python benchmarks/bench_step_cost.py --case three-tube-central --runs 4
+    python benchmarks/bench_step_cost.py --case default-top --set tube_friction=0.2
+
+A case is one of bench_generalisation's robots and effect mixes (its `ROBOTS`: the robot, its hardware
+seed and its `--set` effects); `--set KEY=VALUE` overrides an effect on top. The first `--runs` runs
+of the quick paper protocol are driven through `VirtualRobot.move` one segment at a time, in this
+process on one core, the kernels compiled (or loaded from the numba cache) before the clock starts.
+Prints a row per run (steps, seconds, µs a step, the steps whose continuation `follow` gave up and
+`move` solved again, the snaps) and the spread of the segments' cost, then one JSON line:
+`us_per_step`, `given_up_share`, `steps`, `segments`, `wall_s`, `segment_us_p50/p90/max`. A step that follow
+gives up spends its whole continuation budget (SolverSettings.max_search_steps) before it is solved
+again, so `given_up_share` is where the time goes when a robot records slowly.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ctrkin.acquisition import protocols
+from ctrkin.cli.from_config import parse_key_values
+from ctrkin.virtual import VirtualConfig, VirtualRobot
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))   # the benchmark beside this one
+from bench_generalisation import ROBOTS, _robot
+
+
+def step_cost(name: str, overrides: dict, n_runs: int, n_segments: int | None) -> dict:
+    """Drive the first n_runs runs (their first n_segments segments) of the quick paper protocol on
+    case `name` with its effects updated by `overrides`; print the table and return the figures."""
+    case = ROBOTS[name]
+    robot = _robot(case)
+    effects = {**case.settings, **overrides}
+    virtual = VirtualRobot(robot, dataclasses.replace(VirtualConfig(), **effects), seed=case.seed)
+    plan = protocols.build("paper", robot, scale="quick", seed=0)
+    runs = plan.runs[:n_runs]
+    virtual.move(virtual.rest(runs[0].start), runs[0].segments[0].q[:2])   # compile outside the clock
+    print(f"{name}: {robot.name}, {robot.n_tubes} tubes, hardware seed {case.seed}, "
+          f"tube_friction {virtual.config.tube_friction}; {len(runs)} of {len(plan.runs)} quick runs")
+    print(f"{'run':>4} {'steps':>7} {'s':>8} {'µs/step':>9} {'given up':>9} {'snaps':>6}")
+    seg_cost, total_steps, total_s, total_given_up = [], 0, 0.0, 0
+    for i, run in enumerate(runs):
+        state = virtual.rest(run.start)
+        steps, wall, given_up, snaps = 0, 0.0, 0, 0
+        for seg in run.segments[:n_segments]:
+            t0 = time.perf_counter()
+            motion, state = virtual.move(state, seg.q)
+            dt = time.perf_counter() - t0
+            seg_cost.append(1e6 * dt / seg.q.shape[0])
+            steps += seg.q.shape[0]
+            wall += dt
+            given_up += int(motion.given_up.sum())
+            snaps += int(motion.snaps.sum())
+        print(f"{i:>4} {steps:>7} {wall:>8.1f} {1e6 * wall / steps:>9.0f} {given_up:>9} {snaps:>6}")
+        total_steps, total_s, total_given_up = total_steps + steps, total_s + wall, total_given_up + given_up
+    p50, p90, top = np.percentile(seg_cost, [50, 90, 100])
+    print(f"segments' µs a step: median {p50:.0f}, 90th percentile {p90:.0f}, largest {top:.0f} "
+          f"({len(seg_cost)} segments)")
+    figures = {"case": name, "effects": effects, "runs": len(runs), "segments": len(seg_cost),
+               "steps": total_steps, "wall_s": round(total_s, 2),
+               "us_per_step": round(1e6 * total_s / total_steps, 1),
+               "given_up_share": round(total_given_up / total_steps, 4),
+               "segment_us_p50": round(float(p50), 1), "segment_us_p90": round(float(p90), 1),
+               "segment_us_max": round(float(top), 1)}
+    print(json.dumps(figures))
+    return figures
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--case", choices=list(ROBOTS), default="three-tube",
+                    help="a robot and effect mix of bench_generalisation (default three-tube)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="override an effect of the case (VirtualConfig's keys; repeatable)")
+    ap.add_argument("--runs", type=int, default=1, help="runs of the quick paper protocol (default 1)")
+    ap.add_argument("--segments", type=int, default=None,
+                    help="only the first K segments of each run (default all; a run of the quick "
+                    "protocol has 35)")
+    args = ap.parse_args()
+    if args.runs < 1 or (args.segments is not None and args.segments < 1):
+        ap.error("--runs and --segments must be >= 1")
+    step_cost(args.case, parse_key_values(args.set, "--set", VirtualConfig), args.runs, args.segments)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

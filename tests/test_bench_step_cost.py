@@ -1,0 +1,23 @@
+"""benchmarks/bench_step_cost.py (issue 21, goal 4): a case's effects with overrides on top, the
+segments it drives, and its figures."""
+
+from __future__ import annotations
+
+import json
+
+from tests.benchmark_scripts import load_benchmark
+
+
+def test_it_drives_the_first_segments_of_a_case_with_an_effect_overridden(capsys) -> None:
+    bench = load_benchmark("bench_step_cost")
+    case = bench.ROBOTS["default-top"]
+    figures = bench.step_cost("default-top", {"tube_friction": 0.2}, n_runs=1, n_segments=2)
+    assert figures["effects"] == {**case.settings, "tube_friction": 0.2}
+    assert figures["segments"] == 2
+    plan = bench.protocols.build("paper", bench._robot(case), scale="quick", seed=0)
+    assert figures["steps"] == sum(seg.q.shape[0] for seg in plan.runs[0].segments[:2])
+    assert figures["given_up_share"] == 0.0      # the paper robot's steps all continue
+    assert 0 < figures["segment_us_p50"] <= figures["segment_us_p90"] <= figures["segment_us_max"]
+    out = capsys.readouterr().out.splitlines()
+    assert "tube_friction 0.2" in out[0] and "given up" in out[1]
+    assert json.loads(out[-1]) == figures
