@@ -1,7 +1,8 @@
 """Benchmark: what one step of the virtual robot costs on a robot and effect mix (issue 21, goal 4:
 the three-tube row; docs/reproduction.md: Other robots).
 
-    python benchmarks/bench_step_cost.py --case three-tube --segments 8      # μ 0.69: slow steps
+    python benchmarks/bench_step_cost.py --case three-tube --segments 8
+    python benchmarks/bench_step_cost.py --case three-tube --segments 8 --set presliding_mm=0.0002   # slow
     python benchmarks/bench_step_cost.py --case three-tube-central --runs 4
     python benchmarks/bench_step_cost.py --case default-top --set tube_friction=0.2
 
@@ -14,6 +15,15 @@ Prints a row per run (steps, seconds, µs a step, the steps whose continuation `
 `us_per_step`, `given_up_share`, `steps`, `segments`, `wall_s`, `segment_us_p50/p90/max`. A step that follow
 gives up spends its whole continuation budget (SolverSettings.max_search_steps) before it is solved
 again, so `given_up_share` is where the time goes when a robot records slowly.
+
+`--against KEY=VALUE` (repeatable) drives the same segments a second time on the same hardware draw
+with those effects changed too, and adds how far its true tip is from the first one's (RMS, 99th
+percentile and largest, mm) and what its steps cost: `against`, `against_us_per_step`,
+`against_given_up_share`, `tip_diff_rms_mm`, `tip_diff_p99_mm`, `tip_diff_max_mm`. It measures what an
+effect that is also a numerical setting (presliding_mm) changes in the robot's motion:
+
+    python benchmarks/bench_step_cost.py --case default-top --runs 4 --set presliding_mm=0.0002 \
+        --against presliding_mm=0.002
 """
 
 from __future__ import annotations
@@ -35,21 +45,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))   # the benchmark besid
 from bench_generalisation import ROBOTS, _robot
 
 
-def step_cost(name: str, overrides: dict, n_runs: int, n_segments: int | None) -> dict:
-    """Drive the first n_runs runs (their first n_segments segments) of the quick paper protocol on
-    case `name` with its effects updated by `overrides`; print the table and return the figures."""
-    case = ROBOTS[name]
-    robot = _robot(case)
-    effects = {**case.settings, **overrides}
-    virtual = VirtualRobot(robot, dataclasses.replace(VirtualConfig(), **effects), seed=case.seed)
-    plan = protocols.build("paper", robot, scale="quick", seed=0)
-    runs = plan.runs[:n_runs]
-    virtual.move(virtual.rest(runs[0].start), runs[0].segments[0].q[:2])   # compile outside the clock
-    print(f"{name}: {robot.name}, {robot.n_tubes} tubes, hardware seed {case.seed}, "
-          f"tube_friction {virtual.config.tube_friction}; {len(runs)} of {len(plan.runs)} quick runs")
-    print(f"{'run':>4} {'steps':>7} {'s':>8} {'µs/step':>9} {'given up':>9} {'snaps':>6}")
-    seg_cost, total_steps, total_s, total_given_up = [], 0, 0.0, 0
-    for i, run in enumerate(runs):
+def _drive(virtual: VirtualRobot, runs: list, n_segments: int | None
+           ) -> tuple[np.ndarray, list[float], list[tuple[int, float, int, int]], np.ndarray]:
+    """Drive runs (their first n_segments segments) one segment at a time: each segment's µs a
+    step, per run (steps, seconds, given-up steps, snaps), and the true tip positions (T, 3)."""
+    seg_cost, per_run, tips = [], [], []
+    for run in runs:
         state = virtual.rest(run.start)
         steps, wall, given_up, snaps = 0, 0.0, 0, 0
         for seg in run.segments[:n_segments]:
@@ -61,8 +62,33 @@ def step_cost(name: str, overrides: dict, n_runs: int, n_segments: int | None) -
             wall += dt
             given_up += int(motion.given_up.sum())
             snaps += int(motion.snaps.sum())
+            tips.append(motion.true_poses[:, :3])
+        per_run.append((steps, wall, given_up, snaps))
+    return np.array(seg_cost), seg_cost, per_run, np.concatenate(tips)
+
+
+def step_cost(name: str, overrides: dict, n_runs: int, n_segments: int | None,
+              against: dict | None = None) -> dict:
+    """Drive the first n_runs runs (their first n_segments segments) of the quick paper protocol on
+    case `name` with its effects updated by `overrides`; print the table and return the figures.
+    against: effects changed on top for a second drive of the same segments on the same hardware
+    draw (the tip difference and its cost are added)."""
+    case = ROBOTS[name]
+    robot = _robot(case)
+    effects = {**case.settings, **overrides}
+    virtual = VirtualRobot(robot, dataclasses.replace(VirtualConfig(), **effects), seed=case.seed)
+    plan = protocols.build("paper", robot, scale="quick", seed=0)
+    runs = plan.runs[:n_runs]
+    virtual.move(virtual.rest(runs[0].start), runs[0].segments[0].q[:2])   # compile outside the clock
+    print(f"{name}: {robot.name}, {robot.n_tubes} tubes, hardware seed {case.seed}, "
+          f"tube_friction {virtual.config.tube_friction}; {len(runs)} of {len(plan.runs)} quick runs")
+    print(f"{'run':>4} {'steps':>7} {'s':>8} {'µs/step':>9} {'given up':>9} {'snaps':>6}")
+    _, seg_cost, per_run, tips = _drive(virtual, runs, n_segments)
+    for i, (steps, wall, given_up, snaps) in enumerate(per_run):
         print(f"{i:>4} {steps:>7} {wall:>8.1f} {1e6 * wall / steps:>9.0f} {given_up:>9} {snaps:>6}")
-        total_steps, total_s, total_given_up = total_steps + steps, total_s + wall, total_given_up + given_up
+    total_steps = sum(r[0] for r in per_run)
+    total_s = sum(r[1] for r in per_run)
+    total_given_up = sum(r[2] for r in per_run)
     p50, p90, top = np.percentile(seg_cost, [50, 90, 100])
     print(f"segments' µs a step: median {p50:.0f}, 90th percentile {p90:.0f}, largest {top:.0f} "
           f"({len(seg_cost)} segments)")
@@ -72,6 +98,22 @@ def step_cost(name: str, overrides: dict, n_runs: int, n_segments: int | None) -
                "given_up_share": round(total_given_up / total_steps, 4),
                "segment_us_p50": round(float(p50), 1), "segment_us_p90": round(float(p90), 1),
                "segment_us_max": round(float(top), 1)}
+    if against:
+        other = VirtualRobot(robot, dataclasses.replace(virtual.config, **against), seed=case.seed)
+        other.move(other.rest(runs[0].start), runs[0].segments[0].q[:2])
+        _, _, other_runs, other_tips = _drive(other, runs, n_segments)
+        d = np.linalg.norm(other_tips - tips, axis=1)
+        figures.update({
+            "against": against,
+            "against_us_per_step": round(1e6 * sum(r[1] for r in other_runs) / total_steps, 1),
+            "against_given_up_share": round(sum(r[2] for r in other_runs) / total_steps, 4),
+            "tip_diff_rms_mm": round(float(np.sqrt(np.mean(d * d))), 4),
+            "tip_diff_p99_mm": round(float(np.percentile(d, 99)), 4),
+            "tip_diff_max_mm": round(float(d.max()), 4)})
+        print(f"against {against}: {figures['against_us_per_step']:.0f} µs a step, "
+              f"{figures['against_given_up_share']:.1%} given up; true tip "
+              f"{figures['tip_diff_rms_mm']:.3f} mm RMS (99th percentile {figures['tip_diff_p99_mm']:.3f}, "
+              f"largest {figures['tip_diff_max_mm']:.3f} mm) from the case's")
     print(json.dumps(figures))
     return figures
 
@@ -86,10 +128,14 @@ def main() -> int:
     ap.add_argument("--segments", type=int, default=None,
                     help="only the first K segments of each run (default all; a run of the quick "
                     "protocol has 35)")
+    ap.add_argument("--against", action="append", default=[], metavar="KEY=VALUE",
+                    help="drive the same segments again with these effects changed too (repeatable) "
+                    "and print how far the true tip moves")
     args = ap.parse_args()
     if args.runs < 1 or (args.segments is not None and args.segments < 1):
         ap.error("--runs and --segments must be >= 1")
-    step_cost(args.case, parse_key_values(args.set, "--set", VirtualConfig), args.runs, args.segments)
+    step_cost(args.case, parse_key_values(args.set, "--set", VirtualConfig), args.runs, args.segments,
+              parse_key_values(args.against, "--against", VirtualConfig) or None)
     return 0
 
 

@@ -21,3 +21,17 @@ def test_it_drives_the_first_segments_of_a_case_with_an_effect_overridden(capsys
     out = capsys.readouterr().out.splitlines()
     assert "tube_friction 0.2" in out[0] and "given up" in out[1]
     assert json.loads(out[-1]) == figures
+
+
+def test_against_drives_the_same_segments_again_and_measures_the_tip_difference(capsys) -> None:
+    bench = load_benchmark("bench_step_cost")
+    same = bench.step_cost("default-top", {}, n_runs=1, n_segments=2,
+                           against={"presliding_mm": bench.VirtualConfig().presliding_mm})
+    assert same["tip_diff_max_mm"] == 0.0                      # the same robot: the same motion
+    assert same["against_given_up_share"] == 0.0 and same["against_us_per_step"] > 0
+    other = bench.step_cost("default-top", {}, n_runs=1, n_segments=2, against={"tube_friction": 0.2})
+    assert other["against"] == {"tube_friction": 0.2}
+    assert 0 < other["tip_diff_rms_mm"] <= other["tip_diff_p99_mm"] <= other["tip_diff_max_mm"]
+    out = capsys.readouterr().out.splitlines()
+    assert out[-2].startswith("against {'tube_friction': 0.2}")
+    assert json.loads(out[-1]) == other

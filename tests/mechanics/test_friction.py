@@ -25,6 +25,10 @@ from tests.mechanics.reference_friction import reference_pair
 PAPER = paper_robot()
 GOLDEN = Path(__file__).parent / "data" / "tcm_94a32c9.json"
 NO_DIST = SolverSettings(distributed_friction=False)
+# elements ten times stiffer than the default (ε 0.2 µm): the analytic tests compare with the
+# rigid-plastic limit, which the solver reaches within ε / r_c
+STIFF = SolverSettings(stick_mm=2e-4)
+STIFF_NO_DIST = SolverSettings(stick_mm=2e-4, distributed_friction=False)
 
 
 def with_friction(mu: float, robot: Robot = PAPER, **kw: float) -> Robot:
@@ -85,7 +89,7 @@ def test_analytic_stick_slip_of_a_straight_outer_pair() -> None:
     relative twist at the tip a play operator of the base rotation with half width
     w = c T (2b + L): stuck until the transmission carries both bounds, then lagging by w, and
     after every reversal (minor loops included) stuck for 2w. The solver follows it within the
-    elements' elastic range (two elements, ε / r_c = 0.9e-3 rad each)."""
+    elements' elastic range (two elements, ε / r_c = 0.9e-3 rad each at ε = 0.2 µm, STIFF)."""
     length, kap, b, mu = 30.0, 1 / 25, 40.0, 0.2
     robot = _straight_outer_pair(mu, length, kap, b)
     inner, outer = robot.tubes
@@ -97,7 +101,7 @@ def test_analytic_stick_slip_of_a_straight_outer_pair() -> None:
     w = (1 / inner.torsional_stiffness + 1 / outer.torsional_stiffness) * bound * (2 * b + length)
     a = np.r_[np.arange(0, 91, 1.0), np.arange(89, -91, -1.0), np.arange(-89, 1, 1.0),
               np.arange(-1, -31, -1.0), np.arange(-29, 61, 1.0)]       # a minor loop at the end
-    tr = follow(robot, np.c_[a, np.zeros((len(a), 3))], settings=NO_DIST)
+    tr = follow(robot, np.c_[a, np.zeros((len(a), 3))], settings=STIFF_NO_DIST)
     phi_tip = np.array([np.radians(e.twist[-1, 0] - e.twist[-1, 1]) for e in tr.equilibria])
     expected = _play(np.radians(a), w)
     assert np.degrees(w) > 8.0                               # a loop 17° wide: a real test
@@ -240,13 +244,14 @@ def test_translation_releases_the_torsional_stick() -> None:
     """Coulomb's law for combined sliding: a translation takes the friction axially, so the
     transmission wound up by a rotation unwinds when the tubes then slide (Ha et al. 2019). The
     law is isotropic at the contact surface: rotating and translating at once, the torsional share
-    of the bound is r Δφ / √((r Δφ)² + Δd²)."""
+    of the bound is r Δφ / √((r Δφ)² + Δd²) (with stiff elements, STIFF: the elastic part they
+    carry in is then small against a step's slip)."""
     robot = with_friction(0.3)
     Q = rotation_sweep(2, 12.0, step_deg=2.0)[:60]
-    wound = follow(robot, Q).equilibria[-1]
+    wound = follow(robot, Q, settings=STIFF).equilibria[-1]
     q = Q[-1].copy()
     path = np.array([q + np.array([0, 0, -0.5 * k, 0]) for k in range(1, 5)])
-    slid = follow(robot, path, start=wound).equilibria[-1]
+    slid = follow(robot, path, start=wound, settings=STIFF).equilibria[-1]
     free = solve(PAPER, path[-1])
     assert abs(wound.base_twist[0]) > 5 * abs(slid.base_twist[0] - free.base_twist[0])
     # one step turning the inner tube by Δα while it slides by Δd: the slipping elements' torque
@@ -258,13 +263,14 @@ def test_translation_releases_the_torsional_stick() -> None:
         return np.radians([np.interp(a, eq.s, eq.twist[:, 0] - eq.twist[:, 1]) for a in at])
 
     for da, dd in ((2.0, 0.05), (2.0, 0.01)):
-        step = follow(robot, (q + np.array([da, 0, -dd, 0]))[None, :], start=wound).equilibria[-1]
+        step = follow(robot, (q + np.array([da, 0, -dd, 0]))[None, :], start=wound,
+                      settings=STIFF).equilibria[-1]
         rep = step.contact
         assert rep is not None
         slip = (rep.mode == SLIP) & (rep.bound > 0)
         assert slip.sum() >= 2
         # the elastic part a = ±1 the element carried in is small against the step's slip
-        eps_t = SolverSettings().stick_mm / rc
+        eps_t = STIFF.stick_mm / rc
         dphi = rel(step, rep.s[slip]) - rel(wound, rep.s[slip])
         share = np.abs(rc * dphi + np.sign(dphi) * rc * eps_t) / np.hypot(rc * dphi, dd)
         assert (share < 0.9).all()

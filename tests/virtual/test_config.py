@@ -44,11 +44,13 @@ def test_unknown_setting_names_the_allowed_ones():
 
 
 def test_ideal_switches_everything_off():
-    """Every effect 0; the EM warp's length scale (a shape that switches nothing) is kept."""
+    """Every effect 0; the EM warp's length scale and the contacts' elastic slip (shapes that switch
+    nothing) are kept."""
     c = VirtualConfig().ideal()
     d = c.to_dict()
     assert d.pop("readings_per_sample") == 1
     assert d.pop("em_distortion_length_mm") == VirtualConfig().em_distortion_length_mm
+    assert d.pop("presliding_mm") == VirtualConfig().presliding_mm
     assert all(v == 0.0 for v in d.values())
 
 

@@ -130,3 +130,22 @@ def test_a_step_with_no_equilibrium_for_its_friction_state_slips_to_one_from_res
     assert motion.given_up.tolist() == [t == 5 for t in range(len(Q))]   # the step follow gave up
     fresh = real_solve(v.true_robot, motion.base[5])
     np.testing.assert_allclose(motion.true_poses[5, :3], fresh.tip_position, atol=1e-9)
+
+
+def test_the_contacts_elastic_slip_is_an_effect_of_the_robot(robot):
+    """presliding_mm is the true robot's SolverSettings.stick_mm: a motion is follow's with it, and
+    another value moves the tubes otherwise (the same hardware draw)."""
+    from ctrkin.mechanics.settings import SolverSettings
+
+    Q = inner_turn(2, 0.0, 0.0, 14.0, step_deg=5.0)
+    motions = {}
+    for eps in (2e-4, 2e-3):
+        v = VirtualRobot(robot, VirtualConfig(presliding_mm=eps), seed=0)
+        assert v.settings.stick_mm == eps
+        motions[eps], _ = v.move(v.rest(Q[0]), Q)
+        base = motions[eps].base
+        tr = follow(v.true_robot, base, start=v.rest(Q[0]).equilibrium, settings=SolverSettings(stick_mm=eps))
+        np.testing.assert_array_equal(motions[eps].true_poses, tr.tip_poses)
+    assert np.abs(motions[2e-4].true_poses - motions[2e-3].true_poses).max() > 1e-4
+    with pytest.raises(ValueError, match="presliding_mm"):
+        VirtualConfig(presliding_mm=0.0)

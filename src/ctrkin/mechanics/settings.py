@@ -37,8 +37,10 @@ class SolverSettings:
     Friction (Robot.friction > 0; docs/mechanics.md: Friction and clearance): stick_mm (mm): the
     elastic slip of a friction element at the contact surface, within which it sticks (a play
     element's half width, the same in torsion, stick_mm / r_c rad, and axially: Coulomb's law is
-    isotropic at the surface; the rigid-plastic limit as it goes to 0; default 2e-4 mm, 0.9e-3 rad
-    on the paper robot's contact radius 0.22 mm); distributed_friction: add the distributed contact
+    isotropic at the surface; the rigid-plastic limit as it goes to 0; default 2e-3 mm, 0.9e-2 rad
+    on the paper robot's contact radius 0.22 mm: a metal contact's presliding displacement, and
+    smaller values leave three-tube shooting ill-conditioned, docs/mechanics.md: Friction and
+    clearance); distributed_friction: add the distributed contact
     force |M''| of the curved stretches to the breakpoints' elements (False: only the concentrated
     contacts of Lock & Dupont 2011).
 
@@ -54,7 +56,7 @@ class SolverSettings:
     angle_step: float = 0.3
     max_rk4_steps: int = 200_000
     max_search_steps: int = 500_000
-    stick_mm: float = 2e-4
+    stick_mm: float = 2e-3
     distributed_friction: bool = True
 
     def __post_init__(self) -> None:

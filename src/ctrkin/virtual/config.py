@@ -15,7 +15,7 @@ from typing import Any
 
 from ctrkin.errors import CtrkinError
 
-SHAPES = ("em_distortion_length_mm",)   # fields that shape an effect but switch nothing
+SHAPES = ("em_distortion_length_mm", "presliding_mm")   # fields that shape an effect but switch nothing
 
 
 # the central published values of the effects whose default is the top of their range (the defaults
@@ -75,6 +75,11 @@ class VirtualConfig:
         Coulomb coefficient μ between neighbouring tubes of the true robot (contact forces from the
         bending moments they exchange, concentrated at curvature changes and tube ends;
         docs/mechanics.md: Friction and clearance).
+    presliding_mm : float
+        Elastic (presliding) slip at a contact between tubes before it slides (mm, > 0): the half
+        width of its friction elements (SolverSettings.stick_mm; docs/mechanics.md: Friction and
+        clearance). Metal contacts stick over 0.1–10 µm; 2e-3 mm and more keep the true robot's
+        solves well conditioned on three tubes at μ ≈ 0.7 (docs/virtual_robot.md).
     clearance : float
         The share of the tubes' radial gap (from their diameters) the inner tube may tilt in where it
         leaves an outer tube's tip (1: all of it).
@@ -120,6 +125,7 @@ class VirtualConfig:
     precurvature_variation: float = 0.05
     precurvature_plane_deg: float = 3.0
     tube_friction: float = 0.69
+    presliding_mm: float = 2e-3
     clearance: float = 1.0
     gear_backlash_deg: float = 2.0
     friction_deg: float = 0.5
@@ -146,6 +152,7 @@ class VirtualConfig:
             "precurvature_variation": (0.5, "a relative std; 0.05 is 5 %"),
             "precurvature_plane_deg": (45.0, "deg"),
             "tube_friction": (1.0, "a friction coefficient; nitinol pairs are 0.1-0.7"),
+            "presliding_mm": (0.05, "mm; metal contacts stick over 0.1-10 µm"),
             "clearance": (10.0, "a multiple of the tubes' radial gap; 1 is the whole gap"),
             "gear_backlash_deg": (30.0, "deg"),
             "friction_deg": (30.0, "deg"),
@@ -176,6 +183,10 @@ class VirtualConfig:
             raise VirtualConfigError(
                 "VirtualConfig.em_distortion_length_mm must be >= 1 mm when em_distortion_mm > 0 "
                 f"(the warp's length scale), got {self.em_distortion_length_mm}")
+        if not self.presliding_mm > 0:
+            raise VirtualConfigError(
+                "VirtualConfig.presliding_mm must be > 0 mm (the contacts' elastic slip), "
+                f"got {self.presliding_mm}")
         n = self.readings_per_sample
         if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 1000:
             raise VirtualConfigError(

@@ -29,6 +29,7 @@ import numpy as np
 
 from ctrkin.geometry import tip_pose
 from ctrkin.mechanics import Equilibrium, follow, solve, solve_many
+from ctrkin.mechanics.settings import DEFAULT_SETTINGS
 from ctrkin.robots.robot import Robot
 from ctrkin.virtual.config import VirtualConfig
 from ctrkin.virtual.encoder import glitch
@@ -110,6 +111,8 @@ class VirtualRobot:
                                   workspace(nominal, field_rng))
             tracker = dataclasses.replace(tracker, warp=warp)
         self.tracker = tracker
+        # the true robot's solver: its contacts' elastic slip is an effect of the robot
+        self.settings = dataclasses.replace(DEFAULT_SETTINGS, stick_mm=c.presliding_mm)
 
     # --- actuation ------------------------------------------------------------------------------
     def base_joints(self, play_out: np.ndarray) -> np.ndarray:
@@ -124,7 +127,7 @@ class VirtualRobot:
         equilibrium (a point-wise solve: no history before the first motion)."""
         qa = self.nominal.check_joints(np.asarray(q, dtype=float))
         base = self.base_joints(qa[None, :])[0]
-        return VirtualState(solve(self.true_robot, base), qa.copy())
+        return VirtualState(solve(self.true_robot, base, settings=self.settings), qa.copy())
 
     def move(self, state: VirtualState, Q: np.ndarray,
              progress: Callable[[int], None] | None = None) -> tuple[Motion, VirtualState]:
@@ -134,7 +137,8 @@ class VirtualRobot:
         p = np.empty_like(Qa)
         play(Qa, width, state.play, p)
         base = self.base_joints(p)
-        tr = follow(self.true_robot, base, start=state.equilibrium, progress=progress)
+        tr = follow(self.true_robot, base, start=state.equilibrium, settings=self.settings,
+                    progress=progress)
         poses, eqs = tr.tip_poses, tr.equilibria
         for t in np.flatnonzero(~tr.converged):
             # follow gave up this step (its continuation budget, SolverSettings.max_search_steps,
@@ -142,11 +146,13 @@ class VirtualRobot:
             # extreme robot may still): a real tube still has a pose, so the step is solved from
             # the equilibrium before it with its friction state (solve's snap recovery), else afresh
             before = eqs[t - 1] if t > 0 else state.equilibrium
-            eq = solve(self.true_robot, base[t], guess=before, state=before.friction_state)
+            eq = solve(self.true_robot, base[t], guess=before, state=before.friction_state,
+                       settings=self.settings)
             if not eq.converged:   # no branch near it: the lowest-energy stable one, same friction state
-                eq = solve(self.true_robot, base[t], state=before.friction_state)
+                eq = solve(self.true_robot, base[t], state=before.friction_state, settings=self.settings)
             if not eq.converged:   # no equilibrium holds that friction state: the tubes slip, and the
-                eq = solve(self.true_robot, base[t])    # step is the lowest-energy one from rest
+                # step is the lowest-energy one from rest
+                eq = solve(self.true_robot, base[t], settings=self.settings)
             if not eq.converged:   # none at all: the step stays unconverged (NaN pose), as follow said
                 continue
             eqs[t] = eq
