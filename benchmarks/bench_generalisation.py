@@ -12,9 +12,10 @@ reuses what a finished stage left there, as reproduce does), then the recommende
 along mid-turn reversals recorded on the same virtual robot (`reversals`, below). The robots
 (`ROBOTS`): the paper robot with every effect at the top of its published range (the virtual
 robot's defaults, docs/virtual_robot.md); a second two-tube design (other
-diameters and curvatures, another hardware seed); a three-tube robot; the paper robot's worst
-hardware seed with friction and backlash at the top of their ranges and the rest at their central
-values (the defaults before issue 20). Every robot but the last carries the top-of-range effects.
+diameters and curvatures, another hardware seed); a three-tube robot, with the top-of-range
+effects and with every effect at its central value; the paper robot's worst hardware seed with
+friction and backlash at the top of their ranges and the rest at their central values (the defaults
+before issue 20). The others carry the top-of-range effects.
 
 Prints one row per robot with the goal-1 figures of issue 21 and the wall time, then one JSON line of
 every figure. Columns (held-out data of the reproduction; position RMSE in mm unless said):
