@@ -195,3 +195,32 @@ def test_a_slide_memory_round_trips_and_a_malformed_one_is_refused(tmp_path) -> 
                 {"slide_weights_deg": [1.0]}):
         with pytest.raises(ModelError):
             FoldGate.from_dict({**gate.to_dict(), **bad})
+
+
+def test_a_recording_without_snaps_gives_a_gate_without_folds(monkeypatch) -> None:
+    """No snap in the training rows (a robot whose friction carries it across the nominal folds):
+    the nominal folds are not assumed, and the gate's states are the labels the heads learned
+    (they change only outside the band); with a snap in them the nominal folds are tabulated."""
+    from ctrkin import paper_robot
+    from ctrkin.families.snap_aware import fold_gate as fg
+    from ctrkin.families.snap_aware.labels import branch_labels
+
+    tabulated = []
+
+    def folds(robot, grid, step_deg, progress=None):
+        tabulated.append(len(grid))
+        return np.full(len(grid), 20.0), np.full(len(grid), -20.0)
+
+    monkeypatch.setattr(fg, "fold_angles", folds)
+    turn = np.r_[np.arange(0.0, 361.0), np.arange(359.0, -1.0, -1.0)]     # across the band and out
+    a0 = np.r_[turn + 0.5, turn + 35.5]     # (φ never exactly ±band, where the two conventions meet)
+    joints = np.c_[a0, np.zeros_like(a0), np.full_like(a0, -10.0), np.zeros_like(a0)]
+    bounds = [(0, len(a0) // 2), (len(a0) // 2, len(a0))]
+    snap = np.zeros(len(a0), bool)
+    gate = fg.build_fold_gate(paper_robot(), joints, snap, bounds, np.zeros(len(a0)))
+    assert tabulated == [] and not gate.forward.any() and not gate.backward.any()
+    states = gate.states(a0, joints[:, 2:], np.zeros(len(a0)), bounds)
+    np.testing.assert_array_equal(states, branch_labels(a0, snap, bounds)[0])
+    snap[np.argmax(a0 - 180.0 >= 20.0)] = True
+    gate = fg.build_fold_gate(paper_robot(), joints, snap, bounds, np.zeros(len(a0)))
+    assert tabulated == [1] and gate.forward.max() > 0

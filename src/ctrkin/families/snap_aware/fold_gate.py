@@ -23,6 +23,8 @@ translations. The fold gate takes that dependence from the physics and the offse
         = s_{t−1} otherwise;  at a sequence start 1[φ > 0]
     where the nominal pair does not snap (|φ±| < MIN_FOLD_DEG) θ± = ±band: the state changes only
     outside the band, as the labels the heads learned from do (ctrkin.families.snap_aware.labels).
+    A recording with no snap at all gives a gate with no fold (θ± = ±band everywhere): the nominal
+    folds are not assumed where the robot never snapped (a three-tube robot at μ 0.69 does not).
 
 with φ = α0 − 180° wrapped (ctrkin.families.snap_aware.labels, the labels the heads were trained on).
 Why |ℓ|: on the default robot a slide of either tube, of 0.2 mm or of 4 mm, either way, before a turn
@@ -241,9 +243,15 @@ def build_fold_gate(robot: Robot, joints: np.ndarray, snap: np.ndarray, bounds: 
     axes = tuple(np.linspace(a, b, k) if k > 1 else np.array([a])
                  for a, b, k in zip(lo, hi, counts, strict=True))
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, n)
+    shape = tuple(len(a) for a in axes)
+    if not any(len(snap_events(snap, a, b)) for a, b in bounds):
+        # the recording holds no snap (friction can carry the tubes across the nominal folds): the
+        # gate has no fold either and switches only outside the band, as the heads' labels do
+        if progress is not None:
+            progress(len(grid), len(grid))
+        return FoldGate(axes, np.zeros(shape), np.zeros(shape))
     fwd, bwd = fold_angles(robot, grid, step_deg=FOLD_STEP_DEG, progress=None if progress is None else
                            (lambda p: progress(p + 1, len(grid))))
-    shape = tuple(len(a) for a in axes)
     half = 0.5 * FOLD_STEP_DEG                    # mid-way between the last row before and the snap
     fwd, bwd = np.where(fwd > 0, fwd - half, 0.0), np.where(bwd < 0, bwd + half, 0.0)
     table = FoldGate(axes, fwd.reshape(shape), bwd.reshape(shape))
