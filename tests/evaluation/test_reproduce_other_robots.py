@@ -36,8 +36,9 @@ def test_a_three_tube_robot_reproduces_end_to_end_with_set(tmp_path) -> None:
     robot = three_tube_robot()
     robot.to_toml(tmp_path / "three.toml")
     out = tmp_path / "repro"
-    # the central values (docs/virtual_robot.md): at the defaults, μ 0.69, follow gives up most steps
-    # of some three-tube sweeps and the virtual robot re-solves each (issue 20), far too slow for CI
+    # the central values (docs/virtual_robot.md), where this robot snaps and every snap figure has
+    # events to score; at the defaults (μ 0.69) its quick data holds no snap (bench_generalisation's
+    # `three-tube` row, docs/reproduction.md)
     settings = {**CENTRAL, "noise_mm": 0.1}
     sets = [a for k, v in settings.items() for a in ("--set", f"{k}={v}")]
     res = CliRunner().invoke(cli, ["--quiet", "reproduce", "--scale", "tiny", "--robot",
