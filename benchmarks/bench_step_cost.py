@@ -46,7 +46,7 @@ from bench_generalisation import ROBOTS, _robot
 
 
 def _drive(virtual: VirtualRobot, runs: list, n_segments: int | None
-           ) -> tuple[np.ndarray, list[float], list[tuple[int, float, int, int]], np.ndarray]:
+           ) -> tuple[list[float], list[tuple[int, float, int, int]], np.ndarray]:
     """Drive runs (their first n_segments segments) one segment at a time: each segment's µs a
     step, per run (steps, seconds, given-up steps, snaps), and the true tip positions (T, 3)."""
     seg_cost, per_run, tips = [], [], []
@@ -64,7 +64,7 @@ def _drive(virtual: VirtualRobot, runs: list, n_segments: int | None
             snaps += int(motion.snaps.sum())
             tips.append(motion.true_poses[:, :3])
         per_run.append((steps, wall, given_up, snaps))
-    return np.array(seg_cost), seg_cost, per_run, np.concatenate(tips)
+    return seg_cost, per_run, np.concatenate(tips)
 
 
 def step_cost(name: str, overrides: dict, n_runs: int, n_segments: int | None,
@@ -83,7 +83,7 @@ def step_cost(name: str, overrides: dict, n_runs: int, n_segments: int | None,
     print(f"{name}: {robot.name}, {robot.n_tubes} tubes, hardware seed {case.seed}, "
           f"tube_friction {virtual.config.tube_friction}; {len(runs)} of {len(plan.runs)} quick runs")
     print(f"{'run':>4} {'steps':>7} {'s':>8} {'µs/step':>9} {'given up':>9} {'snaps':>6}")
-    _, seg_cost, per_run, tips = _drive(virtual, runs, n_segments)
+    seg_cost, per_run, tips = _drive(virtual, runs, n_segments)
     for i, (steps, wall, given_up, snaps) in enumerate(per_run):
         print(f"{i:>4} {steps:>7} {wall:>8.1f} {1e6 * wall / steps:>9.0f} {given_up:>9} {snaps:>6}")
     total_steps = sum(r[0] for r in per_run)
@@ -101,7 +101,7 @@ def step_cost(name: str, overrides: dict, n_runs: int, n_segments: int | None,
     if against:
         other = VirtualRobot(robot, dataclasses.replace(virtual.config, **against), seed=case.seed)
         other.move(other.rest(runs[0].start), runs[0].segments[0].q[:2])
-        _, _, other_runs, other_tips = _drive(other, runs, n_segments)
+        _, other_runs, other_tips = _drive(other, runs, n_segments)
         d = np.linalg.norm(other_tips - tips, axis=1)
         figures.update({
             "against": against,
