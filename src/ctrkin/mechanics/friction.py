@@ -51,11 +51,16 @@ class Stations:
     def build(cls, arr: RobotArrays, bounds: np.ndarray, present: np.ndarray, code: np.ndarray,
               tips: np.ndarray, settings: SolverSettings) -> Stations:
         b, pair, slot, lmax, hl, hr, tip = build_stations(bounds, present, code, tips, arr.slots)
-        table = np.column_stack([b, pair, lmax, hl, hr, tip]).astype(float)
-        pairs = np.column_stack([arr.gap, arr.rc, arr.lmin])
+        k, p = b.shape[0], arr.gap.shape[0]
+        table = np.empty((k, 6))          # filled column by column (a step's hot path: no stacking)
+        for c, col in enumerate((b, pair, lmax, hl, hr, tip)):
+            table[:, c] = col
+        pairs = np.empty((p, 3))
+        pairs[:, 0], pairs[:, 1], pairs[:, 2] = arr.gap, arr.rc, arr.lmin
         prm = np.array([arr.friction, settings.stick_mm, arr.clearance,
                         1.0 if settings.distributed_friction else 0.0])
-        relaxed = np.r_[np.full(b.shape[0], np.nan), np.zeros(arr.gap.shape[0])]
+        relaxed = np.full(k + p, np.nan)
+        relaxed[k:] = 0.0
         return cls(table, pairs, slot, bounds[b], prm, relaxed)
 
     @property
