@@ -39,8 +39,9 @@ def _env() -> dict[str, str]:
     return {**os.environ, "CTRKIN_NO_PROGRESS": "1"}
 
 
-def _run_until(cmd: list[str], journal: Path, lines: int, sig: int) -> int:
-    """Start `cmd`, send `sig` once the journal has `lines` lines; returns the exit status."""
+def _run_until(cmd: list[str], journal: Path, lines: int, sig: int) -> tuple[int, str]:
+    """Start `cmd`, send `sig` once the journal has `lines` lines; returns the exit status and what
+    the command wrote to stderr (read to the end, so a full pipe never blocks it)."""
     # SIGINT as an interactive shell leaves it (a background pytest inherits it ignored)
     p = subprocess.Popen(cmd, env=_env(), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                          preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
@@ -51,7 +52,8 @@ def _run_until(cmd: list[str], journal: Path, lines: int, sig: int) -> int:
                 p.send_signal(sig)
                 break
             time.sleep(0.01)
-        return p.wait(60)
+        _, err = p.communicate(timeout=60)
+        return p.returncode, err.decode(errors="replace")
     finally:
         if p.poll() is None:
             p.kill()
@@ -67,10 +69,12 @@ def test_interrupted_and_killed_collections_resume_to_the_uninterrupted_dataset(
     out = tmp_path / "cut"
     journal = out / "readings.csv"
     # early in the 2163 samples, so that a loaded machine cannot finish before the signal lands
-    assert _run_until(_command(rig, out), journal, 1 + 3 * 50, signal.SIGINT) == 130    # Ctrl-C
+    status, err = _run_until(_command(rig, out), journal, 1 + 3 * 50, signal.SIGINT)
+    assert status == 130, err                                  # Ctrl-C
     part = Dataset.load(out)                                   # what was recorded was kept
     assert 50 <= len(part.frame) < 2163 and not part.meta["collection"]["complete"]
-    assert _run_until(_command(rig, out), journal, 1 + 3 * 700, signal.SIGKILL) == -signal.SIGKILL
+    status, err = _run_until(_command(rig, out), journal, 1 + 3 * 700, signal.SIGKILL)
+    assert status == -signal.SIGKILL, err
     done = subprocess.run(_command(rig, out), env=_env(), capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert "resuming" in done.stderr
