@@ -48,7 +48,9 @@ from bench_generalisation import ROBOTS, _robot
 def _drive(virtual: VirtualRobot, runs: list, n_segments: int | None
            ) -> tuple[list[float], list[tuple[int, float, int, int]], np.ndarray]:
     """Drive runs (their first n_segments segments) one segment at a time: each segment's µs a
-    step, per run (steps, seconds, given-up steps, snaps), and the true tip positions (T, 3)."""
+    step, per run (steps, seconds, given-up steps, snaps), and the true tip positions (T, 3). The
+    kernels are compiled (or loaded from the numba cache) before the clock starts."""
+    virtual.move(virtual.rest(runs[0].start), runs[0].segments[0].q[:2])
     seg_cost, per_run, tips = [], [], []
     for run in runs:
         state = virtual.rest(run.start)
@@ -79,7 +81,6 @@ def step_cost(name: str, overrides: dict, n_runs: int, n_segments: int | None,
     virtual = VirtualRobot(robot, dataclasses.replace(VirtualConfig(), **effects), seed=case.seed)
     plan = protocols.build("paper", robot, scale="quick", seed=0)
     runs = plan.runs[:n_runs]
-    virtual.move(virtual.rest(runs[0].start), runs[0].segments[0].q[:2])   # compile outside the clock
     print(f"{name}: {robot.name}, {robot.n_tubes} tubes, hardware seed {case.seed}, "
           f"tube_friction {virtual.config.tube_friction}; {len(runs)} of {len(plan.runs)} quick runs")
     print(f"{'run':>4} {'steps':>7} {'s':>8} {'µs/step':>9} {'given up':>9} {'snaps':>6}")
@@ -100,7 +101,6 @@ def step_cost(name: str, overrides: dict, n_runs: int, n_segments: int | None,
                "segment_us_max": round(float(top), 1)}
     if against:
         other = VirtualRobot(robot, dataclasses.replace(virtual.config, **against), seed=case.seed)
-        other.move(other.rest(runs[0].start), runs[0].segments[0].q[:2])
         _, other_runs, other_tips = _drive(other, runs, n_segments)
         d = np.linalg.norm(other_tips - tips, axis=1)
         figures.update({

@@ -14,6 +14,7 @@ from dataclasses import asdict, dataclass, fields
 from typing import Any
 
 from ctrkin.errors import CtrkinError
+from ctrkin.mechanics.settings import DEFAULT_SETTINGS
 
 SHAPES = ("em_distortion_length_mm", "presliding_mm")   # fields that shape an effect but switch nothing
 
@@ -125,7 +126,7 @@ class VirtualConfig:
     precurvature_variation: float = 0.05
     precurvature_plane_deg: float = 3.0
     tube_friction: float = 0.69
-    presliding_mm: float = 2e-3
+    presliding_mm: float = DEFAULT_SETTINGS.stick_mm   # 2e-3 mm: the mechanics' own default
     clearance: float = 1.0
     gear_backlash_deg: float = 2.0
     friction_deg: float = 0.5
