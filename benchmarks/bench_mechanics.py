@@ -122,14 +122,14 @@ class StepClock:
     """Per-step times and passes of `follow`, for this tree's code and an older one's alike.
 
     follow calls `progress` once per step, in order; where a compiled run of steps solves several
-    in one call (mechanics.warm's warm_run, friction_run and moving_run, those this tree has) their
-    calls come together when the run returns, so a step's time is not the time between two calls:
-    the steps of a run share its time equally (from the call before the run to the run's last, the
-    failed try of the step after it included), every other step gets the time since the previous
-    call. Passes: those of each
-    Newton solve of the general path (continuation.newton) go to the step being solved, those of a
-    run to the steps it tried (its `counts`). Use as a context manager around follow calls made with
-    progress=clock.progress, clock.begin() before each."""
+    in one call (mechanics.warm's warm_run, friction_run, moving_run and friction_moving_run, those
+    this tree has) their calls come together when the run returns, so a step's time is not the
+    time between two calls: the steps of a run share its time equally (from the call before the
+    run to the run's last, the failed try of the step after it included), every other step gets
+    the time since the previous call. Passes: those of each Newton solve of the general path
+    (continuation.newton) go to the step being solved, those of a run to the steps it tried (its
+    `counts`). Use as a context manager around follow calls made with progress=clock.progress,
+    clock.begin() before each."""
 
     def __init__(self, count_passes: bool = False) -> None:
         self.times: list[float] = []
@@ -158,7 +158,8 @@ class StepClock:
         if self.count_passes:
             self.passes.extend(self._per.get(t, 0) for t in range(1, len(st)))
 
-    RUNS = ("warm_run", "friction_run", "moving_run")  # mechanics.warm's compiled runs of steps
+    # mechanics.warm's compiled runs of steps
+    RUNS = ("warm_run", "friction_run", "moving_run", "friction_moving_run")
 
     def __enter__(self) -> StepClock:
         self._inner_newton = continuation.newton

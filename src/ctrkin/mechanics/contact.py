@@ -310,6 +310,24 @@ PR_COLS = 3
 
 
 @njit(cache=True)
+def station_table(bounds, present, code, tips, width):
+    """build_stations as the kernels take them: table (K, 6) the per-station array cst (columns
+    ST_B … ST_TIP: breakpoint, pair, ℓ_max mm, h_left mm, h_right mm, tip 0/1, as float64), slot
+    (K,) and the breakpoint index b (K,). One definition for friction.Stations.build and the
+    compiled runs of translating steps (mechanics.warm.friction_moving_run)."""
+    b, pair, slot, lmax, hl, hr, tip = build_stations(bounds, present, code, tips, width)
+    table = np.empty((b.shape[0], ST_COLS))
+    for j in range(b.shape[0]):
+        table[j, ST_B] = b[j]
+        table[j, ST_PAIR] = pair[j]
+        table[j, ST_LMAX] = lmax[j]
+        table[j, ST_HL] = hl[j]
+        table[j, ST_HR] = hr[j]
+        table[j, ST_TIP] = 1.0 if tip[j] else 0.0
+    return table, slot, b
+
+
+@njit(cache=True)
 def apply_stations(cst, cpr, cvar, cprm, cout, b, js, y, phi, zb, with_var, with_body, k, gj, kap,
                    kapy, present, nb, work):
     """Apply the friction elements of breakpoint b (stations js, js + 1, … of cst) to the state: the

@@ -35,8 +35,9 @@ The common step, a rotation (β kept, so the grid is the previous step's) of a r
 effects whose first try is accepted, runs as one compiled call (`_warm`, mechanics.warm.warm_step:
 α, the Newton solve, the acceptance test); any other step, or a first try that is not accepted,
 takes the general path below from the start, so the decisions and the snaps are its own. `follow`
-goes further: consecutive such steps run in one compiled call each (mechanics.compiled_runs), up to
-the first that is not accepted, which the general path then takes.
+goes further: consecutive steps of one kind (rotations or translations, with or without contact
+effects) run in one compiled call each (mechanics.compiled_runs), each step what the general
+path's first try gives, up to the first that is not accepted, which the general path then takes.
 """
 
 from __future__ import annotations
@@ -330,8 +331,9 @@ def follow(robot: Robot, Q: np.ndarray, start: Equilibrium | None = None,
 
     start: the equilibrium the robot is in before Q[0] (continued to Q[0]); without it Q[0] is
     solved point-wise. progress: called with the step index after each step, once per step and in
-    order; the steps of a compiled run (consecutive rotation steps solved in one call,
-    mechanics.warm.warm_run) are reported one after the other when the run returns.
+    order; the steps of a compiled run (consecutive rotation or translating steps, with or without
+    contact effects, solved in one call: mechanics.compiled_runs.run_for) are reported one after
+    the other when the run returns.
     """
     Qa = robot.check_joints(np.atleast_2d(np.array(Q, dtype=float)))  # a copy: equilibria keep rows
     n_steps = Qa.shape[0]

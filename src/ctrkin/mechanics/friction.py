@@ -20,9 +20,9 @@ from ctrkin.mechanics.contact import (
     SLIP,
     ST_PAIR,
     STICK,
-    build_stations,
     gather_state,
     state_after,
+    station_table,
 )
 from ctrkin.mechanics.settings import SolverSettings
 
@@ -33,7 +33,7 @@ N_OUT = 8  # per-station outputs of contact.station (the kernels' cout (K, N_OUT
 
 @dataclass(frozen=True, eq=False)
 class Stations:
-    """The friction stations of one grid (contact.build_stations), K of them. table (K, 6): the
+    """The friction stations of one grid (contact.station_table), K of them. table (K, 6): the
     kernels' per-station array (breakpoint, pair, ℓ_max mm, h_left mm, h_right mm, tip 0/1);
     pairs (P, 3): the per-pair array (gap mm, contact radius mm, shortest couple mm); slot (K,):
     state slot; s (K,) mm: arc length; prm (4,) = (μ, ε mm, clearance, distributed 0/1)
@@ -50,11 +50,9 @@ class Stations:
     @classmethod
     def build(cls, arr: RobotArrays, bounds: np.ndarray, present: np.ndarray, code: np.ndarray,
               tips: np.ndarray, settings: SolverSettings) -> Stations:
-        b, pair, slot, lmax, hl, hr, tip = build_stations(bounds, present, code, tips, arr.slots)
+        # one compiled call (a translating step's hot path), the one warm.friction_moving_run makes
+        table, slot, b = station_table(bounds, present, code, tips, arr.slots)
         k, p = b.shape[0], arr.gap.shape[0]
-        table = np.empty((k, 6))          # filled column by column (a step's hot path: no stacking)
-        for c, col in enumerate((b, pair, lmax, hl, hr, tip)):
-            table[:, c] = col
         pairs = np.empty((p, 3))
         pairs[:, 0], pairs[:, 1], pairs[:, 2] = arr.gap, arr.rc, arr.lmin
         prm = np.array([arr.friction, settings.stick_mm, arr.clearance,

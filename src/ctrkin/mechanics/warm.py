@@ -14,8 +14,10 @@ the decisions, and so the snaps, are the general path's.
 `follow` itself goes further: `warm_run` does consecutive such steps in one call, with its
 predictor (`extrapolate`), up to the first that is not accepted or not a rotation; `friction_run`
 does the same on a robot with friction or clearance (the stations' state carried from step to
-step), and `moving_run` for translating steps without contact effects (a grid each step).
-compiled_runs.Steps makes their Equilibrium objects when they are read.
+step), `moving_run` for translating steps without contact effects (a grid each step) and
+`friction_moving_run` for translating steps with them (a grid and its stations each step; det J
+compared only where the stick/slip pattern held with no element slipping, as _advance does on a
+translating step). compiled_runs.Steps makes their Equilibrium objects when they are read.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-from ctrkin.mechanics.contact import gather_state, state_after
+from ctrkin.mechanics.contact import SLIP, gather_state, state_after, station_table
 from ctrkin.mechanics.grid import prepare, reduced_radians
 from ctrkin.mechanics.kernels import _newton, newton
 from ctrkin.mechanics.passes import flat_work
@@ -267,6 +269,80 @@ def moving_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_st
         if not _accepted(conv, det_j, det_h, xs[t], xs[t - 1], tube_len, n, det, jump, slack, rate,
                          True):
             break
+        _record(t, rn, det_j, det_h, it, stats, counts)
+        det = det_j
+        t += 1
+        done[0] = t - start
+    return t - start
+
+
+@njit(cache=True)
+def _held_translating(before, after):
+    """continuation._det_comparable(before, after, translating=True) on the stick/slip patterns
+    before (K0,) and after (K,): the same bytes (a grid of another station count is another
+    pattern) and no element slipped (its torsional tangent depends on the step's axial slip)."""
+    if before.shape[0] != after.shape[0] or not _same_modes(before, after):
+        return False
+    for j in range(after.shape[0]):
+        if after[j] == SLIP:
+            return False
+    return True
+
+
+@njit(cache=True)
+def friction_moving_run(Q, start, rotation, same, snapped, xs, det_prev, weights, path_states,
+                        tube_len, extra, sec_len, sec_kap, sec_kapy, n_sec, h, max_rk4, rigid, k,
+                        gj, tol, max_iter, max_step, max_turn, jump, slack, rate, width, pairs,
+                        prm, q_state, modes_prev, theta, cvar, cout, n_stations, alpha, body,
+                        stats, counts, done):
+    """moving_run on a robot with friction or clearance: each translating step what
+    continuation._advance's first try does there, on a grid and stations of its own
+    (pointwise.prepare: grid.prepare, contact.station_table with `width` slots a pair; the run
+    stops before a grid of more than max_rk4 RK4 steps, as moving_run, or of more stations than
+    cout holds), from the friction state of the step before (theta[t − 1] (P · slots,), held at
+    joints q_state for step start, Q[t − 1] after; the state is kept per slot, so it carries
+    across grids): its cvar (contact.gather_state) into cvar[t, :K + P], the Newton solve with the
+    stations into cout[t, :K] (K stations: n_stations[t]), the acceptance test (stable, twist
+    within jump, det J continuous only where the stick/slip pattern is the previous step's, as
+    many elements and none slipping: _held_translating; modes_prev (K0,) for step start, cout[t −
+    1, :n_stations[t − 1], 3] after) and the state after it (contact.state_after) into theta[t].
+    pairs (P, 3), prm (4,): friction.Stations' (the robot's and the settings'). The rest as
+    moving_run; cvar, cout and n_stations are written for the step that is not accepted as well."""
+    n = xs.shape[1]
+    n_pairs = n - 1
+    size = theta.shape[1]
+    guess = np.empty(n)
+    det = det_prev
+    t = start
+    done[0] = 0
+    while t < Q.shape[0] and not rotation[t]:
+        _predict(t, same, snapped, xs, weights, path_states, guess)
+        q, q_from = Q[t], Q[t - 1]
+        if not _turn(q, q_from, n) <= max_turn:
+            break
+        a, beta, tips, grid, code = prepare(q, tube_len, extra, sec_len, sec_kap, sec_kapy, n_sec, h)
+        if grid[5].sum() > max_rk4:
+            break
+        table, slot, _ = station_table(grid[0], grid[3], code, tips, width)
+        nst = slot.shape[0]
+        if nst > cout.shape[1]:
+            break
+        cv = gather_state(theta[t - 1], slot, q, q_state if t == start else q_from)
+        out = np.empty((nst, cout.shape[2]))
+        alpha[t, :] = a
+        conv, it, rn, det_j, det_h, passes = newton(
+            guess, a, beta, tips, rigid, k, gj, grid[0], grid[1], grid[2], grid[3], grid[4],
+            grid[5], tol, max_iter, max_step, xs[t], body[t], table, pairs, cv, prm, out)
+        counts[t, 1] = passes
+        cvar[t, :nst + n_pairs] = cv
+        cout[t, :nst] = out
+        n_stations[t] = nst
+        held = _held_translating(modes_prev if t == start else cout[t - 1, :n_stations[t - 1], 3],
+                                 out[:, 3])
+        if not _accepted(conv, det_j, det_h, xs[t], xs[t - 1], tube_len, n, det, jump, slack, rate,
+                         held):
+            break
+        theta[t, :] = state_after(slot, out, table, pairs, prm[1], size)
         _record(t, rn, det_j, det_h, it, stats, counts)
         det = det_j
         t += 1
