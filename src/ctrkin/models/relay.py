@@ -4,9 +4,11 @@ state-carrying FK model's streaming step runs (ctrkin.models.fused) and its batc
     θ+ = φ+(β) + w − κ·m_N ,  θ− = φ−(β) − w − κ·m_N        (thresholds from tables φ±(β), deg;
                                                              w = c, less a slide memory's term)
     s_t = 1 if φ_t > band, 0 if φ_t < −band                 (outside the band one state exists)
-        = 1 if s_{t−1} = 0 and φ_t ≥ θ+ ;  0 if s_{t−1} = 1 and φ_t < θ−
+        = 1 if s_{t−1} = 0 and θ+ ≤ φ_t and θ+ < band ;  0 if s_{t−1} = 1 and φ_t < θ−
         = s_{t−1} otherwise;  at a sequence start 1[φ > 0]
-    a table entry |φ±| < MIN_FOLD_DEG is "none": that threshold is the band's edge.
+    a table entry |φ±| < MIN_FOLD_DEG is "none": that threshold is the band's edge. A θ+ at or
+    beyond the band's edge never switches inside the band, so at φ = +band exactly the state is held,
+    as the branch labels hold it there (ctrkin.families.snap_aware.labels: forced only at |φ| > band).
 
 with φ = α0 − 180° wrapped. What the tables hold and how c and κ are fitted is the snap-aware
 family's fold gate (ctrkin.families.snap_aware.fold_gate, docs/learned_kinematics.md: The fold
@@ -137,7 +139,7 @@ def _relay(cur: int, phi: float, hi: float, lo: float, band: float) -> int:
         return 0
     if cur < 0:
         return 1 if phi > 0.0 else 0
-    if cur == 0 and phi >= hi:
+    if cur == 0 and phi >= hi and hi < band:
         return 1
     if cur == 1 and phi < lo:
         return 0

@@ -43,8 +43,9 @@ def test_no_fold_means_the_state_changes_only_outside_the_band() -> None:
     ±band only, never back and forth near φ = 0."""
     a0 = np.r_[np.arange(0.0, 361.0), np.arange(359.0, -1.0, -1.0)]
     s = _gate(0.0, c=2.0, lag=5.0).states(a0, np.zeros((len(a0), 2)), np.ones(len(a0)), [(0, len(a0))])
-    # at +90° going up (θ+ = band), the wrap at α0 = 360° (φ = −180°) and back, beyond −90° going down
-    np.testing.assert_array_equal(a0[np.nonzero(np.diff(s))[0] + 1], [270.0, 360.0, 359.0, 89.0])
+    # beyond +90° going up (at φ = +band exactly the state is held, as the labels hold it), the wrap
+    # at α0 = 360° (φ = −180°) and back, beyond −90° going down
+    np.testing.assert_array_equal(a0[np.nonzero(np.diff(s))[0] + 1], [271.0, 360.0, 359.0, 89.0])
 
 
 def test_step_equals_states() -> None:
@@ -213,9 +214,9 @@ def test_a_recording_without_snaps_gives_a_gate_without_folds(monkeypatch) -> No
 
     monkeypatch.setattr(fg, "fold_angles", folds)
     turn = np.r_[np.arange(0.0, 361.0), np.arange(359.0, -1.0, -1.0)]     # across the band and out
-    a0 = np.r_[turn + 0.5, turn + 35.5]     # (φ never exactly ±band, where the two conventions meet)
+    a0 = np.r_[turn, turn + 0.5, turn + 35.5]     # 1° steps from 0°: φ exactly ±band (90°) too
     joints = np.c_[a0, np.zeros_like(a0), np.full_like(a0, -10.0), np.zeros_like(a0)]
-    bounds = [(0, len(a0) // 2), (len(a0) // 2, len(a0))]
+    bounds = [(k * len(turn), (k + 1) * len(turn)) for k in range(3)]
     snap = np.zeros(len(a0), bool)
     gate = fg.build_fold_gate(paper_robot(), joints, snap, bounds, np.zeros(len(a0)))
     assert tabulated == [] and not gate.forward.any() and not gate.backward.any()
