@@ -99,6 +99,19 @@ def test_trajectory_arrays_are_consistent(d: float) -> None:
     assert len(traj.equilibria) == T
 
 
+def test_one_equilibrium_and_the_tangents_are_the_equilibria_s() -> None:
+    """Trajectory.equilibrium(t) and tip_tangents read a step without making the others (the
+    compiled runs' steps are made on access): the same objects and numbers as `equilibria`."""
+    Q = rotation_sweep(2, 20.0, step_deg=5.0)
+    fresh = follow(dataclasses.replace(ROBOT, friction=0.2), Q)
+    last = fresh.equilibrium(-1)
+    assert fresh._steps.eqs.count(None) > 0        # the other compiled steps are still not made
+    np.testing.assert_array_equal(fresh.tip_tangents, [e.tip_tangent for e in fresh.equilibria])
+    assert last is fresh.equilibria[-1] and fresh.equilibrium(3) is fresh.equilibria[3]
+    with pytest.raises(IndexError):
+        fresh.equilibrium(len(Q))
+
+
 # --- issue 9 item 3: a start from another robot, an empty Q ----------------------------------
 
 def _other_robot(n_tubes: int = 2) -> Robot:

@@ -87,10 +87,10 @@ class CalibratedTCM:
         tan = np.full((len(Q), 3), np.nan)
         for a, b in bounds:
             tr = follow(self.robot, Q[a:b])
-            for t, eq in enumerate(tr.equilibria):
-                if eq.converged:
-                    pos[a + t] = eq.tip_position + self.marker_mm * eq.tip_tangent
-                    tan[a + t] = eq.tip_tangent
+            ok = tr.converged       # the tips from the trajectory's arrays: no Equilibrium is made
+            tip, tangent = tr.tip_positions[ok], tr.tip_tangents[ok]
+            pos[a:b][ok] = tip + self.marker_mm * tangent
+            tan[a:b][ok] = tangent
         safe = np.where(np.isfinite(tan), tan, [0.0, 0.0, 1.0])
         poses = self.registration.apply(np.column_stack([pos, quat_from_tangent(safe)]))
         poses[~np.isfinite(pos).all(axis=1)] = np.nan

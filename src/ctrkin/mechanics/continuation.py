@@ -92,7 +92,8 @@ class Trajectory:
     """Result of `follow`. tip_poses (T, 6); snaps (T,) bool: a fold was crossed on the way into
     step t; azimuth (T,) deg: T(L), the tip azimuth about z from the outer tube's base rotation
     (unwrapped); stable, converged (T,) bool; equilibria: the T Equilibrium objects (made on first
-    access where a compiled run of steps solved them, `Steps`)."""
+    access where a compiled run of steps solved them, `Steps`); equilibrium(t): step t's alone (a
+    caller that needs a few of them, such as the last, makes only those)."""
 
     q: np.ndarray
     tip_poses: np.ndarray
@@ -106,9 +107,21 @@ class Trajectory:
     def equilibria(self) -> list[Equilibrium]:
         return self._steps.equilibria()
 
+    def equilibrium(self, t: int) -> Equilibrium:
+        """Step t's equilibrium (t < 0 counts from the end), the object `equilibria[t]` holds."""
+        n = len(self.q)
+        if not -n <= t < n:
+            raise IndexError(f"step {t} of a trajectory of {n} steps")
+        return self._steps.at(t % n)
+
     @property
     def tip_positions(self) -> np.ndarray:
         return self.tip_poses[:, :3]
+
+    @property
+    def tip_tangents(self) -> np.ndarray:
+        """(T, 3) unit tip tangents, each step's equilibrium's tip_tangent (without making it)."""
+        return self._steps.body[:, 3:6].copy()
 
     @property
     def n_snaps(self) -> int:

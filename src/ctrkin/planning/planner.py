@@ -216,7 +216,7 @@ def snap_offer(robot: Robot, cur: Equilibrium, target: np.ndarray, cfg: PlanConf
             continue
         i = int(np.argmax(traj.snaps))
         before = traj.tip_positions[i - 1] if i > 0 else cur.tip_position
-        landed = traj.equilibria[i]
+        landed = traj.equilibrium(i)
         sol = branch_ik(robot, landed, target, limits, tangent, cfg.min_margin,
                         max_iter=cfg.ik_iterations)
         ok = sol.error_mm <= cfg.tol_mm

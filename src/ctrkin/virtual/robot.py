@@ -139,13 +139,20 @@ class VirtualRobot:
         base = self.base_joints(p)
         tr = follow(self.true_robot, base, start=state.equilibrium, settings=self.settings,
                     progress=progress)
-        poses, eqs = tr.tip_poses, tr.equilibria
+        poses = tr.tip_poses
+        # the equilibria solved again below; the others are made only where read (the last, and
+        # those before a step solved again: making all of them cost ~20 µs a step, issue 26)
+        redone: dict[int, Equilibrium] = {}
+
+        def eq_at(t: int) -> Equilibrium:
+            return redone[t] if t in redone else tr.equilibrium(t)
+
         for t in np.flatnonzero(~tr.converged):
             # follow gave up this step (its continuation budget, SolverSettings.max_search_steps,
             # spent; the inner reversals on three tubes that did this are now continued, but an
             # extreme robot may still): a real tube still has a pose, so the step is solved from
             # the equilibrium before it with its friction state (solve's snap recovery), else afresh
-            before = eqs[t - 1] if t > 0 else state.equilibrium
+            before = eq_at(t - 1) if t > 0 else state.equilibrium
             eq = solve(self.true_robot, base[t], guess=before, state=before.friction_state,
                        settings=self.settings)
             if not eq.converged:   # no branch near it: the lowest-energy stable one, same friction state
@@ -155,11 +162,11 @@ class VirtualRobot:
                 eq = solve(self.true_robot, base[t], settings=self.settings)
             if not eq.converged:   # none at all: the step stays unconverged (NaN pose), as follow said
                 continue
-            eqs[t] = eq
+            redone[int(t)] = eq
             poses[t] = tip_pose(eq.tip_position[None, :], eq.tip_tangent[None, :])[0]
         motion = Motion(commanded=Qa, base=base, true_poses=poses, snaps=tr.snaps,
                         given_up=~tr.converged)
-        return motion, VirtualState(eqs[-1], p[-1].copy())
+        return motion, VirtualState(eq_at(len(Qa) - 1), p[-1].copy())
 
     # --- sensing --------------------------------------------------------------------------------
     def record(self, motion: Motion, rng: np.random.Generator) -> Recording:
