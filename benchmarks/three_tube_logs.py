@@ -1,7 +1,9 @@
 """Three-tube logs in the comet-lab NDI format, recorded on a virtual three-tube robot.
 
-The robot is examples/robots/comet_nylon_ndi_3tube.toml behind the virtual robot's imperfections
-(ctrkin.virtual defaults: tube errors, backlash and friction, tracker noise), driven through the rig
+The robot is examples/robots/comet_nylon_ndi_3tube.toml behind the virtual robot's imperfections at
+their central values (`ctrkin.virtual.config.CENTRAL`, the defaults when this benchmark was written:
+tube errors, backlash and friction, tracker noise; at today's top-of-range defaults the nylon tubes'
+friction winds them up by tens of mm, 27 mm for the nominal TCM), driven through the rig
 interfaces (`ctrkin.hardware`, a virtual rig, 20 readings per configuration as the lab took) with
 the lab's own joint generator (Jointspace_Generator.m: travel lin1 in 0..40, lin2 and lin3 in 0..45
 mm, cumulative X = lin1, Y = X + lin2, Z = Y + lin3; rotations −45..45°). Files (one session each,
@@ -32,6 +34,7 @@ from ctrkin.acquisition.rig_recorder import LOG_FILE, RigCollection
 from ctrkin.hardware import open_rig
 from ctrkin.hardware.readings_log import ReadingsLog
 from ctrkin.hardware.rig import parse_rig
+from ctrkin.virtual.config import CENTRAL
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -91,7 +94,7 @@ def record(folder: Path, seed: int = 0) -> list[Path]:
         rig = parse_rig({"name": "virtual-comet-3tube", "robot": "comet_nylon_ndi_3tube.toml",
                          "home": home.tolist(), "actuator": {"kind": "virtual"},
                          "tracker": {"kind": "virtual", "readings": READINGS},
-                         "virtual": {"seed": seed * 100 + k, "robot_seed": seed}},
+                         "virtual": {"seed": seed * 100 + k, "robot_seed": seed, "settings": dict(CENTRAL)}},
                         source="three_tube_logs", folder=REPO / "examples" / "robots")
         plan = _plan(lab_to_joints(travel, rot), home, 3)
         with tempfile.TemporaryDirectory() as tmp:
