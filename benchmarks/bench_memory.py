@@ -23,6 +23,15 @@ the held-out (test) sequences against the virtual robot's true pose:
              paper's per-step features as inputs, trained by stateful truncated backpropagation
              through time (benchmarks/memory_state.py): a memory that does not depend on a window
   state+play the same with the play lags among its inputs
+  ib2+tcm    ib2 with a physics prior among its inputs: the tip pose (6 columns, tracker frame) of the
+             TCM calibrated on the training rows (`ctrkin calibrate` as `reproduce` runs it: every
+             group and μ, ctrkin.calibration) and followed along each whole run with its friction
+             state (CalibratedTCM.predict_continued over the `run` column's runs)
+  ib2+play+tcm, ib8+tcm   the same prior as inputs with the play lags / windows of 8
+  ib2+tcmres ib2 learning the residual of that prior: the position target is the recorded position
+             less the prior's (the orientation is learned as in ib2) and the prior is added back
+  ib2+play+tcmres, ib8+tcmres   the same residual with the play lags / windows of 8
+  tcm        the prior alone (no network): what the residual arms start from
 
 Every arm is also scored where the paper protocol never records: on the held-out sweeps (the
 dataset folder `sweeps` beside --data, the inner tube slid between levels) and along the mid-turn
@@ -61,6 +70,7 @@ import numpy as np
 import torch
 
 from ctrkin.data.dataset import Dataset
+from ctrkin.data.tracker_view import recorded_tracker_view
 from ctrkin.evaluation.datasets import registered_truth, with_training_runs
 from ctrkin.families.registry import build_model
 from ctrkin.families.snap_aware.play import dataset_lags
@@ -75,12 +85,19 @@ from ctrkin.training.engine import _early_stopping, _epoch_gathered, _learning_r
 from ctrkin.virtual.truth import virtual_from_meta
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))   # the benchmarks beside this one
-from memory_state import network_step_us, train_state
+from memory_state import network_step_us, run_bounds, train_state
 
 ANGLE_WIDTHS = (2.0, 5.0, 15.0, 45.0, 90.0)     # deg: half widths of the α1, αN play operators
 SLIDE_WIDTHS = (0.05, 0.2, 1.0)                 # mm: of d = βN − β1
-ARMS = {"ib2": (2, False), "ib2+play": (2, True), "ib8": (8, False), "ib8+play": (8, True),
-        "state": (0, False), "state+play": (0, True)}        # IB 0: the state carried over the run
+# arm -> (IB, play lags, the calibrated TCM prior: None, "input" or "residual"); IB 0: the state
+# carried over the run
+ARMS: dict[str, tuple[int, bool, str | None]] = {
+    "ib2": (2, False, None), "ib2+play": (2, True, None), "ib8": (8, False, None),
+    "ib8+play": (8, True, None), "state": (0, False, None), "state+play": (0, True, None),
+    "ib2+tcm": (2, False, "input"), "ib2+play+tcm": (2, True, "input"), "ib8+tcm": (8, False, "input"),
+    "ib2+tcmres": (2, False, "residual"),
+    "ib2+play+tcmres": (2, True, "residual"), "ib8+tcmres": (8, False, "residual"),
+    "tcm": (0, False, "alone")}
 # the quick reproduction's paper LSTM-MLP (its models/fk_lstm_mlp/config.json)
 QUICK_RECIPE = {"model": "lstm_mlp", "options": {"structure": "paper"}, "lr": 1e-3, "batch_size": 64,
                 "max_epochs": 150, "patience": 15, "min_steps": 10000, "patience_steps": 1000,
@@ -96,14 +113,26 @@ def play_columns(ds: Dataset) -> np.ndarray:
 class MemoryRecipe(WindowRecipe):
     """The paper's recipe with extra per-step input columns `extra` (T, E) appended after the
     paper's features (so that Δα0 keeps its index and its clipping at evaluation), min-max fitted
-    on the training rows with them."""
+    on the training rows with them; with `prior` (T, 6) tracker-frame poses the network learns the
+    position's residual from the prior's (target x, y, z less the prior's, min-max refitted; the
+    orientation as without it) and `to_world` adds the prior back."""
 
-    def __init__(self, cfg: TrainConfig, extra: np.ndarray | None) -> None:
+    def __init__(self, cfg: TrainConfig, extra: np.ndarray | None, prior: np.ndarray | None = None) -> None:
         super().__init__(cfg)
         self.extra = extra
+        self.prior = prior
 
     def prepare(self, data: TrainingData) -> Prepared:
         prepared = super().prepare(data)
+        if self.prior is not None:
+            if self.frame is not None:
+                raise ValueError("a residual arm needs the tracker frame as its target frame")
+            self.target = self.target.copy()
+            self.target[:, :3] -= self.prior[:, :3]
+            self.y_norm = MinMax.fit(self.target[self.rows["train"]])
+            self.Y = self.y_norm.transform(self.target).astype(np.float32)
+            self.Yt = torch.from_numpy(self.Y[self.rows["train"]])
+            prepared = replace(prepared, y_norm=self.y_norm)
         if self.extra is None:
             return prepared
         net_in = self.raw_in if self.frame is None else self.frame.network_joints(self.raw_in, self.outer_deg)
@@ -112,6 +141,48 @@ class MemoryRecipe(WindowRecipe):
         self.X = windows(self.x_norm.transform(feats), self.bounds, self.layout.ib).astype(np.float32)
         self.Xt = torch.from_numpy(self.X[self.rows["train"]])
         return replace(prepared, x_norm=self.x_norm)
+
+    def to_world(self, pred: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        out = super().to_world(pred, rows)
+        if self.prior is None:
+            return out
+        out = np.array(out, dtype=np.float64, copy=True)
+        out[:, :3] += self.prior[rows, :3]
+        return out
+
+
+Prior = Callable[[Dataset], np.ndarray]     # a dataset -> (T, 6) tracker-frame poses of a physics model
+
+
+def tcm_prior(paper: Dataset) -> tuple[Prior, dict[str, Any]]:
+    """The calibrated TCM as a prior: `ctrkin calibrate` on the paper data's training rows as `ctrkin
+    reproduce --scale quick` runs it (ctrkin.evaluation.reproduce: 1,000 seeded rows, every group and
+    μ), then a dataset -> its poses followed along each whole run with the friction state (runs from
+    rest, as recorded; a row where no equilibrium converged takes the row before it). Returns the prior
+    and the calibration's figures."""
+    from ctrkin.calibration.fit import calibrate
+    from ctrkin.calibration.params import FRICTION, GROUPS
+    from ctrkin.evaluation.reproduce import CALIBRATION_BUDGET
+
+    n_rows, nfev, samples = CALIBRATION_BUDGET["quick"]
+    train = paper.get_split().train
+    rows = np.sort(np.random.default_rng(0).choice(train, min(n_rows, len(train)), replace=False))
+    t0 = time.perf_counter()
+    cal = calibrate(paper, paper.robot, (*GROUPS, FRICTION), rows=rows, max_nfev=nfev,
+                    friction_samples=samples)
+    info = {"seconds": time.perf_counter() - t0, "friction": cal.model.robot.friction}
+
+    done: dict[int, np.ndarray] = {}      # by dataset: each is followed once however many arms use it
+
+    def prior(ds: Dataset) -> np.ndarray:
+        if id(ds) not in done:
+            poses = cal.model.predict_continued(ds.joints(), run_bounds(ds))
+            for t in np.flatnonzero(~np.isfinite(poses).all(axis=1)):
+                poses[t] = poses[t - 1] if t > 0 else np.nan_to_num(poses[t])
+            done[id(ds)] = poses
+        return done[id(ds)]
+
+    return prior, info
 
 
 Predict = Callable[[Dataset], np.ndarray]      # a trained arm: a dataset -> (T, 6) poses, tracker frame
@@ -122,32 +193,68 @@ def train_arm(ds: Dataset, cfg: TrainConfig, extra: np.ndarray | None) -> dict[s
     return train_window(ds, cfg, extra)[0]
 
 
-def window_predict(rec: MemoryRecipe, net: torch.nn.Module, play: bool) -> Predict:
-    """A trained window arm on another dataset: its features (and play lags), the training's min-max,
-    Δα0 clipped to its training range (as `evaluate` and `Kinematics.predict` clip it), windows of IB
-    steps within each sequence."""
+def window_predict(rec: MemoryRecipe, net: torch.nn.Module, play: bool, prior: Prior | None = None,
+                   prior_input: bool = False) -> Predict:
+    """A trained window arm on another dataset: its features (and play lags, and the prior's poses
+    where they are inputs), the training's min-max, Δα0 clipped to its training range (as `evaluate`
+    and `Kinematics.predict` clip it), windows of IB steps within each sequence; a residual arm adds
+    the prior's position."""
     def predict(ds: Dataset) -> np.ndarray:
         bounds = ds.sequence_bounds()
         feats = sequence_features(rec.layout, ds.joints(), bounds)
+        base = None if prior is None else prior(ds)
         if play:
             feats = np.concatenate([feats, play_columns(ds)], axis=1)
+        if prior_input:
+            assert base is not None
+            feats = np.concatenate([feats, base], axis=1)
         x = rec.x_norm.transform(feats)
         dcols = delta_columns(rec.layout)
         x[:, dcols] = np.clip(x[:, dcols], 0.0, 1.0)
         X = windows(x, bounds, rec.layout.ib).astype(np.float32)
         yn = predict_windows(net, X, np.arange(len(X)))
-        return postprocess(rec.layout, rec.y_norm.inverse(yn))
+        out = postprocess(rec.layout, rec.y_norm.inverse(yn))
+        if base is not None and not prior_input:
+            out[:, :3] += base[:, :3]
+        return out
     return predict
 
 
-def train_window(ds: Dataset, cfg: TrainConfig, extra: np.ndarray | None) -> tuple[dict[str, Any], Predict]:
-    """train_arm's figures and the trained arm as a Predict."""
+def prior_alone(ds: Dataset, cfg: TrainConfig, prior: Prior) -> tuple[dict[str, Any], Predict]:
+    """The `tcm` arm: the prior's position RMSE vs truth on the split's rows, as train_window reports
+    an arm's (the noise-free tracker view, `recorded_tracker_view`, else the true pose columns, as
+    WindowRecipe.evaluate), and the prior as its Predict."""
+    _, rows = split_rows(ds, cfg)
+    truth = recorded_tracker_view(ds)
+    if truth is None:
+        truth = ds.poses(true=True)
+    poses = prior(ds)
+    out: dict[str, Any] = {"inputs": 0, "epochs": 0, "best_epoch": 0, "seconds": 0.0,
+                           "load": os.getloadavg()[0], "step_us": math.nan}
+    for part in ("train", "val", "test"):
+        if len(rows[part]):
+            e = position_error(poses[rows[part]], truth[rows[part]])
+            out[part] = float(np.sqrt(np.mean(e ** 2)))
+    return out, prior
+
+
+def train_window(ds: Dataset, cfg: TrainConfig, extra: np.ndarray | None, prior: Prior | None = None,
+                 prior_mode: str | None = None, play: bool | None = None) -> tuple[dict[str, Any], Predict]:
+    """train_arm's figures and the trained arm as a Predict. prior, prior_mode: the physics prior and
+    how the arm uses it ("input": its poses are extra columns, after `extra`; "residual": the network
+    learns the position's residual); play: the arm's extra columns hold the play lags (default:
+    `extra` is given)."""
+    play = extra is not None if play is None else play
+    base = None if prior is None else prior(ds)
+    if prior_mode == "input":
+        assert base is not None
+        extra = base if extra is None else np.concatenate([extra, base], axis=1)
     torch.set_num_threads(cfg.threads)
     split, rows = split_rows(ds, cfg)
     n_train = len(rows["train"])
     cfg = replace(cfg, max_epochs=cfg.epoch_budget(n_train))
     assert cfg.max_epochs is not None
-    rec = MemoryRecipe(cfg, extra)
+    rec = MemoryRecipe(cfg, extra, base if prior_mode == "residual" else None)
     prep = rec.prepare(TrainingData(ds, cfg, split, rows))
     n_in = rec.X.shape[2]
     torch.manual_seed(cfg.seed)
@@ -176,9 +283,10 @@ def train_window(ds: Dataset, cfg: TrainConfig, extra: np.ndarray | None) -> tup
     window = torch.from_numpy(rec.X[:1])
     return ({"inputs": n_in, "epochs": state["epoch"], "best_epoch": state["best_epoch"], "seconds": seconds,
              "load": os.getloadavg()[0], "step_us": network_step_us(lambda: net(window)),
-             **{part: metrics[part]["vs_true"]["position_mm_rmse"] for part in ("train", "val", "test")
-                if part in metrics}},
-            window_predict(rec, net, extra is not None))
+             # against the truth where the data has it (a virtual robot's), else the measured poses
+             **{part: metrics[part].get("vs_true", metrics[part]["vs_measured"])["position_mm_rmse"]
+                for part in ("train", "val", "test") if part in metrics}},
+            window_predict(rec, net, play, prior if prior_mode else None, prior_mode == "input"))
 
 
 @dataclass(frozen=True)
@@ -257,6 +365,10 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     base = recipe_config(args.recipe, args.max_epochs)
     seeds = [base.seed] if args.seed is None else [int(s) for s in str(args.seed).split(",") if s.strip()]
     lags = play_columns(ds)
+    prior: Prior | None = None
+    if any(ARMS[a][2] for a in arms):
+        prior, cal_info = tcm_prior(Dataset.load(args.data))
+        print(f"calibrated TCM prior: μ {cal_info['friction']:.3f}, {cal_info['seconds']:.0f} s", flush=True)
     t0 = time.perf_counter()
     sets = held_out_sets(args.data, ds, not args.no_reversals)
     print(f"memory features on {args.data}{f' + {args.extra} (training rows)' if args.extra else ''}: "
@@ -271,13 +383,16 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     out: dict[str, list[dict[str, Any]]] = {}
     for seed in seeds:
         for arm in arms:
-            ib, play = ARMS[arm]
+            ib, play, prior_mode = ARMS[arm]
             cfg = replace(base, seed=seed, ib=max(ib, 1))
             if arm.startswith("state"):
                 r, model = train_state(ds, cfg, play_columns if play else None)
                 predict: Predict = model.predict
+            elif prior_mode == "alone":
+                assert prior is not None
+                r, predict = prior_alone(ds, cfg, prior)
             else:
-                r, predict = train_window(ds, cfg, lags if play else None)
+                r, predict = train_window(ds, cfg, lags if play else None, prior, prior_mode, play)
             r = {"seed": seed, **r, **score(predict, sets)}
             out.setdefault(arm, []).append(r)
             print(f"{arm:10s} {seed:4d} {r['inputs']:6d} {r['epochs']:6d} {r['best_epoch']:5d} "

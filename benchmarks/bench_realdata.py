@@ -13,7 +13,11 @@ default group); for OptiTrack also the learned FK (LSTM-MLP) trained on the −9
 random points (validation: 15 % of their rows) and tested on the held-out −45..45° sweep: the mean
 prediction of FK_SEEDS networks that differ only in their seed (averaging removes the seed-to-seed
 variance), for each angle encoding in FK_ENCODINGS; the encoding whose average has the lower
-validation error is the one reported (both are printed, with each seed's errors).
+validation error is the one reported (both are printed, with each seed's errors). Then, with that
+encoding, the learned FK on a physics prior (`prior_fk`: the TCM calibrated on the training rows,
+bench_memory's window arms): the same network without the prior, learning the position's residual
+from the calibrated TCM, and with the TCM's poses as inputs, each the mean of FK_SEEDS seeds, and the
+calibrated TCM alone (JSON key `optitrack_fk_prior_heldout_mm`: the residual arm).
 Calibration uses its prior about the nominal values (ctrkin.calibration.params) with a strength
 chosen per fold among PRIOR_SCALES by a nested leave-one-sequence-out on the training sequences
 only. Also printed: the speed-up of the calibration Jacobian (exact TCM sensitivities against
@@ -47,6 +51,7 @@ from ctrkin.data.splits import split_with_test_val_rows
 from ctrkin.robots.robot import Robot
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))   # the benchmarks beside this one
 DEFAULT_DATA = REPO.parent / "shared" / "realdata" / "comet-lab"
 HELD_OUT_SWEEP = "19_05_23-13_08_2-tubes_rotate"
 FK_SEEDS = 5
@@ -148,6 +153,48 @@ def learned_fk(ds, out: Path, max_epochs: int, encoding: str, held_out: str = HE
             err(mean, ds.split.val), [err(p, ds.split.val) for p in preds])
 
 
+PRIOR_ARMS = (None, "residual", "input")     # bench_memory's window arm without and with the TCM prior
+
+
+def prior_fk(ds, max_epochs: int, encoding: str, seeds: int = FK_SEEDS
+             ) -> dict[str | None, tuple[float, list[float], float]]:
+    """The learned FK with the calibrated TCM as a physics prior (bench_memory's arms): the TCM
+    calibrated on the training rows of ds's split (learned_fk's; default groups, no held-out or
+    validation row), then per arm of PRIOR_ARMS the LSTM-MLP of learned_fk's settings trained by
+    bench_memory.train_window in the tracker frame, without the prior (None), on its residual
+    ("residual": the network learns the position less the TCM's) or with its poses as inputs
+    ("input"). Returns per arm (mean tip distance (mm) of the `seeds` seeds' average on the test
+    rows, each seed's, the average's on the validation rows)."""
+    from bench_memory import train_window
+    from ctrkin.calibration.fit import calibrate
+    from ctrkin.training import TrainConfig
+
+    cal = calibrate(ds, rows=np.sort(ds.split.train))
+
+    def prior(d) -> np.ndarray:
+        return cal.model.predict_continued(d.joints(), d.sequence_bounds())
+
+    meas = ds.poses()[:, :3]
+
+    def err(p: np.ndarray, rows: np.ndarray) -> float:
+        return float(np.mean(np.linalg.norm(p[rows, :3] - meas[rows], axis=1)))
+
+    out: dict[str | None, tuple[float, list[float], float]] = {}
+    for mode in PRIOR_ARMS:
+        preds = []
+        for seed in range(seeds):
+            cfg = TrainConfig(task="fk", model="lstm_mlp", split="dataset", max_epochs=max_epochs,
+                              patience=60, lr_schedule="cosine", seed=seed, threads=1,
+                              angle_encoding=encoding, target_frame="tracker")
+            preds.append(train_window(ds, cfg, None, prior if mode else None, mode)[1](ds))
+        mean = np.mean(preds, axis=0)
+        out[mode] = (err(mean, ds.split.test), [err(p, ds.split.test) for p in preds],
+                     err(mean, ds.split.val))
+    alone = prior(ds)
+    out["tcm"] = (err(alone, ds.split.test), [], err(alone, ds.split.val))
+    return out
+
+
 def three_tubes(out: Path, max_epochs: int, res: dict) -> list[tuple[str, str, str, str]]:
     """The three-tube row (module docstring): logs of a virtual robot in the NDI format, imported
     with the documented profile, calibrated and learned."""
@@ -230,6 +277,16 @@ def main() -> None:
                              "single seeds " + " ".join(f"{e:.3f}" for e in fk_seeds)))
                 rows.append((name, f"  {enc}: validation rows", f"{fk_val:.3f} mm",
                              "single seeds " + " ".join(f"{e:.3f}" for e in val_seeds)))
+            arms = prior_fk(ds, args.epochs, best)      # the split learned_fk left on ds
+            res["optitrack_fk_prior_heldout_mm"] = round(arms["residual"][0], 3)
+            labels = {"tcm": "calibrated TCM alone (training rows), held-out sweep",
+                      None: f"window FK without the prior ({FK_SEEDS}-seed mean, {best}), held-out sweep",
+                      "residual": f"learned FK on the calibrated TCM (residual, {FK_SEEDS}-seed mean)",
+                      "input": f"learned FK, the calibrated TCM as inputs ({FK_SEEDS}-seed mean)"}
+            for mode, (fk, fk_seeds, fk_val) in arms.items():
+                single = " ".join(f"{e:.3f}" for e in fk_seeds)
+                note = f"validation {fk_val:.3f} mm" + (f"; single seeds {single}" if fk_seeds else "")
+                rows.append((name, labels[mode], f"{fk:.3f} mm", note))
         else:
             repeat, floor = session_floor(ds)
             rows.append((name, "October runs, same joints: tip distance", f"{repeat:.3f} mm", ""))
@@ -242,7 +299,8 @@ def main() -> None:
         print(f"{r[0]:10s} {r[1]:{width}s} {r[2]:>12s}  {r[3]}")
     print(f"({time.time() - t0:.0f} s)")
     order = ["optitrack_samples", "optitrack_tcm_nominal_mm", "optitrack_tcm_calibrated_loso_mm",
-             "optitrack_tcm_calibrated_bending_loso_mm", "optitrack_fk_heldout_mm", "ndi_samples",
+             "optitrack_tcm_calibrated_bending_loso_mm", "optitrack_fk_heldout_mm",
+             "optitrack_fk_prior_heldout_mm", "ndi_samples",
              "ndi_tcm_nominal_mm", "ndi_tcm_calibrated_loso_mm", "ndi_tcm_calibrated_bending_loso_mm",
              "three_tube_samples", "three_tube_tcm_nominal_mm", "three_tube_tcm_calibrated_loso_mm",
              "three_tube_fk_heldout_mm"]

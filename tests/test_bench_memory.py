@@ -111,3 +111,52 @@ def test_extra_rows_join_the_training_rows_only(bench, sweeps, tmp_path, capsys)
     assert report["extra"] == str(extra)
     assert f"{2 * len(sweeps.frame)} rows" in out and "(training rows)" in out
     assert report["arms"]["ib2"][0]["epochs"] == 1
+
+
+def test_a_residual_arm_learns_the_position_less_the_prior_and_adds_it_back(bench, sweeps) -> None:
+    from ctrkin.models.recipe import TrainingData
+    from ctrkin.training.data import split_rows
+
+    poses = sweeps.poses()
+    shift = np.array([3.0, -1.0, 0.5, 0.0, 0.0, 0.0])
+
+    def prior(ds):
+        return ds.poses() + shift          # a prior off by a constant: the residual is that constant
+
+    cfg = bench.recipe_config(None, 1)
+    split, rows = split_rows(sweeps, cfg)
+    rec = bench.MemoryRecipe(cfg, None, prior(sweeps))
+    rec.prepare(TrainingData(sweeps, cfg, split, rows))
+    np.testing.assert_allclose(rec.target[:, :3], -np.broadcast_to(shift[:3], (len(poses), 3)), atol=1e-9)
+    np.testing.assert_array_equal(rec.target[:, 3:], poses[:, 3:])     # the orientation as without a prior
+    train = rows["train"]
+    back = rec.to_world(rec.y_norm.inverse(rec.Y[train].astype(float)), train)
+    np.testing.assert_allclose(back[:, :3], poses[train, :3], atol=1e-3)
+
+    cfg = type(cfg).from_dict({**cfg.to_dict(), "options": {"structure": "L16|D16"}})
+    r, predict = bench.train_window(sweeps, cfg, None, prior, "residual")
+    assert r["inputs"] == 6 and r["epochs"] == 1
+    pred = predict(sweeps)
+    # the network learns a near-constant residual: its predictions sit about the prior less the shift
+    err = np.linalg.norm(pred[:, :3] - poses[:, :3], axis=1)
+    assert np.all(np.isfinite(pred)) and np.median(err) < np.linalg.norm(shift[:3])
+
+
+def test_a_prior_as_input_adds_its_pose_columns(bench, sweeps) -> None:
+    cfg = bench.recipe_config(None, 1)
+    cfg = type(cfg).from_dict({**cfg.to_dict(), "options": {"structure": "L16|D16"}})
+    r, predict = bench.train_window(sweeps, cfg, None, lambda ds: ds.poses(), "input")
+    assert r["inputs"] == 6 + 6
+    assert predict(sweeps).shape == (len(sweeps.frame), 6)
+
+
+def test_the_prior_alone_is_scored_against_the_noise_free_view(bench, sweeps) -> None:
+    from ctrkin.data.tracker_view import recorded_tracker_view
+
+    cfg = bench.recipe_config(None, 1)
+    truth = recorded_tracker_view(sweeps)
+    truth = sweeps.poses(true=True) if truth is None else truth
+    exact, _ = bench.prior_alone(sweeps, cfg, lambda ds: truth)
+    assert exact["val"] == pytest.approx(0.0, abs=1e-12) and exact["test"] == pytest.approx(0.0, abs=1e-12)
+    off, _ = bench.prior_alone(sweeps, cfg, lambda ds: truth + np.array([0.0, 2.0, 0.0, 0.0, 0.0, 0.0]))
+    assert off["val"] == pytest.approx(2.0) and off["epochs"] == 0
