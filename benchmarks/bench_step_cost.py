@@ -16,6 +16,11 @@ Prints a row per run (steps, seconds, µs a step, the steps whose continuation `
 gives up spends its whole continuation budget (SolverSettings.max_search_steps) before it is solved
 again, so `given_up_share` is where the time goes when a robot records slowly.
 
+`--path moving` drives instead one path of `--steps` steps on which every joint moves each step, as a
+follow IK's answers do (`moving_path`: each α drifts 0.5° a step with 0.2° of seeded noise, each β
+follows a slow sine through the quick protocol's range of it with 0.002 mm of noise, projected onto
+the robot's stops): the translating steps with friction that the protocol's sweeps seldom take.
+
 `--against KEY=VALUE` (repeatable) drives the same segments a second time on the same hardware draw
 with those effects changed too, and adds how far its true tip is from the first one's (RMS, 99th
 percentile and largest, mm) and what its steps cost: `against`, `against_us_per_step`,
@@ -30,7 +35,9 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import hashlib
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -67,6 +74,60 @@ def _drive(virtual: VirtualRobot, runs: list, n_segments: int | None
             tips.append(motion.true_poses[:, :3])
         per_run.append((steps, wall, given_up, snaps))
     return seg_cost, per_run, np.concatenate(tips)
+
+
+MOVING_SEED = 0
+
+
+def moving_path(robot, plan, steps: int, seed: int = MOVING_SEED) -> np.ndarray:
+    """(steps, 2N) joints on which every joint moves each step (module docstring): from the first run's
+    start, α drifting 0.5 ± 0.2° a step, β_i on a sine of period 2π·(300, 170, 230, …)[i] steps across
+    the middle 80 % of the protocol's range of β_i, with 0.002 mm of noise; projected onto the stops."""
+    rng = np.random.default_rng(seed)
+    n = robot.n_tubes
+    q0 = plan.runs[0].start
+    Q = np.concatenate([seg.q for run in plan.runs for seg in run.segments])
+    lo, hi = Q[:, n:].min(axis=0), Q[:, n:].max(axis=0)
+    t = np.arange(steps)[:, None]
+    periods = np.array([300.0, 170.0, 230.0, 190.0, 260.0])[:n]
+    out = np.empty((steps, 2 * n))
+    out[:, :n] = q0[:n] + np.cumsum(0.5 + 0.2 * rng.standard_normal((steps, n)), axis=0)
+    out[:, n:] = ((lo + hi) / 2 + 0.4 * (hi - lo) * np.sin(t / periods)
+                  + 0.002 * rng.standard_normal((steps, n)))
+    return robot.project_joints(out)
+
+
+def moving_cost(name: str, overrides: dict, steps: int, repeats: int = 3) -> dict:
+    """Drive moving_path (steps) on case `name` from rest at its first row, in one move, `repeats`
+    times; print the rows and return the figures (the median drive's; the first 50 steps driven
+    before the clock starts, to load the kernels)."""
+    case = ROBOTS[name]
+    robot = _robot(case)
+    effects = {**case.settings, **overrides}
+    virtual = VirtualRobot(robot, dataclasses.replace(VirtualConfig(), **effects), seed=case.seed)
+    Q = moving_path(robot, protocols.build("paper", robot, scale="quick", seed=0), steps)
+    state = virtual.rest(Q[0])
+    virtual.move(state, Q[:50])
+    walls = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        motion, _ = virtual.move(state, Q)
+        walls.append(time.perf_counter() - t0)
+    wall = float(np.median(walls))
+    digest = hashlib.sha256(np.ascontiguousarray(motion.true_poses).tobytes()).hexdigest()[:16]
+    figures = {"case": name, "path": "moving", "effects": effects, "steps": steps, "wall_s": round(wall, 3),
+               "us_per_step": round(1e6 * wall / steps, 1), "repeats": repeats,
+               "us_per_step_min": round(1e6 * min(walls) / steps, 1), "load": round(os.getloadavg()[0], 2),
+               "given_up_share": round(float(motion.given_up.mean()), 4), "snaps": int(motion.snaps.sum()),
+               "tip_digest": digest}
+    print(f"{name}: {robot.name}, {robot.n_tubes} tubes, hardware seed {case.seed}, tube_friction "
+          f"{virtual.config.tube_friction}; a moving path of {steps} steps (every joint each step)")
+    print(f"{'steps':>7} {'s':>8} {'µs/step':>9} {'given up':>9} {'snaps':>6}  tips (median of {repeats} "
+          f"drives; fastest {figures['us_per_step_min']:.0f} µs a step; load {figures['load']})")
+    print(f"{steps:>7} {wall:>8.2f} {figures['us_per_step']:>9.0f} {int(motion.given_up.sum()):>9} "
+          f"{figures['snaps']:>6}  {figures['tip_digest']}")
+    print(json.dumps(figures))
+    return figures
 
 
 def step_cost(name: str, overrides: dict, n_runs: int, n_segments: int | None,
@@ -124,16 +185,26 @@ def main() -> int:
                     help="a robot and effect mix of bench_generalisation (default three-tube)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override an effect of the case (VirtualConfig's keys; repeatable)")
-    ap.add_argument("--runs", type=int, default=1, help="runs of the quick paper protocol (default 1)")
+    ap.add_argument("--runs", type=int, default=1, help="runs of the quick paper protocol (default 1); with "
+                    "--path moving, drives of the path (the median is reported; give 3 or more)")
     ap.add_argument("--segments", type=int, default=None,
                     help="only the first K segments of each run (default all; a run of the quick "
                     "protocol has 35)")
     ap.add_argument("--against", action="append", default=[], metavar="KEY=VALUE",
                     help="drive the same segments again with these effects changed too (repeatable) "
                     "and print how far the true tip moves")
+    ap.add_argument("--path", choices=("protocol", "moving"), default="protocol",
+                    help="protocol: the quick paper protocol's runs (default); moving: one path on which "
+                    "every joint moves each step (moving_path)")
+    ap.add_argument("--steps", type=int, default=3000, help="steps of --path moving (default 3000)")
     args = ap.parse_args()
-    if args.runs < 1 or (args.segments is not None and args.segments < 1):
-        ap.error("--runs and --segments must be >= 1")
+    if args.runs < 1 or (args.segments is not None and args.segments < 1) or args.steps < 4:
+        ap.error("--runs and --segments must be >= 1, --steps >= 4")
+    if args.path == "moving":
+        if args.against:
+            ap.error("--against drives the protocol's segments: use it with --path protocol")
+        moving_cost(args.case, parse_key_values(args.set, "--set", VirtualConfig), args.steps, args.runs)
+        return 0
     step_cost(args.case, parse_key_values(args.set, "--set", VirtualConfig), args.runs, args.segments,
               parse_key_values(args.against, "--against", VirtualConfig) or None)
     return 0

@@ -35,3 +35,21 @@ def test_against_drives_the_same_segments_again_and_measures_the_tip_difference(
     out = capsys.readouterr().out.splitlines()
     assert out[-2].startswith("against {'tube_friction': 0.2}")
     assert json.loads(out[-1]) == other
+
+
+def test_the_moving_path_moves_every_joint_each_step_within_the_stops(capsys) -> None:
+    import numpy as np
+
+    bench = load_benchmark("bench_step_cost")
+    for name in ("default-top", "three-tube"):
+        robot = bench._robot(bench.ROBOTS[name])
+        plan = bench.protocols.build("paper", robot, scale="quick", seed=0)
+        Q = bench.moving_path(robot, plan, 400)
+        assert Q.shape == (400, 2 * robot.n_tubes)
+        robot.check_joints(Q)                                    # raises on a joint past a stop
+        assert (np.diff(Q, axis=0) != 0).all()                   # every joint, every step
+        np.testing.assert_array_equal(Q, bench.moving_path(robot, plan, 400))    # seeded
+    figures = bench.moving_cost("default-top", {}, 60, repeats=2)
+    assert figures["steps"] == 60 and figures["repeats"] == 2 and figures["given_up_share"] == 0.0
+    assert 0 < figures["us_per_step_min"] <= figures["us_per_step"]
+    assert json.loads(capsys.readouterr().out.splitlines()[-1]) == figures
