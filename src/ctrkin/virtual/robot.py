@@ -147,7 +147,7 @@ class VirtualRobot:
         def eq_at(t: int) -> Equilibrium:
             return redone[t] if t in redone else tr.equilibrium(t)
 
-        for t in np.flatnonzero(~tr.converged):
+        for t in np.flatnonzero(~tr.converged).tolist():
             # follow gave up this step (its continuation budget, SolverSettings.max_search_steps,
             # spent; the inner reversals on three tubes that did this are now continued, but an
             # extreme robot may still): a real tube still has a pose, so the step is solved from
@@ -162,7 +162,7 @@ class VirtualRobot:
                 eq = solve(self.true_robot, base[t], settings=self.settings)
             if not eq.converged:   # none at all: the step stays unconverged (NaN pose), as follow said
                 continue
-            redone[int(t)] = eq
+            redone[t] = eq
             poses[t] = tip_pose(eq.tip_position[None, :], eq.tip_tangent[None, :])[0]
         motion = Motion(commanded=Qa, base=base, true_poses=poses, snaps=tr.snaps,
                         given_up=~tr.converged)
