@@ -8,7 +8,9 @@ joint offsets, tip-marker offset and tracker registration.
 A calibrated robot file (`ctrkin calibrate --out`) is a normal robot file: its `[calibration]` table
 (offsets, marker offset, registration, uncertainties, errors) is read here and ignored elsewhere.
 `predict` solves point-wise (no history: no friction load); `predict_continued` follows each
-sequence by continuation, carrying the branch and, with Robot.friction > 0, the friction state.
+sequence by continuation, carrying the branch and, with Robot.friction > 0, the friction state;
+`stream()` follows one step at a time (the same numbers as predict_continued, the state carried in
+a `TCMStream`).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import tomli_w
 
 from ctrkin.errors import CtrkinError
 from ctrkin.geometry import Registration, quat_from_tangent
@@ -96,10 +99,22 @@ class CalibratedTCM:
         poses[~np.isfinite(pos).all(axis=1)] = np.nan
         return poses
 
+    def stream(self) -> TCMStream:
+        """A streaming follower of this model, at rest (TCMStream)."""
+        return TCMStream(self)
+
     def to_dict(self) -> dict[str, Any]:
         return {"joint_offsets": self.joint_offsets.tolist(), "marker_mm": self.marker_mm,
                 "registration": {"rotation": self.registration.rotation.tolist(),
                                  "translation_mm": self.registration.translation.tolist()}}
+
+    def to_toml(self, name: str, **calibration: Any) -> str:
+        """A calibrated robot file's text (a robot file with a [calibration] table, as `ctrkin
+        calibrate --out` writes: `from_file` reads it back); calibration: more entries of the table
+        (provenance); None values are left out (TOML has no null)."""
+        d: dict[str, Any] = {**self.robot.to_dict(), "name": name,
+                             "calibration": {**self.to_dict(), **calibration}}
+        return tomli_w.dumps(_drop_none(d))
 
     @classmethod
     def from_file(cls, path: str | Path) -> CalibratedTCM:
@@ -112,13 +127,51 @@ class CalibratedTCM:
                                          np.array(reg["translation_mm"], float))
                             if reg else Registration.identity())
             offsets = np.array(cal.get("joint_offsets", np.zeros(robot.n_joints)), float)
-        except (KeyError, TypeError, ValueError) as e:
+            marker = float(cal.get("marker_mm", 0.0))
+        except (KeyError, TypeError, ValueError, AttributeError) as e:
             raise CtrkinError(f"{path}: [calibration] table is malformed: {e}") from None
         if offsets.shape != (robot.n_joints,):
             raise CtrkinError(f"{path}: [calibration] joint_offsets needs {robot.n_joints} values")
-        return cls(robot, offsets, float(cal.get("marker_mm", 0.0)), registration)
+        return cls(robot, offsets, marker, registration)
 
     @property
     def has_registration(self) -> bool:
         return not (np.allclose(self.registration.rotation, np.eye(3))
                     and np.allclose(self.registration.translation, 0))
+
+
+class TCMStream:
+    """A CalibratedTCM followed one step at a time: its last equilibrium (branch and friction state)
+    is carried from step to step, so that a run of steps gives predict_continued's poses of that run
+    (equal to its rounding: a streamed step is follow() of one row from the last equilibrium).
+    A step where no equilibrium converges returns the last pose and keeps the last equilibrium
+    (NaN before any converged); `reset()` starts again from a point-wise solve."""
+
+    def __init__(self, model: CalibratedTCM) -> None:
+        self.model = model
+        self._eq: Equilibrium | None = None
+        self._pose = np.full(6, np.nan)
+
+    def reset(self) -> None:
+        self._eq, self._pose = None, np.full(6, np.nan)
+
+    def step(self, joints: np.ndarray) -> np.ndarray:
+        """Logged joints (2N,) (deg, mm) -> the (6,) tracker-frame pose after moving to them."""
+        m = self.model
+        q = m.model_joints(np.asarray(joints, float))
+        tr = follow(m.robot, q, start=self._eq)
+        if tr.converged[0]:
+            self._eq = tr.equilibrium(0)
+            tan = tr.tip_tangents[0]
+            pos = tr.tip_positions[0] + m.marker_mm * tan
+            self._pose = m.registration.apply(np.concatenate([pos, quat_from_tangent(tan[None])[0]])[None])[0]
+        return self._pose.copy()
+
+
+def _drop_none(d: Any) -> Any:
+    """TOML has no null: None entries dropped (recursively)."""
+    if isinstance(d, dict):
+        return {k: _drop_none(v) for k, v in d.items() if v is not None}
+    if isinstance(d, list):
+        return [_drop_none(v) for v in d if v is not None]
+    return d

@@ -21,6 +21,9 @@ from ctrkin.inference.kinematics import Kinematics
 def export_onnx(kin: Kinematics, path: str | Path, opset: int = 17, allow_downgrade: bool = False) -> Path:
     """Write `kin` as an ONNX file (dynamic batch size); returns the path. ModelError if the graph
     would lose what `predict` runs (the reason is said) and allow_downgrade is False."""
+    check = getattr(kin.predictor, "check_exportable", None)
+    if check is not None:              # what cannot be exported at all is said before a downgrade
+        check()
     reason = kin.predictor.export_downgrade()
     if reason is not None and not allow_downgrade:
         raise ModelError(f"not exported: {reason}; pass allow_downgrade=True (ctrkin export "

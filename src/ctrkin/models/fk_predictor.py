@@ -14,6 +14,12 @@ relay state of a model with a tabulated gate (−1 at a start), the direction m_
 motor last turned and its previous angle (ctrkin.models.motion), the outer lag λ(β) of the last β,
 and for a model with play-lag inputs the play operators' outputs (ctrkin.models.play_lags: in the
 fused step's buffer, so both paths share them; in ONNX they are columns of the graph's window).
+
+A model trained with tcm_prior (ctrkin.models.tcm_prior) adds the calibrated TCM's position to the
+network's residual: in batch followed along a Dataset's recorded runs or along each sequence of an
+array from rest, streaming one TCM step per step from its last equilibrium (carried over by
+`reset(continue_run=True)`). Its steps take the reference path (the fused step cannot run the TCM);
+probe and ONNX export are refused.
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ from ctrkin.models.batch import fk_padded_rows, fk_poses, padded_rows, seqnet_pr
 from ctrkin.models.engine import StreamingEngine
 from ctrkin.models.features import (
     by_name,
+    check_raw,
     pair_features,
     postprocess,
     real_array,
@@ -48,6 +55,7 @@ from ctrkin.models.play_lags import PlayState, path_lags, recorded_lags
 from ctrkin.models.predictor_base import BasePredictor
 from ctrkin.models.seqnet import SeqNet
 from ctrkin.models.store import ModelBundle
+from ctrkin.models.tcm_prior import PriorStream, dataset_prior, prior_poses
 
 _F64 = np.dtype(np.float64)      # step's fast path: `is` on the dtype (numpy's builtin dtypes are singletons)
 FUSED_ROWS = 16      # predict runs the fused step on sequences up to this long (bench_streaming)
@@ -71,7 +79,9 @@ class FKPredictor(BasePredictor):
         self._shift: np.ndarray | None = None
         self._gate_state, self._outer_motion, self._outer_prev = -1, 0, math.nan
         self._lag_beta, self._lag = b"", 0.0      # the outer lag λ(β) of the last β (ctrkin.models.frame)
-        self._use_fused = fused
+        self._prior = bundle.prior                # the calibrated TCM under the network (tcm_prior)
+        self._prior_stream = PriorStream(self._prior) if self._prior is not None else None
+        self._use_fused = fused and self._prior is None     # the fused step cannot run the TCM
         self._fused: FusedFK | None = None
         self._play: PlayState | None = None
         self._rebuild_fused()
@@ -152,6 +162,7 @@ class FKPredictor(BasePredictor):
 
     def new_stream(self) -> None:
         super().new_stream()
+        self._prior_stream = PriorStream(self._prior) if self._prior is not None else None
         self._rebuild_fused()                       # it holds the engine
         self.reset()
 
@@ -203,7 +214,23 @@ class FKPredictor(BasePredictor):
                 self.layout, net_raw, bounds, self.play_columns(data, raw, bounds))))
             yn = self._batch_outputs(feats, bounds, data, raw, options)
             y = postprocess(self.layout, self._y_norm.inverse(yn))
+        if self._prior is not None:
+            y[:, :3] += self._prior_positions(data, bounds, angles)
         return y if self.frame is None or angles is None else self.frame.to_world(y, angles)
+
+    def _prior_positions(self, data: Dataset | np.ndarray, bounds: list[tuple[int, int]],
+                         angles: np.ndarray | None) -> np.ndarray:
+        """(T, 3) mm the TCM prior's positions in the network's output frame: along the joints as
+        given (a Dataset: its recorded runs; an array: each sequence from rest), taken to the outer
+        frame with the rows' angles where the model learned in it."""
+        assert self._prior is not None
+        if isinstance(data, Dataset):
+            poses = dataset_prior(self._prior, data)
+        else:
+            poses = prior_poses(self._prior, check_raw(self.layout, data), bounds)
+        if self.frame is not None and angles is not None:
+            poses = self.frame.to_local(poses, angles)
+        return poses[:, :3]
 
     def _sequence_starts(self, bounds: list[tuple[int, int]], rows: int) -> np.ndarray | None:
         """(S + 1,) the first rows of the sequences `bounds` and the row count, where predict's
@@ -250,8 +277,9 @@ class FKPredictor(BasePredictor):
     # --- probing (the refined IK's inner loop) ---------------------------------------------------
     @property
     def probes(self) -> bool:
-        """Whether probe / probe_tips apply (a SeqNet model: the engine evaluates candidates)."""
-        return self._engine is not None
+        """Whether probe / probe_tips apply (a SeqNet model: the engine evaluates candidates; not a
+        model with a TCM prior)."""
+        return self._engine is not None and self._prior is None
 
     def _probe_outputs(self, Q: np.ndarray, what: str
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
@@ -260,6 +288,10 @@ class FKPredictor(BasePredictor):
         frame's angles (K,) or None without a frame). m_N follows αN as given, as in `step`."""
         if self._engine is None:
             raise ModelError(f"{what}() needs an FK model of the LSTM-MLP family")
+        if self._prior is not None:
+            raise ModelError(f"{what}() is not supported for a model trained with tcm_prior (the TCM "
+                             "prior would have to be continued to every candidate); train without "
+                             "--tcm-prior for the refined IK, the controller or the planner")
         Q = np.atleast_2d(np.asarray(Q, float))
         outer = Q[:, self.layout.n_tubes - 1].copy()
         lags = None if self._play is None else self._play.peek(Q)       # of the joints as given
@@ -315,6 +347,8 @@ class FKPredictor(BasePredictor):
             self._gate_state, self._outer_motion, self._outer_prev = -1, int(outer_motion), math.nan
             if self._play is not None:
                 self._play.reset()
+            if self._prior_stream is not None:
+                self._prior_stream.reset()          # the TCM starts again from a point-wise solve
         self._prev = None
         self._shift = None
         self.reset_stream()
@@ -345,7 +379,9 @@ class FKPredictor(BasePredictor):
             raise ModelError(f"step() expects shape ({self.layout.raw_width},), got {raw.shape}")
         outer = float(raw[self.layout.n_tubes - 1])     # as given: whole-turn shifts differ by sequence
         lags, play_out = (None, None) if self._play is None else self._play.after(raw)
+        given = raw
         raw, self._shift = self._guard.step(raw, self._shift if self._prev is not None else None)
+        prior = None if self._prior_stream is None else self._prior_stream.step(given)
         angle = math.nan if self.frame is None else self._step_angle(raw, outer)
         net_raw = raw
         if self.frame is not None and self.frame.lags_inputs:      # the network sees the frame's angle
@@ -360,6 +396,10 @@ class FKPredictor(BasePredictor):
         xn = self._x_norm.transform(feat)
         yn = self.network_step(xn, self._state_before(raw, outer) if self._engine is not None else None)
         y = self._y_norm.inverse(yn)
+        if prior is not None:           # the TCM's position under the network's residual
+            if self.frame is not None:
+                prior = self.frame.to_local(prior[None], np.array([angle]))[0]
+            y[:3] += prior[:3]
         if self.frame is not None:
             if self.frame.has_lag and not self._follows_motion:    # m_N followed here, else by the gate
                 self._outer_motion, self._outer_prev = self._motion_after(outer), outer
@@ -442,6 +482,9 @@ class FKPredictor(BasePredictor):
         """ModelError where the ONNX graph cannot hold what the model computes (equivariant inputs: the
         graph turns its poses by the window's αN column; a position field). Play lags are columns of
         the window the graph reads, as every feature is (Kinematics.feature_windows)."""
+        if self._prior is not None:
+            raise ModelError("this FK model was trained with tcm_prior: the calibrated TCM it adds to the "
+                             "network's residual is not in the ONNX graph; it streams in ctrkin only")
         if self.layout.equivariant or (self.frame is not None and self.frame.field is not None):
             raise ModelError("this FK model's equivariant inputs and position field are not in the ONNX "
                              "graph: it streams in ctrkin only")

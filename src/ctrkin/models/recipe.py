@@ -39,9 +39,11 @@ from ctrkin.models.normalize import MinMax
 from ctrkin.models.outer_lag import fit_outer_lag
 from ctrkin.models.play_lags import recorded_lags
 from ctrkin.models.store import FRAME, write_json
+from ctrkin.models.tcm_prior import calibrate_prior, dataset_prior, save_prior
 from ctrkin.models.workspace import Workspace
 
 if TYPE_CHECKING:
+    from ctrkin.calibration.model import CalibratedTCM
     from ctrkin.data.splits import Split
     from ctrkin.models.store import ModelBundle
 
@@ -97,6 +99,10 @@ class TrainSettings(Protocol):
 
     @property
     def catch_up(self) -> float:
+        ...
+
+    @property
+    def tcm_prior(self) -> bool:
         ...
 
     def layout(self, n_tubes: int) -> FeatureLayout:
@@ -192,8 +198,10 @@ class WindowRecipe:
     (ctrkin.models.frame), the MAE loss; an IK model also gets its workspace (ctrkin.models.workspace).
 
     After `prepare`: X (T, IB, F) and Y (T, O) float32 normalised windows and targets of every row,
-    raw_in (T, 2N | 6) raw inputs, target (T, O) raw targets (local frame where there is one),
-    bounds the sequences, frame and outer_deg (T,) the frame's angle (None without a frame)."""
+    raw_in (T, 2N | 6) raw inputs, target (T, O) raw targets (local frame where there is one; with
+    tcm_prior the position's residual from the prior), bounds the sequences, frame and outer_deg (T,)
+    the frame's angle (None without a frame), prior_tcm and prior_pos (T, 3) mm the calibrated TCM
+    and its positions in the target's frame (None without tcm_prior)."""
 
     checkpoints = True
 
@@ -209,12 +217,24 @@ class WindowRecipe:
         self.rows = data.rows
         self.frame: OuterFrame | None = None
         self.outer_deg: np.ndarray | None = None
+        self.prior_tcm: CalibratedTCM | None = None
+        self.prior_pos: np.ndarray | None = None
+        prior = None
+        if cfg.tcm_prior:               # the calibrated TCM along the recorded runs (ctrkin.models.tcm_prior)
+            self.prior_tcm = calibrate_prior(ds, self.rows["train"])
+            prior = dataset_prior(self.prior_tcm, ds)
         net_in = self.raw_in
         if cfg.target_frame == "outer":     # FK targets in the outer tube's frame (ctrkin.models.frame)
             self.frame, self.outer_deg = fit_outer_frame(ds, self.raw_in, target, self.rows["train"],
                                                          cfg.seed)
             target = self.frame.to_local(target, self.outer_deg)
+            if prior is not None:       # the same affine map: the residual adds back exactly
+                prior = self.frame.to_local(prior, self.outer_deg)
             net_in = self.frame.network_joints(self.raw_in, self.outer_deg)
+        if prior is not None:           # the network learns the position's residual
+            self.prior_pos = prior[:, :3].copy()
+            target = np.array(target, dtype=np.float64, copy=True)
+            target[:, :3] -= self.prior_pos
         self.target = target
         lags = None
         if self.layout.play:            # the play lags of the joints as recorded, along each run
@@ -246,12 +266,19 @@ class WindowRecipe:
         return float(np.mean(np.abs(self.predict_rows(net, rows) - self.Y[rows])))
 
     def to_world(self, pred: np.ndarray, rows: np.ndarray) -> np.ndarray:
-        """Predicted (len(rows), O) targets in the frame users see (the tracker frame for FK)."""
+        """Predicted (len(rows), O) targets in the frame users see (the tracker frame for FK), the
+        prior's positions added back where the network learned the residual."""
+        if self.prior_pos is not None:
+            pred = np.array(pred, dtype=np.float64, copy=True)
+            pred[:, :3] += self.prior_pos[rows]
         if self.frame is None or self.outer_deg is None:
             return pred
         return self.frame.to_world(pred, self.outer_deg[rows])
 
     def finish(self, bundle: ModelBundle, folder: Path, log: Log) -> dict[str, Any]:
+        if self.prior_tcm is not None:
+            save_prior(self.prior_tcm, folder)
+            bundle.prior = self.prior_tcm
         if self.layout.equivariant and self.frame is not None:
             self.fit_field(bundle, folder, log)
         metrics = self.evaluate(bundle)

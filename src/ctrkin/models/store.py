@@ -10,6 +10,8 @@
     history.csv, curves.png   loss curves (paper Fig. 9)   (written by training)
     workspace.npz       IK only: training targets and distance threshold (ctrkin.models.workspace)
     frame.json          FK in the outer tube's frame only: the registration (ctrkin.models.frame)
+    tcm_prior.toml      FK trained with tcm_prior only: the calibrated TCM it learned the residual
+                        of, a calibrated robot file (ctrkin.models.tcm_prior)
     checkpoint.pt       last epoch, optimiser and RNG state, to resume training
     manifest.json       SHA-256 of every file above but the checkpoint: loading refuses files that
                         were not written together (ctrkin.util.folders)
@@ -27,7 +29,7 @@ import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import torch
 
@@ -40,6 +42,9 @@ from ctrkin.robots.robot import Robot
 from ctrkin.util.files import atomic_write_bytes, atomic_write_text
 from ctrkin.util.folders import check_manifest, reading_folder, write_manifest
 from ctrkin.version import __version__
+
+if TYPE_CHECKING:
+    from ctrkin.calibration.model import CalibratedTCM
 
 CONFIG, FEATURES, NORMALIZATION, ROBOT, WEIGHTS = ("config.json", "features.json", "normalization.json",
                                                    "robot.json", "weights.pt")
@@ -117,7 +122,8 @@ class ModelBundle:
 
     config: the typed training configuration (ModelConfig); x_norm, y_norm: the min-max pre/post
     step (ctrkin.models.normalize); extra: provenance stored beside the configuration in config.json;
-    frame: the outer-tube frame of a model that learned in it.
+    frame: the outer-tube frame of a model that learned in it; prior: the calibrated TCM of an FK
+    trained with tcm_prior (ctrkin.models.tcm_prior), None otherwise.
     """
 
     config: ModelConfig
@@ -128,6 +134,7 @@ class ModelBundle:
     net: KinematicsNet
     extra: dict[str, Any] = field(default_factory=dict)
     frame: OuterFrame | None = None
+    prior: CalibratedTCM | None = None
 
     @classmethod
     def create(cls, config: ModelConfig | dict[str, Any], layout: FeatureLayout, x_norm: MinMax,
@@ -149,6 +156,10 @@ class ModelBundle:
         write_json(out / ROBOT, {"robot": self.robot.to_dict(), "fingerprint": self.robot.fingerprint()})
         if self.frame is not None:
             write_json(out / FRAME, self.frame.to_dict())
+        if self.prior is not None:
+            from ctrkin.models.tcm_prior import save_prior
+
+            save_prior(self.prior, out)
         buf = io.BytesIO()      # in memory: the archive's inner name is fixed, not the temp file's
         torch.save(self.net.state_dict(), buf)
         atomic_write_bytes(out / WEIGHTS, buf.getvalue())
@@ -192,6 +203,10 @@ class ModelBundle:
                 raise ModelError(f"{src} learned poses in the outer tube's frame but lacks {FRAME}")
             frame = OuterFrame.from_dict(read_json(src / FRAME))
         bundle = cls.create(config, layout, x_norm, y_norm, robot, cfg_file, frame, build=build)
+        if config.training.get("tcm_prior"):
+            from ctrkin.models.tcm_prior import load_prior
+
+            bundle.prior = load_prior(src, layout.n_tubes)
         try:
             state = torch.load(src / WEIGHTS, map_location="cpu", weights_only=True)
             bundle.net.load_state_dict(state)

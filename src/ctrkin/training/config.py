@@ -105,6 +105,12 @@ class TrainConfig:
         "FK: the inputs also hold the play-operator lags of α1, αN and βN − β1 along the joint path; "
         "the follow IK (follow_mlp): those of the target path's position (ctrkin.models.play_lags: a "
         "memory of the path beyond the window, no friction law assumed)."))
+    tcm_prior: bool = field(default=False, metadata=_help(
+        "FK only: the TCM is calibrated on the training rows (ctrkin.calibration, reproduce's quick "
+        "budget) and followed along each recorded run with its friction state; the network learns "
+        "the position's residual from it and the model adds it back (ctrkin.models.tcm_prior; the "
+        "folder stores it as tcm_prior.toml). Needs a robot description whose calibration converges; "
+        "streaming costs a TCM step per step, and probe and ONNX export are refused."))
     outer_angle: bool = field(default=False, metadata=_help(
         "The follow IK (follow_mlp) only: the inputs also hold sin/cos of the outer tube's absolute "
         "angle αN, for what is not rotation-equivariant about the insertion axis (the tracker's field, "
@@ -214,6 +220,9 @@ class TrainConfig:
                              "in the outer tube's frame")
         if self.target_frame != "tracker" and self.task != "fk" and not self.follow:
             raise ModelError("target_frame='outer' applies to FK models and the follow IK only")
+        if self.tcm_prior and self.task != "fk":
+            raise ModelError("tcm_prior applies to FK models only (task 'fk'): an IK model has no "
+                             "physics prior to learn the residual of; drop --tcm-prior")
         if self.lr_schedule not in LR_SCHEDULES:
             raise ModelError(f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
         if not (self.gate_weight >= 0 and 0 <= self.unknown_prob <= 1):
