@@ -12,7 +12,8 @@ Every arm is the snap-aware FK (`lstm_mlp_branch`) trained exactly as `ctrkin re
 and cosine schedule, one torch thread) through ctrkin.training.train, with only the input buffer
 and, for an arm `ibNeE`, the epoch budget changed. Each arm's model folder is `--out/<arm>`: a
 rerun reuses (or resumes) it. An arm `ibN…p` adds the play-lag inputs (TrainConfig.play_lags,
-ctrkin.models.play_lags), `…sK` trains with seed K. The test columns are reported, never used to
+ctrkin.models.play_lags), `ibN…t` learns the residual of the calibrated TCM (TrainConfig.tcm_prior,
+ctrkin.models.tcm_prior), `…sK` trains with seed K. The test columns are reported, never used to
 choose.
 
 Columns: epochs run and the best one, position RMSE vs the virtual robot's true pose on the training
@@ -61,8 +62,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))   # the benchmark besid
 from bench_generalisation import ROBOTS, reversals, small_moves
 
 # ib8: IB 8 at the scale's epochs; ib2e160: 160 epochs; ib2p: IB 2 with the play-lag inputs;
-# ib2pq: and equivariant inputs with a position field; ib2ps1: training seed 1
-ARM = re.compile(r"^ib(\d+)(?:e(\d+))?(p?)(q?)(?:s(\d+))?$")
+# ib2pq: and equivariant inputs with a position field; ib2pt: the residual of the calibrated TCM
+# (TrainConfig.tcm_prior); ib2ps1: training seed 1
+ARM = re.compile(r"^ib(\d+)(?:e(\d+))?(p?)(q?)(t?)(?:s(\d+))?$")
 
 
 def arm_config(scale: str, arm: str) -> TrainConfig:
@@ -75,8 +77,10 @@ def arm_config(scale: str, arm: str) -> TrainConfig:
     cfg = replace(base, ib=int(m.group(1)), threads=1, device="cpu", play_lags=m.group(3) == "p")
     if m.group(4):
         cfg = replace(cfg, equivariant=True)
-    if m.group(5) is not None:
-        cfg = replace(cfg, seed=int(m.group(5)))
+    if m.group(5):
+        cfg = replace(cfg, tcm_prior=True)
+    if m.group(6) is not None:
+        cfg = replace(cfg, seed=int(m.group(6)))
     if m.group(2) is not None:
         epochs = int(m.group(2))
         cfg = replace(cfg, max_epochs=epochs, patience=max(cfg.patience, epochs))

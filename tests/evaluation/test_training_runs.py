@@ -37,5 +37,7 @@ def test_the_memory_benchmarks_arms_are_the_reproductions_recipe_with_their_ib_a
     assert not ib4.play_lags
     assert bench.arm_config("quick", "ib2p").to_dict() | same == quick.to_dict()   # ib2p: the recipe
     assert bench.arm_config("quick", "ib2ps3").seed == 3 and bench.arm_config("quick", "ib2pq").equivariant
+    prior = bench.arm_config("quick", "ib2pts1")
+    assert prior.tcm_prior and prior.play_lags and prior.seed == 1 and not quick.tcm_prior
     long = bench.arm_config("quick", "ib2e160")
     assert (long.ib, long.max_epochs, long.patience) == (2, 160, 160)
