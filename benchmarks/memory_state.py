@@ -49,6 +49,7 @@ from ctrkin.models.base import KinematicsNet
 from ctrkin.models.features import FeatureLayout, delta_columns, postprocess, sequence_features
 from ctrkin.models.normalize import MinMax
 from ctrkin.models.recipe import inputs_and_targets
+from ctrkin.models.tcm_prior import run_bounds
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.data import split_rows
 from ctrkin.training.engine import _early_stopping, _learning_rate, _optimizer
@@ -81,19 +82,6 @@ class StateNet(KinematicsNet):
         """One streaming step: x (B, F) -> (y (B, O), the state to give the next step)."""
         y, state = self(x[:, None, :], state)
         return y[:, 0], state
-
-
-def run_bounds(ds: Dataset) -> list[tuple[int, int]]:
-    """[(start, stop)) row ranges of the dataset's recorded runs (its `run` column, contiguous in
-    file order); a dataset without one: each sequence its own run."""
-    if "run" not in ds.frame.columns:
-        return ds.sequence_bounds()
-    run = ds.frame["run"].to_numpy()
-    cuts = np.flatnonzero(run[1:] != run[:-1]) + 1
-    edges = np.r_[0, cuts, len(run)]
-    if len(np.unique(run)) != len(edges) - 1:
-        raise ValueError("a run's rows are not contiguous in file order: the state cannot follow it")
-    return [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
 
 
 def padded(values: np.ndarray, runs: list[tuple[int, int]]) -> np.ndarray:

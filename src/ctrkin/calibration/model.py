@@ -114,7 +114,7 @@ class CalibratedTCM:
         (provenance); None values are left out (TOML has no null)."""
         d: dict[str, Any] = {**self.robot.to_dict(), "name": name,
                              "calibration": {**self.to_dict(), **calibration}}
-        return tomli_w.dumps(_drop_none(d))
+        return tomli_w.dumps(drop_none(d))
 
     @classmethod
     def from_file(cls, path: str | Path) -> CalibratedTCM:
@@ -168,10 +168,10 @@ class TCMStream:
         return self._pose.copy()
 
 
-def _drop_none(d: Any) -> Any:
+def drop_none(d: Any) -> Any:
     """TOML has no null: None entries dropped (recursively)."""
     if isinstance(d, dict):
-        return {k: _drop_none(v) for k, v in d.items() if v is not None}
+        return {k: drop_none(v) for k, v in d.items() if v is not None}
     if isinstance(d, list):
-        return [_drop_none(v) for v in d if v is not None]
+        return [drop_none(v) for v in d if v is not None]
     return d

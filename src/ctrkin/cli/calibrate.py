@@ -17,6 +17,7 @@ import click
 import tomli_w
 
 from ctrkin.calibration import calibrate, leave_one_sequence_out
+from ctrkin.calibration.model import drop_none
 from ctrkin.calibration.params import ALL_GROUPS, default_groups
 from ctrkin.cli.common import emit_json, output_file, output_options, say
 from ctrkin.cli.from_config import config_options, option_help
@@ -92,7 +93,7 @@ def calibrate_cmd(overwrite: bool, as_json: bool, **settings: Any) -> None:
                         "data_sha256": ds.meta.get("data_sha256"), "prior": prior,
                         "fit": json.loads(json.dumps(res.to_dict(), default=float, allow_nan=True)
                                           .replace("NaN", "null"))}
-    atomic_write_text(out_file, tomli_w.dumps(cast(dict[str, Any], _drop_none(d))))
+    atomic_write_text(out_file, tomli_w.dumps(cast(dict[str, Any], drop_none(d))))
     say(f"{'parameter':24s} {'unit':5s} {'nominal':>10s} {'fitted':>10s} {'± std':>9s}")
     for row in res.table():
         flag = "  (at bound)" if row["at_bound"] else ""
@@ -118,11 +119,3 @@ def calibrate_cmd(overwrite: bool, as_json: bool, **settings: Any) -> None:
                    "parameters": res.table(), "friction": res.friction,
                    **({"loso": res.loso} if loso else {})})
 
-
-def _drop_none(d: object) -> object:
-    """TOML has no null: drop None entries (recursively)."""
-    if isinstance(d, dict):
-        return {k: _drop_none(v) for k, v in d.items() if v is not None}
-    if isinstance(d, list):
-        return [_drop_none(v) for v in d if v is not None]
-    return d
