@@ -85,7 +85,7 @@ from ctrkin.training.engine import _early_stopping, _epoch_gathered, _learning_r
 from ctrkin.virtual.truth import virtual_from_meta
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))   # the benchmarks beside this one
-from memory_state import network_step_us, run_bounds, train_state
+from memory_state import network_step_us, train_state
 
 ANGLE_WIDTHS = (2.0, 5.0, 15.0, 45.0, 90.0)     # deg: half widths of the α1, αN play operators
 SLIDE_WIDTHS = (0.05, 0.2, 1.0)                 # mm: of d = βN − β1
@@ -155,31 +155,21 @@ Prior = Callable[[Dataset], np.ndarray]     # a dataset -> (T, 6) tracker-frame 
 
 
 def tcm_prior(paper: Dataset) -> tuple[Prior, dict[str, Any]]:
-    """The calibrated TCM as a prior: `ctrkin calibrate` on the paper data's training rows as `ctrkin
-    reproduce --scale quick` runs it (ctrkin.evaluation.reproduce: 1,000 seeded rows, every group and
-    μ), then a dataset -> its poses followed along each whole run with the friction state (runs from
-    rest, as recorded; a row where no equilibrium converged takes the row before it). Returns the prior
-    and the calibration's figures."""
-    from ctrkin.calibration.fit import calibrate
-    from ctrkin.calibration.params import FRICTION, GROUPS
-    from ctrkin.evaluation.reproduce import CALIBRATION_BUDGET
+    """The calibrated TCM as a prior, as `ctrkin train --tcm-prior` makes it (ctrkin.models.tcm_prior:
+    `calibrate_prior` on the paper data's training rows, reproduce's quick budget, every group and μ),
+    then a dataset -> its poses followed along each whole run with the friction state (`dataset_prior`:
+    runs from rest, as recorded; a row where no equilibrium converged takes the row before it).
+    Returns the prior and the calibration's figures."""
+    from ctrkin.models.tcm_prior import calibrate_prior, dataset_prior
 
-    n_rows, nfev, samples = CALIBRATION_BUDGET["quick"]
-    train = paper.get_split().train
-    rows = np.sort(np.random.default_rng(0).choice(train, min(n_rows, len(train)), replace=False))
     t0 = time.perf_counter()
-    cal = calibrate(paper, paper.robot, (*GROUPS, FRICTION), rows=rows, max_nfev=nfev,
-                    friction_samples=samples)
-    info = {"seconds": time.perf_counter() - t0, "friction": cal.model.robot.friction}
-
+    cal = calibrate_prior(paper, paper.get_split().train)
+    info = {"seconds": time.perf_counter() - t0, "friction": cal.robot.friction}
     done: dict[int, np.ndarray] = {}      # by dataset: each is followed once however many arms use it
 
     def prior(ds: Dataset) -> np.ndarray:
         if id(ds) not in done:
-            poses = cal.model.predict_continued(ds.joints(), run_bounds(ds))
-            for t in np.flatnonzero(~np.isfinite(poses).all(axis=1)):
-                poses[t] = poses[t - 1] if t > 0 else np.nan_to_num(poses[t])
-            done[id(ds)] = poses
+            done[id(ds)] = dataset_prior(cal, ds)
         return done[id(ds)]
 
     return prior, info

@@ -123,6 +123,11 @@ def session_floor(ds) -> tuple[float, float]:
     return repeat, float(err.mean())
 
 
+def mean_distance(pred: np.ndarray, meas: np.ndarray, rows: np.ndarray) -> float:
+    """Mean tip distance (mm) of predictions (T, ≥ 3) from measured positions (T, 3) on `rows`."""
+    return float(np.mean(np.linalg.norm(pred[rows, :3] - meas[rows], axis=1)))
+
+
 def learned_fk(ds, out: Path, max_epochs: int, encoding: str, held_out: str = HELD_OUT_SWEEP,
                seeds: int = FK_SEEDS, name: str = "optitrack"
                ) -> tuple[float, list[float], float, list[float]]:
@@ -146,7 +151,7 @@ def learned_fk(ds, out: Path, max_epochs: int, encoding: str, held_out: str = HE
     meas = ds.poses()[:, :3]
 
     def err(p: np.ndarray, rows: np.ndarray) -> float:
-        return float(np.mean(np.linalg.norm(p[rows] - meas[rows], axis=1)))
+        return mean_distance(p, meas, rows)
 
     mean = np.mean(preds, axis=0)
     return (err(mean, ds.split.test), [err(p, ds.split.test) for p in preds],
@@ -177,7 +182,7 @@ def prior_fk(ds, max_epochs: int, encoding: str, seeds: int = FK_SEEDS
     meas = ds.poses()[:, :3]
 
     def err(p: np.ndarray, rows: np.ndarray) -> float:
-        return float(np.mean(np.linalg.norm(p[rows, :3] - meas[rows], axis=1)))
+        return mean_distance(p, meas, rows)
 
     out: dict[str | None, tuple[float, list[float], float]] = {}
     for mode in PRIOR_ARMS:

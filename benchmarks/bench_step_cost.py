@@ -79,6 +79,16 @@ def _drive(virtual: VirtualRobot, runs: list, n_segments: int | None
 MOVING_SEED = 0
 
 
+def _case_robot(name: str, overrides: dict) -> tuple:
+    """Case `name` of bench_generalisation, its nominal robot, its effects updated by `overrides` and
+    the virtual robot of them on its hardware draw."""
+    case = ROBOTS[name]
+    robot = _robot(case)
+    effects = {**case.settings, **overrides}
+    return case, robot, effects, VirtualRobot(robot, dataclasses.replace(VirtualConfig(), **effects),
+                                              seed=case.seed)
+
+
 def moving_path(robot, plan, steps: int, seed: int = MOVING_SEED) -> np.ndarray:
     """(steps, 2N) joints on which every joint moves each step (module docstring): from the first run's
     start, α drifting 0.5 ± 0.2° a step, β_i on a sine of period 2π·(300, 170, 230, …)[i] steps across
@@ -101,10 +111,7 @@ def moving_cost(name: str, overrides: dict, steps: int, repeats: int = 3) -> dic
     """Drive moving_path (steps) on case `name` from rest at its first row, in one move, `repeats`
     times; print the rows and return the figures (the median drive's; the first 50 steps driven
     before the clock starts, to load the kernels)."""
-    case = ROBOTS[name]
-    robot = _robot(case)
-    effects = {**case.settings, **overrides}
-    virtual = VirtualRobot(robot, dataclasses.replace(VirtualConfig(), **effects), seed=case.seed)
+    case, robot, effects, virtual = _case_robot(name, overrides)
     Q = moving_path(robot, protocols.build("paper", robot, scale="quick", seed=0), steps)
     state = virtual.rest(Q[0])
     virtual.move(state, Q[:50])
@@ -136,10 +143,7 @@ def step_cost(name: str, overrides: dict, n_runs: int, n_segments: int | None,
     case `name` with its effects updated by `overrides`; print the table and return the figures.
     against: effects changed on top for a second drive of the same segments on the same hardware
     draw (the tip difference and its cost are added)."""
-    case = ROBOTS[name]
-    robot = _robot(case)
-    effects = {**case.settings, **overrides}
-    virtual = VirtualRobot(robot, dataclasses.replace(VirtualConfig(), **effects), seed=case.seed)
+    case, robot, effects, virtual = _case_robot(name, overrides)
     plan = protocols.build("paper", robot, scale="quick", seed=0)
     runs = plan.runs[:n_runs]
     print(f"{name}: {robot.name}, {robot.n_tubes} tubes, hardware seed {case.seed}, "
