@@ -9,6 +9,8 @@ from ctrkin.evaluation.table import FK_BRANCH, FK_PAPER
 from ctrkin.evaluation.training_runs import plan_runs
 from tests.benchmark_scripts import load_benchmark
 
+FK_BRANCH_MODEL = "lstm_mlp_branch"
+
 
 def test_each_run_takes_its_budgets_input_buffer_and_the_grids_their_own() -> None:
     for scale in SCALES.values():
@@ -41,3 +43,10 @@ def test_the_memory_benchmarks_arms_are_the_reproductions_recipe_with_their_ib_a
     assert prior.tcm_prior and prior.play_lags and prior.seed == 1 and not quick.tcm_prior
     long = bench.arm_config("quick", "ib2e160")
     assert (long.ib, long.max_epochs, long.patience) == (2, 160, 160)
+    tracker = bench.arm_config("quick", "ib2ptr")
+    assert (tracker.model, tracker.target_frame, quick.target_frame) == (FK_BRANCH_MODEL, "tracker", "outer")
+    assert tracker.to_dict() | same | {"tcm_prior": False, "target_frame": "outer"} == quick.to_dict()
+    plain = bench.arm_config("quick", "ib2ptm")        # the paper's network, the same inputs and recipe
+    assert (plain.model, plain.target_frame, plain.options) == ("lstm_mlp", "tracker", {"structure": "paper"})
+    assert (plain.angle_encoding, plain.output_activation, plain.play_lags, plain.tcm_prior) == \
+        (quick.angle_encoding, quick.output_activation, True, True)

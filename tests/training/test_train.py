@@ -110,3 +110,30 @@ def test_config_validation_messages():
     # paper IV.A, III.C; max_epochs not given: the paper's 500 on a large set (issue 22: more on a small one)
     assert (cfg.lr, cfg.batch_size, cfg.epoch_budget(10**6), cfg.ib) == (1e-3, 32, 500, 2)
     assert TrainConfig.from_dict(cfg.to_dict()) == cfg
+
+
+def test_target_frame_defaults_to_the_models_own_and_can_be_chosen():
+    """None resolves to the model's frame (the snap-aware FK's outer, the others' tracker); a frame
+    given is kept, also through the saved configuration; the follow IK fixes its own."""
+    assert TrainConfig(task="fk").target_frame == "tracker"
+    branch = TrainConfig(task="fk", model="lstm_mlp_branch")
+    assert branch.target_frame == "outer"
+    tracker = TrainConfig(task="fk", model="lstm_mlp_branch", target_frame="tracker")
+    assert tracker.target_frame == "tracker"
+    for cfg in (branch, tracker):
+        assert TrainConfig.from_dict(cfg.to_dict()) == cfg
+    assert TrainConfig(task="ik", model="follow_mlp", target_frame="tracker").target_frame == "outer"
+    with pytest.raises(ModelError, match="target_frame"):
+        TrainConfig(task="fk", model="lstm_mlp_branch", target_frame="base")
+
+
+def test_snap_aware_fk_in_the_tracker_frame_keeps_it(quick_ds, tmp_path):
+    """A snap-aware FK trained in the tracker frame saves no outer frame and loads in the tracker frame."""
+    cfg = TrainConfig(task="fk", model="lstm_mlp_branch", target_frame="tracker", max_epochs=1, threads=1,
+                      options={"structure": "L8|D8", "gate_units": 4})
+    train(quick_ds, cfg, tmp_path / "m", progress=False, log=None)
+    saved = json.loads((tmp_path / "m" / "config.json").read_text())
+    assert saved["train"]["target_frame"] == "tracker"
+    assert not (tmp_path / "m" / "frame.json").exists()
+    kin = Kinematics.load(tmp_path / "m")
+    assert kin.frame is None and kin.config.target_frame == "tracker"

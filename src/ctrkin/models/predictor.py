@@ -116,13 +116,15 @@ class Probing(Protocol):
 class ModelEntry:
     """A registry name (`ctrkin train --model NAME`): description; build(n_inputs, n_outputs, ib,
     output_activation, **options) -> a fresh network; options: option -> default; forced: the
-    TrainConfig fields it fixes (the Δα0 ablation's delta = False)."""
+    TrainConfig fields it fixes (the Δα0 ablation's delta = False); defaults: the TrainConfig fields
+    it sets where the configuration leaves them None (the snap-aware FK's target_frame = "outer")."""
 
     name: str
     description: str
     build: Callable[..., KinematicsNet]
     options: dict[str, Any]
     forced: dict[str, Any] = field(default_factory=dict)
+    defaults: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

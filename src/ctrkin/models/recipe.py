@@ -70,7 +70,7 @@ class TrainSettings(Protocol):
         ...
 
     @property
-    def target_frame(self) -> str:
+    def target_frame(self) -> str | None:     # TrainConfig resolves None to the model's frame
         ...
 
     @property

@@ -145,9 +145,11 @@ class TrainConfig:
     threads: int = field(default=2, metadata=_help("torch CPU threads."))
     drop_outliers: bool = field(default=True, metadata=_help(
         "Rows flagged `outlier` (encoder glitches) are not used as targets."))
-    target_frame: TargetFrame = field(default="tracker", metadata=_help(
+    target_frame: TargetFrame | None = field(default=None, metadata=_help(
         "FK poses learned in the tracker frame (paper) or in the outer tube's frame (outer; "
-        "ctrkin.models.frame)."))
+        "ctrkin.models.frame). Default: the model's own, outer for lstm_mlp_branch (follow_mlp fixes "
+        "it), tracker for the others. With --tcm-prior the tracker frame can do better: "
+        "docs/learned_kinematics.md, The frame under the TCM prior."))
     lr_schedule: LrSchedule = field(default="constant", metadata=_help(
         "constant (paper) or cosine decay to lr/50 over max_epochs."))
     gate_weight: float = field(default=0.1, metadata=_help(
@@ -197,6 +199,11 @@ class TrainConfig:
             if key == "task" and self.task != value:
                 raise ModelError(f"model {self.model!r} is for task {value!r}, not {self.task!r}")
             object.__setattr__(self, key, value)        # e.g. the ablation entry fixes delta
+        for key, value in entry.defaults.items():
+            if getattr(self, key) is None:
+                object.__setattr__(self, key, value)    # e.g. the snap-aware FK's outer frame
+        if self.target_frame is None:
+            object.__setattr__(self, "target_frame", "tracker")
         if self.output_activation not in OUTPUT_ACTIVATIONS:
             raise ModelError(f"output_activation must be one of {OUTPUT_ACTIVATIONS}")
         if self.pose_source not in POSE_SOURCES:

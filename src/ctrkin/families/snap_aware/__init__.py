@@ -38,9 +38,10 @@ FAMILY = Family(
     entries=(ModelEntry(
         "lstm_mlp_branch", "snap-aware LSTM-MLP: a learned branch state (hysteron) selects one of two "
         "heads, so snaps are sharp (ctrkin.families.snap_aware); FK only, sin/cos α0 inputs, poses "
-        "learned in the outer tube's frame (ctrkin.models.frame)",
+        "learned in the outer tube's frame (ctrkin.models.frame) unless --target-frame tracker",
         _build, {"structure": "paper", "gate_units": 32},
-        {"angle_encoding": "phase", "output_activation": "linear", "task": "fk", "target_frame": "outer"}),),
+        {"angle_encoding": "phase", "output_activation": "linear", "task": "fk"},
+        {"target_frame": "outer"}),),
     load=_load,
     recipe=BranchRecipe,
     predictors=(SnapAwarePredictor,),
