@@ -31,6 +31,9 @@ the held-out (test) sequences against the virtual robot's true pose:
   ib2+tcmres ib2 learning the residual of that prior: the position target is the recorded position
              less the prior's (the orientation is learned as in ib2) and the prior is added back
   ib2+play+tcmres, ib8+tcmres   the same residual with the play lags / windows of 8
+  ib2+play+tcmboth   the residual, and the prior's poses also among the inputs: what the prior misses
+             that depends on where the tip is (the tracker's field) becomes a function of the prior's
+             position, not of the joints
   tcm        the prior alone (no network): what the residual arms start from
 
 Every arm is also scored where the paper protocol never records: on the held-out sweeps (the
@@ -97,6 +100,7 @@ ARMS: dict[str, tuple[int, bool, str | None]] = {
     "ib2+tcm": (2, False, "input"), "ib2+play+tcm": (2, True, "input"), "ib8+tcm": (8, False, "input"),
     "ib2+tcmres": (2, False, "residual"),
     "ib2+play+tcmres": (2, True, "residual"), "ib8+tcmres": (8, False, "residual"),
+    "ib2+play+tcmboth": (2, True, "both"),
     "tcm": (0, False, "alone")}
 # the quick reproduction's paper LSTM-MLP (its models/fk_lstm_mlp/config.json)
 QUICK_RECIPE = {"model": "lstm_mlp", "options": {"structure": "paper"}, "lr": 1e-3, "batch_size": 64,
@@ -184,11 +188,13 @@ def train_arm(ds: Dataset, cfg: TrainConfig, extra: np.ndarray | None) -> dict[s
 
 
 def window_predict(rec: MemoryRecipe, net: torch.nn.Module, play: bool, prior: Prior | None = None,
-                   prior_input: bool = False) -> Predict:
+                   prior_input: bool = False, prior_residual: bool | None = None) -> Predict:
     """A trained window arm on another dataset: its features (and play lags, and the prior's poses
     where they are inputs), the training's min-max, Δα0 clipped to its training range (as `evaluate`
     and `Kinematics.predict` clip it), windows of IB steps within each sequence; a residual arm adds
-    the prior's position."""
+    the prior's position (prior_residual; default: a prior that is not an input)."""
+    residual = prior is not None and (not prior_input if prior_residual is None else prior_residual)
+
     def predict(ds: Dataset) -> np.ndarray:
         bounds = ds.sequence_bounds()
         feats = sequence_features(rec.layout, ds.joints(), bounds)
@@ -204,7 +210,8 @@ def window_predict(rec: MemoryRecipe, net: torch.nn.Module, play: bool, prior: P
         X = windows(x, bounds, rec.layout.ib).astype(np.float32)
         yn = predict_windows(net, X, np.arange(len(X)))
         out = postprocess(rec.layout, rec.y_norm.inverse(yn))
-        if base is not None and not prior_input:
+        if residual:
+            assert base is not None
             out[:, :3] += base[:, :3]
         return out
     return predict
@@ -236,7 +243,7 @@ def train_window(ds: Dataset, cfg: TrainConfig, extra: np.ndarray | None, prior:
     `extra` is given)."""
     play = extra is not None if play is None else play
     base = None if prior is None else prior(ds)
-    if prior_mode == "input":
+    if prior_mode in ("input", "both"):
         assert base is not None
         extra = base if extra is None else np.concatenate([extra, base], axis=1)
     torch.set_num_threads(cfg.threads)
@@ -244,7 +251,7 @@ def train_window(ds: Dataset, cfg: TrainConfig, extra: np.ndarray | None, prior:
     n_train = len(rows["train"])
     cfg = replace(cfg, max_epochs=cfg.epoch_budget(n_train))
     assert cfg.max_epochs is not None
-    rec = MemoryRecipe(cfg, extra, base if prior_mode == "residual" else None)
+    rec = MemoryRecipe(cfg, extra, base if prior_mode in ("residual", "both") else None)
     prep = rec.prepare(TrainingData(ds, cfg, split, rows))
     n_in = rec.X.shape[2]
     torch.manual_seed(cfg.seed)
@@ -276,7 +283,8 @@ def train_window(ds: Dataset, cfg: TrainConfig, extra: np.ndarray | None, prior:
              # against the truth where the data has it (a virtual robot's), else the measured poses
              **{part: metrics[part].get("vs_true", metrics[part]["vs_measured"])["position_mm_rmse"]
                 for part in ("train", "val", "test") if part in metrics}},
-            window_predict(rec, net, play, prior if prior_mode else None, prior_mode == "input"))
+            window_predict(rec, net, play, prior if prior_mode else None, prior_mode in ("input", "both"),
+                           prior_mode in ("residual", "both")))
 
 
 @dataclass(frozen=True)

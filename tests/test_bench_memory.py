@@ -150,6 +150,24 @@ def test_a_prior_as_input_adds_its_pose_columns(bench, sweeps) -> None:
     assert predict(sweeps).shape == (len(sweeps.frame), 6)
 
 
+def test_a_prior_as_input_and_residual_adds_its_columns_and_its_position(bench, sweeps) -> None:
+    """`both` (ib2+play+tcmboth): the prior's poses among the inputs and its position added back."""
+    shift = np.array([40.0, -30.0, 20.0, 0.0, 0.0, 0.0])
+    wobble = np.random.default_rng(0).normal(0.0, 1.0, (len(sweeps.frame), 6)) * [1, 1, 1, 0, 0, 0]
+
+    def prior(ds):
+        return ds.poses() + shift + wobble     # the residual is -shift - wobble, a few mm wide
+
+    cfg = bench.recipe_config(None, 1)
+    cfg = type(cfg).from_dict({**cfg.to_dict(), "options": {"structure": "L16|D16"}})
+    r, predict = bench.train_window(sweeps, cfg, None, prior, "both")
+    assert r["inputs"] == 6 + 6
+    err = np.linalg.norm(predict(sweeps)[:, :3] - sweeps.poses()[:, :3], axis=1)
+    # the residual's range is about -shift: only with the prior's position added back are the
+    # predictions near the poses (54 mm off without it)
+    assert np.median(err) < 10.0 < np.linalg.norm(shift[:3])
+
+
 def test_the_prior_alone_is_scored_against_the_noise_free_view(bench, sweeps) -> None:
     from ctrkin.data.tracker_view import recorded_tracker_view
 
