@@ -4,9 +4,11 @@ and a results.json written before budgets had an IB reads back with the paper's 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from ctrkin.evaluation.scales import SCALES, ReproScale
 from ctrkin.evaluation.table import FK_BRANCH, FK_PAPER
-from ctrkin.evaluation.training_runs import plan_runs
+from ctrkin.evaluation.training_runs import TRAINED_WITH_EXCITATION, plan_runs, training_jobs
 from tests.benchmark_scripts import load_benchmark
 
 FK_BRANCH_MODEL = "lstm_mlp_branch"
@@ -19,6 +21,19 @@ def test_each_run_takes_its_budgets_input_buffer_and_the_grids_their_own() -> No
         assert runs[FK_PAPER].ib == scale.main.ib == 2          # the paper's model stays the paper's
         assert [runs[f"grid_fk_ib{ib}"].ib for ib in scale.ib_grid] == list(scale.ib_grid)
         assert {runs[f"grid_fk_ib{ib}_S1"].ib for ib in scale.structure_ibs} == set(scale.structure_ibs)
+
+
+def test_the_jobs_train_one_thread_each_the_recommended_models_on_the_excitation_folder(tmp_path) -> None:
+    scale = SCALES["tiny"]
+    runs = plan_runs(scale)
+    paper, extra = tmp_path / "paper", tmp_path / "paper+excitation"
+    jobs = training_jobs(runs, paper, scale, tmp_path / "models", "cpu", extra)
+    assert [Path(job[3]) for job in jobs] == [tmp_path / "models" / r.name for r in runs]
+    for run, (data_dir, n_seq, cfg, _) in zip(runs, jobs, strict=True):
+        assert data_dir == str(extra if run.name in TRAINED_WITH_EXCITATION else paper)
+        assert n_seq == (None if run.role == "main" else scale.grid_sequences)
+        assert cfg == {**run.config.to_dict(), "threads": 1, "device": "cpu"}
+    assert {job[0] for job in training_jobs(runs, paper, scale, tmp_path, "cpu")} == {str(paper)}
 
 
 def test_a_scale_saved_before_budgets_had_an_input_buffer_reads_back_with_ib_2() -> None:

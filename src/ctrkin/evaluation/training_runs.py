@@ -114,6 +114,21 @@ def _train_run(dataset_dir: str, n_sequences: int | None, cfg: dict[str, Any], o
     return out
 
 
+def training_jobs(runs: list[Run], dataset_dir: Path, scale: ReproScale, out: Path, device: str,
+                  training_dir: Path | None = None) -> list[tuple[str, int | None, dict[str, Any], str]]:
+    """The arguments of `_train_run` for each of `runs`, in their order: (dataset folder, training
+    sequences or None, the configuration dict with one torch thread on `device` (a torch device
+    type), model folder out/<name>). train_all's jobs; benchmarks/bench_train_stage.py times the same."""
+    jobs = []
+    for run in runs:
+        cfg = {**replace(run.config, threads=1).to_dict(), "device": device}
+        n_seq = None if run.role == "main" else scale.grid_sequences
+        with_extra = training_dir is not None and run.name in TRAINED_WITH_EXCITATION
+        data_dir = training_dir if with_extra else dataset_dir
+        jobs.append((str(data_dir), n_seq, cfg, str(out / run.name)))
+    return jobs
+
+
 def train_all(
     dataset_dir: Path, scale: ReproScale, out: Path, workers: int = 2, log: Callable[[str], None] = print,
     executor: str = "local", device: str = "auto", training_dir: Path | None = None,
@@ -136,13 +151,7 @@ def train_all(
     if note:
         log(note)
     runs = plan_runs(scale)
-    jobs = []
-    for run in runs:
-        cfg = {**replace(run.config, threads=1).to_dict(), "device": torch_device.type}
-        n_seq = None if run.role == "main" else scale.grid_sequences
-        with_extra = training_dir is not None and run.name in TRAINED_WITH_EXCITATION
-        data_dir = training_dir if with_extra else dataset_dir
-        jobs.append((str(data_dir), n_seq, cfg, str(out / run.name)))
+    jobs = training_jobs(runs, dataset_dir, scale, out, torch_device.type, training_dir)
     with progress_bar(total=len(runs), desc="train models", unit="model") as bar:
         for k in run_jobs(_train_run, jobs, executor=executor, workers=workers, threads=1):
             bar.update(1)
