@@ -52,7 +52,13 @@ import torch
 from ctrkin.data.dataset import Dataset
 from ctrkin.evaluation.datasets import registered_truth
 from ctrkin.evaluation.scales import get_scale
-from ctrkin.evaluation.snapping import azimuth_series, glitch_window, rotation_direction, snap_report
+from ctrkin.evaluation.snapping import (
+    azimuth_series,
+    glitch_window,
+    rotation_direction,
+    snap_report,
+    snap_steps,
+)
 from ctrkin.evaluation.table import FK_BRANCH
 from ctrkin.evaluation.training_runs import plan_runs
 from ctrkin.inference import Kinematics
@@ -120,10 +126,31 @@ def predicted_rmse(kin: Kinematics, ds: Dataset) -> dict[str, float]:
             for part in ("val", "test")}
 
 
+EVENT_REACH = 20        # steps: a true snap's nearest predicted one further away counts as none
+
+
+def snap_events(azimuth: np.ndarray, bounds: list[tuple[int, int]]) -> np.ndarray:
+    """Rows where a snap event starts (snap_steps, consecutive rows merged: one snap over two steps)."""
+    steps = snap_steps(azimuth, bounds)
+    return steps[np.r_[True, np.diff(steps) > 1]] if len(steps) else steps
+
+
+def event_offsets(pred: np.ndarray, true: np.ndarray, bounds: list[tuple[int, int]]) -> list[int | None]:
+    """For each true snap event (rows `true`), the signed steps to the nearest predicted one in the
+    same sequence (negative: predicted early), None where none is within EVENT_REACH."""
+    seq = np.searchsorted([a for a, _ in bounds], np.r_[pred, true], side="right")
+    ps, ts = seq[:len(pred)], seq[len(pred):]
+    out: list[int | None] = []
+    for e, s in zip(true, ts, strict=True):
+        near = pred[(ps == s) & (np.abs(pred - e) <= EVENT_REACH)]
+        out.append(None if len(near) == 0 else int(near[np.argmin(np.abs(near - e))] - e))
+    return out
+
+
 def snap_scores(kin: Kinematics, ds: Dataset) -> dict[str, Any]:
     """Snap precision / recall of the model's T(L) against the truth's along ds, the worse of the two
-    directions (as ctrkin.evaluation.experiments_fk scores the sweeps and snap turns), and the number
-    of true snap events."""
+    directions (as ctrkin.evaluation.experiments_fk scores the sweeps and snap turns), the number of
+    true snap events, and each true event's offset to the nearest predicted one (event_offsets)."""
     b, joints, n = ds.sequence_bounds(), ds.joints(), ds.n_tubes
     pred = np.asarray(kin.predict(ds), float)
     az_pred = azimuth_series(pred, joints, n, b)
@@ -135,8 +162,11 @@ def snap_scores(kin: Kinematics, ds: Dataset) -> dict[str, Any]:
         vals = [rep[d][key] for d in ("forward", "backward") if not math.isnan(rep[d][key])]
         return pick(vals) if vals else None
 
+    true_events = snap_events(az_true, b)
+    offsets = event_offsets(snap_events(az_pred, b), true_events[keep[true_events]], b)
     return {"precision": worst("precision", min), "recall": worst("recall", min),
-            "magnitude_deg": worst("magnitude_error_deg", max), "snaps": int(rep["n_reference"])}
+            "magnitude_deg": worst("magnitude_error_deg", max), "snaps": int(rep["n_reference"]),
+            "offsets": offsets}
 
 
 def experiments(kin: Kinematics, folder: Path, repro: Path, case: str) -> dict[str, Any]:
@@ -200,6 +230,10 @@ def collect_repro(folder: Path, scale: str, settings: list[str]) -> Path:
     return folder
 
 
+def _offsets(offsets: list[int | None]) -> str:
+    return ", ".join("–" if o is None else f"{o:+d}" for o in offsets) or "–"
+
+
 def _f(x: float | None) -> str:
     return "–" if x is None else f"{x:.2f}"
 
@@ -260,8 +294,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                   f"{_f(sw['magnitude_deg'])}/{_f(tu['magnitude_deg'])}°, reversals "
                   f"{rv['reversal_rmse_true_mm']:.2f} mm RMSE ({rv['reversal_max_true_mm']:.1f} max), small "
                   f"moves {sm['small_rmse_true_mm']:.2f} mm (outer {sm['small_outer_rmse_true_mm']:.2f}, "
-                  f"inner {sm['small_inner_rmse_true_mm']:.2f}, d {sm['small_d_rmse_true_mm']:.2f})",
-                  flush=True)
+                  f"inner {sm['small_inner_rmse_true_mm']:.2f}, d {sm['small_d_rmse_true_mm']:.2f}); "
+                  f"sweeps' snaps predicted at {_offsets(sw['offsets'])} steps", flush=True)
     best = min(rows, key=lambda a: rows[a]["val_predict"])
     print(f"lowest validation RMSE as predict gives it: {best} ({rows[best]['val_predict']:.3f} mm)")
     report = {"data": str(data), "scale": args.scale, "arms": rows, "chosen_by_val": best}

@@ -1,0 +1,26 @@
+"""benchmarks/bench_fk_memory.py: where each true snap's nearest predicted snap lies."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tests.benchmark_scripts import load_benchmark
+
+
+def test_each_true_snap_gets_the_signed_steps_to_its_nearest_predicted_one_in_its_sequence() -> None:
+    bench = load_benchmark("bench_fk_memory")
+    bounds = [(0, 100), (100, 200)]
+    true = np.array([30, 60, 105, 150])
+    # 23: 7 early; 62 and 64: the nearer one, 2 late; 99 is in the other sequence than 105 and
+    # nothing else is within reach of it; 150 has none within EVENT_REACH
+    pred = np.array([23, 62, 64, 99, 190])
+    assert bench.event_offsets(pred, true, bounds) == [-7, 2, None, None]
+    assert bench.event_offsets(np.zeros(0, int), true, bounds) == [None] * 4
+
+
+def test_a_snap_over_two_steps_is_one_event() -> None:
+    bench = load_benchmark("bench_fk_memory")
+    # jumps of 12° and 15° at rows 10 and 11 (one snap over two steps; threshold 10°), −27° at row 21
+    az = np.r_[np.zeros(10), np.full(1, 12.0), np.full(10, 27.0), np.zeros(5)]
+    events = bench.snap_events(az, [(0, len(az))])
+    assert events.tolist() == [10, 21]
