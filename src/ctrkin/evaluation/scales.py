@@ -88,8 +88,8 @@ SCALES = {
         grid=Budget(12, 4, 1024, scaled_lr(1024), val_smoothing=0.5),
         grid_sequences=None,
     ),
-    # the README's main job, ~9 minutes on two quiet cores at the defaults (554 s measured 2026-12-03;
-    # 36 at load 3.5 on an earlier host):
+    # the README's main job, ~6 minutes on two quiet cores at the defaults (342 s measured 2026-12-07,
+    # training 247 of them; 36 min at load 3.5 on an earlier host):
     # 4 levels × 18 outer angles × 721 samples;
     # the snap-aware FK gets a fixed cosine schedule (no early stopping: the gate keeps improving
     # after the pose loss flattens) and a window of FK_MEMORY_IB steps (issue 21: IB 8 measured and
@@ -140,7 +140,7 @@ class ReproduceConfig:
     """What a reproduction runs on (`ctrkin reproduce` has one option per field, ctrkin.cli.from_config)."""
 
     scale: Scale = field(default="quick", metadata=_help(
-        "quick: ~9 min on 2 quiet cores on the default robot (36 at load 3.5 on a slower host); full: "
+        "quick: ~6 min on 2 quiet cores on the default robot (36 at load 3.5 on a slower host); full: "
         "the paper's protocol (~208k samples), batch 1024 with early stopping (the paper: batch 32, up "
         "to 500 epochs), ~30 min on 2 cores at the central values; tiny: a smoke test of every step."))
     robot: str = field(default="paper", metadata=_help(
