@@ -192,8 +192,10 @@ def choose_on_validation(paper: Dataset, extra: Dataset, held: dict[str, Dataset
     trains (the paper protocol's training rows + excitation runs: half the runs here) and judged on
     the other half of the excitation runs (`val`: snaps after slides and mid-turn reversals that no
     held-out experiment repeats): residuals and switches P/R per form on `val` and on each of `held`
-    (reported, not used to choose); beside them the fold gate of the paper's training rows alone.
-    Keys `xv_`… (fold gate), …`_pxv_`… (play), …`_pv_`… (fold gate, paper rows)."""
+    (reported, not used to choose); beside them the fold gate of the paper's training rows alone, and
+    the fold gate with the folds' scale g also fitted (`fold_scale`: θ± = g·φ± ± c − κ·m_N).
+    Keys `xv_`… (fold gate), …`_pxv_`… (play), …`_pv_`… (fold gate, paper rows), …`_sxv_`… (scaled
+    folds)."""
     from ctrkin.evaluation.datasets import with_training_runs
     from ctrkin.families.snap_aware.recipe import fold_gate
 
@@ -202,18 +204,22 @@ def choose_on_validation(paper: Dataset, extra: Dataset, held: dict[str, Dataset
     both = with_training_runs(paper, ident)
     train = np.sort(both.get_split().train)
     gate = fold_gate(both, train)
+    scaled = fold_gate(both, train, fold_scale=True)
     out: dict[str, Any] = {"xv_widen_deg": gate.widen_deg, "xv_outer_lag_deg": gate.outer_lag_deg,
+                           "sxv_widen_deg": scaled.widen_deg, "sxv_outer_lag_deg": scaled.outer_lag_deg,
+                           "sxv_fold_scale": scaled.fold_scale,
                            "xv_val_runs": int(val.frame["run"].nunique()),
                            "xv_id_runs": int(ident.frame["run"].nunique())}
     sets = {"val": val, **held}
     paper_gate = fold_gate(paper, np.sort(paper.get_split().train))
     for where, ds in sets.items():
-        for tag, g in (("xv", gate), ("pv", paper_gate)):
+        for tag, g in (("xv", gate), ("pv", paper_gate), ("sxv", scaled)):
             out |= {f"{where}_{tag}_{k}": v for k, v in snap_residuals(g, ds).items()}
             out |= {f"{where}_{tag}_{k}": v for k, v in gate_switches(g, ds).items()}
     out |= play_form(gate, both, train, sets, tag="pxv")
     f1 = {form: _f1(out[f"val_{p}gate_precision"], out[f"val_{p}gate_recall"])
-          for form, p in (("fold gate", "xv_"), ("play", "pxv_"), ("fold gate (paper rows)", "pv_"))}
+          for form, p in (("fold gate", "xv_"), ("play", "pxv_"), ("fold gate (paper rows)", "pv_"),
+                          ("scaled folds", "sxv_"))}
     out["xv_chosen"] = max(f1, key=lambda k: (f1[k], k == "fold gate"))   # a tie keeps the fold gate
     out["xv_val_f1"] = f1
     return out
@@ -358,12 +364,14 @@ def main(argv: list[str] | None = None) -> int:
               f"excitation runs, judged on {r['xv_val_runs']} others (F1 of the switches within ±2 steps)")
         print(f"  fold gate: c = {r['xv_widen_deg']:.2f} deg, kappa = {r['xv_outer_lag_deg']:.2f} deg; "
               f"play: c = {r['pxv_widen_deg']:.2f} deg, g = {r['pxv_fold_scale']:.3f}, "
-              f"u = {r['pxv_slide_weights']}")
+              f"u = {r['pxv_slide_weights']}; scaled folds: c = {r['sxv_widen_deg']:.2f} deg, "
+              f"kappa = {r['sxv_outer_lag_deg']:.2f} deg, g = {r['sxv_fold_scale']:.3f}")
         for where in ("val", "sweeps", "turns"):
             if f"{where}_xv_gate_snaps" not in r:
                 continue
             for name, g, p in (("fold gate", "xv_gate_", "xv_"), ("play", "pxv_", "pxv_"),
-                               ("fold gate (paper rows)", "pv_gate_", "pv_")):
+                               ("fold gate (paper rows)", "pv_gate_", "pv_"),
+                               ("scaled folds", "sxv_gate_", "sxv_")):
                 res = f"{_fmt(r[f'{where}_{g}residual_rms_deg'])} / {_fmt(r[f'{where}_{g}residual_max_deg'])}"
                 sw = (f"{r[f'{where}_{p}gate_switches']} vs {r[f'{where}_{p}recorded_snaps']}: "
                       f"{r[f'{where}_{p}gate_precision']:.2f} / {r[f'{where}_{p}gate_recall']:.2f}")

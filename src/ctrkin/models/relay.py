@@ -54,12 +54,15 @@ class GateTables:
     backward: np.ndarray
 
     @classmethod
-    def of(cls, gate: _Tabulated) -> GateTables:
+    def of(cls, gate: _Tabulated, scale: float = 1.0) -> GateTables:
+        """The gate's grid; scale: a factor on both fold tables (the fold gate's g; 1: as tabulated)."""
         size = np.array([len(a) for a in gate.axes], dtype=np.int64)
         start = np.concatenate([[0], np.cumsum(size)[:-1]]).astype(np.int64)
+        fwd, bwd = np.asarray(gate.forward, np.float64), np.asarray(gate.backward, np.float64)
+        if scale != 1.0:
+            fwd, bwd = scale * fwd, scale * bwd
         return cls(np.ascontiguousarray(np.concatenate(gate.axes), dtype=np.float64), start, size,
-                   np.ascontiguousarray(gate.forward, dtype=np.float64).ravel(),
-                   np.ascontiguousarray(gate.backward, dtype=np.float64).ravel())
+                   np.ascontiguousarray(fwd).ravel(), np.ascontiguousarray(bwd).ravel())
 
 
 # The kernels below are compiled without fastmath on purpose: batch (`states`) and streaming

@@ -78,8 +78,8 @@ def test_offsets_are_recovered_from_the_snaps() -> None:
         snap.extend(flags)
         motion.extend([m] * len(a0))
         bounds.append((start, len(rows)))
-    c_fit, lag_fit, slide = _fit_offsets(gate, np.array(rows), np.array(snap), bounds, np.array(motion), 2)
-    assert slide == ()                              # no slide memory asked for
+    c_fit, lag_fit, slide, g = _fit_offsets(gate, np.array(rows), np.array(snap), bounds, np.array(motion), 2)
+    assert slide == () and g == 1.0                 # no slide memory and no fold scale asked for
     assert c_fit == pytest.approx(c, abs=1.0)
     assert lag_fit == pytest.approx(lag, abs=1.0)
 
@@ -149,7 +149,7 @@ def test_the_slide_memory_is_identified_from_snaps_after_slides_and_moves_the_sw
     assert np.abs(ell[bounds[1][0] + 9]) == pytest.approx(np.ones(len(SLIDE_WIDTHS_MM)))   # after the slide
     assert not ell[bounds[2][0]:bounds[2][1]].any()                                    # a run from rest
     table = _gate(20.0)
-    c_fit, lag_fit, u = _fit_offsets(table, q, snap, bounds, np.zeros(len(q)), 2, ell, runs)
+    c_fit, lag_fit, u, _ = _fit_offsets(table, q, snap, bounds, np.zeros(len(q)), 2, ell, runs)
     assert c_fit == pytest.approx(c, abs=1.0) and sum(u) == pytest.approx(u_total, abs=1.0)
     gate = FoldGate(table.axes, table.forward, table.backward, c_fit, lag_fit, slide_weights_deg=u)
     assert gate.slides
@@ -225,3 +225,58 @@ def test_a_recording_without_snaps_gives_a_gate_without_folds(monkeypatch) -> No
     snap[np.argmax(a0 - 180.0 >= 20.0)] = True
     gate = fg.build_fold_gate(paper_robot(), joints, snap, bounds, np.zeros(len(a0)))
     assert tabulated == [1] and gate.forward.max() > 0
+
+
+def _levels_gate() -> FoldGate:
+    """A fold table that grows with the overlap: φ± = ±(10 + β1) over β1 0..20 mm (10° .. 30°)."""
+    axes = (np.array([0.0, 10.0, 20.0]), np.array([0.0]))
+    table = np.array([[10.0], [20.0], [30.0]])
+    return FoldGate(axes, table, -table)
+
+
+def test_a_fold_scale_is_fitted_only_where_asked_and_only_where_it_helps() -> None:
+    """Snaps at ±(g·φ±(β) + c) at five overlaps, one run each: with fold_scale the fit recovers g
+    and c and the gate switches there; without it g = 1; snaps at ±(φ± + c) keep g = 1."""
+    table = _levels_gate()
+
+    def turns(g: float, c: float) -> tuple[np.ndarray, np.ndarray, list, np.ndarray]:
+        rows, snap, bounds, runs = [], [], [], []
+        for k, beta in enumerate((2.0, 6.0, 10.0, 14.0, 18.0)):
+            a0, start = _turn(), len(rows)
+            phi, up = a0 - 180.0, np.arange(len(a0)) < len(a0) // 2
+            w = g * (10.0 + beta) + c
+            flags = np.zeros(len(a0), bool)
+            flags[np.argmax(up & (phi >= w))] = True
+            flags[np.argmax(~up & (phi < -w))] = True
+            rows.extend([[a, 0.0, beta, 0.0] for a in a0])
+            snap.extend(flags)
+            bounds.append((start, len(rows)))
+            runs.extend([k] * len(a0))
+        return np.array(rows), np.array(snap), bounds, np.array(runs)
+
+    q, snap, bounds, runs = turns(0.5, 12.0)
+    zero = np.zeros(len(q))
+    c_fit, _, _, g = _fit_offsets(table, q, snap, bounds, zero, 2, None, runs, fold_scale=True)
+    assert g == pytest.approx(0.5, abs=0.05) and c_fit == pytest.approx(12.0, abs=1.0)
+    assert _fit_offsets(table, q, snap, bounds, zero, 2, None, runs)[3] == 1.0
+    gate = FoldGate(table.axes, table.forward, table.backward, c_fit, fold_scale=g)
+    states = gate.states(q[:, 0] - q[:, 1], q[:, 2:], zero, bounds)
+    switched = np.nonzero(np.diff(states.astype(int)))[0] + 1
+    switched = switched[~np.isin(switched, [a for a, _ in bounds])]          # not a sequence start
+    assert np.abs(switched - np.nonzero(snap)[0]).max() <= 1
+    q, snap, bounds, runs = turns(1.0, 3.0)
+    assert _fit_offsets(table, q, snap, bounds, zero, 2, None, runs, fold_scale=True)[3] == 1.0
+
+
+def test_a_fold_scale_round_trips_and_an_older_gate_has_none(tmp_path) -> None:
+    table = _levels_gate()
+    gate = FoldGate(table.axes, table.forward, table.backward, 3.0, fold_scale=0.6)
+    np.testing.assert_allclose(gate.folds(np.array([[10.0, 0.0]]))[0], [12.0])       # g·φ+
+    gate.save(tmp_path)
+    assert FoldGate.load(tmp_path).fold_scale == 0.6
+    d = gate.to_dict()
+    d.pop("fold_scale")                                     # a gate written before the scale
+    assert FoldGate.from_dict(d).fold_scale == 1.0
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ModelError, match="fold_scale"):
+            FoldGate.from_dict({**d, "fold_scale": bad})

@@ -5,12 +5,16 @@ A learned gate (ctrkin.families.snap_aware.net) places each switch where its cla
 degrees from the fold, and it has to learn from a few dozen snaps how the fold moves with the
 translations. The fold gate takes that dependence from the physics and the offsets from the data:
 
-    θ+ = φ+(β) + w − κ·m_N ,  θ− = φ−(β) − w − κ·m_N ,   w = c − Σ_k u_k·|ℓ_k|
+    θ+ = g·φ+(β) + w − κ·m_N ,  θ− = g·φ−(β) − w − κ·m_N ,   w = c − Σ_k u_k·|ℓ_k|
         φ±: folds of the nominal TCM (ctrkin.mechanics.folds), tabulated over the training translations
         m_N ∈ {−1, 0, +1}: direction of the outer tube's last rotation (0: at rest since the run began)
         ℓ_k ∈ [−1, 1]: the slide memory, play-operator lags of the relative translation d = βN − β1 at
               half widths SLIDE_WIDTHS_MM (ctrkin.models.play_lags, along the commanded joints): how far
               a slide of one tube against the other since the last reversal of d has taken up each play
+        g: 1 (the nominal folds' size), or with `fold_scale` fitted in [G_MIN, G_MAX] and kept only
+              where it lowers the leave-one-run-out residual (a robot whose folds change with the
+              overlap less or more than the nominal robot's: measured by bench_fold_gate.py, not the
+              default)
         c, κ, u_k ≥ 0: bounded least squares on the training snaps, each weighted by φ±² (near the
               critical overlap the fold moves fast with the tube parameters, so there it says little
               about the offset); the slide memory is kept only where it lowers the leave-one-run-out
@@ -81,6 +85,7 @@ from ctrkin.robots.robot import Robot
 FOLD_GATE_FILE = "fold_gate.json"
 MAX_GRID_POINTS = 400       # translations at which the folds are computed (≈ 0.07 s each, paper robot)
 FOLD_STEP_DEG = 0.5         # the table's sweep step
+G_MIN, G_MAX = 0.25, 2.0    # the bounds of a fitted fold scale g
 SLIDE_WIDTHS_MM = INPUT_SLIDE_WIDTHS_MM    # the slide memory's play widths: an FK's play inputs of d
 
 
@@ -96,9 +101,9 @@ def slide_lags(data: Any, joints: np.ndarray, bounds: list[tuple[int, int]], n_t
 @dataclass(frozen=True, eq=False)
 class FoldGate:
     """axes: per tube, the grid of β (mm, increasing); forward, backward: fold tables φ± (deg) of
-    shape (len(axes[0]), …); widen_deg: c; outer_lag_deg: κ; band_deg: half-width of the band.
-    `tables` holds the same grid flattened for the relay's numba kernels (ctrkin.models.relay: the
-    batch scan, and `gate_step` in the fused FK step)."""
+    shape (len(axes[0]), …); widen_deg: c; outer_lag_deg: κ; band_deg: half-width of the band;
+    fold_scale: g. `tables` holds the grid flattened, the folds times g, for the relay's numba
+    kernels (ctrkin.models.relay: the batch scan, and `gate_step` in the fused FK step)."""
 
     axes: tuple[np.ndarray, ...]
     forward: np.ndarray
@@ -107,10 +112,13 @@ class FoldGate:
     outer_lag_deg: float = 0.0
     band_deg: float = BAND_DEG
     slide_weights_deg: tuple[float, ...] = ()
+    fold_scale: float = 1.0
     tables: GateTables = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "tables", GateTables.of(self))
+        if not (math.isfinite(self.fold_scale) and self.fold_scale > 0):
+            raise ModelError(f"a fold gate's fold scale must be finite and > 0, got {self.fold_scale}")
+        object.__setattr__(self, "tables", GateTables.of(self, self.fold_scale))
         if self.slide_weights_deg and len(self.slide_weights_deg) != len(SLIDE_WIDTHS_MM):
             raise ModelError(f"a fold gate's slide memory has {len(SLIDE_WIDTHS_MM)} weights, got "
                              f"{len(self.slide_weights_deg)}")
@@ -132,7 +140,7 @@ class FoldGate:
         return self.widen_deg - total
 
     def folds(self, betas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """betas (T, N) -> the nominal folds φ+ (T,), φ− (T,) in deg, interpolated."""
+        """betas (T, N) -> the folds g·φ+ (T,), g·φ− (T,) in deg, interpolated."""
         betas = np.atleast_2d(np.asarray(betas, float))
         if betas.shape[1] != len(self.axes):
             raise ModelError(f"the fold gate is for {len(self.axes)} tubes, got translations of shape "
@@ -186,7 +194,8 @@ class FoldGate:
         return {"axes_mm": [a.tolist() for a in self.axes], "forward_deg": self.forward.tolist(),
                 "backward_deg": self.backward.tolist(), "widen_deg": self.widen_deg,
                 "outer_lag_deg": self.outer_lag_deg, "band_deg": self.band_deg,
-                "slide_widths_mm": list(SLIDE_WIDTHS_MM), "slide_weights_deg": list(self.slide_weights_deg)}
+                "slide_widths_mm": list(SLIDE_WIDTHS_MM), "slide_weights_deg": list(self.slide_weights_deg),
+                "fold_scale": self.fold_scale}
 
     @classmethod
     def from_dict(cls, d: dict) -> FoldGate:
@@ -200,6 +209,7 @@ class FoldGate:
             band = float(d["band_deg"])
             slide = tuple(float(u) for u in d.get("slide_weights_deg", ()))     # absent: an older gate
             widths = tuple(float(r) for r in d.get("slide_widths_mm", SLIDE_WIDTHS_MM))
+            scale = float(d.get("fold_scale", 1.0))                               # absent: g = 1
         except (KeyError, ValueError, TypeError, IndexError) as e:
             raise ModelError(f"malformed fold gate ({type(e).__name__}: {e})") from None
         if not all(np.all(np.diff(a) > 0) for a in axes) or not (
@@ -209,7 +219,9 @@ class FoldGate:
         if slide and (widths != SLIDE_WIDTHS_MM or not all(math.isfinite(u) and u >= 0 for u in slide)):
             raise ModelError(f"malformed fold gate: a slide memory at widths {list(SLIDE_WIDTHS_MM)} mm with "
                              f"finite weights ≥ 0, got widths {list(widths)} and weights {list(slide)}")
-        return cls(axes, fwd, bwd, widen, lag, band, slide)
+        if not (math.isfinite(scale) and scale > 0):
+            raise ModelError(f"malformed fold gate: fold_scale must be finite and > 0, got {scale}")
+        return cls(axes, fwd, bwd, widen, lag, band, slide, scale)
 
     def save(self, folder: str | Path) -> None:
         write_json(Path(folder) / FOLD_GATE_FILE, self.to_dict())
@@ -222,13 +234,15 @@ class FoldGate:
 def build_fold_gate(robot: Robot, joints: np.ndarray, snap: np.ndarray, bounds: list[tuple[int, int]],
                     motion: np.ndarray, spacing_mm: float = 1.0,
                     progress: Callable[[int, int], None] | None = None,
-                    slide: np.ndarray | None = None, groups: np.ndarray | None = None) -> FoldGate:
+                    slide: np.ndarray | None = None, groups: np.ndarray | None = None,
+                    fold_scale: bool = False) -> FoldGate:
     """The fold gate of `robot` over the translations of `joints` (T, 2N) (the training rows), its
     offsets fitted to the snaps flagged in `snap` (T,) within `bounds`; motion (T,): m_N of each row
     (ctrkin.models.motion.outer_motion, computed on the whole dataset so that runs are followed
     across the split); slide (T, K): the slide memory's lags ℓ of each row (`slide_lags`, on the
     whole dataset likewise; None: no slide memory); groups (T,): each row's run, the folds of the
-    leave-one-run-out check that decides whether the slide memory is kept (`_fit_offsets`).
+    leave-one-run-out check that decides whether the slide memory is kept (`_fit_offsets`);
+    fold_scale: also fit g (module docstring; default g = 1).
     spacing_mm: grid step, widened until the grid has at most MAX_GRID_POINTS points.
     progress(done, total) after each grid point."""
     joints = np.asarray(joints, float)
@@ -255,64 +269,81 @@ def build_fold_gate(robot: Robot, joints: np.ndarray, snap: np.ndarray, bounds: 
     half = 0.5 * FOLD_STEP_DEG                    # mid-way between the last row before and the snap
     fwd, bwd = np.where(fwd > 0, fwd - half, 0.0), np.where(bwd < 0, bwd + half, 0.0)
     table = FoldGate(axes, fwd.reshape(shape), bwd.reshape(shape))
-    widen, lag, weights = _fit_offsets(table, joints, snap, bounds, np.asarray(motion), n, slide, groups)
-    return FoldGate(axes, table.forward, table.backward, widen, lag, slide_weights_deg=weights)
+    widen, lag, weights, g = _fit_offsets(table, joints, snap, bounds, np.asarray(motion), n, slide, groups,
+                                          fold_scale)
+    return FoldGate(axes, table.forward, table.backward, widen, lag, slide_weights_deg=weights, fold_scale=g)
 
 
 def _fit_offsets(gate: FoldGate, joints: np.ndarray, snap: np.ndarray, bounds: list[tuple[int, int]],
                  motion: np.ndarray, n: int, slide: np.ndarray | None = None,
-                 groups: np.ndarray | None = None) -> tuple[float, float, tuple[float, ...]]:
-    """c, κ and the slide weights u: weighted least squares of the data's snaps,
-    φ_e − φ±(β_e) = ±(c − Σ u_k |ℓ_k|) − κ·m_N with u ≥ 0, weights φ±(β_e)² (module docstring), φ_e
-    and ℓ mid-way between the snap row and the one before. κ is 0 where the snaps cannot separate it
-    from c (all of one direction and one m_N, or none with m_N ≠ 0). The slide memory is fitted only
-    with `slide` and kept only where its leave-one-run-out weighted RMS residual over the snaps (runs:
-    `groups`; at least two with snaps) is below the form's without it; else u = ()."""
+                 groups: np.ndarray | None = None, fold_scale: bool = False
+                 ) -> tuple[float, float, tuple[float, ...], float]:
+    """c, κ, the slide weights u and g: weighted least squares of the data's snaps,
+    φ_e − φ±(β_e) = (g − 1)·φ±(β_e) ± (c − Σ u_k |ℓ_k|) − κ·m_N with u ≥ 0, weights φ±(β_e)² (module
+    docstring), φ_e and ℓ mid-way between the snap row and the one before. κ is 0 where the snaps
+    cannot separate it from c (all of one direction and one m_N, or none with m_N ≠ 0). g (with
+    `fold_scale`, in [G_MIN, G_MAX]) and then the slide memory (with `slide`) are each kept only where
+    the leave-one-run-out weighted RMS residual over the snaps (runs: `groups`; at least two with
+    snaps) is below the form's without them; else g = 1, u = ()."""
     alpha0 = joints[:, 0] - joints[:, n - 1]
     phi = phase_deg(alpha0)
     fwd, bwd = gate.folds(joints[:, n:])
-    rows: list[tuple[int, float, float, float, int]] = []      # direction, m_N, residual, weight, row
+    rows: list[tuple[int, float, float, float, int]] = []      # direction, m_N, residual, fold, row
     for a, b in bounds:
         for t in snap_events(snap, a, b):
             sign = int(np.sign(alpha0[t] - alpha0[t - 1]))
             fold = fwd[t] if sign > 0 else bwd[t]
             mid = phi[t] - 0.5 * (alpha0[t] - alpha0[t - 1])
             if sign != 0 and abs(phi[t]) < gate.band_deg and abs(fold) >= MIN_FOLD_DEG:
-                rows.append((sign, float(motion[t]), float(mid - fold), float(fold) ** 2, t))
+                rows.append((sign, float(motion[t]), float(mid - fold), float(fold), t))
     if not rows:
-        return 0.0, 0.0, ()
-    d, m, r, w = (np.array(c, dtype=float) for c in list(zip(*rows, strict=True))[:4])
+        return 0.0, 0.0, (), 1.0
+    d, m, r, fold = (np.array(c, dtype=float) for c in list(zip(*rows, strict=True))[:4])
     at = np.array([row[4] for row in rows])
-    sw = np.sqrt(w)
+    sw = np.sqrt(fold ** 2)                                      # sqrt of the weights φ±²
     A = np.stack([d, -m], axis=1)
     if np.linalg.matrix_rank(A * sw[:, None]) < 2:
         A = A[:, :1]
-    base = _weighted_fit(A, r, sw, len(A[0]))
-    c, lag = float(base[0]), float(base[1]) if len(base) > 1 else 0.0
-    if slide is None or groups is None:
-        return c, lag, ()
+    free = len(A[0])
+    runs = None if groups is None else np.asarray(groups)[at]
+    cv = runs is not None and len(np.unique(runs)) >= 2
+    scaled = 0
+    if fold_scale and cv:
+        assert runs is not None
+        S = np.concatenate([A, fold[:, None]], axis=1)
+        if _loro_rms(S, r, sw, runs, free, 1) < _loro_rms(A, r, sw, runs, free):
+            A, scaled = S, 1
+    base = _weighted_fit(A, r, sw, free, scaled)
+    c, lag = float(base[0]), float(base[1]) if free > 1 else 0.0
+    g = 1.0 + float(base[free]) if scaled else 1.0
+    if slide is None or not cv:
+        return c, lag, (), g
+    assert runs is not None
     ell = np.abs(0.5 * (slide[at] + slide[at - 1]))             # |ℓ| mid-way, (E, K)
     B = np.concatenate([A, -d[:, None] * ell], axis=1)
-    runs = np.asarray(groups)[at]
-    if len(np.unique(runs)) < 2 or not (ell > 0).any():
-        return c, lag, ()
-    if _loro_rms(B, r, sw, runs, len(A[0])) >= _loro_rms(A, r, sw, runs, len(A[0])):
-        return c, lag, ()
-    x = _weighted_fit(B, r, sw, len(A[0]))
-    u = tuple(float(v) for v in x[len(A[0]):])
-    return float(x[0]), float(x[1]) if len(A[0]) > 1 else 0.0, u if any(v > 0 for v in u) else ()
+    if not (ell > 0).any() or (_loro_rms(B, r, sw, runs, free, scaled)
+                               >= _loro_rms(A, r, sw, runs, free, scaled)):
+        return c, lag, (), g
+    x = _weighted_fit(B, r, sw, free, scaled)
+    u = tuple(float(v) for v in x[free + scaled:])
+    g = 1.0 + float(x[free]) if scaled else 1.0
+    return float(x[0]), float(x[1]) if free > 1 else 0.0, u if any(v > 0 for v in u) else (), g
 
 
-def _weighted_fit(A: np.ndarray, r: np.ndarray, sw: np.ndarray, free: int) -> np.ndarray:
-    """Least squares of A·x = r, rows weighted by sw, the first `free` unknowns free, the rest ≥ 0."""
-    lo = np.r_[np.full(free, -np.inf), np.zeros(A.shape[1] - free)]
-    return lsq_linear(A * sw[:, None], r * sw, bounds=(lo, np.full(A.shape[1], np.inf))).x
+def _weighted_fit(A: np.ndarray, r: np.ndarray, sw: np.ndarray, free: int, scaled: int = 0) -> np.ndarray:
+    """Least squares of A·x = r, rows weighted by sw: the first `free` unknowns free, then `scaled`
+    (0 or 1) unknown g − 1 in [G_MIN − 1, G_MAX − 1], the rest ≥ 0."""
+    rest = A.shape[1] - free - scaled
+    lo = np.r_[np.full(free, -np.inf), np.full(scaled, G_MIN - 1.0), np.zeros(rest)]
+    hi = np.r_[np.full(free, np.inf), np.full(scaled, G_MAX - 1.0), np.full(rest, np.inf)]
+    return lsq_linear(A * sw[:, None], r * sw, bounds=(lo, hi)).x
 
 
-def _loro_rms(A: np.ndarray, r: np.ndarray, sw: np.ndarray, runs: np.ndarray, free: int) -> float:
+def _loro_rms(A: np.ndarray, r: np.ndarray, sw: np.ndarray, runs: np.ndarray, free: int,
+              scaled: int = 0) -> float:
     """The weighted RMS residual of each run's snaps under the fit to the other runs' (deg)."""
     err = np.empty(len(r))
     for g in np.unique(runs):
         out = runs == g
-        err[out] = A[out] @ _weighted_fit(A[~out], r[~out], sw[~out], free) - r[out]
+        err[out] = A[out] @ _weighted_fit(A[~out], r[~out], sw[~out], free, scaled) - r[out]
     return float(np.sqrt(np.sum(sw ** 2 * err ** 2) / np.sum(sw ** 2)))

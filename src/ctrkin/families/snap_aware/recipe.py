@@ -121,11 +121,12 @@ class BranchRecipe(WindowRecipe):
         return super().finish(bundle, folder, log)
 
 
-def fold_gate(ds: Any, rows: np.ndarray) -> FoldGate:
+def fold_gate(ds: Any, rows: np.ndarray, fold_scale: bool = False) -> FoldGate:
     """The fold gate of a snap-aware model (ctrkin.families.snap_aware.fold_gate): folds of the
     dataset's nominal robot over the translations of `rows` (the training rows, sorted), fitted to
     their snaps; the outer tube's last rotation and the slide memory's lags are followed over the
-    whole dataset (runs cross the split), and the runs are the slide memory's cross-validation folds."""
+    whole dataset (runs cross the split), and the runs are the slide memory's cross-validation folds;
+    fold_scale: also fit the folds' scale g (fold_gate module docstring; training keeps g = 1)."""
     f = ds.frame
     q = ds.joints()
     motion, _ = recorded_motion(f, q, ds.sequence_bounds(), ds.n_tubes)
@@ -133,4 +134,4 @@ def fold_gate(ds: Any, rows: np.ndarray) -> FoldGate:
     runs = (f["run"] if "run" in f.columns else f["sequence_id"]).to_numpy()
     bounds = sequence_bounds(f["sequence_id"].to_numpy()[rows])
     return build_fold_gate(ds.robot, q[rows], f["snap"].to_numpy()[rows], bounds, motion[rows],
-                           slide=slide[rows], groups=runs[rows])
+                           slide=slide[rows], groups=runs[rows], fold_scale=fold_scale)
