@@ -15,7 +15,8 @@ rerun reuses (or resumes) it. An arm `ibN…p` adds the play-lag inputs (TrainCo
 ctrkin.models.play_lags), `ibN…t` learns the residual of the calibrated TCM (TrainConfig.tcm_prior,
 ctrkin.models.tcm_prior), `…r` learns in the tracker frame instead of the outer tube's (TrainConfig.
 target_frame), `…m` is the paper's LSTM-MLP (no branch heads, no fold gate) with the same inputs, angle
-encoding, linear output and recipe, in the tracker frame, and `…sK` trains with seed K. The test
+encoding, linear output and recipe, in the tracker frame, `…g` fits the fold gate's scale of the
+folds (TrainConfig.fold_scale), and `…sK` trains with seed K. The test
 columns are reported, never used to choose.
 
 Columns: epochs run and the best one, position RMSE vs the virtual robot's true pose on the training
@@ -73,8 +74,9 @@ from bench_generalisation import ROBOTS, reversals, small_moves
 # ib2pq: and equivariant inputs with a position field; ib2pt: the residual of the calibrated TCM
 # (TrainConfig.tcm_prior); ib2ptr: in the tracker frame (the family's default is the outer tube's);
 # ib2ptm: the paper's LSTM-MLP (lstm_mlp: no branch heads, no fold gate) in the tracker frame with the
-# same inputs, encoding, output and recipe; ib2ps1: training seed 1
-ARM = re.compile(r"^ib(\d+)(?:e(\d+))?(p?)(q?)(t?)(r?)(m?)(?:s(\d+))?$")
+# same inputs, encoding, output and recipe; ib2pg: the fold gate with its folds' scale g
+# (TrainConfig.fold_scale); ib2ps1: training seed 1
+ARM = re.compile(r"^ib(\d+)(?:e(\d+))?(p?)(q?)(t?)(r?)(m?)(g?)(?:s(\d+))?$")
 
 
 def arm_config(scale: str, arm: str) -> TrainConfig:
@@ -82,7 +84,7 @@ def arm_config(scale: str, arm: str) -> TrainConfig:
     the play-lag inputs)."""
     m = ARM.match(arm)
     if m is None:
-        raise ValueError(f"arm {arm!r} is not ibN[eE][p][q][t][r][m][sK] (e.g. ib8, ib2e160, ib2p, ib2ptr)")
+        raise ValueError(f"arm {arm!r} is not ibN[eE][p][q][t][r][m][g][sK] (e.g. ib8, ib2p, ib2ptr)")
     base = next(r.config for r in plan_runs(get_scale(scale)) if r.name == FK_BRANCH)
     cfg = replace(base, ib=int(m.group(1)), threads=1, device="cpu", play_lags=m.group(3) == "p")
     if m.group(4):
@@ -94,8 +96,10 @@ def arm_config(scale: str, arm: str) -> TrainConfig:
     if m.group(7):
         cfg = replace(cfg, model="lstm_mlp", options={"structure": cfg.options["structure"]},
                       target_frame="tracker")
-    if m.group(8) is not None:
-        cfg = replace(cfg, seed=int(m.group(8)))
+    if m.group(8):
+        cfg = replace(cfg, fold_scale=True)
+    if m.group(9) is not None:
+        cfg = replace(cfg, seed=int(m.group(9)))
     if m.group(2) is not None:
         epochs = int(m.group(2))
         cfg = replace(cfg, max_epochs=epochs, patience=max(cfg.patience, epochs))
@@ -254,13 +258,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     "of --repro (bench_generalisation.ROBOTS), for the reversals")
     ap.add_argument("--out", type=Path, required=True, help="folder of the arms' model folders")
     ap.add_argument("--arms", default="ib2,ib4,ib8", help="comma-separated arms "
-                    "ibN[eE][p][q][t][r][m][sK] (the module comment above ARM), e.g. ib2p,ib2pt,ib2ptr")
+                    "ibN[eE][p][q][t][r][m][g][sK] (the module comment above ARM), e.g. ib2p,ib2pt,ib2ptr")
     ap.add_argument("--scale", default="quick", help="the reproduction scale whose recipe the arms use")
     args = ap.parse_args(argv)
     arms = [a.strip() for a in args.arms.split(",") if a.strip()]
     bad = [a for a in arms if ARM.match(a) is None]
     if bad:
-        ap.error(f"arms {bad} are not ibN[eE][p][q][t][r][m][sK] (e.g. ib8, ib2e160, ib2p, ib2ptr)")
+        ap.error(f"arms {bad} are not ibN[eE][p][q][t][r][m][g][sK] (e.g. ib8, ib2e160, ib2p, ib2ptr)")
     if args.collect is not None:
         args.repro = collect_repro(args.collect, args.scale, args.settings)
     if args.data is None and args.repro is None:

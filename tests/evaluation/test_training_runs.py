@@ -65,3 +65,6 @@ def test_the_memory_benchmarks_arms_are_the_reproductions_recipe_with_their_ib_a
     assert (plain.model, plain.target_frame, plain.options) == ("lstm_mlp", "tracker", {"structure": "paper"})
     assert (plain.angle_encoding, plain.output_activation, plain.play_lags, plain.tcm_prior) == \
         (quick.angle_encoding, quick.output_activation, True, True)
+    scaled = bench.arm_config("quick", "ib2pg")
+    assert scaled.fold_scale and not quick.fold_scale
+    assert scaled.to_dict() | same | {"fold_scale": False} == quick.to_dict()

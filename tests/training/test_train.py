@@ -137,3 +137,9 @@ def test_snap_aware_fk_in_the_tracker_frame_keeps_it(quick_ds, tmp_path):
     assert not (tmp_path / "m" / "frame.json").exists()
     kin = Kinematics.load(tmp_path / "m")
     assert kin.frame is None and kin.config.target_frame == "tracker"
+
+
+def test_fold_scale_is_for_the_snap_aware_fk_only():
+    assert TrainConfig(task="fk", model="lstm_mlp_branch", fold_scale=True).fold_scale
+    with pytest.raises(ModelError, match="fold_scale"):
+        TrainConfig(task="fk", fold_scale=True)

@@ -98,6 +98,10 @@ class TrainSettings(Protocol):
         ...
 
     @property
+    def fold_scale(self) -> bool:
+        ...
+
+    @property
     def catch_up(self) -> float:
         ...
 

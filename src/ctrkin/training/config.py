@@ -157,6 +157,10 @@ class TrainConfig:
         "the MAE loss."))
     unknown_prob: float = field(default=0.1, metadata=_help(
         "Branch models only: how often the previous branch state is hidden in training."))
+    fold_scale: bool = field(default=False, metadata=_help(
+        "Branch models only: the fold gate also fits a scale g on the nominal robot's folds "
+        "(θ± = g·φ± ± c − κ·m_N, kept only where it lowers the leave-one-run-out residual of the "
+        "training snaps; ctrkin.families.snap_aware.fold_gate); default g = 1."))
     catch_up: float = field(default=0.0, metadata=_help(
         "The follow IK only: the share of its training rows that start from joints the recording had "
         "1-60 rows earlier in the same sequence, labelled with the recorded next joints: the catch-up "
@@ -232,6 +236,8 @@ class TrainConfig:
                              "physics prior to learn the residual of; drop --tcm-prior")
         if self.lr_schedule not in LR_SCHEDULES:
             raise ModelError(f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
+        if self.fold_scale and self.model != "lstm_mlp_branch":
+            raise ModelError("fold_scale applies to the snap-aware FK's fold gate (model 'lstm_mlp_branch')")
         if not (self.gate_weight >= 0 and 0 <= self.unknown_prob <= 1):
             raise ModelError("gate_weight must be >= 0 and unknown_prob in [0, 1]")
         if not 0 <= self.catch_up <= 1 or (self.catch_up and not self.follow):

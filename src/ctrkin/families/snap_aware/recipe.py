@@ -117,7 +117,7 @@ class BranchRecipe(WindowRecipe):
 
     def finish(self, bundle: ModelBundle, folder: Path, log: Log) -> dict[str, Any]:
         log("tabulating the nominal robot's folds for the fold gate")
-        fold_gate(self.data.ds, self.rows["train"]).save(folder)
+        fold_gate(self.data.ds, self.rows["train"], self.cfg.fold_scale).save(folder)
         return super().finish(bundle, folder, log)
 
 
