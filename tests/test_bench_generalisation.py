@@ -155,8 +155,8 @@ def test_the_history_probe_and_the_excitation_runs(fold_bench) -> None:
 def test_the_snap_form_is_chosen_on_held_out_excitation_runs(fold_bench) -> None:
     """The excitation runs split by run into identification and validation halves; on the nominal
     robot (its snaps on the nominal folds, whatever the history) the fold gate and the play form
-    identified with the excitation runs both switch at the validation snaps, and a tie keeps the fold
-    gate."""
+    identified with the excitation runs and the fold gate with a fitted scale of the folds all switch
+    at the validation snaps, and a tie keeps the fold gate."""
     from ctrkin.acquisition import protocols
     from ctrkin.acquisition.recorder import record
     from ctrkin.robots import load_robot
@@ -174,10 +174,10 @@ def test_the_snap_form_is_chosen_on_held_out_excitation_runs(fold_bench) -> None
     r = fold_bench.choose_on_validation(paper, ex, {})
     assert r["xv_val_runs"] == r["xv_id_runs"] == 5
     assert r["val_xv_recorded_snaps"] > 0
-    for p in ("xv", "pxv"):
+    for p in ("xv", "pxv", "sxv"):          # the scaled folds too: this robot snaps on the nominal folds
         assert r[f"val_{p}_gate_precision"] == 1.0 and r[f"val_{p}_gate_recall"] == 1.0, p
     # the paper rows' own gate is reported beside them (its fold table spans only the translations of
     # those rows: here βN 0 and −2.5 mm, fewer than the excitation runs reach)
     assert r["val_pv_recorded_snaps"] == r["val_xv_recorded_snaps"]
-    assert set(r["xv_val_f1"]) == {"fold gate", "play", "fold gate (paper rows)"}
+    assert set(r["xv_val_f1"]) == {"fold gate", "play", "fold gate (paper rows)", "scaled folds"}
     assert r["xv_chosen"] == "fold gate"
