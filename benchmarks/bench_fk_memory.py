@@ -57,8 +57,8 @@ from ctrkin.evaluation.snapping import (
     azimuth_series,
     glitch_window,
     rotation_direction,
+    snap_event_rows,
     snap_report,
-    snap_steps,
 )
 from ctrkin.evaluation.table import FK_BRANCH
 from ctrkin.evaluation.training_runs import plan_runs
@@ -133,12 +133,6 @@ def predicted_rmse(kin: Kinematics, ds: Dataset) -> dict[str, float]:
 EVENT_REACH = 20        # steps: a true snap's nearest predicted one further away counts as none
 
 
-def snap_events(azimuth: np.ndarray, bounds: list[tuple[int, int]]) -> np.ndarray:
-    """Rows where a snap event starts (snap_steps, consecutive rows merged: one snap over two steps)."""
-    steps = snap_steps(azimuth, bounds)
-    return steps[np.r_[True, np.diff(steps) > 1]] if len(steps) else steps
-
-
 def event_offsets(pred: np.ndarray, true: np.ndarray, bounds: list[tuple[int, int]]) -> list[int | None]:
     """For each true snap event (rows `true`), the signed steps to the nearest predicted one in the
     same sequence (negative: predicted early), None where none is within EVENT_REACH."""
@@ -166,8 +160,8 @@ def snap_scores(kin: Kinematics, ds: Dataset) -> dict[str, Any]:
         vals = [rep[d][key] for d in ("forward", "backward") if not math.isnan(rep[d][key])]
         return pick(vals) if vals else None
 
-    true_events = snap_events(az_true, b)
-    offsets = event_offsets(snap_events(az_pred, b), true_events[keep[true_events]], b)
+    true_events = snap_event_rows(az_true, b)
+    offsets = event_offsets(snap_event_rows(az_pred, b), true_events[keep[true_events]], b)
     return {"precision": worst("precision", min), "recall": worst("recall", min),
             "magnitude_deg": worst("magnitude_error_deg", max), "snaps": int(rep["n_reference"]),
             "offsets": offsets}

@@ -17,10 +17,3 @@ def test_each_true_snap_gets_the_signed_steps_to_its_nearest_predicted_one_in_it
     assert bench.event_offsets(pred, true, bounds) == [-7, 2, None, None]
     assert bench.event_offsets(np.zeros(0, int), true, bounds) == [None] * 4
 
-
-def test_a_snap_over_two_steps_is_one_event() -> None:
-    bench = load_benchmark("bench_fk_memory")
-    # jumps of 12° and 15° at rows 10 and 11 (one snap over two steps; threshold 10°), −27° at row 21
-    az = np.r_[np.zeros(10), np.full(1, 12.0), np.full(10, 27.0), np.zeros(5)]
-    events = bench.snap_events(az, [(0, len(az))])
-    assert events.tolist() == [10, 21]

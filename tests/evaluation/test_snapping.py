@@ -9,6 +9,7 @@ from ctrkin.evaluation.snapping import (
     azimuth_series,
     glitch_window,
     rotation_direction,
+    snap_event_rows,
     snap_report,
     snap_score,
     snap_steps,
@@ -83,3 +84,10 @@ def test_events_just_after_an_encoder_glitch_are_not_counted() -> None:
     np.testing.assert_array_equal(np.nonzero(~keep)[0], [30, 31, 32, 33])
     r = snap_report(pred, ref, bounds, direction, keep)
     assert r["n_predicted"] == 1 and r["precision"] == 1.0 and r["recall"] == 1.0
+
+
+def test_a_snap_over_two_steps_is_one_event() -> None:
+    # jumps of 12° and 15° at rows 10 and 11 (one snap over two steps; threshold 10°), −27° at row 21
+    az = np.r_[np.zeros(10), np.full(1, 12.0), np.full(10, 27.0), np.zeros(5)]
+    events = snap_event_rows(az, [(0, len(az))])
+    assert events.tolist() == [10, 21]

@@ -74,11 +74,7 @@ class CalibratedTCM:
     def predict(self, joints: np.ndarray) -> np.ndarray:
         """(T, 2N) logged joints (deg, mm) -> (T, 6) tip poses (x, y, z mm, q0, qx, qy) in the
         tracker frame."""
-        pos, tan = self.robot_frame(joints)
-        safe = np.where(np.isfinite(tan), tan, [0.0, 0.0, 1.0])
-        poses = self.registration.apply(np.column_stack([pos, quat_from_tangent(safe)]))
-        poses[~np.isfinite(pos).all(axis=1)] = np.nan
-        return poses
+        return self.tracker_poses(*self.robot_frame(joints))
 
     def predict_continued(self, joints: np.ndarray, bounds: list[tuple[int, int]]) -> np.ndarray:
         """(T, 2N) logged joints, sequences `bounds` [(start, stop), ...] -> (T, 6) tracker-frame
@@ -94,6 +90,11 @@ class CalibratedTCM:
             tip, tangent = tr.tip_positions[ok], tr.tip_tangents[ok]
             pos[a:b][ok] = tip + self.marker_mm * tangent
             tan[a:b][ok] = tangent
+        return self.tracker_poses(pos, tan)
+
+    def tracker_poses(self, pos: np.ndarray, tan: np.ndarray) -> np.ndarray:
+        """Marker positions (T, 3) and tip tangents (T, 3) in the robot base frame -> (T, 6)
+        tracker-frame poses (the registration applied); NaN rows stay NaN."""
         safe = np.where(np.isfinite(tan), tan, [0.0, 0.0, 1.0])
         poses = self.registration.apply(np.column_stack([pos, quat_from_tangent(safe)]))
         poses[~np.isfinite(pos).all(axis=1)] = np.nan
@@ -162,9 +163,8 @@ class TCMStream:
         tr = follow(m.robot, q, start=self._eq)
         if tr.converged[0]:
             self._eq = tr.equilibrium(0)
-            tan = tr.tip_tangents[0]
-            pos = tr.tip_positions[0] + m.marker_mm * tan
-            self._pose = m.registration.apply(np.concatenate([pos, quat_from_tangent(tan[None])[0]])[None])[0]
+            tan = tr.tip_tangents[:1]
+            self._pose = m.tracker_poses(tr.tip_positions[:1] + m.marker_mm * tan, tan)[0]
         return self._pose.copy()
 
 

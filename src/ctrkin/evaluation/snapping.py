@@ -44,6 +44,13 @@ def _events(steps: np.ndarray) -> np.ndarray:
     return steps[keep]
 
 
+def snap_event_rows(
+    azimuth: np.ndarray, bounds: list[tuple[int, int]], threshold: float = SNAP_THRESHOLD_DEG
+) -> np.ndarray:
+    """Rows where a snap event of T(L) starts: snap_steps with consecutive rows merged."""
+    return _events(snap_steps(azimuth, bounds, threshold))
+
+
 @dataclass(frozen=True)
 class SnapScore:
     """Snap prediction against a reference: counts, precision, recall, timing error (steps, mean
@@ -72,8 +79,8 @@ def snap_score(
 ) -> SnapScore:
     """Match predicted snap events to reference events of the same sequence within ±tolerance.
     rows: (T,) bool, count only events at these rows (e.g. one direction of rotation)."""
-    pred_ev = _events(snap_steps(pred_azimuth, bounds, threshold))
-    ref_ev = _events(snap_steps(ref_azimuth, bounds, threshold))
+    pred_ev = snap_event_rows(pred_azimuth, bounds, threshold)
+    ref_ev = snap_event_rows(ref_azimuth, bounds, threshold)
     if rows is not None:
         pred_ev, ref_ev = pred_ev[rows[pred_ev]], ref_ev[rows[ref_ev]]
     seq_of = np.empty(bounds[-1][1] if bounds else 0, dtype=int)

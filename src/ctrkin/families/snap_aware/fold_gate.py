@@ -313,21 +313,23 @@ def _fit_offsets(gate: FoldGate, joints: np.ndarray, snap: np.ndarray, bounds: l
         S = np.concatenate([A, fold[:, None]], axis=1)
         if _loro_rms(S, r, sw, runs, free, 1) < _loro_rms(A, r, sw, runs, free):
             A, scaled = S, 1
-    base = _weighted_fit(A, r, sw, free, scaled)
-    c, lag = float(base[0]), float(base[1]) if free > 1 else 0.0
-    g = 1.0 + float(base[free]) if scaled else 1.0
+
+    def read(x: np.ndarray) -> tuple[float, float, tuple[float, ...], float]:
+        """(c, κ, u, g) of a solution [c, (κ), (g − 1), u...]."""
+        u = tuple(float(v) for v in x[free + scaled:])
+        return (float(x[0]), float(x[1]) if free > 1 else 0.0, u if any(v > 0 for v in u) else (),
+                1.0 + float(x[free]) if scaled else 1.0)
+
+    base = read(_weighted_fit(A, r, sw, free, scaled))
     if slide is None or not cv:
-        return c, lag, (), g
+        return base
     assert runs is not None
     ell = np.abs(0.5 * (slide[at] + slide[at - 1]))             # |ℓ| mid-way, (E, K)
     B = np.concatenate([A, -d[:, None] * ell], axis=1)
     if not (ell > 0).any() or (_loro_rms(B, r, sw, runs, free, scaled)
                                >= _loro_rms(A, r, sw, runs, free, scaled)):
-        return c, lag, (), g
-    x = _weighted_fit(B, r, sw, free, scaled)
-    u = tuple(float(v) for v in x[free + scaled:])
-    g = 1.0 + float(x[free]) if scaled else 1.0
-    return float(x[0]), float(x[1]) if free > 1 else 0.0, u if any(v > 0 for v in u) else (), g
+        return base
+    return read(_weighted_fit(B, r, sw, free, scaled))
 
 
 def _weighted_fit(A: np.ndarray, r: np.ndarray, sw: np.ndarray, free: int, scaled: int = 0) -> np.ndarray:
