@@ -193,8 +193,7 @@ class TrainConfig:
     def __post_init__(self) -> None:
         # the registry (torch, the networks) and the feature layout are imported here, not with the
         # module: `ctrkin train --help` reads this class and should not wait for torch
-        from ctrkin.families.registry import family_of, get_entry, resolve_options
-        from ctrkin.families.snap_aware.fold_gate import FOLD_GATE_FILE
+        from ctrkin.families.registry import get_entry, resolve_options
 
         if self.task not in ("fk", "ik"):
             raise ModelError(f"task must be 'fk' or 'ik', got {self.task!r}")
@@ -237,7 +236,7 @@ class TrainConfig:
                              "physics prior to learn the residual of; drop --tcm-prior")
         if self.lr_schedule not in LR_SCHEDULES:
             raise ModelError(f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
-        if self.fold_scale and FOLD_GATE_FILE not in family_of(self.model).files:
+        if self.fold_scale and self.model != "lstm_mlp_branch":
             raise ModelError("fold_scale applies to the snap-aware FK's fold gate (model 'lstm_mlp_branch')")
         if not (self.gate_weight >= 0 and 0 <= self.unknown_prob <= 1):
             raise ModelError("gate_weight must be >= 0 and unknown_prob in [0, 1]")
