@@ -171,3 +171,31 @@ def test_homing_on_a_mechanical_stop():
     finally:
         net.disconnect()
         bus.close()
+
+
+def test_sdo_transactions_from_two_threads_do_not_take_each_others_responses(canopen_rig):
+    """A move polls its drives while stop() writes to them from another thread: without one SDO
+    transaction at a time, a read could take a write's response ("Unexpected response 0x60")."""
+    act = CANopenActuator(canopen_rig, Simulation(canopen_rig))
+    try:
+        errors: list[str] = []
+        rpm = act._read(0, c.PROFILE_VELOCITY)
+
+        def reads():
+            try:
+                for _ in range(300):
+                    act.read()
+            except HardwareError as e:
+                errors.append(str(e))
+
+        t = threading.Thread(target=reads)
+        t.start()
+        try:
+            for _ in range(300):
+                act._write(0, c.PROFILE_VELOCITY, rpm)      # a write that changes nothing
+        except HardwareError as e:
+            errors.append(str(e))
+        t.join(30)
+        assert not t.is_alive() and errors == []
+    finally:
+        act.close()

@@ -16,6 +16,7 @@ With `[actuator] simulate = true` the drives are ctrkin's simulated CiA 402 node
 from __future__ import annotations
 
 import itertools
+import threading
 import time
 from typing import Any
 
@@ -58,6 +59,9 @@ class CANopenActuator(Actuator):
         eds = str(rig.path(self.spec.eds)) if self.spec.eds else str(c.EDS_FILE)
         self.nodes = [self.network.add_node(d.node_id, eds) for d in self.drives]
         self._stopped = False
+        # one SDO transaction on the bus at a time: stop() comes from another thread while a move
+        # polls its drives, and two requests to one node in flight take each other's responses
+        self._sdo = threading.Lock()
         self.enable()
 
     # --- SDO helpers ----------------------------------------------------------------------------
@@ -65,7 +69,8 @@ class CANopenActuator(Actuator):
         node = self.nodes[k]
         try:
             var = node.sdo[index] if not sub else node.sdo[index][sub]
-            var.raw = int(value)
+            with self._sdo:
+                var.raw = int(value)
         except Exception as e:       # canopen raises SdoAbortedError, SdoCommunicationError, ...
             raise HardwareError(f"drive {self.drives[k].joint} (node {self.drives[k].node_id}): writing "
                                 f"0x{index:04X}:{sub} = {value} failed: {e}") from None
@@ -74,7 +79,8 @@ class CANopenActuator(Actuator):
         node = self.nodes[k]
         try:
             var = node.sdo[index] if not sub else node.sdo[index][sub]
-            return int(var.raw)
+            with self._sdo:
+                return int(var.raw)
         except Exception as e:
             raise HardwareError(f"drive {self.drives[k].joint} (node {self.drives[k].node_id}): reading "
                                 f"0x{index:04X}:{sub} failed: {e}") from None
