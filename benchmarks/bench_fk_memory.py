@@ -16,14 +16,19 @@ ctrkin.models.play_lags), `ibN…t` learns the residual of the calibrated TCM (T
 ctrkin.models.tcm_prior), `…r` learns in the tracker frame instead of the outer tube's (TrainConfig.
 target_frame), `…m` is the paper's LSTM-MLP (no branch heads, no fold gate) with the same inputs, angle
 encoding, linear output and recipe, in the tracker frame, `…g` fits the fold gate's scale of the
-folds (TrainConfig.fold_scale), and `…sK` trains with seed K. The test
+folds (TrainConfig.fold_scale), `…o` writes branch 1's head as branch 0's plus an offset head (option
+`heads=offset`, ctrkin.families.snap_aware.net), and `…sK` trains with seed K. The test
 columns are reported, never used to choose.
 
 Columns: epochs run and the best one, position RMSE vs the virtual robot's true pose on the training
 / validation / test rows (mm; the model's own metrics.json, whose training decodes the branch with
 the learned gate), test RMSE vs the measurement, validation and test RMSE as `Kinematics.predict`
 gives them (`val p.`, `test p.`: the fold gate, what a user gets; the arm to adopt is the lowest
-`val p.`), training seconds, the median streaming step (Kinematics.step, one thread, µs, along a
+`val p.`), the RMS error of the validation rows' snap jumps (`jump`: the position change over
+the ±2 steps around each recorded snap, predicted against true; what val p. is for the position,
+this is for the snaps), what a wrong branch state costs where one branch exists (`wrong s`: the
+median distance between the two branches' positions on the validation rows with |φ| > 120°),
+training seconds, the median streaming step (Kinematics.step, one thread, µs, along a
 held-out sequence), and the load average while the arm trained. With `--repro` (a reproduction
 folder: its data/paper is the training data) also the reproduction's FK experiments on each arm's
 model, as `ctrkin reproduce` and benchmarks/bench_generalisation.py score them against the truth:
@@ -62,6 +67,7 @@ from ctrkin.evaluation.snapping import (
 )
 from ctrkin.evaluation.table import FK_BRANCH
 from ctrkin.evaluation.training_runs import plan_runs
+from ctrkin.families.snap_aware.labels import phase_deg, snap_events
 from ctrkin.inference import Kinematics
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.data import data_signature, split_rows, split_signature
@@ -75,8 +81,9 @@ from bench_generalisation import ROBOTS, reversals, small_moves
 # (TrainConfig.tcm_prior); ib2ptr: in the tracker frame (the family's default is the outer tube's);
 # ib2ptm: the paper's LSTM-MLP (lstm_mlp: no branch heads, no fold gate) in the tracker frame with the
 # same inputs, encoding, output and recipe; ib2pg: the fold gate with its folds' scale g
-# (TrainConfig.fold_scale); ib2ps1: training seed 1
-ARM = re.compile(r"^ib(\d+)(?:e(\d+))?(p?)(q?)(t?)(r?)(m?)(g?)(?:s(\d+))?$")
+# (TrainConfig.fold_scale); ib2pto: the offset head form (a shared head plus a branch offset);
+# ib2ps1: training seed 1
+ARM = re.compile(r"^ib(\d+)(?:e(\d+))?(p?)(q?)(t?)(r?)(m?)(g?)(o?)(?:s(\d+))?$")
 
 
 def arm_config(scale: str, arm: str) -> TrainConfig:
@@ -84,7 +91,7 @@ def arm_config(scale: str, arm: str) -> TrainConfig:
     the play-lag inputs)."""
     m = ARM.match(arm)
     if m is None:
-        raise ValueError(f"arm {arm!r} is not ibN[eE][p][q][t][r][m][g][sK] (e.g. ib8, ib2p, ib2ptr)")
+        raise ValueError(f"arm {arm!r} is not ibN[eE][p][q][t][r][m][g][o][sK] (e.g. ib8, ib2p, ib2ptr)")
     base = next(r.config for r in plan_runs(get_scale(scale)) if r.name == FK_BRANCH)
     cfg = replace(base, ib=int(m.group(1)), threads=1, device="cpu", play_lags=m.group(3) == "p")
     if m.group(4):
@@ -98,8 +105,10 @@ def arm_config(scale: str, arm: str) -> TrainConfig:
                       target_frame="tracker")
     if m.group(8):
         cfg = replace(cfg, fold_scale=True)
-    if m.group(9) is not None:
-        cfg = replace(cfg, seed=int(m.group(9)))
+    if m.group(9):
+        cfg = replace(cfg, options={**cfg.options, "heads": "offset"})
+    if m.group(10) is not None:
+        cfg = replace(cfg, seed=int(m.group(10)))
     if m.group(2) is not None:
         epochs = int(m.group(2))
         cfg = replace(cfg, max_epochs=epochs, patience=max(cfg.patience, epochs))
@@ -124,10 +133,57 @@ def predicted_rmse(kin: Kinematics, ds: Dataset) -> dict[str, float]:
     """Position RMSE vs truth (mm) on the validation and test rows as `Kinematics.predict` gives them
     (the fold gate where the folder has one: what a user gets), beside the model's own metrics
     (its training's figures decode the branch with the learned gate)."""
-    err = np.linalg.norm(np.asarray(kin.predict(ds))[:, :3] - registered_truth(ds)[:, :3], axis=1)
+    pred, truth = np.asarray(kin.predict(ds)), registered_truth(ds)
+    err = np.linalg.norm(pred[:, :3] - truth[:, :3], axis=1)
     sp = ds.get_split()
-    return {f"{part}_predict": float(np.sqrt(np.mean(err[getattr(sp, part)] ** 2)))
-            for part in ("val", "test")}
+    out: dict[str, Any] = {f"{part}_predict": float(np.sqrt(np.mean(err[getattr(sp, part)] ** 2)))
+                           for part in ("val", "test")}
+    jumps = snap_jump_errors(pred, truth, ds, sp.val)
+    out["val_jump_mm"] = float(np.sqrt(np.mean(jumps ** 2))) if len(jumps) else None
+    out["val_jumps"] = len(jumps)
+    return out
+
+
+JUMP_REACH = 2          # steps each side of a snap: the ±2-step tolerance of the snap scores
+
+
+def snap_jump_errors(pred: np.ndarray, truth: np.ndarray, ds: Dataset, rows: np.ndarray) -> np.ndarray:
+    """At each snap of the sequences holding `rows` (the dataset's snap flags, labels.snap_events):
+    |Δp_pred − Δp_true| (mm), Δp the position change from JUMP_REACH + 1 rows before the snap's
+    first row to JUMP_REACH rows after it. A snap predicted in time (within JUMP_REACH steps) and of
+    the right size scores the ordinary motion's error over those steps; a late, early, short or
+    missing one the jump's error. The validation rows' snaps judge the snaps as val p. judges the
+    position (the sweeps and snap turns are test experiments)."""
+    snap = ds.frame["snap"].to_numpy()
+    chosen = np.zeros(len(snap), dtype=bool)
+    chosen[rows] = True
+    errs = []
+    for a, b in ds.sequence_bounds():
+        if not chosen[a]:
+            continue
+        for t in snap_events(snap, a, b):
+            lo, hi = t - 1 - JUMP_REACH, t + JUMP_REACH
+            if lo >= a and hi < b:
+                errs.append(np.linalg.norm((pred[hi, :3] - pred[lo, :3]) - (truth[hi, :3] - truth[lo, :3])))
+    return np.array(errs)
+
+
+OUTSIDE_BAND_DEG = 120.0   # |φ| beyond the bistable band (labels.BAND_DEG = 90° and a margin): one branch
+
+
+def wrong_state_cost(kin: Kinematics, ds: Dataset) -> float | None:
+    """Median distance (mm) between the two branches' positions on the validation rows well outside
+    the bistable band (|φ| > OUTSIDE_BAND_DEG), where one branch alone exists: what a wrong branch
+    state (a gate set wrongly, a sequence started in the other state) costs there. None for a model
+    without a branch state."""
+    if "branch_states" not in kin.predictor.accepts.get("predict", frozenset()):
+        return None
+    n = len(ds.frame)
+    p0, p1 = (np.asarray(kin.predict(ds, branch_states=np.full(n, s)))[:, :3] for s in (0.0, 1.0))
+    q = ds.joints()
+    val = ds.get_split().val
+    far = val[np.abs(phase_deg(q[val, 0] - q[val, ds.n_tubes - 1])) > OUTSIDE_BAND_DEG]
+    return float(np.median(np.linalg.norm(p1[far] - p0[far], axis=1))) if len(far) else None
 
 
 EVENT_REACH = 20        # steps: a true snap's nearest predicted one further away counts as none
@@ -210,6 +266,7 @@ def run_arm(ds: Dataset, scale: str, arm: str, out: Path, stream: np.ndarray, re
         row[part] = m[part]["vs_true"]["position_mm_rmse"]
         row[f"{part}_measured"] = m[part]["vs_measured"]["position_mm_rmse"]
     row |= predicted_rmse(kin, ds)
+    row["wrong_state_mm"] = wrong_state_cost(kin, ds)
     row["step_us"] = step_cost_us(kin, stream)
     if repro is not None:
         row |= experiments(kin, out / arm, repro, case)
@@ -252,13 +309,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     "of --repro (bench_generalisation.ROBOTS), for the reversals")
     ap.add_argument("--out", type=Path, required=True, help="folder of the arms' model folders")
     ap.add_argument("--arms", default="ib2,ib4,ib8", help="comma-separated arms "
-                    "ibN[eE][p][q][t][r][m][g][sK] (the module comment above ARM), e.g. ib2p,ib2pt,ib2ptr")
+                    "ibN[eE][p][q][t][r][m][g][o][sK] (the module comment above ARM), e.g. ib2p,ib2pt,ib2ptr")
     ap.add_argument("--scale", default="quick", help="the reproduction scale whose recipe the arms use")
     args = ap.parse_args(argv)
     arms = [a.strip() for a in args.arms.split(",") if a.strip()]
     bad = [a for a in arms if ARM.match(a) is None]
     if bad:
-        ap.error(f"arms {bad} are not ibN[eE][p][q][t][r][m][g][sK] (e.g. ib8, ib2e160, ib2p, ib2ptr)")
+        ap.error(f"arms {bad} are not ibN[eE][p][q][t][r][m][g][o][sK] (e.g. ib8, ib2e160, ib2p, ib2ptr)")
     if args.collect is not None:
         args.repro = collect_repro(args.collect, args.scale, args.settings)
     if args.data is None and args.repro is None:
@@ -276,14 +333,17 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     print(f"snap-aware FK memory on {data} ({len(ds.frame)} rows), the {args.scale} reproduction's "
           f"recipe; streaming step timed along {len(stream)} held-out steps", flush=True)
     print(f"{'arm':9s} {'epochs':>6s} {'best':>5s} {'train':>6s} {'val':>6s} {'test':>6s} {'test m.':>7s} "
-          f"{'val p.':>6s} {'test p.':>7s} {'s':>6s} {'step µs':>7s} {'load':>5s}   (position RMSE vs truth, "
-          "mm; p.: as predict gives them)", flush=True)
+          f"{'val p.':>6s} {'test p.':>7s} {'jump':>5s} {'wrong s':>7s} {'s':>6s} {'step µs':>7s} "
+          f"{'load':>5s}   "
+          "(position RMSE vs truth, mm; p.: as predict gives them; jump: RMS error of the validation "
+          "snaps' jumps, mm; wrong s: what a wrong state costs outside the band, mm)", flush=True)
     rows: dict[str, Any] = {}
     for arm in arms:
         r = rows[arm] = run_arm(ds, args.scale, arm, args.out, stream, args.repro, args.case)
         print(f"{arm:9s} {r['epochs']:6d} {r['best_epoch']:5d} {r['train']:6.3f} {r['val']:6.3f} "
               f"{r['test']:6.3f} {r['test_measured']:7.3f} {r['val_predict']:6.3f} {r['test_predict']:7.3f} "
-              f"{r['train_seconds']:6.0f} {r['step_us']:7.1f} "
+              f"{_f(r['val_jump_mm']):>5s} {_f(r['wrong_state_mm']):>7s} {r['train_seconds']:6.0f} "
+              f"{r['step_us']:7.1f} "
               f"{r['load']:5.1f}   {r['verdict']}", flush=True)
         if args.repro is not None:
             sw, tu, rv, sm = r["sweeps"], r["snap-turns"], r["reversals"], r["small"]

@@ -68,3 +68,6 @@ def test_the_memory_benchmarks_arms_are_the_reproductions_recipe_with_their_ib_a
     scaled = bench.arm_config("quick", "ib2pg")
     assert scaled.fold_scale and not quick.fold_scale
     assert scaled.to_dict() | same | {"fold_scale": False} == quick.to_dict()
+    offset = bench.arm_config("quick", "ib2ptro")          # the offset head form, on the prior, tracker frame
+    assert offset.options == quick.options | {"heads": "offset"} and quick.options["heads"] == "separate"
+    assert (offset.tcm_prior, offset.target_frame) == (True, "tracker")

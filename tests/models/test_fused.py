@@ -1,7 +1,7 @@
 """The fused FK step (ctrkin.models.fused) equals the reference path bit for bit: on random joint
 sequences with snaps, glitches, refused steps, restarts and carried-over runs, for the paper's
 LSTM-MLP and the snap-aware model (fold gate, learned gate, outer frame with and without its outer
-lag, phase encoding, and in the tracker frame)."""
+lag, phase encoding, in the tracker frame, and with the offset head form)."""
 
 from __future__ import annotations
 
@@ -27,8 +27,10 @@ def fused_dirs(model_dirs, sweeps, tmp_path_factory):
                       target_frame="outer", options={"structure": "L8|D8", "gate_units": 4})
     train(sweeps, cfg, root / "phase", progress=False)
     train(sweeps, replace(cfg, target_frame="tracker"), root / "tracker", progress=False)
+    train(sweeps, replace(cfg, options={**cfg.options, "heads": "offset"}), root / "offset", progress=False)
     return {"fk": model_dirs["fk"], "fk_default": model_dirs["fk_default"],
-            "fk_branch": model_dirs["fk_branch"], "phase": root / "phase", "tracker": root / "tracker"}
+            "fk_branch": model_dirs["fk_branch"], "phase": root / "phase", "tracker": root / "tracker",
+            "offset": root / "offset"}
 
 
 def _load(folder, name: str, fused: bool) -> Kinematics:
@@ -114,14 +116,14 @@ def _script(sweeps, seed: int) -> list[tuple[str, object]]:
     return script
 
 
-@pytest.mark.parametrize("name", ["fk", "fk_default", "fk_branch", "phase", "tracker", "learned", "lagged",
-                                  "lagged_learned", "slide"])
+@pytest.mark.parametrize("name", ["fk", "fk_default", "fk_branch", "phase", "tracker", "offset", "learned",
+                                  "lagged", "lagged_learned", "slide"])
 def test_fused_step_equals_the_reference_path(fused_dirs, sweeps, name):
     folder = fused_dirs["fk_branch" if name in ("learned", "lagged", "lagged_learned", "slide") else name]
     fast, ref = _load(folder, name, True), _load(folder, name, False)
     assert fast.fused and not ref.fused
     learned = name in ("learned", "lagged_learned")
-    branch = learned or name in ("fk_branch", "phase", "tracker", "lagged", "slide")
+    branch = learned or name in ("fk_branch", "phase", "tracker", "offset", "lagged", "slide")
     assert (getattr(fast, "fold_gate", None) is not None) == (branch and not learned)   # a family attribute
     assert (fast.frame is not None and fast.frame.has_lag) == name.startswith("lagged")
     script = _script(sweeps, seed=7)

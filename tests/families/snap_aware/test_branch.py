@@ -1,10 +1,13 @@
-"""Branch labels (the relay the snap-aware model learns) and the BranchNet's state decoding."""
+"""Branch labels (the relay the snap-aware model learns), the BranchNet's state decoding and its
+head forms."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
+from ctrkin.errors import ModelError
 from ctrkin.families.snap_aware.labels import branch_labels, phase_deg, previous_labels
 from ctrkin.families.snap_aware.net import UNKNOWN_STATE, BranchNet, relay_scan
 
@@ -61,3 +64,33 @@ def test_decode_uses_the_head_of_each_rows_state() -> None:
         start = (net.gate_logit(h, torch.full((12,), UNKNOWN_STATE)) > 0).numpy()
     np.testing.assert_allclose(y, np.where(s[:, None] == 1, y1, y0), atol=1e-6)
     assert s[0] == start[0] and s[6] == start[6]
+
+
+@pytest.mark.parametrize("structure", ["L8|D8", "L8|D8,D4", "L8|"])
+def test_offset_heads_merge_into_two_ordinary_heads(structure) -> None:
+    """heads "offset": branch s gives z ± ½d (s = 1: +), and heads() (what the streaming engine and
+    the fused step run) gives the same as two ordinary heads of the summed width."""
+    torch.manual_seed(0)
+    net = BranchNet(5, 6, 2, structure=structure, gate_units=4, heads="offset").eval()
+    with torch.no_grad():
+        net.out1.weight.normal_()
+        net.out1.bias.normal_()
+        h = torch.randn(9, net.trunk_width)
+        s = torch.tensor([0, 1, 0, 1, 1, 0, 1, 0, 0], dtype=torch.float32)
+        z, d = net.offset_parts(h)
+        y = net.head_out(h, s)
+        np.testing.assert_allclose(y.numpy(), (z + (s[:, None] - 0.5) * d).numpy(), atol=1e-6)
+        assert d.abs().min() > 0
+        merged = []
+        for layers, out in net.heads():
+            x = h
+            for layer in layers:
+                x = torch.relu(layer(x))
+            merged.append(out(x))
+    branch = torch.where(s[:, None] > 0.5, merged[1], merged[0])
+    np.testing.assert_allclose(branch.numpy(), y.numpy(), atol=1e-5)
+
+
+def test_head_forms_are_checked() -> None:
+    with pytest.raises(ModelError, match="heads must be one of"):
+        BranchNet(5, 6, 2, structure="L8|D8", heads="shared")

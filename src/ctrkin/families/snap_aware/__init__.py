@@ -22,8 +22,8 @@ from ctrkin.models.predictor import Family, ModelEntry, Opened, Predictor
 
 
 def _build(n_inputs: int, n_outputs: int, ib: int, output_activation: str, structure: str = "paper",
-           gate_units: int = 32) -> KinematicsNet:
-    return BranchNet(n_inputs, n_outputs, ib, structure, output_activation, int(gate_units))
+           gate_units: int = 32, heads: str = "separate") -> KinematicsNet:
+    return BranchNet(n_inputs, n_outputs, ib, structure, output_activation, int(gate_units), str(heads))
 
 
 def _load(opened: Opened) -> Predictor:
@@ -39,7 +39,7 @@ FAMILY = Family(
         "lstm_mlp_branch", "snap-aware LSTM-MLP: a learned branch state (hysteron) selects one of two "
         "heads, so snaps are sharp (ctrkin.families.snap_aware); FK only, sin/cos α0 inputs, poses "
         "learned in the outer tube's frame (ctrkin.models.frame) unless --target-frame tracker",
-        _build, {"structure": "paper", "gate_units": 32},
+        _build, {"structure": "paper", "gate_units": 32, "heads": "separate"},
         {"angle_encoding": "phase", "output_activation": "linear", "task": "fk"},
         {"target_frame": "outer"}),),
     load=_load,

@@ -20,6 +20,19 @@ construction, and its timing is a classification boundary, not the midpoint of a
 At a sequence start the previous state is unknown and fed as 0.5; training feeds 0.5 at random
 (`unknown_prob`) so the gate also learns the history-free decision, and, where the label does not
 depend on history (outside the bistable band), a flipped previous state, so a wrong state recovers.
+
+Head forms (option `heads`): "separate" (the default) gives each branch its own head, trained on its
+branch's rows only; "offset" writes both branches as one shared output and a jump d between them,
+
+    y_t   = out(relu(head(h_t))) + (s_t − ½) · out1(relu(head1(h_t)))
+
+trained with an L1 penalty on d outside the bistable band (ctrkin.families.snap_aware.recipe.
+OFFSET_L1): there one branch alone exists, so d goes to 0, the shared head fits the rows of both
+labels and a wrong state costs nothing; in the band the rows of both branches fit d, the jump. The
+shared head learns from every row, as the plain LSTM-MLP does. The sum is one Dense ReLU head of
+twice the width (hidden layers side by side, the output layers likewise), so `heads()` gives the
+streaming engine and the fused step two ordinary heads (docs/learned_kinematics.md: The offset head
+form).
 """
 
 from __future__ import annotations
@@ -36,11 +49,14 @@ class BranchNet(SeqNet):
     """SeqNet trunk, two heads (branch 0: `head`, `out`; branch 1: `head1`, `out1`) and a gate MLP.
 
     x: (B, IB, F) normalised windows; states are floats in {0, 1} (0.5: unknown). gate_units: hidden
-    width of the gate."""
+    width of the gate; heads: "separate" or "offset" (module docstring)."""
 
     def __init__(self, n_inputs: int, n_outputs: int, ib: int, structure: str = "paper",
-                 output_activation: str = "linear", gate_units: int = 32) -> None:
+                 output_activation: str = "linear", gate_units: int = 32, heads: str = "separate") -> None:
         super().__init__(n_inputs, n_outputs, ib, structure, "flatten", output_activation)
+        if heads not in HEAD_FORMS:
+            raise ModelError(f"heads must be one of {HEAD_FORMS}, got {heads!r}")
+        self.head_form = heads
         self.gate = nn.ModuleList([nn.Linear(self.trunk_width + 1, gate_units), nn.Linear(gate_units, 1)])
         self.head1 = nn.ModuleList(nn.Linear(m.in_features, m.out_features)
                                    for m in self.head if isinstance(m, nn.Linear))
@@ -49,22 +65,27 @@ class BranchNet(SeqNet):
     def init_output_bias(self) -> None:
         super().init_output_bias()
         with torch.no_grad():
-            self.out1.bias.fill_(0.5)
+            self.out1.bias.fill_(0.0 if self.head_form == "offset" else 0.5)   # an offset starts at 0
 
     def head_out(self, h: torch.Tensor, state: torch.Tensor | None = None) -> torch.Tensor:
         """h: (B, W), state: (B,) in {0, 1} -> (B, O) from the head of each row's branch."""
         if state is None:
             raise ModelError("a BranchNet needs its branch state (BranchNet.decode)")
-        y0, y1 = self._branch_head(h, 0), self._branch_head(h, 1)
-        return torch.where(state.reshape(-1, 1) > 0.5, y1, y0)
+        s = state.reshape(-1, 1) > 0.5
+        if self.head_form == "offset":
+            z, d = self.offset_parts(h)
+            return self.finish(z + (s.to(z.dtype) - 0.5) * d)
+        y0 = self.finish(self.out(_hidden(self.head, h)))    # eq. (6), (7)
+        y1 = self.finish(self.out1(_hidden(self.head1, h)))
+        return torch.where(s, y1, y0)
 
-    def _branch_head(self, h: torch.Tensor, branch: int) -> torch.Tensor:
-        layers, out = (self.head, self.out) if branch == 0 else (self.head1, self.out1)
-        for layer in layers:
-            h = torch.relu(layer(h))                         # eq. (6)
-        return self.finish(out(h))                           # eq. (7)
+    def offset_parts(self, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The offset form's shared output z and jump d (B, O), before the output activation."""
+        return self.out(_hidden(self.head, h)), self.out1(_hidden(self.head1, h))
 
     def heads(self) -> list[tuple[nn.ModuleList, nn.Linear]]:
+        if self.head_form == "offset":
+            return merged_offset_heads(self.head, self.out, self.head1, self.out1)
         return [(self.head, self.out), (self.head1, self.out1)]
 
     def gate_layers(self) -> nn.ModuleList | None:
@@ -99,6 +120,47 @@ class BranchNet(SeqNet):
         s = relay_scan(logits[0.0] > 0, logits[1.0] > 0, logits[UNKNOWN_STATE] > 0, bounds)
         y = self.head_out(h, torch.from_numpy(s.astype(np.float32))).numpy()
         return y, s
+
+
+HEAD_FORMS = ("separate", "offset")
+
+
+def _hidden(layers: nn.ModuleList, h: torch.Tensor) -> torch.Tensor:
+    for layer in layers:
+        h = torch.relu(layer(h))                             # eq. (6)
+    return h
+
+
+@torch.no_grad()
+def merged_offset_heads(head: nn.ModuleList, out: nn.Linear, head1: nn.ModuleList, out1: nn.Linear
+                        ) -> list[tuple[nn.ModuleList, nn.Linear]]:
+    """The offset form as two ordinary heads of the summed width: the hidden layers of the shared
+    head and the jump's side by side (block-diagonal after the first); branch s's output layer reads
+    the shared half and ±½ the jump's half, biases likewise (without hidden layers, the weights add).
+    Equal to head_out up to float round-off."""
+    layers = nn.ModuleList()
+    pairs = [(a, b) for a, b in zip(head, head1, strict=True)
+             if isinstance(a, nn.Linear) and isinstance(b, nn.Linear)]
+    for k, (a, b) in enumerate(pairs):
+        lin = nn.Linear(a.in_features if k == 0 else a.in_features + b.in_features,
+                        a.out_features + b.out_features)
+        if k == 0:
+            lin.weight.copy_(torch.cat([a.weight, b.weight]))
+        else:
+            lin.weight.copy_(torch.block_diag(a.weight, b.weight))
+        lin.bias.copy_(torch.cat([a.bias, b.bias]))
+        layers.append(lin)
+    outs: list[tuple[nn.ModuleList, nn.Linear]] = []
+    for sign in (-0.5, 0.5):
+        if layers:
+            lin = nn.Linear(out.in_features + out1.in_features, out.out_features)
+            lin.weight.copy_(torch.cat([out.weight, sign * out1.weight], dim=1))
+        else:                               # no hidden layer: both read the trunk, the weights add
+            lin = nn.Linear(out.in_features, out.out_features)
+            lin.weight.copy_(out.weight + sign * out1.weight)
+        lin.bias.copy_(out.bias + sign * out1.bias)
+        outs.append((layers, lin))
+    return outs
 
 
 def relay_scan(from0: np.ndarray, from1: np.ndarray, first: np.ndarray,

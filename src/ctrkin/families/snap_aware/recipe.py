@@ -20,12 +20,20 @@ import torch
 
 from ctrkin.data.schema import sequence_bounds
 from ctrkin.families.snap_aware.fold_gate import FoldGate, build_fold_gate, slide_lags
-from ctrkin.families.snap_aware.labels import branch_labels, previous_labels
+from ctrkin.families.snap_aware.labels import BAND_DEG, branch_labels, phase_deg, previous_labels
 from ctrkin.families.snap_aware.net import BranchNet
 from ctrkin.models.motion import recorded_motion
 from ctrkin.models.recipe import Log, Prepared, TrainingData, WindowRecipe
 from ctrkin.models.seqnet import UNKNOWN_STATE
 from ctrkin.models.store import ModelBundle
+
+# Weight of the L1 penalty on the offset form's jump d (heads "offset", ctrkin.families.snap_aware.net),
+# on the rows outside the bistable band (|φ| > labels.BAND_DEG: one branch exists there, so d has
+# nothing to hold and a wrong state must cost nothing). Not in the band, where the rows of both
+# branches fit d, nor on the band's rows past a fold (forced labels too), whose first row after a snap
+# is where d is the jump: a penalty there would only shrink it. Below 1 a jump that rows demand is
+# kept. Not tuned.
+OFFSET_L1 = 0.1
 
 
 @dataclass(eq=False)
@@ -35,6 +43,7 @@ class BranchBatch:
     state: torch.Tensor          # (M,) labels
     state_prev: torch.Tensor     # (M,) previous labels, 0.5 at sequence starts
     forced: torch.Tensor         # (M,) label independent of history
+    one_branch: torch.Tensor     # (M,) float: outside the bistable band (labels.BAND_DEG), one branch
     gate_rows: torch.Tensor      # (M,) per-row weight of the gate loss
     unknown_prob: float
     weight: float
@@ -49,7 +58,12 @@ class BranchBatch:
         prev = torch.where(flip, 1.0 - prev, prev)
         prev = torch.where(u[:, 1] < self.unknown_prob, torch.full_like(prev, UNKNOWN_STATE), prev)
         h = net.trunk(x)
-        pose_loss = torch.nn.functional.l1_loss(net.head_out(h, s), y)          # MAE (paper IV.A)
+        if net.head_form == "offset":      # the offset's L1 keeps it 0 where one branch alone exists
+            z, d = net.offset_parts(h)
+            pose_loss = (torch.nn.functional.l1_loss(net.finish(z + (s.reshape(-1, 1) - 0.5) * d), y)
+                         + OFFSET_L1 * (d.abs() * self.one_branch[idx].to(dev).reshape(-1, 1)).mean())
+        else:
+            pose_loss = torch.nn.functional.l1_loss(net.head_out(h, s), y)      # MAE (paper IV.A)
         gate_loss = torch.nn.functional.binary_cross_entropy_with_logits(
             net.gate_logit(h, prev), s, weight=self.gate_rows[idx].to(dev))
         return pose_loss + self.weight * gate_loss
@@ -99,8 +113,10 @@ class BranchRecipe(WindowRecipe):
         self.state, forced = branch_labels(joints[:, 0] - joints[:, n - 1], ds.frame["snap"].to_numpy(),
                                            self.bounds)
         state_prev = previous_labels(self.state, self.bounds)
+        one_branch = np.abs(phase_deg(joints[:, 0] - joints[:, n - 1])) > BAND_DEG
         self.batch = BranchBatch(torch.from_numpy(self.state[train].astype(np.float32)),
                                  torch.from_numpy(state_prev[train]), torch.from_numpy(forced[train]),
+                                 torch.from_numpy(one_branch[train].astype(np.float32)),
                                  torch.from_numpy(near_switch(self.state, self.bounds)[train]),
                                  self.cfg.unknown_prob, self.cfg.gate_weight)
         return prepared
