@@ -8,8 +8,9 @@ import pytest
 import torch
 
 from ctrkin.errors import ModelError
-from ctrkin.families.snap_aware.labels import branch_labels, phase_deg, previous_labels
+from ctrkin.families.snap_aware.labels import BAND_DEG, branch_labels, phase_deg, previous_labels
 from ctrkin.families.snap_aware.net import UNKNOWN_STATE, BranchNet, relay_scan
+from ctrkin.families.snap_aware.recipe import OFFSET_MARGIN_DEG, offset_free_rows
 
 
 def _turn() -> np.ndarray:
@@ -94,3 +95,20 @@ def test_offset_heads_merge_into_two_ordinary_heads(structure) -> None:
 def test_head_forms_are_checked() -> None:
     with pytest.raises(ModelError, match="heads must be one of"):
         BranchNet(5, 6, 2, structure="L8|D8", heads="shared")
+
+
+def test_the_offset_penalty_starts_beyond_the_band_and_the_furthest_training_snap() -> None:
+    """offset_free_rows: |φ| > max(BAND_DEG, furthest training snap's |φ| + OFFSET_MARGIN_DEG); a
+    snap outside the training rows does not move the edge."""
+    alpha0 = np.r_[np.arange(180.0, 360.0), np.arange(180.0, 0.0, -1.0)]     # φ 0 → 179, 0 → −179
+    snap = np.zeros(len(alpha0), dtype=bool)
+    bounds = [(0, 180), (180, 360)]
+    every = np.arange(len(alpha0))
+    phi = np.abs(phase_deg(alpha0))
+    np.testing.assert_array_equal(offset_free_rows(alpha0, snap, every, bounds), phi > BAND_DEG)
+    snap[30] = True                                            # a snap at φ = 30°: the band's edge holds
+    np.testing.assert_array_equal(offset_free_rows(alpha0, snap, every, bounds), phi > BAND_DEG)
+    snap[180 + 79] = True                                      # one at φ = −79°: the edge moves out
+    edge = 79.0 + OFFSET_MARGIN_DEG
+    np.testing.assert_array_equal(offset_free_rows(alpha0, snap, every, bounds), phi > edge)
+    np.testing.assert_array_equal(offset_free_rows(alpha0, snap, np.arange(180), bounds), phi > BAND_DEG)

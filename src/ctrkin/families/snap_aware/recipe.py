@@ -20,7 +20,7 @@ import torch
 
 from ctrkin.data.schema import sequence_bounds
 from ctrkin.families.snap_aware.fold_gate import FoldGate, build_fold_gate, slide_lags
-from ctrkin.families.snap_aware.labels import BAND_DEG, branch_labels, phase_deg, previous_labels
+from ctrkin.families.snap_aware.labels import BAND_DEG, branch_labels, phase_deg, previous_labels, snap_events
 from ctrkin.families.snap_aware.net import BranchNet
 from ctrkin.models.motion import recorded_motion
 from ctrkin.models.recipe import Log, Prepared, TrainingData, WindowRecipe
@@ -28,12 +28,14 @@ from ctrkin.models.seqnet import UNKNOWN_STATE
 from ctrkin.models.store import ModelBundle
 
 # Weight of the L1 penalty on the offset form's jump d (heads "offset", ctrkin.families.snap_aware.net),
-# on the rows outside the bistable band (|φ| > labels.BAND_DEG: one branch exists there, so d has
-# nothing to hold and a wrong state must cost nothing). Not in the band, where the rows of both
-# branches fit d, nor on the band's rows past a fold (forced labels too), whose first row after a snap
-# is where d is the jump: a penalty there would only shrink it. Below 1 a jump that rows demand is
-# kept. Not tuned.
+# on the rows where one branch alone exists (offset_free_rows), so that d has nothing to hold there
+# and a wrong state costs nothing. Not in the band, where the rows of both branches fit d and a
+# penalty would only shrink the jump. Below 1 a jump that rows demand is kept. Not tuned.
 OFFSET_L1 = 0.1
+# the penalty starts this far beyond the furthest training snap from φ = 0 (and never inside the
+# labels' band): a smooth d cannot fall from the full jump to 0 in the few degrees between a snap at
+# |φ| = 79° (the default robot's) and the band's edge at 90°
+OFFSET_MARGIN_DEG = 30.0
 
 
 @dataclass(eq=False)
@@ -43,7 +45,7 @@ class BranchBatch:
     state: torch.Tensor          # (M,) labels
     state_prev: torch.Tensor     # (M,) previous labels, 0.5 at sequence starts
     forced: torch.Tensor         # (M,) label independent of history
-    one_branch: torch.Tensor     # (M,) float: outside the bistable band (labels.BAND_DEG), one branch
+    one_branch: torch.Tensor     # (M,) float: where one branch alone exists (offset_free_rows)
     gate_rows: torch.Tensor      # (M,) per-row weight of the gate loss
     unknown_prob: float
     weight: float
@@ -67,6 +69,19 @@ class BranchBatch:
         gate_loss = torch.nn.functional.binary_cross_entropy_with_logits(
             net.gate_logit(h, prev), s, weight=self.gate_rows[idx].to(dev))
         return pose_loss + self.weight * gate_loss
+
+
+def offset_free_rows(alpha0: np.ndarray, snap: np.ndarray, train: np.ndarray,
+                     bounds: list[tuple[int, int]]) -> np.ndarray:
+    """(T,) bool: rows where one branch alone exists, for the offset form's penalty: |φ| beyond the
+    labels' band (labels.BAND_DEG) and beyond the training rows' furthest snap from φ = 0 by
+    OFFSET_MARGIN_DEG (identified from the data, as the snaps lie on this robot)."""
+    phi = np.abs(phase_deg(alpha0))
+    chosen = np.zeros(len(phi), dtype=bool)
+    chosen[train] = True
+    events = [t for a, b in bounds for t in snap_events(snap, a, b) if chosen[t]]
+    edge = max(BAND_DEG, float(phi[events].max()) + OFFSET_MARGIN_DEG if events else 0.0)
+    return phi > edge
 
 
 def near_switch(state: np.ndarray, bounds: list[tuple[int, int]], width: int = 5, boost: float = 10.0
@@ -113,7 +128,8 @@ class BranchRecipe(WindowRecipe):
         self.state, forced = branch_labels(joints[:, 0] - joints[:, n - 1], ds.frame["snap"].to_numpy(),
                                            self.bounds)
         state_prev = previous_labels(self.state, self.bounds)
-        one_branch = np.abs(phase_deg(joints[:, 0] - joints[:, n - 1])) > BAND_DEG
+        one_branch = offset_free_rows(joints[:, 0] - joints[:, n - 1], ds.frame["snap"].to_numpy(), train,
+                                      self.bounds)
         self.batch = BranchBatch(torch.from_numpy(self.state[train].astype(np.float32)),
                                  torch.from_numpy(state_prev[train]), torch.from_numpy(forced[train]),
                                  torch.from_numpy(one_branch[train].astype(np.float32)),
