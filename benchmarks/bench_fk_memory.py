@@ -33,7 +33,10 @@ held-out sequence), and the load average while the arm trained. With `--repro` (
 folder: its data/paper is the training data) also the reproduction's FK experiments on each arm's
 model, as `ctrkin reproduce` and benchmarks/bench_generalisation.py score them against the truth:
 snap precision / recall within ±2 steps on the held-out sweeps and on the snap turns (the worse of
-the two rotation directions, ctrkin.evaluation.snapping), and the position RMSE along mid-turn
+the two rotation directions, ctrkin.evaluation.snapping; for each true sweeps snap, its offset to
+the nearest predicted one, the tip's position change over its step and its distance from the
+tracker's z axis: T(L) of a tip near the axis turns fast without a jump), and the position RMSE
+along mid-turn
 reversals recorded on the same virtual robot (bench_generalisation.reversals) and along its small
 back-and-forth moves (bench_generalisation.small_moves). Ends with one JSON
 line of the figures.
@@ -216,11 +219,17 @@ def snap_scores(kin: Kinematics, ds: Dataset) -> dict[str, Any]:
         vals = [rep[d][key] for d in ("forward", "backward") if not math.isnan(rep[d][key])]
         return pick(vals) if vals else None
 
+    truth = registered_truth(ds)
     true_events = snap_event_rows(az_true, b)
-    offsets = event_offsets(snap_event_rows(az_pred, b), true_events[keep[true_events]], b)
+    true_events = true_events[keep[true_events]]
+    offsets = event_offsets(snap_event_rows(az_pred, b), true_events, b)
+    # what each true event is: a jump of the tip, or T(L) turning fast as the tip passes near the axis
+    last = len(truth) - 1
+    jumps = [float(np.linalg.norm(truth[min(t + 1, last), :3] - truth[t - 1, :3])) for t in true_events]
+    radii = [float(np.hypot(*truth[t, :2])) for t in true_events]
     return {"precision": worst("precision", min), "recall": worst("recall", min),
             "magnitude_deg": worst("magnitude_error_deg", max), "snaps": int(rep["n_reference"]),
-            "offsets": offsets}
+            "offsets": offsets, "event_jumps_mm": jumps, "event_radii_mm": radii}
 
 
 def experiments(kin: Kinematics, folder: Path, repro: Path, case: str) -> dict[str, Any]:
@@ -289,6 +298,10 @@ def _offsets(offsets: list[int | None]) -> str:
     return ", ".join("–" if o is None else f"{o:+d}" for o in offsets) or "–"
 
 
+def _mms(values: list[float]) -> str:
+    return ", ".join(f"{v:.1f}" for v in values) or "–"
+
+
 def _f(x: float | None) -> str:
     return "–" if x is None else f"{x:.2f}"
 
@@ -353,7 +366,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                   f"{rv['reversal_rmse_true_mm']:.2f} mm RMSE ({rv['reversal_max_true_mm']:.1f} max), small "
                   f"moves {sm['small_rmse_true_mm']:.2f} mm (outer {sm['small_outer_rmse_true_mm']:.2f}, "
                   f"inner {sm['small_inner_rmse_true_mm']:.2f}, d {sm['small_d_rmse_true_mm']:.2f}); "
-                  f"sweeps' snaps predicted at {_offsets(sw['offsets'])} steps", flush=True)
+                  f"sweeps' snaps predicted at {_offsets(sw['offsets'])} steps; the true ones are jumps of "
+                  f"{_mms(sw['event_jumps_mm'])} mm at {_mms(sw['event_radii_mm'])} mm off the z axis",
+                  flush=True)
     best = min(rows, key=lambda a: rows[a]["val_predict"])
     print(f"lowest validation RMSE as predict gives it: {best} ({rows[best]['val_predict']:.3f} mm)")
     report = {"data": str(data), "scale": args.scale, "arms": rows, "chosen_by_val": best}
