@@ -33,8 +33,8 @@ held-out sequence), and the load average while the arm trained. With `--repro` (
 folder: its data/paper is the training data) also the reproduction's FK experiments on each arm's
 model, as `ctrkin reproduce` and benchmarks/bench_generalisation.py score them against the truth:
 snap precision / recall within ±2 steps on the held-out sweeps and on the snap turns (the worse of
-the two rotation directions, ctrkin.evaluation.snapping; for each true sweeps snap, its offset to
-the nearest predicted one, the tip's position change over its step and its distance from the
+the two rotation directions, ctrkin.evaluation.snapping; for each true snap, its offset to the
+nearest predicted one, the tip's position change over its step and its distance from the
 tracker's z axis: T(L) of a tip near the axis turns fast without a jump), and the position RMSE
 along mid-turn
 reversals recorded on the same virtual robot (bench_generalisation.reversals) and along its small
@@ -366,9 +366,10 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                   f"{rv['reversal_rmse_true_mm']:.2f} mm RMSE ({rv['reversal_max_true_mm']:.1f} max), small "
                   f"moves {sm['small_rmse_true_mm']:.2f} mm (outer {sm['small_outer_rmse_true_mm']:.2f}, "
                   f"inner {sm['small_inner_rmse_true_mm']:.2f}, d {sm['small_d_rmse_true_mm']:.2f}); "
-                  f"sweeps' snaps predicted at {_offsets(sw['offsets'])} steps; the true ones are jumps of "
-                  f"{_mms(sw['event_jumps_mm'])} mm at {_mms(sw['event_radii_mm'])} mm off the z axis",
-                  flush=True)
+                  f"true snaps predicted at (steps) / their jumps (mm) at (mm off the z axis): sweeps "
+                  f"{_offsets(sw['offsets'])} / {_mms(sw['event_jumps_mm'])} at "
+                  f"{_mms(sw['event_radii_mm'])}, turns {_offsets(tu['offsets'])} / "
+                  f"{_mms(tu['event_jumps_mm'])} at {_mms(tu['event_radii_mm'])}", flush=True)
     best = min(rows, key=lambda a: rows[a]["val_predict"])
     print(f"lowest validation RMSE as predict gives it: {best} ({rows[best]['val_predict']:.3f} mm)")
     report = {"data": str(data), "scale": args.scale, "arms": rows, "chosen_by_val": best}
