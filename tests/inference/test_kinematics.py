@@ -112,11 +112,24 @@ def test_onnx_equals_pytorch(model_dirs, sweeps, tmp_path, name):
         assert np.abs((out - ref[:n]) / scale).max() < ONNX_TOL
 
 
-def test_onnx_branch_model_carries_its_state(model_dirs, sweeps, tmp_path):
+@pytest.fixture(scope="module")
+def offset_fk(sweeps, tmp_path_factory):
+    """A snap-aware FK with the offset head form (heads=offset), briefly trained."""
+    from ctrkin.training import TrainConfig, train
+
+    folder = tmp_path_factory.mktemp("offset_fk") / "fk"
+    train(sweeps, TrainConfig(task="fk", model="lstm_mlp_branch", max_epochs=1, threads=1,
+                              options={"structure": "L8|D8", "gate_units": 4, "heads": "offset"}),
+          folder, progress=False)
+    return folder
+
+
+@pytest.mark.parametrize("heads", ["separate", "offset"])
+def test_onnx_branch_model_carries_its_state(model_dirs, offset_fk, sweeps, tmp_path, heads):
     """The snap-aware model's graph takes the previous branch state and returns the new one; fed
     back step by step it gives predict's poses with the learned gate (in the tracker frame: the outer
-    frame is in the graph; the fold gate is not in the graph)."""
-    kin = Kinematics.load(model_dirs["fk_branch"])
+    frame is in the graph; the fold gate is not in the graph); also with the offset head form."""
+    kin = Kinematics.load(model_dirs["fk_branch"] if heads == "separate" else offset_fk)
     assert kin.frame is not None
     path = export_onnx(kin, tmp_path / "b.onnx", allow_downgrade=True)   # the learned gate, knowingly
     sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
