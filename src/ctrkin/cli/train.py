@@ -55,7 +55,8 @@ class TrainCommand:
     out: str = option("Model folder.", path="out")
     structure: str | None = option("LSTM-MLP/LSTM/MLP structure: paper, S1..S5 or 'L128|D64'.", None)
     model_options: dict[str, Any] = field(default_factory=dict, metadata=option_help(
-        "Other model options, e.g. channels=32 (cnn/tcn), width=64 (resnet).", key_values=True,
+        "Other model options, e.g. channels=32 (cnn/tcn), width=64 (resnet), heads=offset "
+        "(lstm_mlp_branch: a shared output and a jump between the branches).", key_values=True,
         name="--option", metavar="KEY=VALUE"))
 
     def options(self) -> dict[str, Any]:
