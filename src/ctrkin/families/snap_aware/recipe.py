@@ -6,7 +6,9 @@ head, and at the end the fold gate from the nominal robot's folds (ctrkin.famili
 The gate sees the previous label (teacher forcing), hidden as "unknown" with probability
 `unknown_prob` and flipped on rows whose label does not depend on history (so a wrong state
 recovers); its loss counts `boost` times within `width` rows of a change of branch, where the
-switching point is learned.
+switching point is learned. With the offset head form (ctrkin.families.snap_aware.net) the MAE is of
+z ± ½d and an L1 penalty holds the jump d at 0 where one branch alone exists (offset_free_rows;
+docs/learned_kinematics.md: The offset head form).
 """
 
 from __future__ import annotations
