@@ -35,7 +35,9 @@ model, as `ctrkin reproduce` and benchmarks/bench_generalisation.py score them a
 snap precision / recall within ±2 steps on the held-out sweeps and on the snap turns (the worse of
 the two rotation directions, ctrkin.evaluation.snapping; for each true snap, its offset to the
 nearest predicted one, the tip's position change over its step and its distance from the
-tracker's z axis: T(L) of a tip near the axis turns fast without a jump), and the position RMSE
+tracker's z axis: T(L) of a tip near the axis turns fast without a jump; and at each snap the
+simulator flagged, the predicted and true position changes over its step ± 2 steps and the true
+T(L) turn: a jump along the radius turns T(L) little), and the position RMSE
 along mid-turn
 reversals recorded on the same virtual robot (bench_generalisation.reversals) and along its small
 back-and-forth moves (bench_generalisation.small_moves). Ends with one JSON
@@ -209,9 +211,9 @@ def snap_scores(kin: Kinematics, ds: Dataset) -> dict[str, Any]:
     directions (as ctrkin.evaluation.experiments_fk scores the sweeps and snap turns), the number of
     true snap events, and each true event's offset to the nearest predicted one (event_offsets)."""
     b, joints, n = ds.sequence_bounds(), ds.joints(), ds.n_tubes
-    pred = np.asarray(kin.predict(ds), float)
+    pred, truth = np.asarray(kin.predict(ds), float), registered_truth(ds)
     az_pred = azimuth_series(pred, joints, n, b)
-    az_true = azimuth_series(registered_truth(ds), joints, n, b)
+    az_true = azimuth_series(truth, joints, n, b)
     keep = ~glitch_window(ds.frame["outlier"].to_numpy(), b)
     rep = snap_report(az_pred, az_true, b, rotation_direction(joints, n, b), keep)
 
@@ -219,17 +221,27 @@ def snap_scores(kin: Kinematics, ds: Dataset) -> dict[str, Any]:
         vals = [rep[d][key] for d in ("forward", "backward") if not math.isnan(rep[d][key])]
         return pick(vals) if vals else None
 
-    truth = registered_truth(ds)
     true_events = snap_event_rows(az_true, b)
     true_events = true_events[keep[true_events]]
     offsets = event_offsets(snap_event_rows(az_pred, b), true_events, b)
-    # what each true event is: a jump of the tip, or T(L) turning fast as the tip passes near the axis
     last = len(truth) - 1
-    jumps = [float(np.linalg.norm(truth[min(t + 1, last), :3] - truth[t - 1, :3])) for t in true_events]
-    radii = [float(np.hypot(*truth[t, :2])) for t in true_events]
+
+    def jump(p: np.ndarray, t: int, reach: int = 0) -> float:  # position change over step t ± reach (mm)
+        return float(np.linalg.norm(p[min(t + 1 + reach, last), :3] - p[max(t - 1 - reach, 0), :3]))
+
+    # what each true event is: a jump of the tip, or T(L) turning fast as the tip passes near the axis;
+    # and at each snap the simulator flagged (a fold crossed): the predicted and true position changes
+    # over its step ± JUMP_REACH (a jump in time counts), and how far the true T(L) turned over the step
+    # (a jump along the radius turns it little, and the 10° rule does not see it)
+    flagged = np.concatenate([snap_events(ds.frame["snap"].to_numpy(), a, c) for a, c in b]) if b else []
     return {"precision": worst("precision", min), "recall": worst("recall", min),
             "magnitude_deg": worst("magnitude_error_deg", max), "snaps": int(rep["n_reference"]),
-            "offsets": offsets, "event_jumps_mm": jumps, "event_radii_mm": radii}
+            "offsets": offsets, "event_jumps_mm": [jump(truth, t) for t in true_events],
+            "event_radii_mm": [float(np.hypot(*truth[t, :2])) for t in true_events],
+            "flagged_pred_jumps_mm": [jump(pred, t, JUMP_REACH) for t in flagged],
+            "flagged_true_jumps_mm": [jump(truth, t, JUMP_REACH) for t in flagged],
+            "flagged_true_turn_deg": [float(abs(az_true[min(t + 1, last)] - az_true[t - 1]))
+                                      for t in flagged]}
 
 
 def experiments(kin: Kinematics, folder: Path, repro: Path, case: str) -> dict[str, Any]:
@@ -369,7 +381,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                   f"true snaps predicted at (steps) / their jumps (mm) at (mm off the z axis): sweeps "
                   f"{_offsets(sw['offsets'])} / {_mms(sw['event_jumps_mm'])} at "
                   f"{_mms(sw['event_radii_mm'])}, turns {_offsets(tu['offsets'])} / "
-                  f"{_mms(tu['event_jumps_mm'])} at {_mms(tu['event_radii_mm'])}", flush=True)
+                  f"{_mms(tu['event_jumps_mm'])} at {_mms(tu['event_radii_mm'])}; at the flagged snaps, "
+                  f"predicted / true jumps (mm) and the true T(L) turn (°): sweeps "
+                  f"{_mms(sw['flagged_pred_jumps_mm'])} / {_mms(sw['flagged_true_jumps_mm'])}, "
+                  f"{_mms(sw['flagged_true_turn_deg'])}, turns {_mms(tu['flagged_pred_jumps_mm'])} / "
+                  f"{_mms(tu['flagged_true_jumps_mm'])}, {_mms(tu['flagged_true_turn_deg'])}", flush=True)
     best = min(rows, key=lambda a: rows[a]["val_predict"])
     print(f"lowest validation RMSE as predict gives it: {best} ({rows[best]['val_predict']:.3f} mm)")
     report = {"data": str(data), "scale": args.scale, "arms": rows, "chosen_by_val": best}
