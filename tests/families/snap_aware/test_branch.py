@@ -78,9 +78,11 @@ def test_offset_heads_merge_into_two_ordinary_heads(structure) -> None:
         net.out1.bias.normal_()
         h = torch.randn(9, net.trunk_width)
         s = torch.tensor([0, 1, 0, 1, 1, 0, 1, 0, 0], dtype=torch.float32)
-        z, d = net.offset_parts(h)
+        _, d = net.offset_out(h, s[:, None])
         y = net.head_out(h, s)
-        np.testing.assert_allclose(y.numpy(), (z + (s[:, None] - 0.5) * d).numpy(), atol=1e-6)
+        y0, y1 = net.head_out(h, torch.zeros(9)), net.head_out(h, torch.ones(9))    # z − ½d, z + ½d
+        np.testing.assert_allclose((y1 - y0).numpy(), d.numpy(), atol=1e-6)
+        np.testing.assert_allclose(y.numpy(), torch.where(s[:, None] > 0.5, y1, y0).numpy(), atol=1e-6)
         assert d.abs().min() > 0
         merged = []
         for layers, out in net.heads():

@@ -6,12 +6,27 @@ import numpy as np
 import pytest
 
 from ctrkin.acquisition.demo import sweep_dataset
-from ctrkin.data import Split
+from ctrkin.data import Dataset, Split
 from ctrkin.evaluation.snapping import azimuth_series, snap_score
 from ctrkin.families.snap_aware.labels import phase_deg
 from ctrkin.inference import Kinematics
 from ctrkin.robots import paper_robot
 from ctrkin.training import TrainConfig, train
+
+
+def _unseen_turn() -> tuple[Dataset, np.ndarray, np.ndarray, np.ndarray]:
+    """Full turns at d = 20 mm at four outer angles to train on, and a turn at an outer angle between
+    them held out: the dataset (its split set), the held-out rows, their joints and true poses."""
+    ds = sweep_dataset(paper_robot(), translations=(20.0,), outer_alphas=(0, 90, 180, 270, 45), step_deg=2)
+    sid = ds.frame["sequence_id"].to_numpy()
+    train_rows, test_rows = np.nonzero(sid < 4)[0], np.nonzero(sid == 4)[0]
+    ds.split = Split(train_rows, test_rows, test_rows, "sequence", 0, (0.8, 0.2, 0.0))
+    return ds, test_rows, ds.joints()[test_rows], ds.poses(true=True)[test_rows]
+
+
+def _config(model: str, options: dict[str, object]) -> TrainConfig:
+    return TrainConfig(task="fk", model=model, options=options, max_epochs=60, patience=60, batch_size=64,
+                       lr=3e-3, lr_schedule="cosine", threads=1, output_activation="linear")
 
 
 @pytest.mark.parametrize("heads", ["separate", "offset"])
@@ -21,21 +36,14 @@ def test_branch_model_finds_both_jumps_of_a_turn_it_never_saw(tmp_path, heads):
     within ±2 steps, streaming (the offset form: its merged heads in the streaming engine) as in
     batch (torch). The paper's LSTM-MLP trained identically (with the separate heads) and the
     snap-aware model's learned gate are reported beside it, not asserted."""
-    ds = sweep_dataset(paper_robot(), translations=(20.0,), outer_alphas=(0, 90, 180, 270, 45), step_deg=2)
-    sid = ds.frame["sequence_id"].to_numpy()
-    train_rows, test_rows = np.nonzero(sid < 4)[0], np.nonzero(sid == 4)[0]
+    ds, test_rows, joints, truth = _unseen_turn()
     assert ds.frame["snap"].to_numpy()[test_rows].sum() == 2
-    ds.split = Split(train_rows, test_rows, test_rows, "sequence", 0, (0.8, 0.2, 0.0))
-    joints, truth = ds.joints()[test_rows], ds.poses(true=True)[test_rows]
     bounds = [(0, len(test_rows))]
     ref = azimuth_series(truth, joints, 2, bounds)
     scores = {}
     for model in ("lstm_mlp_branch", "lstm_mlp") if heads == "separate" else ("lstm_mlp_branch",):
         options = {"structure": "L32|D32"} | ({"heads": heads} if model == "lstm_mlp_branch" else {})
-        cfg = TrainConfig(task="fk", model=model, options=options, max_epochs=60,
-                          patience=60, batch_size=64, lr=3e-3, lr_schedule="cosine", threads=1,
-                          output_activation="linear")
-        train(ds, cfg, tmp_path / model, progress=False)
+        train(ds, _config(model, options), tmp_path / model, progress=False)
         kin = Kinematics.load(tmp_path / model)
         pred = kin.predict(joints)
         scores[model] = snap_score(azimuth_series(pred, joints, 2, bounds), ref, bounds)
@@ -53,18 +61,12 @@ def test_branch_model_finds_both_jumps_of_a_turn_it_never_saw(tmp_path, heads):
 
 def test_offset_heads_keep_the_jump_and_lose_nothing_to_a_wrong_state_outside_the_band(tmp_path):
     """The offset form (heads "offset": one shared output, a jump between the branches with an L1
-    penalty where the label does not depend on history) on the unseen turn: the two branches' poses
-    differ by the true jump at the snaps, and by almost nothing well outside the bistable band
-    (|φ| > 120°), where one branch alone exists and a wrong state must cost nothing."""
-    ds = sweep_dataset(paper_robot(), translations=(20.0,), outer_alphas=(0, 90, 180, 270, 45), step_deg=2)
-    sid = ds.frame["sequence_id"].to_numpy()
-    train_rows, test_rows = np.nonzero(sid < 4)[0], np.nonzero(sid == 4)[0]
-    ds.split = Split(train_rows, test_rows, test_rows, "sequence", 0, (0.8, 0.2, 0.0))
-    joints, truth = ds.joints()[test_rows], ds.poses(true=True)[test_rows]
-    cfg = TrainConfig(task="fk", model="lstm_mlp_branch", options={"structure": "L32|D32", "heads": "offset"},
-                      max_epochs=60, patience=60, batch_size=64, lr=3e-3, lr_schedule="cosine", threads=1,
-                      output_activation="linear")
-    train(ds, cfg, tmp_path / "offset", progress=False)
+    penalty where one branch alone exists, recipe.offset_free_rows) on the unseen turn: the two
+    branches' poses differ by the true jump at the snaps, and by almost nothing well outside the
+    bistable band (|φ| > 120°), where one branch alone exists and a wrong state must cost nothing."""
+    ds, test_rows, joints, truth = _unseen_turn()
+    train(ds, _config("lstm_mlp_branch", {"structure": "L32|D32", "heads": "offset"}), tmp_path / "offset",
+          progress=False)
     kin = Kinematics.load(tmp_path / "offset")
     p0 = kin.predict(joints, branch_states=np.zeros(len(joints)))
     p1 = kin.predict(joints, branch_states=np.ones(len(joints)))

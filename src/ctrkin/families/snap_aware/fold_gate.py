@@ -300,7 +300,7 @@ def _fit_offsets(gate: FoldGate, joints: np.ndarray, snap: np.ndarray, bounds: l
         return 0.0, 0.0, (), 1.0
     d, m, r, fold = (np.array(c, dtype=float) for c in list(zip(*rows, strict=True))[:4])
     at = np.array([row[4] for row in rows])
-    sw = np.sqrt(fold ** 2)                                      # sqrt of the weights φ±²
+    sw = np.abs(fold)                                            # √ of the weights φ±²
     A = np.stack([d, -m], axis=1)
     if np.linalg.matrix_rank(A * sw[:, None]) < 2:
         A = A[:, :1]

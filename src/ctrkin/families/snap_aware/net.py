@@ -73,15 +73,16 @@ class BranchNet(SeqNet):
             raise ModelError("a BranchNet needs its branch state (BranchNet.decode)")
         s = state.reshape(-1, 1) > 0.5
         if self.head_form == "offset":
-            z, d = self.offset_parts(h)
-            return self.finish(z + (s.to(z.dtype) - 0.5) * d)
+            return self.offset_out(h, s)[0]
         y0 = self.finish(self.out(_hidden(self.head, h)))    # eq. (6), (7)
         y1 = self.finish(self.out1(_hidden(self.head1, h)))
         return torch.where(s, y1, y0)
 
-    def offset_parts(self, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """The offset form's shared output z and jump d (B, O), before the output activation."""
-        return self.out(_hidden(self.head, h)), self.out1(_hidden(self.head1, h))
+    def offset_out(self, h: torch.Tensor, state: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The offset form: h (B, W), state (B, 1) in {0, 1} -> the outputs z + (s − ½)·d (B, O) and
+        the jump d (B, O) itself (before the output activation; its penalty is the recipe's)."""
+        z, d = self.out(_hidden(self.head, h)), self.out1(_hidden(self.head1, h))
+        return self.finish(z + (state.to(z.dtype) - 0.5) * d), d
 
     def heads(self) -> list[tuple[nn.ModuleList, nn.Linear]]:
         if self.head_form == "offset":

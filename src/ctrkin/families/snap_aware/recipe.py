@@ -63,8 +63,8 @@ class BranchBatch:
         prev = torch.where(u[:, 1] < self.unknown_prob, torch.full_like(prev, UNKNOWN_STATE), prev)
         h = net.trunk(x)
         if net.head_form == "offset":      # the offset's L1 keeps it 0 where one branch alone exists
-            z, d = net.offset_parts(h)
-            pose_loss = (torch.nn.functional.l1_loss(net.finish(z + (s.reshape(-1, 1) - 0.5) * d), y)
+            y_hat, d = net.offset_out(h, s.reshape(-1, 1))
+            pose_loss = (torch.nn.functional.l1_loss(y_hat, y)
                          + OFFSET_L1 * (d.abs() * self.one_branch[idx].to(dev).reshape(-1, 1)).mean())
         else:
             pose_loss = torch.nn.functional.l1_loss(net.head_out(h, s), y)      # MAE (paper IV.A)
