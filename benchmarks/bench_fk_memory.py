@@ -87,8 +87,10 @@ from bench_generalisation import ROBOTS, reversals, small_moves
 # ib2ptm: the paper's LSTM-MLP (lstm_mlp: no branch heads, no fold gate) in the tracker frame with the
 # same inputs, encoding, output and recipe; ib2pg: the fold gate with its folds' scale g
 # (TrainConfig.fold_scale); ib2pto: the offset head form (a shared head plus a branch offset);
+# ib2pf: the tracker's position field learned with the network (TrainConfig.joint_field; the
+# recommended FK's since 2026-12-07: an arm without f has none);
 # ib2ps1: training seed 1
-ARM = re.compile(r"^ib(\d+)(?:e(\d+))?(p?)(q?)(t?)(r?)(m?)(g?)(o?)(?:s(\d+))?$")
+ARM = re.compile(r"^ib(\d+)(?:e(\d+))?(p?)(q?)(t?)(r?)(m?)(g?)(o?)(f?)(?:s(\d+))?$")
 
 
 def arm_config(scale: str, arm: str) -> TrainConfig:
@@ -96,9 +98,10 @@ def arm_config(scale: str, arm: str) -> TrainConfig:
     the play-lag inputs)."""
     m = ARM.match(arm)
     if m is None:
-        raise ValueError(f"arm {arm!r} is not ibN[eE][p][q][t][r][m][g][o][sK] (e.g. ib8, ib2p, ib2ptr)")
+        raise ValueError(f"arm {arm!r} is not ibN[eE][p][q][t][r][m][g][o][f][sK] (e.g. ib8, ib2p, ib2ptr)")
     base = next(r.config for r in plan_runs(get_scale(scale)) if r.name == FK_BRANCH)
-    cfg = replace(base, ib=int(m.group(1)), threads=1, device="cpu", play_lags=m.group(3) == "p")
+    cfg = replace(base, ib=int(m.group(1)), threads=1, device="cpu", play_lags=m.group(3) == "p",
+                  joint_field=m.group(10) == "f")
     if m.group(4):
         cfg = replace(cfg, equivariant=True)
     if m.group(5):
@@ -112,8 +115,8 @@ def arm_config(scale: str, arm: str) -> TrainConfig:
         cfg = replace(cfg, fold_scale=True)
     if m.group(9):
         cfg = replace(cfg, options={**cfg.options, "heads": "offset"})
-    if m.group(10) is not None:
-        cfg = replace(cfg, seed=int(m.group(10)))
+    if m.group(11) is not None:
+        cfg = replace(cfg, seed=int(m.group(11)))
     if m.group(2) is not None:
         epochs = int(m.group(2))
         cfg = replace(cfg, max_epochs=epochs, patience=max(cfg.patience, epochs))
@@ -334,13 +337,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     "of --repro (bench_generalisation.ROBOTS), for the reversals")
     ap.add_argument("--out", type=Path, required=True, help="folder of the arms' model folders")
     ap.add_argument("--arms", default="ib2,ib4,ib8", help="comma-separated arms "
-                    "ibN[eE][p][q][t][r][m][g][o][sK] (the module comment above ARM), e.g. ib2p,ib2pt,ib2ptr")
+                    "ibN[eE][p][q][t][r][m][g][o][f][sK] (the module comment above ARM), e.g. "
+                    "ib2p,ib2pt,ib2ptr")
     ap.add_argument("--scale", default="quick", help="the reproduction scale whose recipe the arms use")
     args = ap.parse_args(argv)
     arms = [a.strip() for a in args.arms.split(",") if a.strip()]
     bad = [a for a in arms if ARM.match(a) is None]
     if bad:
-        ap.error(f"arms {bad} are not ibN[eE][p][q][t][r][m][g][o][sK] (e.g. ib8, ib2e160, ib2p, ib2ptr)")
+        ap.error(f"arms {bad} are not ibN[eE][p][q][t][r][m][g][o][f][sK] (e.g. ib8, ib2e160, ib2p, ib2ptr)")
     if args.collect is not None:
         args.repro = collect_repro(args.collect, args.scale, args.settings)
     if args.data is None and args.repro is None:

@@ -29,3 +29,20 @@ def small_configs() -> dict[str, Any]:
         "fk_branch": TrainConfig(task="fk", model="lstm_mlp_branch", max_epochs=3, threads=1,
                                  options={"structure": "L16|D16", "gate_units": 8}),
     }
+
+
+def with_position_field(kin: Any) -> Any:
+    """kin (a Kinematics of a model with an outer frame) with a position field of degree 3 in its frame
+    (ctrkin.models.field; as a joint field leaves it), set after loading: the fused step follows."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from ctrkin.models.field import PositionField, exponents
+
+    assert kin.frame is not None
+    exps = exponents(3)
+    coef = np.random.default_rng(11).normal(0.0, 0.3, (len(exps), 3))
+    field = PositionField(np.array([0.0, 0.0, 90.0]), 30.0, exps, coef, 0.0, 0.1, 0.2)
+    kin.predictor.frame = replace(kin.frame, field=field)
+    return kin

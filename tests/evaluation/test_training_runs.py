@@ -49,10 +49,12 @@ def test_the_memory_benchmarks_arms_are_the_reproductions_recipe_with_their_ib_a
     ib4 = bench.arm_config("quick", "ib4")
     assert (ib4.ib, ib4.max_epochs, ib4.threads) == (4, quick.max_epochs, 1)
     same = {"ib": quick.ib, "threads": quick.threads, "device": quick.device}
-    assert quick.play_lags                               # the recommended FK's memory (FK_PLAY_LAGS)
-    assert ib4.to_dict() | same | {"play_lags": True} == quick.to_dict()    # an arm without p: no lags
-    assert not ib4.play_lags
-    assert bench.arm_config("quick", "ib2p").to_dict() | same == quick.to_dict()   # ib2p: the recipe
+    assert quick.play_lags and quick.joint_field         # the recommended FK's memory and field
+    field = {"joint_field": True}                        # an arm without f: no joint field
+    assert ib4.to_dict() | same | {"play_lags": True} | field == quick.to_dict()    # without p: no lags
+    assert not ib4.play_lags and not ib4.joint_field
+    assert bench.arm_config("quick", "ib2pf").to_dict() | same == quick.to_dict()   # ib2pf: the recipe
+    assert bench.arm_config("quick", "ib2p").to_dict() | same | field == quick.to_dict()
     assert bench.arm_config("quick", "ib2ps3").seed == 3 and bench.arm_config("quick", "ib2pq").equivariant
     prior = bench.arm_config("quick", "ib2pts1")
     assert prior.tcm_prior and prior.play_lags and prior.seed == 1 and not quick.tcm_prior
@@ -60,14 +62,14 @@ def test_the_memory_benchmarks_arms_are_the_reproductions_recipe_with_their_ib_a
     assert (long.ib, long.max_epochs, long.patience) == (2, 160, 160)
     tracker = bench.arm_config("quick", "ib2ptr")
     assert (tracker.model, tracker.target_frame, quick.target_frame) == (FK_BRANCH_MODEL, "tracker", "outer")
-    assert tracker.to_dict() | same | {"tcm_prior": False, "target_frame": "outer"} == quick.to_dict()
+    assert tracker.to_dict() | same | {"tcm_prior": False, "target_frame": "outer"} | field == quick.to_dict()
     plain = bench.arm_config("quick", "ib2ptm")        # the paper's network, the same inputs and recipe
     assert (plain.model, plain.target_frame, plain.options) == ("lstm_mlp", "tracker", {"structure": "paper"})
     assert (plain.angle_encoding, plain.output_activation, plain.play_lags, plain.tcm_prior) == \
         (quick.angle_encoding, quick.output_activation, True, True)
     scaled = bench.arm_config("quick", "ib2pg")
     assert scaled.fold_scale and not quick.fold_scale
-    assert scaled.to_dict() | same | {"fold_scale": False} == quick.to_dict()
+    assert scaled.to_dict() | same | {"fold_scale": False} | field == quick.to_dict()
     offset = bench.arm_config("quick", "ib2ptro")          # the offset head form, on the prior, tracker frame
     assert offset.options == quick.options | {"heads": "offset"} and quick.options["heads"] == "separate"
     assert (offset.tcm_prior, offset.target_frame) == (True, "tracker")

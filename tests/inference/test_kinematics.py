@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import onnxruntime as ort
 import pytest
+from tests.small_models import with_position_field
 
 import ctrkin
 from ctrkin.data import Dataset
@@ -124,12 +125,15 @@ def offset_fk(sweeps, tmp_path_factory):
     return folder
 
 
-@pytest.mark.parametrize("heads", ["separate", "offset"])
+@pytest.mark.parametrize("heads", ["separate", "offset", "field"])
 def test_onnx_branch_model_carries_its_state(model_dirs, offset_fk, sweeps, tmp_path, heads):
     """The snap-aware model's graph takes the previous branch state and returns the new one; fed
     back step by step it gives predict's poses with the learned gate (in the tracker frame: the outer
-    frame is in the graph; the fold gate is not in the graph); also with the offset head form."""
-    kin = Kinematics.load(model_dirs["fk_branch"] if heads == "separate" else offset_fk)
+    frame is in the graph; the fold gate is not in the graph); also with the offset head form, and
+    with a position field in the frame (also in the graph)."""
+    kin = Kinematics.load(offset_fk if heads == "offset" else model_dirs["fk_branch"])
+    if heads == "field":
+        kin = with_position_field(kin)
     assert kin.frame is not None
     path = export_onnx(kin, tmp_path / "b.onnx", allow_downgrade=True)   # the learned gate, knowingly
     sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
@@ -144,13 +148,16 @@ def test_onnx_branch_model_carries_its_state(model_dirs, offset_fk, sweeps, tmp_
     assert np.abs(out - ref).max() < ONNX_TOL
 
 
-@pytest.mark.parametrize(("lagged", "turns"), [(False, 0.0), (True, 0.0), (True, 720.0)])
-def test_probe_equals_step(model_dirs, sweeps, lagged, turns):
+@pytest.mark.parametrize(("lagged", "turns", "field"), [(False, 0.0, False), (True, 0.0, False),
+                                                      (True, 720.0, False), (False, 0.0, True)])
+def test_probe_equals_step(model_dirs, sweeps, lagged, turns, field):
     """probe(K candidates) returns what step would for each, and advances nothing; also with an
-    outer lag and lagged inputs, for candidates that turn the outer motor either way or not, and on
-    a sequence two turns outside the trained range (shifted by whole turns: m_N follows αN as given)."""
+    outer lag and lagged inputs, for candidates that turn the outer motor either way or not, on
+    a sequence two turns outside the trained range (shifted by whole turns: m_N follows αN as given),
+    and with a position field in the frame."""
     load = (lambda: _lagged(model_dirs, inputs=True)) if lagged else (
-        lambda: Kinematics.load(model_dirs["fk_branch"]))
+        lambda: with_position_field(Kinematics.load(model_dirs["fk_branch"])) if field
+        else Kinematics.load(model_dirs["fk_branch"]))
     kin = load()
     q = sweeps.joints()[:40].copy()
     q[:, :2] += turns

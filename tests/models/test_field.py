@@ -30,7 +30,11 @@ def test_the_field_recovers_a_smooth_warp_and_chooses_its_degree_by_cross_valida
     again = PositionField.from_dict(f.to_dict())
     np.testing.assert_array_equal(again(held), f(held))
     pose = np.r_[held[0], 1.0, 0.0, 0.0]
-    np.testing.assert_array_equal(f.apply_one(pose.copy())[:3], held[0] + f(held[:1])[0])
+    # the streaming kernel (repeated products) against numpy's powers: the same w to round-off
+    np.testing.assert_allclose(f.apply_one(pose.copy())[:3], held[0] + f(held[:1])[0], rtol=0, atol=1e-12)
+    rows = np.column_stack([held, np.tile([1.0, 0.0, 0.0], (len(held), 1))])
+    want = np.array([f.apply_one(r.copy()) for r in rows])
+    np.testing.assert_array_equal(f.apply_rows(rows.copy()), want)
 
 
 def test_no_field_is_chosen_where_the_residuals_are_noise(rng):

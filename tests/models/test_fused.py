@@ -1,7 +1,7 @@
 """The fused FK step (ctrkin.models.fused) equals the reference path bit for bit: on random joint
 sequences with snaps, glitches, refused steps, restarts and carried-over runs, for the paper's
 LSTM-MLP and the snap-aware model (fold gate, learned gate, outer frame with and without its outer
-lag, phase encoding, in the tracker frame, and with the offset head form)."""
+lag, phase encoding, in the tracker frame, with the offset head form, and with a position field)."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from tests.small_models import with_position_field
 
 from ctrkin.errors import JointError, ModelError
 from ctrkin.families.registry import open_bundle
@@ -38,7 +39,9 @@ def _load(folder, name: str, fused: bool) -> Kinematics:
     so that its learned gate decides; "lagged…": its outer frame given an outer lag λ(β) = 2° +
     0.4°/mm · overlap (ctrkin.models.outer_lag), with the fold gate and lagged inputs (as trained) or
     ("lagged_learned") without either (commanded inputs: a folder from before lagged_inputs); "slide":
-    its fold gate given a slide memory."""
+    its fold gate given a slide memory; "field": its frame given a position field."""
+    if name == "field":
+        return with_position_field(Kinematics.load(folder, fused=fused))
     if name == "learned":
         return Kinematics(open_bundle(folder), fused=fused)
     if name == "lagged":               # the frame replaced after loading: the fused step follows
@@ -117,13 +120,14 @@ def _script(sweeps, seed: int) -> list[tuple[str, object]]:
 
 
 @pytest.mark.parametrize("name", ["fk", "fk_default", "fk_branch", "phase", "tracker", "offset", "learned",
-                                  "lagged", "lagged_learned", "slide"])
+                                  "lagged", "lagged_learned", "slide", "field"])
 def test_fused_step_equals_the_reference_path(fused_dirs, sweeps, name):
-    folder = fused_dirs["fk_branch" if name in ("learned", "lagged", "lagged_learned", "slide") else name]
+    folder = fused_dirs["fk_branch" if name in ("learned", "lagged", "lagged_learned", "slide", "field")
+                        else name]
     fast, ref = _load(folder, name, True), _load(folder, name, False)
     assert fast.fused and not ref.fused
     learned = name in ("learned", "lagged_learned")
-    branch = learned or name in ("fk_branch", "phase", "tracker", "offset", "lagged", "slide")
+    branch = learned or name in ("fk_branch", "phase", "tracker", "offset", "lagged", "slide", "field")
     assert (getattr(fast, "fold_gate", None) is not None) == (branch and not learned)   # a family attribute
     assert (fast.frame is not None and fast.frame.has_lag) == name.startswith("lagged")
     script = _script(sweeps, seed=7)
@@ -174,14 +178,16 @@ def outer_fk(sweeps, tmp_path_factory):
     return folder
 
 
-@pytest.mark.parametrize("name", ["fk", "fk_default", "outer"])
+@pytest.mark.parametrize("name", ["fk", "fk_default", "outer", "outer_field"])
 def test_short_predict_is_the_fused_step(fused_dirs, outer_fk, sweeps, name):
     """predict on up to FUSED_ROWS rows runs the fused step (issue 26): the poses `step` gives from a
     reset, bit for bit, within float32 round-off of the torch batch path, the stream untouched; rows
     the fast checks refuse go to the batch path, which raises its own message."""
-    folder = outer_fk if name == "outer" else fused_dirs[name]
+    folder = outer_fk if name.startswith("outer") else fused_dirs[name]
     kin, ref = Kinematics.load(folder), Kinematics.load(folder, fused=False)
-    assert kin.predictor._fused.stateless and (kin.frame is not None) == (name == "outer")
+    if name == "outer_field":
+        kin, ref = with_position_field(kin), with_position_field(ref)
+    assert kin.predictor._fused.stateless and (kin.frame is not None) == name.startswith("outer")
     path = _joint_path(sweeps, np.random.default_rng(5), 80)
     path[40:, :2] += 720.0                                 # whole turns outside the trained range
     kin.reset()
@@ -196,7 +202,7 @@ def test_short_predict_is_the_fused_step(fused_dirs, outer_fk, sweeps, name):
     longer = path[:FUSED_ROWS + 1]                         # the batch path, float32
     np.testing.assert_allclose(kin.predict(longer)[:FUSED_ROWS], kin.predict(longer[:FUSED_ROWS]), atol=2e-4)
     # the stream went on where it was: predict did not touch it
-    fresh = Kinematics.load(folder)
+    fresh = with_position_field(Kinematics.load(folder)) if name == "outer_field" else Kinematics.load(folder)
     fresh.reset()
     want = [fresh.step(q) for q in path[:12]]
     np.testing.assert_array_equal(np.array(stream + [kin.step(q) for q in path[10:12]]), np.array(want))

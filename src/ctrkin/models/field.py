@@ -25,6 +25,7 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ctrkin.errors import ModelError
 
@@ -55,7 +56,9 @@ def _solve(A: np.ndarray, r: np.ndarray, ridge: float) -> np.ndarray:
 class PositionField:
     """w(p) of the module docstring: centre (3,), scale (float, mm), exponents (M, 3), coefficients
     (M, 3) mm; degree and ridge as chosen, and the cross-validated RMS of the residual it leaves and
-    of the residual without it (mm)."""
+    of the residual without it (mm). A field learned with the FK (ctrkin.models.joint_field) has
+    ridge 0 and, in place of the cross-validated figures, the validation rows' position RMS with
+    and without it."""
 
     centre: np.ndarray
     scale: float
@@ -75,9 +78,15 @@ class PositionField:
         return _monomials(u, self.exps) @ self.coef
 
     def apply_one(self, pose: np.ndarray) -> np.ndarray:
-        """A (6,) pose with w added to its position (in place; the streaming path)."""
-        pose[:3] += self(pose[:3])[0]
+        """A (6,) float64 pose with w added to its position (in place; the streaming path, the
+        reference and the fused step alike: add_field_one)."""
+        add_field_one(pose, self.centre, self.scale, self.exps, self.coef)
         return pose
+
+    def apply_rows(self, poses: np.ndarray) -> np.ndarray:
+        """(T, 6) float64 poses with w added to each position as apply_one does (in place)."""
+        add_field_rows(poses, self.centre, self.scale, self.exps, self.coef)
+        return poses
 
     @classmethod
     def fit(cls, predicted: np.ndarray, measured: np.ndarray, groups: np.ndarray,
@@ -128,3 +137,34 @@ class PositionField:
                        float(d["ridge"]), float(d["cv_rms_mm"]), float(d["cv_rms_without_mm"]))
         except (KeyError, ValueError, TypeError) as e:
             raise ModelError(f"bad position-field entry: {e}") from None
+
+
+@njit(cache=True)
+def add_field_one(pose: np.ndarray, centre: np.ndarray, scale: float, exps: np.ndarray, coef: np.ndarray
+                  ) -> None:
+    """pose[:3] += w(pose[:3]) in scalar arithmetic (PositionField: monomials by repeated products)."""
+    u0, u1, u2 = ((pose[0] - centre[0]) / scale, (pose[1] - centre[1]) / scale,
+                  (pose[2] - centre[2]) / scale)
+    w0 = w1 = w2 = 0.0
+    for k in range(exps.shape[0]):
+        m = 1.0
+        for _ in range(exps[k, 0]):
+            m *= u0
+        for _ in range(exps[k, 1]):
+            m *= u1
+        for _ in range(exps[k, 2]):
+            m *= u2
+        w0 += m * coef[k, 0]
+        w1 += m * coef[k, 1]
+        w2 += m * coef[k, 2]
+    pose[0] += w0
+    pose[1] += w1
+    pose[2] += w2
+
+
+@njit(cache=True)
+def add_field_rows(poses: np.ndarray, centre: np.ndarray, scale: float, exps: np.ndarray, coef: np.ndarray
+                   ) -> None:
+    """add_field_one on each row of poses (T, 6)."""
+    for r in range(poses.shape[0]):
+        add_field_one(poses[r], centre, scale, exps, coef)

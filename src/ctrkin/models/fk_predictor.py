@@ -373,7 +373,8 @@ class FKPredictor(BasePredictor):
                 self._shift, self._prev = shift, fused.prev
                 self._gate_state, self._outer_motion, self._outer_prev = gate_state, motion, outer_prev
                 engine._fresh, engine.state = False, branch
-                return fused._y.copy()
+                y = fused._y.copy()
+                return y if fused.field is None else fused.field.apply_one(y)
         raw = real_array(by_name(x, self.layout.raw_names, "joints"))
         if raw.shape != (self.layout.raw_width,):
             raise ModelError(f"step() expects shape ({self.layout.raw_width},), got {raw.shape}")
@@ -480,11 +481,11 @@ class FKPredictor(BasePredictor):
 
     def check_exportable(self) -> None:
         """ModelError where the ONNX graph cannot hold what the model computes (equivariant inputs: the
-        graph turns its poses by the window's αN column; a position field). Play lags are columns of
-        the window the graph reads, as every feature is (Kinematics.feature_windows)."""
+        graph turns its poses by the window's αN column). Play lags are columns of the window the graph
+        reads, as every feature is (Kinematics.feature_windows); a position field is in the graph."""
         if self._prior is not None:
             raise ModelError("this FK model was trained with tcm_prior: the calibrated TCM it adds to the "
                              "network's residual is not in the ONNX graph; it streams in ctrkin only")
-        if self.layout.equivariant or (self.frame is not None and self.frame.field is not None):
-            raise ModelError("this FK model's equivariant inputs and position field are not in the ONNX "
-                             "graph: it streams in ctrkin only")
+        if self.layout.equivariant:
+            raise ModelError("this FK model's equivariant inputs are not in the ONNX graph: it streams in "
+                             "ctrkin only")

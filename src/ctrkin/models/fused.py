@@ -14,7 +14,9 @@ Scope: an FK model whose network is one LSTM layer followed by one or more Dense
 structures, the paper's L128|D64 included), minmax or phase angle encoding, with or without the
 outer-tube frame, a model with a branch state from a tabulated relay (the snap-aware model's fold
 gate, ctrkin.models.relay, with its slide memory where it has one) or from its learned gate, with or
-without play-lag inputs (ctrkin.models.play_lags; not with equivariant inputs or a position field).
+without play-lag inputs (ctrkin.models.play_lags; not with equivariant inputs), with or without the
+frame's position field (ctrkin.models.field: added after the compiled step, by the kernel the
+reference path adds it with).
 Other models, and any step
 that the fast checks do not pass (a joint the robot cannot take, a rotation outside the trained
 range, NaN), go through the reference path, which raises with its message; a declined step has
@@ -320,6 +322,7 @@ class FusedFK:
         n = layout.n_tubes
         w_ih, w_hh, b = engine.seq[0][1]
         self.engine = engine
+        self.field = None if frame is None else frame.field     # added after the step (PositionField)
         lo = np.full(n, -np.inf) if guard.periodic_only else np.asarray(guard._lo, float)
         hi = np.full(n, np.inf) if guard.periodic_only else np.asarray(guard._hi, float)
         self.guard = (np.asarray(bundle.robot.lengths, float), lo, hi)
@@ -435,7 +438,7 @@ class FusedFK:
         apply (module docstring)."""
         eng = engine
         if (eng is None or bundle.layout.angle_encoding not in ("minmax", "phase")
-                or bundle.layout.equivariant or (frame is not None and frame.field is not None)
+                or bundle.layout.equivariant
                 or len(eng.seq) != 1 or eng.seq[0][0] != "lstm" or not eng.heads[0][0]
                 or len(eng.heads) > 2):
             return None
@@ -451,7 +454,10 @@ class FusedFK:
         e = self.engine
         res = _fk_step(raw, shift, self._none if prev is None else prev, consts, state, ints,
                        prev is not None, e._fresh, e.state, gate_state, outer_motion, outer_prev, lag)
-        return self._y.copy(), res
+        y = self._y.copy()
+        if self.field is not None and res[0] != DECLINED:
+            self.field.apply_one(y)
+        return y, res
 
     def rows(self, raw: np.ndarray) -> np.ndarray | None:
         """The steps of one whole sequence raw (T, 2N) (as given, C-contiguous) from a sequence start,
@@ -459,4 +465,6 @@ class FusedFK:
         object's state (a model's own copy, never the stream's: FKPredictor.predict); None where a
         row fails the fast checks. Only for a `stateless` model."""
         out = np.empty((len(raw), 6))
-        return out if _fk_rows(raw, *self._bufs, out) == len(raw) else None
+        if _fk_rows(raw, *self._bufs, out) != len(raw):
+            return None
+        return out if self.field is None else self.field.apply_rows(out)

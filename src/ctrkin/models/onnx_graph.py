@@ -41,6 +41,7 @@ from torch import nn
 from ctrkin.data.schema import QUAT_NORM_TOL
 from ctrkin.errors import ModelError
 from ctrkin.models.frame import OuterFrame
+from ctrkin.models.joint_field import FieldLayer
 from ctrkin.models.store import ModelBundle
 from ctrkin.util.files import atomic_path
 
@@ -64,6 +65,8 @@ class ExportWrapper(nn.Module):
         reg = frame.registration if frame is not None else None
         self.register_buffer("rot", f32(reg.rotation if reg is not None else torch.eye(3).numpy()))
         self.register_buffer("trans", f32(reg.translation if reg is not None else torch.zeros(3).numpy()))
+        # the frame's position field (ctrkin.models.field), added to the tracker-frame position
+        self.field = None if frame is None or frame.field is None else FieldLayer.from_field(frame.field)
         n = layout.n_tubes
         self.window_shape = (layout.ib, layout.n_inputs)
         self.alpha_col = 2 * (n - 1) if layout.angle_encoding == "sincos" else n - 1
@@ -111,6 +114,8 @@ class ExportWrapper(nn.Module):
                 pos, tan = (torch.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], 1)
                             for v in (y[:, :3], tan))
                 pos, tan = pos @ self.rot.T + self.trans, tan @ self.rot.T
+                if self.field is not None:
+                    pos = self.field(pos)
                 q = torch.stack([1.0 + tan[:, 2], -tan[:, 1], tan[:, 0]], 1)   # geometry.quat_from_tangent
                 q = q / torch.linalg.vector_norm(q, dim=1, keepdim=True).clamp_min(1e-12)
                 return torch.cat([pos, q], 1)

@@ -34,6 +34,7 @@ from ctrkin.metrics import metrics_json_joint_errors, metrics_json_pose_errors
 from ctrkin.models.features import FeatureLayout, delta_columns, postprocess, sequence_features, windows
 from ctrkin.models.field import PositionField
 from ctrkin.models.frame import OuterFrame
+from ctrkin.models.joint_field import FieldLayer, TrackerLoss, field_layer
 from ctrkin.models.motion import recorded_motion
 from ctrkin.models.normalize import MinMax
 from ctrkin.models.outer_lag import fit_outer_lag
@@ -109,6 +110,10 @@ class TrainSettings(Protocol):
     def tcm_prior(self) -> bool:
         ...
 
+    @property
+    def joint_field(self) -> bool:
+        ...
+
     def layout(self, n_tubes: int) -> FeatureLayout:
         ...
 
@@ -153,6 +158,12 @@ class Recipe(Protocol):
         ...
 
     def val_loss(self, net: torch.nn.Module) -> float:
+        ...
+
+    def attach(self, net: torch.nn.Module) -> None:     # what trains beside the network, on it
+        ...
+
+    def detach(self, net: torch.nn.Module) -> None:     # ... and off it before it is saved
         ...
 
     def finish(self, bundle: ModelBundle, folder: Path, log: Log) -> dict[str, Any]:
@@ -205,7 +216,8 @@ class WindowRecipe:
     raw_in (T, 2N | 6) raw inputs, target (T, O) raw targets (local frame where there is one; with
     tcm_prior the position's residual from the prior), bounds the sequences, frame and outer_deg (T,)
     the frame's angle (None without a frame), prior_tcm and prior_pos (T, 3) mm the calibrated TCM
-    and its positions in the target's frame (None without tcm_prior)."""
+    and its positions in the target's frame (None without tcm_prior); tracker the loss through a
+    position field learned with the network (ctrkin.models.joint_field; None without joint_field)."""
 
     checkpoints = True
 
@@ -228,6 +240,7 @@ class WindowRecipe:
             self.prior_tcm = calibrate_prior(ds, self.rows["train"])
             prior = dataset_prior(self.prior_tcm, ds)
         net_in = self.raw_in
+        tracker_target = target
         if cfg.target_frame == "outer":     # FK targets in the outer tube's frame (ctrkin.models.frame)
             self.frame, self.outer_deg = fit_outer_frame(ds, self.raw_in, target, self.rows["train"],
                                                          cfg.seed)
@@ -250,6 +263,17 @@ class WindowRecipe:
         self.Y = self.y_norm.transform(target).astype(np.float32)
         train = self.rows["train"]
         self.Xt, self.Yt = torch.from_numpy(self.X[train]), torch.from_numpy(self.Y[train])
+        self.tracker: TrackerLoss | None = None
+        self.field_layer: FieldLayer | None = None
+        if cfg.joint_field:             # positions judged in the tracker frame (ctrkin.models.joint_field)
+            assert self.frame is not None and self.outer_deg is not None
+            reg = self.frame.registration
+            self.tracker = TrackerLoss.build(self.y_norm, self.outer_deg, prior, tracker_target,
+                                             reg.rotation, reg.translation, train)
+            self.train_t = torch.from_numpy(np.asarray(train, np.int64))
+            self.field_centre = tracker_target[train, :3].mean(axis=0)
+            self.field_scale = float(np.sqrt(((tracker_target[train, :3] - self.field_centre) ** 2)
+                                             .sum(axis=1).mean())) or 1.0
         return Prepared(self.layout, self.x_norm, self.y_norm, self.frame)
 
     def epoch_tensors(self, epoch: int, bundle: ModelBundle) -> tuple[torch.Tensor, torch.Tensor]:
@@ -257,7 +281,27 @@ class WindowRecipe:
 
     def loss(self, net: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, idx: torch.Tensor,
              gen: torch.Generator) -> torch.Tensor:
-        return torch.nn.functional.l1_loss(net(x), y)               # MAE loss (paper IV.A)
+        return self.pose_loss(net, net(x), y, idx)
+
+    def pose_loss(self, net: torch.nn.Module, y_hat: torch.Tensor, y: torch.Tensor, idx: torch.Tensor
+                  ) -> torch.Tensor:
+        """The MAE of a batch's outputs y_hat against y (paper IV.A), its positions in the tracker
+        frame through the field layer where one is learned (ctrkin.models.joint_field)."""
+        if self.tracker is None:
+            return torch.nn.functional.l1_loss(y_hat, y)
+        return self.tracker.loss(field_layer(net), y_hat, y, self.train_t[idx])
+
+    def attach(self, net: torch.nn.Module) -> None:
+        """Add what trains beside the network to it before the optimiser sees its parameters: the
+        field layer of a joint field (its weights then follow the network's best epoch and
+        checkpoints). `detach` takes it off before the network is saved."""
+        if self.tracker is not None:
+            net.joint_field = FieldLayer(self.field_centre, self.field_scale)
+
+    def detach(self, net: torch.nn.Module) -> None:
+        if hasattr(net, "joint_field"):
+            self.field_layer = field_layer(net)
+            del net.joint_field
 
     def predict_rows(self, net: torch.nn.Module, rows: np.ndarray, X: np.ndarray | None = None
                      ) -> np.ndarray:
@@ -267,7 +311,12 @@ class WindowRecipe:
 
     def val_loss(self, net: torch.nn.Module) -> float:
         rows = self.rows["val"]
-        return float(np.mean(np.abs(self.predict_rows(net, rows) - self.Y[rows])))
+        pred = self.predict_rows(net, rows)
+        if self.tracker is None:
+            return float(np.mean(np.abs(pred - self.Y[rows])))
+        with torch.no_grad():
+            return float(self.tracker.loss(field_layer(net), torch.from_numpy(pred),
+                                           torch.from_numpy(self.Y[rows]), torch.from_numpy(rows)))
 
     def to_world(self, pred: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """Predicted (len(rows), O) targets in the frame users see (the tracker frame for FK), the
@@ -283,7 +332,9 @@ class WindowRecipe:
         if self.prior_tcm is not None:
             save_prior(self.prior_tcm, folder)
             bundle.prior = self.prior_tcm
-        if self.layout.equivariant and self.frame is not None:
+        if self.field_layer is not None:
+            self.keep_joint_field(bundle, folder, log)
+        elif self.layout.equivariant and self.frame is not None:
             self.fit_field(bundle, folder, log)
         metrics = self.evaluate(bundle)
         if self.layout.task == "ik":
@@ -305,6 +356,24 @@ class WindowRecipe:
         pf = PositionField.fit(pred[:, :3], measured[:, :3], groups)
         log(f"position field: degree {pf.degree}, cross-validated residual {pf.cv_rms_mm:.3f} mm "
             f"(without it {pf.cv_rms_without_mm:.3f} mm)")
+        self.frame = replace(self.frame, field=pf)
+        bundle.frame = self.frame
+        write_json(folder / FRAME, self.frame.to_dict())
+
+    def keep_joint_field(self, bundle: ModelBundle, folder: Path, log: Log) -> None:
+        """The field learned with the network into the frame (and the folder's frame.json), with the
+        validation rows' position RMS with and without it."""
+        assert self.frame is not None and self.field_layer is not None
+        rows = self.rows["val"] if len(self.rows["val"]) else self.rows["train"]
+        yn = self.predict_rows(bundle.net, rows)
+        pred = self.to_world(postprocess(self.layout, self.y_norm.inverse(yn)), rows)[:, :3]
+        measured = inputs_and_targets(self.data.ds, "fk", self.cfg.pose_source)[1][rows, :3]
+        with torch.no_grad():
+            fielded = self.field_layer(torch.from_numpy(pred.astype(np.float32))).numpy()
+        rms = [float(np.sqrt(np.nanmean(np.sum((measured - p) ** 2, axis=1)))) for p in (fielded, pred)]
+        pf = self.field_layer.position_field(*rms)
+        log(f"position field learned with the network: {pf.cv_rms_mm:.3f} mm on the validation rows "
+            f"({pf.cv_rms_without_mm:.3f} mm without it)")
         self.frame = replace(self.frame, field=pf)
         bundle.frame = self.frame
         write_json(folder / FRAME, self.frame.to_dict())

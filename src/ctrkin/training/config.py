@@ -50,13 +50,18 @@ PATIENCE_STEPS = 1_000     # early stopping's least optimiser steps without an i
 # validation over two seeds 5.07 mm (neither) -> 3.38 mm (both); held-out sequences better on three
 # robots, the 10-point square and triangle worse (docs/learned_kinematics.md: The outer angle and
 # catch-up rows).
+# The snap-aware FK learns the tracker's position field with the network (FK_JOINT_FIELD;
+# ctrkin.models.joint_field): validation picked it on all four robots of bench_fk_memory.py, test and
+# mid-turn reversals improved on each (docs/learned_kinematics.md: A position field learned with the FK).
 FK_MEMORY_IB = 2
 FK_PLAY_LAGS = True
+FK_JOINT_FIELD = True
 IK_OUTER_ANGLE = True
 IK_CATCH_UP = 0.25
 RECOMMENDED: dict[str, dict[str, Any]] = {
     "fk": {"model": "lstm_mlp_branch", "batch_size": 256, "lr": 2e-3, "lr_schedule": "cosine",
-           "base_epochs": 80, "patience": 80, "ib": FK_MEMORY_IB, "play_lags": FK_PLAY_LAGS},
+           "base_epochs": 80, "patience": 80, "ib": FK_MEMORY_IB, "play_lags": FK_PLAY_LAGS,
+           "joint_field": FK_JOINT_FIELD},
     "ik": {"model": "follow_mlp", "batch_size": 512, "lr": 2e-3, "lr_schedule": "cosine",
            "base_epochs": 40, "patience": 40, "min_steps": 0, "outer_angle": IK_OUTER_ANGLE,
            "catch_up": IK_CATCH_UP},
@@ -111,6 +116,11 @@ class TrainConfig:
         "the position's residual from it and the model adds it back (ctrkin.models.tcm_prior; the "
         "folder stores it as tcm_prior.toml). Needs a robot description whose calibration converges; "
         "streaming costs a TCM step per step, and probe and ONNX export are refused."))
+    joint_field: bool = field(default=False, metadata=_help(
+        "FK in the outer tube's frame only: a field of the tip's tracker-frame position (the "
+        "tracker's distortion, ctrkin.models.field) is learned with the network, the loss taken on "
+        "tracker-frame positions (ctrkin.models.joint_field), instead of the network learning it from "
+        "the absolute angles alone. The model applies it after the frame (streaming, probe, ONNX)."))
     outer_angle: bool = field(default=False, metadata=_help(
         "The follow IK (follow_mlp) only: the inputs also hold sin/cos of the outer tube's absolute "
         "angle αN, for what is not rotation-equivariant about the insertion axis (the tracker's field, "
@@ -234,6 +244,10 @@ class TrainConfig:
         if self.tcm_prior and self.task != "fk":
             raise ModelError("tcm_prior applies to FK models only (task 'fk'): an IK model has no "
                              "physics prior to learn the residual of; drop --tcm-prior")
+        if self.joint_field and (self.task != "fk" or self.target_frame != "outer"):
+            raise ModelError("joint_field applies to FK models in the outer tube's frame (task 'fk', "
+                             "target_frame 'outer', the snap-aware FK's default); drop it "
+                             "(--no-joint-field) for another frame")
         if self.lr_schedule not in LR_SCHEDULES:
             raise ModelError(f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
         if self.fold_scale and self.model != "lstm_mlp_branch":

@@ -196,6 +196,7 @@ def _train_locked(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, pro
                                           "samples": len(ds.frame), "source": str(ds.meta.get("path", "")),
                                           "protocol": ds.meta.get("protocol")}, **prepared.extra},
                                 frame=prepared.frame, build=build_net)
+    rec.attach(bundle.net)              # e.g. a field layer learned beside the network
     run = _Run(bundle, cfg, rec, out, signature, split_sig, train_rows, device)
     run.start(overwrite, say)
     run.epochs(progress)
@@ -341,6 +342,7 @@ class _Run:
         net = self.cpu_net
         net.load_state_dict(self.best_weights)
         net.eval()
+        self.recipe.detach(net)         # the best epoch's extras stay with the recipe, not in the weights
         self.bundle.save(build)
         split.save(build / "split.json")
         metrics = self.recipe.finish(self.bundle, build, say)

@@ -140,6 +140,12 @@ class FollowRecipe:
         with torch.inference_mode():
             return float(torch.mean(torch.abs(net(self.Xv) - self.Yv)))
 
+    def attach(self, net: torch.nn.Module) -> None:     # nothing trains beside the network
+        pass
+
+    def detach(self, net: torch.nn.Module) -> None:
+        pass
+
     def finish(self, bundle: ModelBundle, folder: Path, log: Log) -> dict[str, Any]:
         tr, va = self.rows["train"], self.rows["val"]
         workspace = Workspace.fit(self.poses[tr], self.poses[va], MinMax.fit(self.poses[tr]),

@@ -13,6 +13,7 @@ docs/learned_kinematics.md: The offset head form).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -51,6 +52,7 @@ class BranchBatch:
     gate_rows: torch.Tensor      # (M,) per-row weight of the gate loss
     unknown_prob: float
     weight: float
+    pose_loss: Callable[[torch.nn.Module, torch.Tensor, torch.Tensor, torch.Tensor], torch.Tensor]
 
     def loss(self, net: BranchNet, x: torch.Tensor, y: torch.Tensor, idx: torch.Tensor,
              gen: torch.Generator) -> torch.Tensor:
@@ -64,10 +66,10 @@ class BranchBatch:
         h = net.trunk(x)
         if net.head_form == "offset":      # the offset's L1 keeps it 0 where one branch alone exists
             y_hat, d = net.offset_out(h, s.reshape(-1, 1))
-            pose_loss = (torch.nn.functional.l1_loss(y_hat, y)
+            pose_loss = (self.pose_loss(net, y_hat, y, idx)
                          + OFFSET_L1 * (d.abs() * self.one_branch[idx].to(dev).reshape(-1, 1)).mean())
         else:
-            pose_loss = torch.nn.functional.l1_loss(net.head_out(h, s), y)      # MAE (paper IV.A)
+            pose_loss = self.pose_loss(net, net.head_out(h, s), y, idx)       # MAE (paper IV.A)
         gate_loss = torch.nn.functional.binary_cross_entropy_with_logits(
             net.gate_logit(h, prev), s, weight=self.gate_rows[idx].to(dev))
         return pose_loss + self.weight * gate_loss
@@ -136,7 +138,7 @@ class BranchRecipe(WindowRecipe):
                                  torch.from_numpy(state_prev[train]), torch.from_numpy(forced[train]),
                                  torch.from_numpy(one_branch[train].astype(np.float32)),
                                  torch.from_numpy(near_switch(self.state, self.bounds)[train]),
-                                 self.cfg.unknown_prob, self.cfg.gate_weight)
+                                 self.cfg.unknown_prob, self.cfg.gate_weight, self.pose_loss)
         return prepared
 
     def loss(self, net: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, idx: torch.Tensor,
