@@ -53,7 +53,7 @@ import os
 import re
 import sys
 import time
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
@@ -79,7 +79,7 @@ from ctrkin.training.data import data_signature, split_rows, split_signature
 from ctrkin.training.engine import setup_differences, train
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))   # the benchmark beside this one
-from bench_generalisation import ROBOTS, reversals, small_moves
+from bench_generalisation import ROBOTS, Case, reversals, small_moves
 
 # ib8: IB 8 at the scale's epochs; ib2e160: 160 epochs; ib2p: IB 2 with the play-lag inputs;
 # ib2pq: and equivariant inputs with a position field; ib2pt: the residual of the calibrated TCM
@@ -247,12 +247,13 @@ def snap_scores(kin: Kinematics, ds: Dataset) -> dict[str, Any]:
                                       for t in flagged]}
 
 
-def experiments(kin: Kinematics, folder: Path, repro: Path, case: str) -> dict[str, Any]:
-    """The FK experiments of the module docstring on the model in `folder`."""
+def experiments(kin: Kinematics, folder: Path, repro: Path, case: str | Case) -> dict[str, Any]:
+    """The FK experiments of the module docstring on the model in `folder`; case: the robot the
+    reversals and small moves are recorded on (a ROBOTS name, or the robot --collect recorded)."""
     out: dict[str, Any] = {}
     for name in ("sweeps", "snap-turns"):
         out[name] = snap_scores(kin, Dataset.load(repro / "data" / name))
-    c = ROBOTS[case]
+    c = ROBOTS[case] if isinstance(case, str) else case
     out["reversals"] = reversals(kin.robot, c, folder)
     out["small"] = small_moves(kin.robot, c, folder)
     return out
@@ -271,7 +272,7 @@ def finished(ds: Dataset, cfg: TrainConfig, folder: Path) -> bool:
 
 
 def run_arm(ds: Dataset, scale: str, arm: str, out: Path, stream: np.ndarray, repro: Path | None = None,
-            case: str = "default-top") -> dict[str, Any]:
+            case: str | Case = "default-top") -> dict[str, Any]:
     cfg = arm_config(scale, arm)
     load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
@@ -297,16 +298,17 @@ def run_arm(ds: Dataset, scale: str, arm: str, out: Path, stream: np.ndarray, re
     return row
 
 
-def collect_repro(folder: Path, scale: str, settings: list[str]) -> Path:
+def collect_repro(folder: Path, scale: str, settings: list[str]) -> tuple[Path, Case]:
     """`folder` holding a reproduction's data (data/paper with its split, data/paper+excitation, the
-    sweeps and snap turns), recorded as `ctrkin reproduce --scale S --set ...` records them."""
+    sweeps and snap turns), recorded as `ctrkin reproduce --scale S --set ...` records them, and that
+    robot as a Case (the reversals and small moves are recorded on it too)."""
     from ctrkin.cli.from_config import virtual_config
     from ctrkin.evaluation.datasets import collect_training_data
     from ctrkin.robots import paper_robot
 
-    collect_training_data(paper_robot(), get_scale(scale), folder / "data", 0, virtual_config(settings),
-                          progress=False)
-    return folder
+    virtual = virtual_config(settings)
+    collect_training_data(paper_robot(), get_scale(scale), folder / "data", 0, virtual, progress=False)
+    return folder, Case("paper", 0, asdict(virtual), f"the paper robot, --set {' '.join(settings)}")
 
 
 def _offsets(offsets: list[int | None]) -> str:
@@ -334,7 +336,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--set", dest="settings", action="append", default=[], metavar="KEY=VALUE",
                     help="a virtual robot effect for --collect (VirtualConfig's fields, as `ctrkin collect`)")
     ap.add_argument("--case", default="default-top", choices=sorted(ROBOTS), help="the robot and effects "
-                    "of --repro (bench_generalisation.ROBOTS), for the reversals")
+                    "of --repro (bench_generalisation.ROBOTS), for the reversals and small moves (with "
+                    "--collect: the robot it records, --set included)")
     ap.add_argument("--out", type=Path, required=True, help="folder of the arms' model folders")
     ap.add_argument("--arms", default="ib2,ib4,ib8", help="comma-separated arms "
                     "ibN[eE][p][q][t][r][m][g][o][f][sK] (the module comment above ARM), e.g. "
@@ -345,8 +348,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     bad = [a for a in arms if ARM.match(a) is None]
     if bad:
         ap.error(f"arms {bad} are not ibN[eE][p][q][t][r][m][g][o][f][sK] (e.g. ib8, ib2e160, ib2p, ib2ptr)")
+    case: str | Case = args.case
     if args.collect is not None:
-        args.repro = collect_repro(args.collect, args.scale, args.settings)
+        args.repro, case = collect_repro(args.collect, args.scale, args.settings)
     if args.data is None and args.repro is None:
         ap.error("give --data or --repro")
     training = args.repro / "data" / "paper+excitation" if args.repro is not None else None
@@ -368,7 +372,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
           "snaps' jumps, mm; wrong s: what a wrong state costs outside the band, mm)", flush=True)
     rows: dict[str, Any] = {}
     for arm in arms:
-        r = rows[arm] = run_arm(ds, args.scale, arm, args.out, stream, args.repro, args.case)
+        r = rows[arm] = run_arm(ds, args.scale, arm, args.out, stream, args.repro, case)
         print(f"{arm:9s} {r['epochs']:6d} {r['best_epoch']:5d} {r['train']:6.3f} {r['val']:6.3f} "
               f"{r['test']:6.3f} {r['test_measured']:7.3f} {r['val_predict']:6.3f} {r['test_predict']:7.3f} "
               f"{_f(r['val_jump_mm']):>5s} {_f(r['wrong_state_mm']):>7s} {r['train_seconds']:6.0f} "
