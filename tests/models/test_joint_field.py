@@ -11,7 +11,7 @@ import torch
 from ctrkin.errors import ModelError
 from ctrkin.geometry import Registration
 from ctrkin.models.frame import OuterFrame
-from ctrkin.models.joint_field import FieldLayer, TrackerLoss
+from ctrkin.models.joint_field import FieldLayer, TrackerLoss, field_if_it_helps
 from ctrkin.models.normalize import MinMax
 
 
@@ -82,6 +82,21 @@ def test_the_loss_drives_the_layer_to_a_field_the_data_has(rng):
     assert err < 0.1 * size
 
 
+def test_a_field_is_kept_only_where_it_lowers_the_held_out_error(rng):
+    """Where the measured positions hold the layer's warp it is kept; where they hold none (an optical
+    tracker) a layer that learned one from noise is not."""
+    p = rng.uniform(-30, 30, (300, 3)) + np.array([0.0, 0.0, 90.0])
+    layer = FieldLayer(np.array([0.0, 0.0, 90.0]), 30.0)
+    with torch.no_grad():
+        layer.coef.copy_(torch.from_numpy(rng.normal(0.0, 0.5, tuple(layer.coef.shape)).astype(np.float32)))
+        warped = layer(torch.from_numpy(p.astype(np.float32))).numpy().astype(np.float64)
+    kept, with_mm, without_mm = field_if_it_helps(layer, p, warped + rng.normal(0.0, 0.05, p.shape))
+    assert kept is not None and with_mm < 0.1 < without_mm
+    assert (kept.cv_rms_mm, kept.cv_rms_without_mm) == (with_mm, without_mm)
+    dropped, with_mm, without_mm = field_if_it_helps(layer, p, p + rng.normal(0.0, 0.05, p.shape))
+    assert dropped is None and with_mm > without_mm
+
+
 def test_a_joint_field_fk_keeps_its_field_in_the_frame_and_streams_what_it_predicts(sweeps, tmp_path):
     from ctrkin.inference import Kinematics
     from ctrkin.training import TrainConfig, train
@@ -99,6 +114,7 @@ def test_a_joint_field_fk_keeps_its_field_in_the_frame_and_streams_what_it_predi
     kin.reset()
     np.testing.assert_allclose(batch, np.array([kin.step(r) for r in q]), rtol=0, atol=1e-4)
     assert np.isfinite(res.metrics["val"]["vs_measured"]["position_mm_rmse"])
+    assert res.metrics["joint_field"]["kept"]           # the metrics say why the frame holds it
     said: list[str] = []            # a finished run continues from its checkpoint, the layer's weights too
     more = train(sweeps, replace(cfg, max_epochs=3), tmp_path / "fk", progress=False, log=said.append)
     assert any("resuming" in m for m in said) and more.metrics["training"]["epochs"] == 3

@@ -34,7 +34,7 @@ from ctrkin.metrics import metrics_json_joint_errors, metrics_json_pose_errors
 from ctrkin.models.features import FeatureLayout, delta_columns, postprocess, sequence_features, windows
 from ctrkin.models.field import PositionField
 from ctrkin.models.frame import OuterFrame
-from ctrkin.models.joint_field import FieldLayer, TrackerLoss, field_layer
+from ctrkin.models.joint_field import FieldLayer, TrackerLoss, field_if_it_helps, field_layer
 from ctrkin.models.motion import recorded_motion
 from ctrkin.models.normalize import MinMax
 from ctrkin.models.outer_lag import fit_outer_lag
@@ -332,11 +332,12 @@ class WindowRecipe:
         if self.prior_tcm is not None:
             save_prior(self.prior_tcm, folder)
             bundle.prior = self.prior_tcm
-        if self.field_layer is not None:
-            self.keep_joint_field(bundle, folder, log)
-        elif self.layout.equivariant and self.frame is not None:
+        field = self.keep_joint_field(bundle, folder, log) if self.field_layer is not None else None
+        if field is None and self.layout.equivariant and self.frame is not None:
             self.fit_field(bundle, folder, log)
         metrics = self.evaluate(bundle)
+        if field is not None:
+            metrics["joint_field"] = field
         if self.layout.task == "ik":
             train, val = self.rows["train"], self.rows["val"]
             pose_norm = self.x_norm.subset(slice(0, 6))
@@ -360,23 +361,23 @@ class WindowRecipe:
         bundle.frame = self.frame
         write_json(folder / FRAME, self.frame.to_dict())
 
-    def keep_joint_field(self, bundle: ModelBundle, folder: Path, log: Log) -> None:
-        """The field learned with the network into the frame (and the folder's frame.json), with the
-        validation rows' position RMS with and without it."""
+    def keep_joint_field(self, bundle: ModelBundle, folder: Path, log: Log) -> dict[str, Any]:
+        """The field learned with the network into the frame (and the folder's frame.json) where it
+        lowers the validation rows' position RMS (joint_field.field_if_it_helps); its metrics entry."""
         assert self.frame is not None and self.field_layer is not None
         rows = self.rows["val"] if len(self.rows["val"]) else self.rows["train"]
         yn = self.predict_rows(bundle.net, rows)
         pred = self.to_world(postprocess(self.layout, self.y_norm.inverse(yn)), rows)[:, :3]
         measured = inputs_and_targets(self.data.ds, "fk", self.cfg.pose_source)[1][rows, :3]
-        with torch.no_grad():
-            fielded = self.field_layer(torch.from_numpy(pred.astype(np.float32))).numpy()
-        rms = [float(np.sqrt(np.nanmean(np.sum((measured - p) ** 2, axis=1)))) for p in (fielded, pred)]
-        pf = self.field_layer.position_field(*rms)
-        log(f"position field learned with the network: {pf.cv_rms_mm:.3f} mm on the validation rows "
-            f"({pf.cv_rms_without_mm:.3f} mm without it)")
-        self.frame = replace(self.frame, field=pf)
-        bundle.frame = self.frame
-        write_json(folder / FRAME, self.frame.to_dict())
+        pf, with_mm, without_mm = field_if_it_helps(self.field_layer, pred, measured)
+        log(f"position field learned with the network: {with_mm:.3f} mm on the validation rows, "
+            f"{without_mm:.3f} mm without it: " + ("kept" if pf is not None else "not kept"))
+        if pf is not None:
+            self.frame = replace(self.frame, field=pf)
+            bundle.frame = self.frame
+            write_json(folder / FRAME, self.frame.to_dict())
+        return {"kept": pf is not None, "val_position_rmse_mm": with_mm,
+                "val_position_rmse_without_mm": without_mm}
 
     def evaluate(self, bundle: ModelBundle) -> dict[str, Any]:
         """Loss (normalised MAE) and physical errors on the training, validation and test rows (the
