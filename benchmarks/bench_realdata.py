@@ -14,9 +14,9 @@ random points (validation: 15 % of their rows) and tested on the held-out −45.
 prediction of FK_SEEDS networks that differ only in their seed (averaging removes the seed-to-seed
 variance), for each angle encoding in FK_ENCODINGS; the encoding whose average has the lower
 validation error is the one reported (both are printed, with each seed's errors). Then the
-recommended FK (`ctrkin train --task fk`'s: the snap-aware FK, its play lags and joint field kept only
-where validation prefers them, ctrkin.training.selection) on the same split, FK_SEEDS seeds, the
-network each seed kept printed (`--only recommended` runs this row alone). Then, with that
+recommended FK (`ctrkin train --task fk`'s: the snap-aware FK or the paper's LSTM-MLP, whichever
+validation prefers, ctrkin.training.selection) on the same split, FK_SEEDS seeds, the model each
+seed kept printed (`--only recommended` runs this row alone). Then, with that
 encoding, the learned FK on a physics prior (`prior_fk`: the TCM calibrated on the training rows,
 bench_memory's window arms): the same network without the prior, learning the position's residual
 from the calibrated TCM, and with the TCM's poses as inputs, each the mean of FK_SEEDS seeds, and the
@@ -168,8 +168,8 @@ def learned_fk(ds, out: Path, max_epochs: int, encoding: str, held_out: str = HE
 
 def recommended_fk(ds, out: Path, seeds: int = FK_SEEDS, max_epochs: int | None = None
                    ) -> tuple[float, list[float], list[str]]:
-    """The recommended FK (`ctrkin train --task fk`: training.config.RECOMMENDED, its play lags and
-    joint field kept only where validation prefers them, ctrkin.training.selection) on the split
+    """The recommended FK (`ctrkin train --task fk`: training.config.RECOMMENDED, the snap-aware FK or
+    the paper's LSTM-MLP, whichever validation prefers, ctrkin.training.selection) on the split
     learned_fk left on ds: (held-out sweep mean tip distance of the seeds' average, each seed's, the
     network each seed kept). max_epochs: the budget (default: the recommended one, sized to the set)."""
     from ctrkin.inference import Kinematics
@@ -182,7 +182,7 @@ def recommended_fk(ds, out: Path, seeds: int = FK_SEEDS, max_epochs: int | None 
                           **RECOMMENDED["fk"])
         folder = out / f"fk_optitrack_recommended_seed{seed}"
         res = train(ds, cfg, folder, overwrite=True, progress=False)
-        kept.append(res.metrics.get("input_selection", {}).get("kept", "requested"))
+        kept.append(res.metrics.get("model_selection", {}).get("kept", "requested"))
         preds.append(Kinematics.load(folder).predict(ds)[:, :3])
     meas = ds.poses()[:, :3]
     test = ds.split.test

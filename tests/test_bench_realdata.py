@@ -27,5 +27,5 @@ def test_the_recommended_fk_row_trains_a_selection_per_seed(sweeps, tmp_path) ->
     ds = dataclasses.replace(sweeps, split=sweeps.get_split(seed=0))
     test, seeds, kept = bench.recommended_fk(ds, tmp_path, seeds=2, max_epochs=1)
     assert np.isfinite(test) and test > 0 and len(seeds) == 2 and all(np.isfinite(seeds))
-    assert all(k in ("requested", "plain") for k in kept) and len(kept) == 2
+    assert all(k in ("requested", "paper") for k in kept) and len(kept) == 2
     assert sorted(p.name for p in tmp_path.iterdir()) == [f"fk_optitrack_recommended_seed{s}" for s in (0, 1)]

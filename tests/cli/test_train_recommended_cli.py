@@ -49,12 +49,12 @@ def test_train_without_a_model_trains_the_recommended_one(data, tmp_path, task):
     cfg = _train(data, tmp_path / task, "--task", task)
     preset = RECOMMENDED[task]
     if task == "fk":
-        # the recommended FK keeps its lags and field, or its plain network, as validation says
-        # (ctrkin.training.selection); which one was kept is in its metrics
+        # the snap-aware FK or the paper's LSTM-MLP, as validation says (ctrkin.training.selection):
+        # which one was kept is in its metrics, and its config is that model's with the budget asked for
         metrics = json.loads((tmp_path / task / "metrics.json").read_text())
-        kept = metrics["input_selection"]["kept"]
-        preset = {**preset, **metrics["input_selection"]["candidates"][kept]}
-        assert kept == "plain" or (cfg["play_lags"], cfg["joint_field"]) == (True, True)
+        kept = metrics["model_selection"]["kept"]
+        preset = {**preset, **metrics["model_selection"]["candidates"][kept]}
+        assert kept == "paper" or (cfg["play_lags"], cfg["joint_field"]) == (True, True)
     assert {k: cfg[k] for k in preset} == preset
 
 

@@ -14,9 +14,9 @@
 Without --model, the recommended model of the task is trained with its settings (batch size,
 learning rate and schedule, epochs, patience, and the FK's input buffer:
 ctrkin.training.config.RECOMMENDED, those of `ctrkin reproduce --scale quick`); any of them given on
-the command line wins. The recommended FK also trains its plain network (no play lags, no joint field)
-and keeps the one with the lower validation position RMSE (--select-inputs, ctrkin.training.selection;
---no-select-inputs trains the first alone).
+the command line wins. The recommended FK also trains the paper's LSTM-MLP and keeps the one with the
+lower validation position RMSE (--select-by-validation, ctrkin.training.selection;
+--no-select-by-validation trains the snap-aware FK alone).
 
 Running the same command again resumes from the last checkpoint in --out (or raise --max-epochs to
 continue a finished run); --overwrite starts over. Models: see `ctrkin train --list-models`. Every

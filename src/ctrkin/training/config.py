@@ -53,20 +53,20 @@ PATIENCE_STEPS = 1_000     # early stopping's least optimiser steps without an i
 # The snap-aware FK learns the tracker's position field with the network (FK_JOINT_FIELD;
 # ctrkin.models.joint_field): validation picked it on all four robots of bench_fk_memory.py, test and
 # mid-turn reversals improved on each (docs/learned_kinematics.md: A position field learned with the FK).
-# `ctrkin train`'s recommended FK also trains its plain network (no lags, no field) and keeps the one
-# validation prefers (FK_SELECT_INPUTS; ctrkin.training.selection): on the comet-lab OptiTrack logs, one
-# amplitude of sweep, the lags and the field raised validation 1.60 -> 2.25-2.63 mm (docs/real_robot.md).
-# The reproduction's runs do not select: its protocols reverse everywhere (bench_fk_memory.py).
+# `ctrkin train`'s recommended FK also trains the paper's LSTM-MLP and keeps the one validation prefers
+# (FK_SELECT_BY_VALIDATION; ctrkin.training.selection): on the comet-lab OptiTrack logs (one amplitude of
+# sweep, no snap) validation and the held-out sweep both prefer the LSTM-MLP (docs/real_robot.md). The
+# reproduction's runs do not select: its robots snap and its protocols reverse everywhere.
 FK_MEMORY_IB = 2
 FK_PLAY_LAGS = True
 FK_JOINT_FIELD = True
-FK_SELECT_INPUTS = True
+FK_SELECT_BY_VALIDATION = True
 IK_OUTER_ANGLE = True
 IK_CATCH_UP = 0.25
 RECOMMENDED: dict[str, dict[str, Any]] = {
     "fk": {"model": "lstm_mlp_branch", "batch_size": 256, "lr": 2e-3, "lr_schedule": "cosine",
            "base_epochs": 80, "patience": 80, "ib": FK_MEMORY_IB, "play_lags": FK_PLAY_LAGS,
-           "joint_field": FK_JOINT_FIELD, "select_inputs": FK_SELECT_INPUTS},
+           "joint_field": FK_JOINT_FIELD, "select_by_validation": FK_SELECT_BY_VALIDATION},
     "ik": {"model": "follow_mlp", "batch_size": 512, "lr": 2e-3, "lr_schedule": "cosine",
            "base_epochs": 40, "patience": 40, "min_steps": 0, "outer_angle": IK_OUTER_ANGLE,
            "catch_up": IK_CATCH_UP},
@@ -126,11 +126,12 @@ class TrainConfig:
         "tracker's distortion, ctrkin.models.field) is learned with the network, the loss taken on "
         "tracker-frame positions (ctrkin.models.joint_field), instead of the network learning it from "
         "the absolute angles alone. The model applies it after the frame (streaming, probe, ONNX)."))
-    select_inputs: bool = field(default=False, metadata=_help(
-        "FK with play lags or a joint field: also train the same network without either (same seed "
-        "and split) and keep whichever has the lower validation position RMSE (ctrkin.training."
-        "selection; metrics.json `input_selection`). On a log whose paths reverse in few places the "
-        "lags' effect cannot be identified from it (docs/real_robot.md). Twice the training time."))
+    select_by_validation: bool = field(default=False, metadata=_help(
+        "FK: also train the paper's LSTM-MLP (sin/cos angles, tracker frame, no lags, field or prior) "
+        "with the same budget, seed and split, and keep whichever has the lower validation position "
+        "RMSE (ctrkin.training.selection; metrics.json `model_selection`): the snap-aware FK's "
+        "branches, lags and field help only where the recording identifies them (docs/real_robot.md). "
+        "Twice the training time."))
     outer_angle: bool = field(default=False, metadata=_help(
         "The follow IK (follow_mlp) only: the inputs also hold sin/cos of the outer tube's absolute "
         "angle αN, for what is not rotation-equivariant about the insertion axis (the tracker's field, "
@@ -258,8 +259,8 @@ class TrainConfig:
             raise ModelError("joint_field applies to FK models in the outer tube's frame (task 'fk', "
                              "target_frame 'outer', the snap-aware FK's default); drop it "
                              "(--no-joint-field) for another frame")
-        if self.select_inputs and self.task != "fk":
-            raise ModelError("select_inputs chooses an FK's play lags and joint field (task 'fk')")
+        if self.select_by_validation and self.task != "fk":
+            raise ModelError("select_by_validation chooses between FK models (task 'fk')")
         if self.lr_schedule not in LR_SCHEDULES:
             raise ModelError(f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
         if self.fold_scale and self.model != "lstm_mlp_branch":

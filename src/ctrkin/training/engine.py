@@ -38,7 +38,7 @@ from ctrkin.training.curves import plot_curves, read_history
 from ctrkin.training.data import data_signature, split_rows, split_signature
 from ctrkin.training.device import resolve_device
 from ctrkin.training.fit import diagnose
-from ctrkin.training.selection import selects_inputs, train_selecting
+from ctrkin.training.selection import selects, train_selecting
 from ctrkin.util.files import atomic_path, atomic_write_text
 from ctrkin.util.folders import folder_lock, swap_in, write_manifest
 from ctrkin.util.ownership import check_replaceable, write_marker
@@ -164,14 +164,14 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
     same setup. The folder is built aside (`.NAME.build`, which also keeps the checkpoints of an
     unfinished run) and swapped in whole at the end, under a lock: a kill leaves the previous model
     or the new one, never a mix, and a second training into the same `out` is refused while one runs.
-    An FK with cfg.select_inputs also trains its plain network and keeps the one validation prefers
-    (ctrkin.training.selection).
+    An FK with cfg.select_by_validation also trains the paper's LSTM-MLP and keeps the one validation
+    prefers (ctrkin.training.selection).
     """
     out = Path(out)
     say = log or (lambda _m: None)
     with folder_lock(out, ModelError, "train"):        # also cleans what killed runs left
         check_replaceable(out, "model", ModelError)     # only a model folder is ever replaced
-        if selects_inputs(cfg):                         # two trainings, the one validation prefers kept
+        if selects(cfg):                                # two trainings, the one validation prefers kept
             return train_selecting(ds, cfg, out, overwrite, progress, say, _train_locked)
         return _train_locked(ds, cfg, out, overwrite, progress, say)
 

@@ -1,20 +1,23 @@
-"""Keep an FK's extra inputs only where validation says the data identify them (TrainConfig.select_inputs).
+"""Keep an FK's assumptions only where validation says the data carry them (TrainConfig.select_by_validation).
 
-The recommended FK's play lags (ctrkin.models.play_lags) and joint field (ctrkin.models.joint_field)
-are a memory of the joint path and a field of the tracker, learned from data. They help where the
-recording holds what identifies them: reversals at many places along each joint, a tracker field
-over the workspace (the reproduction's protocols; benchmarks/bench_fk_memory.py). A log with one
-amplitude of sweep ties each lag to the joint and the direction of motion; the network then fits
-whatever the few other rows say and extrapolates it on a new path (the comet-lab OptiTrack logs:
-docs/real_robot.md: 5. Train). Nothing in the lags or the field tells which case a log is; validation does.
+The recommended FK assumes more than the paper's network: two branches and a fold gate (a robot that
+snaps where its folds say), the outer tube's frame, the play lags of the joint path
+(ctrkin.models.play_lags) and a field of the tracker (ctrkin.models.joint_field). Each is learned
+from data and helps where the recording holds what identifies it: snaps, reversals at many places
+along each joint, a tracker field over the workspace (the reproduction's protocols;
+benchmarks/bench_fk_memory.py). A log of one amplitude of sweep without snaps holds none of it: the
+lags are then tied to the joint and the direction of motion, the network fits whatever the few other
+rows say and extrapolates it on a new path (the comet-lab OptiTrack logs: docs/real_robot.md: 5.
+Train). Nothing in the model tells which case a log is; validation does.
 
-    requested   the configuration as given (lags and/or field on)
-    plain       the same network without lags and field, same seed and split
+    requested   the configuration as given
+    paper       the paper's LSTM-MLP (sin/cos angles, tracker frame, no lags, no field, no prior) with
+                the requested budget, seed and split
 
-Both are trained, each into a hidden sibling of `out` (`.NAME.select-requested`, `.NAME.select-plain`:
+Both are trained, each into a hidden sibling of `out` (`.NAME.select-requested`, `.NAME.select-paper`:
 a killed selection resumes each from its checkpoint); the one with the lower validation position RMSE
 (metrics.json val.vs_measured.position_mm_rmse; the requested one on a tie or without validation
-rows) gets the metrics entry `input_selection` and is swapped in whole for `out`, the other removed.
+rows) gets the metrics entry `model_selection` and is swapped in whole for `out`, the other removed.
 """
 
 from __future__ import annotations
@@ -32,20 +35,28 @@ from ctrkin.models.store import write_json
 from ctrkin.training.config import TrainConfig
 from ctrkin.util.folders import swap_in, write_manifest
 
-CANDIDATES = ("requested", "plain")
+CANDIDATES = ("requested", "paper")
 CHECKPOINT = "checkpoint.pt"
 
 TrainOne = Callable[[Dataset, TrainConfig, Path, bool, bool, Callable[[str], None]], Any]
 
 
-def selects_inputs(cfg: TrainConfig) -> bool:
+def paper_baseline(cfg: TrainConfig) -> TrainConfig:
+    """The paper's LSTM-MLP FK with `cfg`'s budget, seed, split and data settings (and its
+    select_by_validation, which has nothing to select for the paper's network: `selects`)."""
+    return replace(cfg, model="lstm_mlp", options={}, angle_encoding="sincos", target_frame="tracker",
+                   output_activation="relu", play_lags=False, joint_field=False, tcm_prior=False,
+                   equivariant=False, fold_scale=False)
+
+
+def selects(cfg: TrainConfig) -> bool:
     """Whether `cfg` asks for a selection that has something to select."""
-    return cfg.select_inputs and (cfg.play_lags or cfg.joint_field)
+    return cfg.select_by_validation and cfg.task == "fk" and paper_baseline(cfg).to_dict() != cfg.to_dict()
 
 
 def candidate_configs(cfg: TrainConfig) -> dict[str, TrainConfig]:
     """The two configurations a selection trains (module docstring)."""
-    return {"requested": cfg, "plain": replace(cfg, play_lags=False, joint_field=False)}
+    return {"requested": cfg, "paper": paper_baseline(cfg)}
 
 
 def candidate_folder(out: Path, name: str) -> Path:
@@ -61,8 +72,8 @@ def validation_rmse(metrics: dict[str, Any]) -> float | None:
 def choose(val_rmse: dict[str, float | None]) -> str:
     """The candidate kept: the lowest validation RMSE; the requested one on a tie or where either
     lacks a figure."""
-    req, plain = val_rmse["requested"], val_rmse["plain"]
-    return "plain" if req is not None and plain is not None and plain < req else "requested"
+    req, paper = val_rmse["requested"], val_rmse["paper"]
+    return "paper" if req is not None and paper is not None and paper < req else "requested"
 
 
 def train_selecting(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, progress: bool,
@@ -70,23 +81,23 @@ def train_selecting(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool, p
     """Train both candidates with `train_one` (the engine's locked training of one folder), keep the
     one validation prefers in `out` (module docstring). Call it holding `out`'s writer lock."""
     if os.path.isdir(out) and os.listdir(out) and not overwrite:
-        raise ModelError(f"{out} already holds a model; selecting the FK's inputs writes a new one: "
+        raise ModelError(f"{out} already holds a model; a selection by validation writes a new one: "
                          "pass overwrite (--overwrite) or choose another --out")
+    configs = candidate_configs(cfg)
     results, val = {}, {}
-    for name, c in candidate_configs(cfg).items():
-        say(f"input selection: training the {name} network "
-            f"(play lags {'on' if c.play_lags else 'off'}, joint field {'on' if c.joint_field else 'off'})")
+    for name, c in configs.items():
+        say(f"selection by validation: training the {name} model ({c.model})")
         results[name] = train_one(ds, c, candidate_folder(out, name), overwrite, progress, say)
         val[name] = validation_rmse(results[name].metrics)
     kept = choose(val)
     shown = {k: "–" if v is None else f"{v:.3f} mm" for k, v in val.items()}
-    say(f"input selection: validation position RMSE requested {shown['requested']}, plain "
-        f"{shown['plain']}: keeping the {kept} network")
+    say(f"selection by validation: position RMSE on the validation rows {shown['requested']} "
+        f"({cfg.model}) against {shown['paper']} (the paper's lstm_mlp): keeping the {kept} model")
     folder = candidate_folder(out, kept)
-    metrics = {**results[kept].metrics, "input_selection": {
+    metrics = {**results[kept].metrics, "model_selection": {
         "kept": kept, "val_position_rmse_mm": val,
-        "candidates": {k: {"play_lags": c.play_lags, "joint_field": c.joint_field}
-                       for k, c in candidate_configs(cfg).items()}}}
+        "candidates": {k: {"model": c.model, "play_lags": c.play_lags, "joint_field": c.joint_field}
+                       for k, c in configs.items()}}}
     write_json(folder / "metrics.json", metrics)
     write_manifest(folder, skip=(CHECKPOINT,))
     swap_in(folder, out, ModelError, "model")
