@@ -65,3 +65,13 @@ def test_the_command_line_wins(data, tmp_path):
     paper = _train(data, tmp_path / "paper", "--task", "fk", "--model", "lstm_mlp", "--structure", "L8|D8")
     assert (paper["model"], paper["batch_size"], paper["lr"], paper["base_epochs"]) == \
         ("lstm_mlp", 32, 1e-3, 500)
+
+
+def test_the_model_said_and_in_json_is_the_one_kept(data, tmp_path):
+    out = tmp_path / "fk"
+    r = CliRunner().invoke(cli, ["train", "--data", str(data), "--out", str(out), "--epochs", "1", "--threads",
+                                 "1", "--task", "fk", "--json"], env=ENV)
+    assert r.exit_code == 0, r.output
+    kept = json.loads((out / "config.json").read_text())["train"]["model"]
+    assert json.loads(r.stdout)["model"] == kept
+    assert f"trained {kept}: 1 epochs" in r.stderr
