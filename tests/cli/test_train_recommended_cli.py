@@ -69,8 +69,8 @@ def test_the_command_line_wins(data, tmp_path):
 
 def test_the_model_said_and_in_json_is_the_one_kept(data, tmp_path):
     out = tmp_path / "fk"
-    r = CliRunner().invoke(cli, ["train", "--data", str(data), "--out", str(out), "--epochs", "1", "--threads",
-                                 "1", "--task", "fk", "--json"], env=ENV)
+    r = CliRunner().invoke(cli, ["train", "--data", str(data), "--out", str(out), "--epochs", "1",
+                                 "--threads", "1", "--task", "fk", "--json"], env=ENV)
     assert r.exit_code == 0, r.output
     kept = json.loads((out / "config.json").read_text())["train"]["model"]
     assert json.loads(r.stdout)["model"] == kept

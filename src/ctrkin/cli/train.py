@@ -105,7 +105,7 @@ def train_cmd(overwrite: bool, as_json: bool, **settings: Any) -> None:
     tr = res.metrics["training"]
     ended = (f"; stopped by {tr['stopped_by']}, {tr['steps']} optimiser steps; fit: {tr['fit']['verdict']}"
              if "fit" in tr else "")          # a reused folder of an earlier version has no fit summary
-    selection = res.metrics.get("model_selection")      # the model validation kept (ctrkin.training.selection)
+    selection = res.metrics.get("model_selection")    # the model validation kept (ctrkin.training.selection)
     model = selection["candidates"][selection["kept"]]["model"] if selection else settings["model"]
     say(f"trained {model}: {tr['epochs']} epochs (best {tr['best_epoch']}, val loss {tr['best_val_loss']:.4g}"
         f"{ended}) in {tr['seconds']:.1f} s; model in {res.out}")
