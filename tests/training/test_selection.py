@@ -62,10 +62,15 @@ def test_the_model_validation_prefers_is_kept_whole_and_the_other_removed(sweeps
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fk"]
     kin = Kinematics.load(out)                       # a complete model folder (manifest included)
     assert kin.predict(sweeps.joints()[:5]).shape == (5, 6)
-    # a second selection into a folder that holds a model needs overwrite; nothing is touched before
+    # the same selection again reuses the folder; another one needs overwrite, nothing touched before
     before = (out / "weights.pt").read_bytes()
-    with pytest.raises(ModelError, match="overwrite"):
-        train(sweeps, _cfg(play_lags=True, joint_field=True), out, progress=False)
+    said.clear()
+    again = train(sweeps, _cfg(play_lags=True, joint_field=True), out, progress=False, log=said.append)
+    assert again.metrics == saved and any("reusing it" in m for m in said)
+    for other in (_cfg(play_lags=True, joint_field=True, lr=5e-3), _cfg(play_lags=True, joint_field=True,
+                                                                         seed=7)):
+        with pytest.raises(ModelError, match="overwrite"):
+            train(sweeps, other, out, progress=False)
     assert (out / "weights.pt").read_bytes() == before
     res2 = train(sweeps, _cfg(play_lags=True, joint_field=True, seed=1), out, overwrite=True, progress=False)
     assert res2.metrics["model_selection"]["kept"] in ("requested", "paper")

@@ -38,7 +38,7 @@ from ctrkin.training.curves import plot_curves, read_history
 from ctrkin.training.data import data_signature, split_rows, split_signature
 from ctrkin.training.device import resolve_device
 from ctrkin.training.fit import diagnose
-from ctrkin.training.selection import selects, train_selecting
+from ctrkin.training.selection import CANDIDATES, candidate_configs, selects, train_selecting
 from ctrkin.util.files import atomic_path, atomic_write_text
 from ctrkin.util.folders import folder_lock, swap_in, write_manifest
 from ctrkin.util.ownership import check_replaceable, write_marker
@@ -172,6 +172,11 @@ def train(ds: Dataset, cfg: TrainConfig, out: str | Path, overwrite: bool = Fals
     with folder_lock(out, ModelError, "train"):        # also cleans what killed runs left
         check_replaceable(out, "model", ModelError)     # only a model folder is ever replaced
         if selects(cfg):                                # two trainings, the one validation prefers kept
+            reused = _reused_selection(ds, cfg, out, overwrite)
+            if reused is not None:
+                say(f"{out} already holds this selection ({reused.metrics['model_selection']['kept']} "
+                    "model kept); reusing it")
+                return reused
             return train_selecting(ds, cfg, out, overwrite, progress, say, _train_locked)
         return _train_locked(ds, cfg, out, overwrite, progress, say)
 
@@ -405,6 +410,20 @@ def _reusable(out: Path, cfg: TrainConfig, signature: str, split_sig: str, overw
         raise ModelError(f"{out} holds a model with a different setup ({'; '.join(diffs)}); pass "
                          f"overwrite (--overwrite) or choose another --out")
     return TrainResult(out, read_json(out / "metrics.json"), read_history(out))
+
+
+def _reused_selection(ds: Dataset, cfg: TrainConfig, out: Path, overwrite: bool) -> TrainResult | None:
+    """The finished selection of `cfg` in `out` (ctrkin.training.selection) if it was made on this
+    data and split; None if there is none (or overwrite); ModelError if `out` holds another setup."""
+    if overwrite or not (out / "metrics.json").is_file():
+        return None
+    kept = read_json(out / "metrics.json").get("model_selection", {}).get("kept")
+    if kept not in CANDIDATES:
+        return None                     # not a selection: train_selecting refuses to replace it
+    chosen = candidate_configs(cfg)[kept]
+    _, rows = split_rows(ds, chosen)
+    chosen = replace(chosen, max_epochs=chosen.epoch_budget(len(rows["train"])))
+    return _reusable(out, chosen, data_signature(ds), split_signature(rows), overwrite=False)
 
 
 def _needs_copy(device: torch.device) -> bool:

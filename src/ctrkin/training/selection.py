@@ -18,6 +18,8 @@ Both are trained, each into a hidden sibling of `out` (`.NAME.select-requested`,
 a killed selection resumes each from its checkpoint); the one with the lower validation position RMSE
 (metrics.json val.vs_measured.position_mm_rmse; the requested one on a tie or without validation
 rows) gets the metrics entry `model_selection` and is swapped in whole for `out`, the other removed.
+The same command again reuses a finished selection of the same setup (the engine's
+`_reused_selection`); a folder holding another model is replaced only with overwrite.
 """
 
 from __future__ import annotations
