@@ -86,7 +86,8 @@ from bench_generalisation import ROBOTS, Case, reversals, small_moves
 # (TrainConfig.tcm_prior); ib2ptr: in the tracker frame (the family's default is the outer tube's);
 # ib2ptm: the paper's LSTM-MLP (lstm_mlp: no branch heads, no fold gate) in the tracker frame with the
 # same inputs, encoding, output and recipe; ib2pg: the fold gate with its folds' scale g
-# (TrainConfig.fold_scale); ib2pto: the offset head form (a shared head plus a branch offset);
+# (TrainConfig.fold_scale; the recommended FK's since 2026-12-07 too: an arm without g keeps g = 1);
+# ib2pto: the offset head form (a shared head plus a branch offset);
 # ib2pf: the tracker's position field learned with the network (TrainConfig.joint_field; the
 # recommended FK's since 2026-12-07: an arm without f has none);
 # ib2ps1: training seed 1
@@ -101,7 +102,7 @@ def arm_config(scale: str, arm: str) -> TrainConfig:
         raise ValueError(f"arm {arm!r} is not ibN[eE][p][q][t][r][m][g][o][f][sK] (e.g. ib8, ib2p, ib2ptr)")
     base = next(r.config for r in plan_runs(get_scale(scale)) if r.name == FK_BRANCH)
     cfg = replace(base, ib=int(m.group(1)), threads=1, device="cpu", play_lags=m.group(3) == "p",
-                  joint_field=m.group(10) == "f")
+                  joint_field=m.group(10) == "f", fold_scale=bool(m.group(8)))
     if m.group(4):
         cfg = replace(cfg, equivariant=True)
     if m.group(5):
@@ -111,8 +112,6 @@ def arm_config(scale: str, arm: str) -> TrainConfig:
     if m.group(7):
         cfg = replace(cfg, model="lstm_mlp", options={"structure": cfg.options["structure"]},
                       target_frame="tracker")
-    if m.group(8):
-        cfg = replace(cfg, fold_scale=True)
     if m.group(9):
         cfg = replace(cfg, options={**cfg.options, "heads": "offset"})
     if m.group(11) is not None:

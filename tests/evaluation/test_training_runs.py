@@ -49,11 +49,13 @@ def test_the_memory_benchmarks_arms_are_the_reproductions_recipe_with_their_ib_a
     ib4 = bench.arm_config("quick", "ib4")
     assert (ib4.ib, ib4.max_epochs, ib4.threads) == (4, quick.max_epochs, 1)
     same = {"ib": quick.ib, "threads": quick.threads, "device": quick.device}
-    assert quick.play_lags and quick.joint_field         # the recommended FK's memory and field
-    field = {"joint_field": True}                        # an arm without f: no joint field
+    # the recommended FK's memory, field and fold scale
+    assert quick.play_lags and quick.joint_field and quick.fold_scale
+    field = {"joint_field": True, "fold_scale": True}    # an arm without f: no joint field; without g: g = 1
     assert ib4.to_dict() | same | {"play_lags": True} | field == quick.to_dict()    # without p: no lags
-    assert not ib4.play_lags and not ib4.joint_field
-    assert bench.arm_config("quick", "ib2pf").to_dict() | same == quick.to_dict()   # ib2pf: the recipe
+    assert not ib4.play_lags and not ib4.joint_field and not ib4.fold_scale
+    assert bench.arm_config("quick", "ib2pgf").to_dict() | same == quick.to_dict()  # ib2pgf: the recipe
+    assert bench.arm_config("quick", "ib2pf").to_dict() | same | field == quick.to_dict()
     assert bench.arm_config("quick", "ib2p").to_dict() | same | field == quick.to_dict()
     assert bench.arm_config("quick", "ib2ps3").seed == 3 and bench.arm_config("quick", "ib2pq").equivariant
     prior = bench.arm_config("quick", "ib2pts1")
@@ -68,8 +70,8 @@ def test_the_memory_benchmarks_arms_are_the_reproductions_recipe_with_their_ib_a
     assert (plain.angle_encoding, plain.output_activation, plain.play_lags, plain.tcm_prior) == \
         (quick.angle_encoding, quick.output_activation, True, True)
     scaled = bench.arm_config("quick", "ib2pg")
-    assert scaled.fold_scale and not quick.fold_scale
-    assert scaled.to_dict() | same | {"fold_scale": False} | field == quick.to_dict()
+    assert scaled.fold_scale and not scaled.joint_field
+    assert scaled.to_dict() | same | field == quick.to_dict()
     offset = bench.arm_config("quick", "ib2ptro")          # the offset head form, on the prior, tracker frame
     assert offset.options == quick.options | {"heads": "offset"} and quick.options["heads"] == "separate"
     assert (offset.tcm_prior, offset.target_frame) == (True, "tracker")

@@ -37,7 +37,14 @@ from ctrkin.evaluation.table import (
 )
 from ctrkin.families.refined.folder import assemble_refined
 from ctrkin.inference import Kinematics
-from ctrkin.training.config import FK_JOINT_FIELD, FK_PLAY_LAGS, IK_CATCH_UP, IK_OUTER_ANGLE, TrainConfig
+from ctrkin.training.config import (
+    FK_FOLD_SCALE,
+    FK_JOINT_FIELD,
+    FK_PLAY_LAGS,
+    IK_CATCH_UP,
+    IK_OUTER_ANGLE,
+    TrainConfig,
+)
 from ctrkin.training.device import resolve_device
 from ctrkin.training.engine import train
 from ctrkin.util.progress import progress_bar
@@ -75,7 +82,7 @@ def plan_runs(scale: ReproScale) -> list[Run]:
         Run(FK_PAPER, "main", cfg(scale.main, task="fk")),
         Run(IK_PAPER, "main", cfg(scale.main, task="ik")),
         Run(FK_BRANCH, "main", cfg(scale.branch, task="fk", model="lstm_mlp_branch", play_lags=FK_PLAY_LAGS,
-                                   joint_field=FK_JOINT_FIELD)),
+                                   joint_field=FK_JOINT_FIELD, fold_scale=FK_FOLD_SCALE)),
         Run(IK_FOLLOW, "main", cfg(scale.follow, task="ik", model="follow_mlp", outer_angle=IK_OUTER_ANGLE,
                                    catch_up=IK_CATCH_UP)),
     ]

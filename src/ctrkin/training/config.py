@@ -57,16 +57,24 @@ PATIENCE_STEPS = 1_000     # early stopping's least optimiser steps without an i
 # (FK_SELECT_BY_VALIDATION; ctrkin.training.selection): on the comet-lab OptiTrack logs (one amplitude of
 # sweep, no snap) validation and the held-out sweep both prefer the LSTM-MLP (docs/real_robot.md). The
 # reproduction's runs do not select: its robots snap and its protocols reverse everywhere.
+# Its fold gate fits a scale g on the nominal folds, kept only where it lowers the leave-one-run-out
+# residual of the training snaps (FK_FOLD_SCALE; ctrkin.families.snap_aware.fold_gate): g = 1 on
+# default-top and design-b; on three-tube-central (g ≈ 0.5) the validation rows' RMSE as predict gives
+# it fell 0.340 -> 0.268 mm at quick and 0.327 -> 0.175 mm at full scale, and the sweeps' and snap
+# turns' P/R rose to 1.00 (bench_fk_memory.py arms ib2pf, ib2pgf; docs/learned_kinematics.md: The
+# folds' scale, measured).
 FK_MEMORY_IB = 2
 FK_PLAY_LAGS = True
 FK_JOINT_FIELD = True
 FK_SELECT_BY_VALIDATION = True
+FK_FOLD_SCALE = True
 IK_OUTER_ANGLE = True
 IK_CATCH_UP = 0.25
 RECOMMENDED: dict[str, dict[str, Any]] = {
     "fk": {"model": "lstm_mlp_branch", "batch_size": 256, "lr": 2e-3, "lr_schedule": "cosine",
            "base_epochs": 80, "patience": 80, "ib": FK_MEMORY_IB, "play_lags": FK_PLAY_LAGS,
-           "joint_field": FK_JOINT_FIELD, "select_by_validation": FK_SELECT_BY_VALIDATION},
+           "joint_field": FK_JOINT_FIELD, "fold_scale": FK_FOLD_SCALE,
+           "select_by_validation": FK_SELECT_BY_VALIDATION},
     "ik": {"model": "follow_mlp", "batch_size": 512, "lr": 2e-3, "lr_schedule": "cosine",
            "base_epochs": 40, "patience": 40, "min_steps": 0, "outer_angle": IK_OUTER_ANGLE,
            "catch_up": IK_CATCH_UP},
@@ -181,7 +189,8 @@ class TrainConfig:
     fold_scale: bool = field(default=False, metadata=_help(
         "Branch models only: the fold gate also fits a scale g on the nominal robot's folds "
         "(θ± = g·φ± ± c − κ·m_N, kept only where it lowers the leave-one-run-out residual of the "
-        "training snaps; ctrkin.families.snap_aware.fold_gate); default g = 1."))
+        "training snaps; ctrkin.families.snap_aware.fold_gate); without it g = 1. The recommended "
+        "FK's (`ctrkin train --task fk` and the reproduction)."))
     catch_up: float = field(default=0.0, metadata=_help(
         "The follow IK only: the share of its training rows that start from joints the recording had "
         "1-60 rows earlier in the same sequence, labelled with the recorded next joints: the catch-up "

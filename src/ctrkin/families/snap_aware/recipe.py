@@ -162,7 +162,7 @@ def fold_gate(ds: Any, rows: np.ndarray, fold_scale: bool = False) -> FoldGate:
     dataset's nominal robot over the translations of `rows` (the training rows, sorted), fitted to
     their snaps; the outer tube's last rotation and the slide memory's lags are followed over the
     whole dataset (runs cross the split), and the runs are the slide memory's cross-validation folds;
-    fold_scale: also fit the folds' scale g (fold_gate module docstring; training keeps g = 1)."""
+    fold_scale: also fit the folds' scale g (fold_gate module docstring; the recommended FK's)."""
     f = ds.frame
     q = ds.joints()
     motion, _ = recorded_motion(f, q, ds.sequence_bounds(), ds.n_tubes)
