@@ -190,6 +190,11 @@ def recommended_fk(ds, out: Path, seeds: int = FK_SEEDS, max_epochs: int | None 
             kept)
 
 
+def seeds_and_kept(seeds: list[float], kept: list[str]) -> str:
+    """The recommended FK row's note: each seed's figure and the model it kept."""
+    return "single seeds " + " ".join(f"{e:.3f}" for e in seeds) + "; kept " + " ".join(kept)
+
+
 PRIOR_ARMS = (None, "residual", "input")     # bench_memory's window arm without and with the TCM prior
 
 
@@ -285,8 +290,8 @@ def main() -> None:
         ds = load(args.data, "optitrack", "optitrack-2tube")
         ds.split = held_out_split(ds)
         rec, rec_seeds, kept = recommended_fk(ds, args.out)
-        print(f"recommended FK ({FK_SEEDS}-seed mean), held-out sweep: {rec:.3f} mm; single seeds "
-              + " ".join(f"{e:.3f}" for e in rec_seeds) + "; kept " + " ".join(kept))
+        print(f"recommended FK ({FK_SEEDS}-seed mean), held-out sweep: {rec:.3f} mm; "
+              + seeds_and_kept(rec_seeds, kept))
         print(f"({time.time() - t0:.0f} s)")
         print(json.dumps({"optitrack_recommended_fk_heldout_mm": round(rec, 3)}))
         return
@@ -327,8 +332,7 @@ def main() -> None:
             rec, rec_seeds, kept = recommended_fk(ds, args.out)     # the split learned_fk left on ds
             res["optitrack_recommended_fk_heldout_mm"] = round(rec, 3)
             rows.append((name, f"recommended FK ({FK_SEEDS}-seed mean), held-out sweep", f"{rec:.3f} mm",
-                         "single seeds " + " ".join(f"{e:.3f}" for e in rec_seeds)
-                         + "; kept " + " ".join(kept)))
+                         seeds_and_kept(rec_seeds, kept)))
             arms = prior_fk(ds, args.epochs, best)      # the split learned_fk left on ds
             res["optitrack_fk_prior_heldout_mm"] = round(arms["residual"][0], 3)
             labels = {"tcm": "calibrated TCM alone (training rows), held-out sweep",

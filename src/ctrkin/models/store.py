@@ -49,6 +49,7 @@ if TYPE_CHECKING:
 CONFIG, FEATURES, NORMALIZATION, ROBOT, WEIGHTS = ("config.json", "features.json", "normalization.json",
                                                    "robot.json", "weights.pt")
 FRAME = "frame.json"
+CHECKPOINT = "checkpoint.pt"    # training's resumable state: not in the manifest (ctrkin.training.engine)
 REQUIRED = (CONFIG, FEATURES, NORMALIZATION, ROBOT, WEIGHTS)
 
 
@@ -163,7 +164,7 @@ class ModelBundle:
         buf = io.BytesIO()      # in memory: the archive's inner name is fixed, not the temp file's
         torch.save(self.net.state_dict(), buf)
         atomic_write_bytes(out / WEIGHTS, buf.getvalue())
-        write_manifest(out, skip=("checkpoint.pt",))
+        write_manifest(out, skip=(CHECKPOINT,))
         return out
 
     @classmethod

@@ -31,7 +31,7 @@ from ctrkin.data.splits import split_warnings
 from ctrkin.errors import ModelError
 from ctrkin.families.registry import build_net, recipe
 from ctrkin.models.recipe import Recipe, TrainingData
-from ctrkin.models.store import CONFIG, ModelBundle, read_json, write_json
+from ctrkin.models.store import CHECKPOINT, CONFIG, ModelBundle, read_json, write_json
 from ctrkin.models.window_lstm import use_window_lstm
 from ctrkin.training.config import TrainConfig
 from ctrkin.training.curves import plot_curves, read_history
@@ -44,7 +44,6 @@ from ctrkin.util.folders import folder_lock, swap_in, write_manifest
 from ctrkin.util.ownership import check_replaceable, write_marker
 from ctrkin.util.progress import progress_bar
 
-CHECKPOINT = "checkpoint.pt"
 CHECKPOINT_EVERY_S = 5.0     # at most one checkpoint per this many seconds of training, and the last
 SMOOTH_RTOL = 1e-3
 

@@ -33,12 +33,11 @@ from typing import Any
 
 from ctrkin.data.dataset import Dataset
 from ctrkin.errors import ModelError
-from ctrkin.models.store import write_json
+from ctrkin.models.store import CHECKPOINT, write_json
 from ctrkin.training.config import TrainConfig
 from ctrkin.util.folders import swap_in, write_manifest
 
 CANDIDATES = ("requested", "paper")
-CHECKPOINT = "checkpoint.pt"
 
 TrainOne = Callable[[Dataset, TrainConfig, Path, bool, bool, Callable[[str], None]], Any]
 
