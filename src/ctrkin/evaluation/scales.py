@@ -9,7 +9,7 @@ from typing import Any, Literal, get_args
 
 from ctrkin.acquisition.protocols import PAPER_SIZES
 from ctrkin.errors import CtrkinError
-from ctrkin.training.config import DEVICES, FK_MEMORY_IB, Device, LrSchedule, scaled_lr
+from ctrkin.training.config import DEVICES, FK_MEMORY_IB, IK_EPOCHS, Device, LrSchedule, scaled_lr
 from ctrkin.virtual.config import SETTINGS_HELP, VirtualConfig
 
 
@@ -99,7 +99,7 @@ SCALES = {
         "quick", "quick", PAPER_SIZES["quick"].levels_mm, PAPER_SIZES["quick"].outer_step_deg,
         main=Budget(150, 15, 64, fused_adam=False),
         branch=Budget(80, 80, 256, 2e-3, "cosine", fused_adam=False, ib=FK_MEMORY_IB),
-        follow=Budget(40, 40, 512, 2e-3, "cosine", fused_adam=False),
+        follow=Budget(IK_EPOCHS, IK_EPOCHS, 512, 2e-3, "cosine", fused_adam=False),
         compare=Budget(40, 8, 128, fused_adam=False), grid=Budget(15, 5, 128, fused_adam=False),
         grid_sequences=None,
     ),
