@@ -108,6 +108,51 @@ def test_ctrl_c_stops_keeps_the_journal_and_resume_gives_the_uninterrupted_resul
     pd.testing.assert_frame_equal(without_time(resumed), without_time(whole))
 
 
+def test_ctrl_c_inside_a_compiled_call_stops_as_ctrl_c_does(tmp_path):
+    """A Ctrl-C that lands while numba dispatches a compiled function (the joint check) comes back as a
+    SystemError caused by the KeyboardInterrupt (seen on CI): the collection stops as for Ctrl-C, the
+    journal kept, and a resume gives the uninterrupted result."""
+    rig = virtual_rig()
+    plan = small_paper_plan(rig.robot)
+    whole = collect(plan, rig, tmp_path / "whole")
+    out = tmp_path / "cut"
+    actuator, tracker = open_rig(rig)
+    move, calls = actuator.move, [0]
+
+    def move_interrupted_at_the_30th(q, velocity):
+        calls[0] += 1
+        if calls[0] == 30:
+            try:
+                raise KeyboardInterrupt
+            except KeyboardInterrupt as e:
+                raise SystemError("CPUDispatcher(<function joint_violations>) returned a result with an "
+                                  "exception set") from e
+        return move(q, velocity)
+
+    actuator.move = move_interrupted_at_the_30th
+    with pytest.raises(RigInterrupted, match=r"motors stopped.*resume"):
+        RigCollection(plan, rig, actuator, tracker, out, progress=False).run()
+    assert actuator._stopped
+    kept = ReadingsLog(out / LOG_FILE, rig.robot.joint_names(), 1).read()
+    assert 20 <= len(kept) < plan.n_samples
+    resumed = collect(plan, rig, out)
+    pd.testing.assert_frame_equal(without_time(resumed), without_time(whole))
+
+
+def test_another_error_inside_a_compiled_call_is_not_taken_for_ctrl_c(tmp_path):
+    rig = virtual_rig()
+    plan = small_paper_plan(rig.robot)
+    actuator, tracker = open_rig(rig)
+
+    def move_failing(q, velocity):
+        raise SystemError("a result with an exception set") from ValueError("not an interrupt")
+
+    actuator.move = move_failing
+    with pytest.raises(SystemError):
+        RigCollection(plan, rig, actuator, tracker, tmp_path / "out", progress=False).run()
+    assert actuator._stopped
+
+
 def test_resume_drops_an_incomplete_last_sample_and_refuses_another_protocol(tmp_path):
     rig = virtual_rig()
     plan = small_paper_plan(rig.robot)

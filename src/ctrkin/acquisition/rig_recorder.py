@@ -225,8 +225,10 @@ class RigCollection:
         except JointError as e:         # a joint limit: a safety stop like the others
             self._halt()
             raise RigStop(f"refused to move: {e}; motors stopped; {self._kept()}") from None
-        except Exception:
+        except Exception as e:
             self._halt()
+            if _caused_by_interrupt(e):     # Ctrl-C that landed inside a compiled (numba) call
+                raise RigInterrupted(f"interrupted (Ctrl-C): motors stopped; {self._kept()}") from None
             raise
         finally:
             if bar is not None:
@@ -384,3 +386,15 @@ def write_dataset(ds: Dataset, out: Path) -> None:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+def _caused_by_interrupt(e: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is among the causes of `e`: a Ctrl-C delivered while numba
+    dispatches a compiled function comes back as a SystemError ("... returned a result with an
+    exception set") whose cause is the interrupt."""
+    seen: set[int] = set()
+    cause: BaseException | None = e
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, KeyboardInterrupt):
+            return True
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return False
