@@ -216,18 +216,15 @@ class RigCollection:
         try:
             self.tracker.start()
             self._runs(runs, done, clock, bar)
-        except KeyboardInterrupt:
-            self._halt()
-            raise RigInterrupted(f"interrupted (Ctrl-C): motors stopped; {self._kept()}") from None
         except (RigStop, HardwareError) as e:
             self._halt()
             raise type(e)(f"{e}; {self._kept()}") from None
         except JointError as e:         # a joint limit: a safety stop like the others
             self._halt()
             raise RigStop(f"refused to move: {e}; motors stopped; {self._kept()}") from None
-        except Exception as e:
+        except (KeyboardInterrupt, Exception) as e:
             self._halt()
-            if _caused_by_interrupt(e):     # Ctrl-C that landed inside a compiled (numba) call
+            if _caused_by_interrupt(e):     # Ctrl-C, also one that a compiled (numba) call re-raised
                 raise RigInterrupted(f"interrupted (Ctrl-C): motors stopped; {self._kept()}") from None
             raise
         finally:
