@@ -20,6 +20,10 @@ torch and one ONNX Runtime thread.
 Figures: `fk_step_us` (Kinematics.step, one sequence of test joints), `fk_floor_us` (float64 chain;
 float32 beside it; each worker times its steps and the floor in alternating blocks of 50 calls, and
 `*_step_to_floor` is the median of the rounds' step / floor ratios, which load does not move much),
+`fk_floor_layout_us` (the same multiply-adds by the step's own product kernel,
+ctrkin.models.engine._matvec: float32 weight matrices read four rows a pass, float64 sums; no
+activation but the ReLU; `new_step_to_layout_floor` the step over it: the float64 floor reads 8-byte
+weights one row a pass, which the step no longer does),
 `onnx_step_us` (the exported graph on one window), predictions/s of `predict` on one sequence of B
 rows for B = 1, 32, 1024, 65,536, and ONNX Runtime's on B windows (a third worker, in the same
 alternating rounds; `*_to_onnx_b*`: the median of the rounds' ratios of predictions/s);
@@ -149,7 +153,7 @@ def worker(model: Path, inputs: Path) -> None:
         if what == "step":
             out: Any = _step_and_floor_us(kin, floor, steps)
         elif what == "floor":
-            out = floor_us(model, np.float32)[0]
+            out = [floor_us(model, np.float32)[0], floor_us(model, np.float64, layout=True)[0]]
         else:
             b = int(arg[0])
             out = _predict_us(kin, long[:b], CALLS[b])
@@ -234,35 +238,67 @@ def _floor_kernel() -> Any:
     return chain
 
 
-def floor_call(kin: Any, dtype: type) -> tuple[Any, int]:
-    """The bare chain in `dtype` on the weights of `kin` (a call without arguments), its multiply-adds."""
-    chain, args, macs = floor_parts(kin, dtype)
+def _layout_floor_kernel() -> Any:
+    from numba import njit
+
+    from ctrkin.models.engine import _matvec
+
+    @njit(cache=True, fastmath=True)
+    def chain(x: np.ndarray, w_ih: np.ndarray, w_hh: np.ndarray, b: np.ndarray, h: np.ndarray,
+              w1: np.ndarray, b1: np.ndarray, w2: np.ndarray, b2: np.ndarray, gates: np.ndarray,
+              z: np.ndarray, hid: np.ndarray, out: np.ndarray) -> None:
+        """The floor chain's products in the step's layout: the library's own product kernel
+        (ctrkin.models.engine._matvec: float32 weights, float64 sums, four rows a pass), the biases
+        and the ReLU, nothing else."""
+        _matvec(w_ih, x, gates, False)
+        _matvec(w_hh, h, gates, True)
+        for k in range(gates.size):
+            gates[k] += b[k]
+        _matvec(w1, z, hid, False)
+        for k in range(hid.size):
+            hid[k] = max(hid[k] + b1[k], 0.0)
+        _matvec(w2, hid, out, False)
+        for k in range(out.size):
+            out[k] += b2[k]
+
+    return chain
+
+
+def floor_call(kin: Any, dtype: type, layout: bool = False) -> tuple[Any, int]:
+    """The bare chain in `dtype` (or the step's layout) on the weights of `kin` (a call without
+    arguments), its multiply-adds."""
+    chain, args, macs = floor_parts(kin, dtype, layout)
     return (lambda: chain(*args)), macs
 
 
-def floor_parts(kin: Any, dtype: type) -> tuple[Any, tuple[np.ndarray, ...], int]:
+def floor_parts(kin: Any, dtype: type, layout: bool = False) -> tuple[Any, tuple[np.ndarray, ...], int]:
     """The bare chain's compiled kernel, its arguments in `dtype` on the weights of `kin`, its
-    multiply-adds."""
+    multiply-adds. layout: the chain in the streaming step's layout instead (_layout_floor_kernel:
+    float32 weight matrices, everything else float64)."""
     net = kin.net
     lstm, dense, out = net.seq[0], net.head[0], net.out
     w = [np.ascontiguousarray(t.detach().numpy(), dtype=dtype) for t in (lstm.weight_ih_l0, lstm.weight_hh_l0,
                                                                          lstm.bias_ih_l0, dense.weight,
                                                                          dense.bias, out.weight, out.bias)]
+    if layout:
+        w = [a.astype(np.float32) if a.ndim == 2 else a.astype(np.float64) for a in w]
+        dtype = np.float64
     rng = np.random.default_rng(0)
     x, h = rng.random(w[0].shape[1]).astype(dtype), rng.random(w[1].shape[1]).astype(dtype)
     z = rng.random(w[3].shape[1]).astype(dtype)
     gates, hid, y = (np.empty(w[k].shape[0], dtype) for k in (0, 3, 5))
     args = (x, w[0], w[1], w[2], h, w[3], w[4], w[5], w[6], gates, z, hid, y)
-    chain = _floor_kernel()
+    chain = _layout_floor_kernel() if layout else _floor_kernel()
     chain(*args)
     return chain, args, w[0].size + w[1].size + w[3].size + w[5].size
 
 
-def floor_us(model: Path, dtype: type, calls: int = 1000) -> tuple[float, int]:
-    """Median time (µs) of the bare chain in `dtype` with the model's weights, and its multiply-adds."""
+def floor_us(model: Path, dtype: type, calls: int = 1000, layout: bool = False) -> tuple[float, int]:
+    """Median time (µs) of the bare chain in `dtype` (or the step's layout) with the model's weights,
+    and its multiply-adds."""
     from ctrkin.inference import Kinematics
 
-    call, macs = floor_call(Kinematics.load(model), dtype)
+    call, macs = floor_call(Kinematics.load(model), dtype, layout)
     ns = np.empty(calls)
     for k in range(calls):
         t0 = time.perf_counter_ns()
@@ -352,7 +388,10 @@ def compare(model: Path, joints: np.ndarray, rounds: int, old_src: Path, folder:
             figures[f"{w}_predict_{path}per_row_us"] = float(slope)
         figures[f"{w}_predict_b1_us"] = med["predict 1"]
     figures["fk_floor_us"] = figures["new_fk_floor_us"]
-    figures["fk_floor_f32_us"] = float(np.median(answers["new"]["floor 32"]))
+    floors = np.array(answers["new"]["floor 32"])                # (rounds, 2): f32, the step's layout
+    figures["fk_floor_f32_us"] = float(np.median(floors[:, 0]))
+    figures["fk_floor_layout_us"] = float(np.median(floors[:, 1]))
+    figures["new_step_to_layout_floor"] = figures["new_fk_step_us"] / figures["fk_floor_layout_us"]
     figures["multiply_adds"] = floor_us(model, np.float64, calls=1)[1]
     figures["fk_step_us"] = figures["new_fk_step_us"]
     figures["predict_call_overhead_us"] = figures["new_predict_call_overhead_us"]
@@ -368,6 +407,8 @@ def print_table(f: dict[str, Any], rev: str, load: str) -> None:
     print(f"{'  to the f64 floor (round by round)':34s} {f['old_step_to_floor']:14.2f} "
           f"{f['new_step_to_floor']:12.2f}   (f32 floor {f['fk_floor_f32_us']:.2f} µs, "
           f"{f['multiply_adds']:,} multiply-adds)")
+    print(f"{'  to the floor in the step layout':34s} {'':14s} {f['new_step_to_layout_floor']:12.2f}   "
+          f"(float32 weights, f64 sums, 4 rows a pass: {f['fk_floor_layout_us']:.2f} µs)")
     for path, sizes in FITS.items():
         what = f"predict fixed cost µs (B={sizes[0]}..{sizes[-1]})"
         print(f"{what:34s} {f[f'old_predict_{path}call_overhead_us']:14.1f} "

@@ -50,15 +50,16 @@ def _loops() -> dict[str, Any]:
     from ctrkin.models.fused import _fk_step
 
     @njit
-    def fk_step(n, raw, shift, prev, consts, state, ints, branch, gate_state, motion, outer_prev, lag):
+    def fk_step(n, raw, shift, prev, consts, weights, state, ints, branch, gate_state, motion, outer_prev,
+                lag):
         for _ in range(n):
-            _fk_step(raw, shift, prev, consts, state, ints, True, False, branch, gate_state, motion,
+            _fk_step(raw, shift, prev, consts, weights, state, ints, True, False, branch, gate_state, motion,
                      outer_prev, lag)
 
     @njit
     def lstm(n, x, w_ih, w_hh, b, h, c, h2, c2, g, t, bits):
         for _ in range(n):
-            _lstm_rows(x, True, w_ih, w_hh, b, h, c, h2, c2, g, t, bits)
+            _lstm_rows(x, True, w_ih, w_hh, b, h, c, h2, c2, g, t, bits, h.shape[0])
 
     @njit
     def sigmoid(n, g, t, bits):
@@ -94,12 +95,12 @@ def variants(kin: Any, xs: np.ndarray, floor: Callable[[], Any], floor_args: tup
         kin.step(x)
     it = iter(np.tile(xs, (1000, 1)))
     shift, prev = pred._shift, pred._prev.copy()
-    consts, state_buf, ints = fused._bufs
+    consts, weights, state_buf, ints = fused._bufs
     scalars = (eng.state, pred._gate_state, pred._outer_motion, pred._outer_prev, 0.0)
     from ctrkin.models.fused import _fk_step
 
     loops = _loops()
-    kernel_args = (np.ascontiguousarray(xs[0]), shift, prev, consts, state_buf, ints, *scalars)
+    kernel_args = (np.ascontiguousarray(xs[0]), shift, prev, consts, weights, state_buf, ints, *scalars)
     w_ih, w_hh, b = fused.lstm
     g, t = eng._g[0].copy(), eng._t[0].copy()
     bits = eng._bits[0].copy()
@@ -118,8 +119,8 @@ def variants(kin: Any, xs: np.ndarray, floor: Callable[[], Any], floor_args: tup
     steps: dict[str, Callable[[], float]] = {
         "Kinematics.step": _per_call(lambda: kin.step(next(it)), 1),
         "FKPredictor.step": _per_call(lambda: pred.step(next(it)), 1),
-        "the kernel call": _per_call(lambda: _fk_step(next(it), shift, prev, consts, state_buf, ints, True,
-                                                      False, *scalars), 1),
+        "the kernel call": _per_call(lambda: _fk_step(next(it), shift, prev, consts, weights, state_buf, ints,
+                                                      True, False, *scalars), 1),
     }
     for name in loops:
         fn, a = loops[name], state[name]

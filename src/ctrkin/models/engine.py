@@ -14,6 +14,11 @@ The start of a sequence is the batch path's padding (the first step repeated): `
 the first `step()` feeds that step IB times.
 
 All arithmetic is float64, so the engine matches the float32 torch batch path to float32 round-off.
+The weight matrices are kept as the float32 numbers torch trained (`_f32`; the LSTM's doubled
+cell-candidate rows too, a power of two): each converts to float64 exactly, so the products are
+those of float64 weights, and a step reads half the bytes. The products go four weight rows at a
+time over the input vector (`_matvec`), which loads each input once for four rows (issue 26: the
+recurrent product of the paper FK, 512 × 128, 9.2 → 4.9 µs on this machine).
 """
 
 from __future__ import annotations
@@ -56,37 +61,62 @@ def _sigmoid_inplace(x: np.ndarray, bits: np.ndarray) -> None:
 
 
 @numba.njit(cache=True, fastmath=True)
+def _matvec(w: np.ndarray, v: np.ndarray, out: np.ndarray, add: bool) -> None:
+    """out[k] = Σ_m w[k, m]·v[m] (added to out[k] if `add`) for the rows k of w (K, M), four rows a
+    pass over v: each v[m] is loaded once for four rows, and four sums run side by side."""
+    rows, cols = w.shape
+    top = rows - rows % 4
+    for k in range(0, top, 4):
+        s0 = s1 = s2 = s3 = 0.0
+        for m in range(cols):
+            vm = v[m]
+            s0 += w[k, m] * vm
+            s1 += w[k + 1, m] * vm
+            s2 += w[k + 2, m] * vm
+            s3 += w[k + 3, m] * vm
+        if add:
+            out[k] += s0
+            out[k + 1] += s1
+            out[k + 2] += s2
+            out[k + 3] += s3
+        else:
+            out[k], out[k + 1], out[k + 2], out[k + 3] = s0, s1, s2, s3
+    for k in range(top, rows):
+        s = 0.0
+        for m in range(cols):
+            s += w[k, m] * v[m]
+        out[k] = out[k] + s if add else s
+
+
+@numba.njit(cache=True, fastmath=True)
 def _lstm_rows(inp: np.ndarray, shared: bool, w_ih: np.ndarray, w_hh: np.ndarray, b: np.ndarray,
                h_prev: np.ndarray, c_prev: np.ndarray, h_new: np.ndarray, c_new: np.ndarray,
-               g: np.ndarray, t: np.ndarray, bits: np.ndarray) -> None:
-    """One LSTM cell update for each of R chains (torch gate order i, f, g, o), in place.
+               g: np.ndarray, t: np.ndarray, bits: np.ndarray, live: int) -> None:
+    """One LSTM cell update for each of the first `live` of R chains (torch gate order i, f, g, o), in
+    place.
 
     inp: (R, in) inputs (row 0 only if `shared`); h_prev, c_prev: (R, H) chain states, row j is the
     chain that becomes row j+1; row 0 of the result starts from zero state. The result is computed
     in h_new, c_new (scratch) and copied back into h_prev, c_prev, so the state arrays keep their
-    identity (the fused FK step, ctrkin.models.fused, holds them).
+    identity (the fused FK step, ctrkin.models.fused, holds them). Rows from `live` on are left as
+    they are: at a sequence's start they are chains begun before it, which no window reads
+    (StreamingEngine._advance).
     w_ih, w_hh, b have the cell-candidate rows doubled, so that tanh(g) = 2·σ(2g) − 1 comes out of
     one sigmoid pass over all gates. Scratch: g (R, 4H), t (R, H), bits (R·4H,) int64.
     """
-    r_count, hid = h_new.shape
-    n_in = inp.shape[1]
+    hid = h_new.shape[1]
+    r_count = live
     for r in range(r_count):
         if shared and r > 0:        # same input for every chain: reuse row 0's projection
             for k in range(4 * hid):
                 g[r, k] = g[0, k]
         else:
+            _matvec(w_ih, inp[r], g[r], False)
             for k in range(4 * hid):
-                s = b[k]
-                for m in range(n_in):
-                    s += w_ih[k, m] * inp[r, m]
-                g[r, k] = s
+                g[r, k] += b[k]
     for r in range(1, r_count):
-        for k in range(4 * hid):
-            s = 0.0
-            for m in range(hid):
-                s += w_hh[k, m] * h_prev[r - 1, m]
-            g[r, k] += s
-    _sigmoid_inplace(g.reshape(-1), bits)
+        _matvec(w_hh, h_prev[r - 1], g[r], True)
+    _sigmoid_inplace(g[:r_count].reshape(-1), bits)
     for r in range(r_count):
         for u in range(hid):
             c = g[r, u] * (2.0 * g[r, 2 * hid + u] - 1.0)       # σ(i)·tanh(g)
@@ -94,12 +124,12 @@ def _lstm_rows(inp: np.ndarray, shared: bool, w_ih: np.ndarray, w_hh: np.ndarray
                 c += g[r, hid + u] * c_prev[r - 1, u]          # + σ(f)·c
             c_new[r, u] = c
             t[r, u] = 2.0 * c
-    _sigmoid_inplace(t.reshape(-1), bits)
+    _sigmoid_inplace(t[:r_count].reshape(-1), bits)
     for r in range(r_count):
         for u in range(hid):
             h_new[r, u] = g[r, 3 * hid + u] * (2.0 * t[r, u] - 1.0)    # σ(o)·tanh(c)
-    h_prev[:, :] = h_new
-    c_prev[:, :] = c_new
+    h_prev[:r_count, :] = h_new[:r_count]
+    c_prev[:r_count, :] = c_new[:r_count]
 
 
 @numba.njit(cache=True)
@@ -120,19 +150,13 @@ def _lstm_from(inp: np.ndarray, w_ih: np.ndarray, w_hh: np.ndarray, b: np.ndarra
     from zero state if `fresh`; weights as in _lstm_rows. Writes h_new (K, H); scratch g (K, 4H),
     t (K, H), bits (K·4H,)."""
     k_count, hid = h_new.shape
-    base = b.copy()
+    base = np.zeros(4 * hid)
     if not fresh:
-        for k in range(4 * hid):
-            s = 0.0
-            for m in range(hid):
-                s += w_hh[k, m] * h0[m]
-            base[k] += s
+        _matvec(w_hh, h0, base, False)
     for r in range(k_count):
+        _matvec(w_ih, inp[r], g[r], False)
         for k in range(4 * hid):
-            s = base[k]
-            for m in range(inp.shape[1]):
-                s += w_ih[k, m] * inp[r, m]
-            g[r, k] = s
+            g[r, k] += b[k] + base[k]
     _sigmoid_inplace(g.reshape(-1), bits)
     for r in range(k_count):
         for u in range(hid):
@@ -150,10 +174,9 @@ def _lstm_from(inp: np.ndarray, w_ih: np.ndarray, w_hh: np.ndarray, b: np.ndarra
 def _dense_rows(inp: np.ndarray, w: np.ndarray, b: np.ndarray, out: np.ndarray, relu: bool) -> None:
     """out = act(inp @ w.T + b); inp: (R, in), w: (O, in), out: (R, O)."""
     for r in range(inp.shape[0]):
+        _matvec(w, inp[r], out[r], False)
         for k in range(w.shape[0]):
-            s = b[k]
-            for m in range(w.shape[1]):
-                s += w[k, m] * inp[r, m]
+            s = out[r, k] + b[k]
             out[r, k] = max(s, 0.0) if relu else s
 
 
@@ -161,6 +184,13 @@ def _f64(t: object) -> np.ndarray:
     if not isinstance(t, torch.Tensor):
         raise ModelError(f"expected a weight tensor, got {type(t).__name__}")
     return np.ascontiguousarray(t.detach().cpu().numpy(), dtype=np.float64)
+
+
+def _f32(w: np.ndarray) -> np.ndarray:
+    """A weight matrix as float32, where it is exactly representable (a float32 net's weights, or them
+    times a power of two); float64 otherwise (a net trained in float64 keeps its numbers)."""
+    w32 = np.ascontiguousarray(w, dtype=np.float32)
+    return w32 if np.array_equal(w32, w) else np.ascontiguousarray(w, dtype=np.float64)
 
 
 class StreamingEngine:
@@ -179,17 +209,18 @@ class StreamingEngine:
                 hid = layer.hidden_size
                 scale = np.ones((4 * hid, 1))
                 scale[2 * hid:3 * hid] = 2.0          # see _lstm_rows: tanh(g) = 2σ(2g) − 1
-                self.seq.append(("lstm", (_f64(layer.weight_ih_l0) * scale, _f64(layer.weight_hh_l0) * scale,
+                self.seq.append(("lstm", (_f32(_f64(layer.weight_ih_l0) * scale),
+                                          _f32(_f64(layer.weight_hh_l0) * scale),
                                           (_f64(layer.bias_ih_l0) + _f64(layer.bias_hh_l0)) * scale[:, 0])))
                 width = hid
             else:
                 assert isinstance(layer, nn.Linear)
-                self.seq.append(("dense", (_f64(layer.weight), _f64(layer.bias))))
+                self.seq.append(("dense", (_f32(_f64(layer.weight)), _f64(layer.bias))))
                 width = layer.out_features
         # one head per state of a net that carries one (SeqNet.heads), and its gate MLP on the trunk
         # features with the previous state appended (SeqNet.gate_layers)
-        self.heads = [([(_f64(lin.weight), _f64(lin.bias)) for lin in head],
-                       (_f64(out.weight), _f64(out.bias))) for head, out in net.heads()]
+        self.heads = [([(_f32(_f64(lin.weight)), _f64(lin.bias)) for lin in head],
+                       (_f32(_f64(out.weight)), _f64(out.bias))) for head, out in net.heads()]
         self.head, self.out = self.heads[0]
         gate = net.gate_layers()
         self.gate = [] if gate is None else [(_f64(lin.weight), _f64(lin.bias)) for lin in gate]
@@ -224,9 +255,9 @@ class StreamingEngine:
         self._x[0, :] = x
         if self._fresh:
             self._fresh = False
-            for _ in range(self.ib - 1):
-                self._advance()
-        return self._head(self._advance(), state)
+            for live in range(1, self.ib):
+                self._advance(live)
+        return self._head(self._advance(self.ib), state)
 
     def probe(self, xs: np.ndarray, states: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Outputs (K, O) and branch states (K,) that `step` would return for each of K candidate
@@ -323,13 +354,15 @@ class StreamingEngine:
         _dense_rows(h, out[0], out[1], self._y, self.relu_out)
         return self._y[0].copy()
 
-    def _advance(self) -> np.ndarray:
+    def _advance(self, live: int) -> np.ndarray:
+        """Every chain one cell update on: the first `live` of them (at a sequence's start, the
+        chains begun within it; _lstm_rows), the others as they are."""
         inp: np.ndarray = self._x
         shared = True
         for k, (kind, w) in enumerate(self.seq):
             if kind == "lstm":
                 _lstm_rows(inp, shared, w[0], w[1], w[2], self._h[k], self._c[k], self._h2[k], self._c2[k],
-                           self._g[k], self._t[k], self._bits[k])
+                           self._g[k], self._t[k], self._bits[k], live)
                 inp = self._h[k]
             else:
                 if shared:  # a Dense first layer on identical rows: compute once, copy

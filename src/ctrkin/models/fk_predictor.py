@@ -364,11 +364,11 @@ class FKPredictor(BasePredictor):
             if prev is None or shift is None:          # a sequence's first step fixes its whole turns
                 shift = self._guard.step(x, None)[1]
             engine = fused.engine                        # self._engine, typed
-            consts, state, ints = fused._bufs
+            consts, weights, state, ints = fused._bufs
             gate_state, motion, outer_prev, branch = _fk_step(            # FusedFK.step, inline
-                x, shift, fused._none if prev is None else prev, consts, state, ints, prev is not None,
-                engine._fresh, engine.state, self._gate_state, self._outer_motion, self._outer_prev,
-                self._lag_at(x) if self._fused_lag else 0.0)
+                x, shift, fused._none if prev is None else prev, consts, weights, state, ints,
+                prev is not None, engine._fresh, engine.state, self._gate_state, self._outer_motion,
+                self._outer_prev, self._lag_at(x) if self._fused_lag else 0.0)
             if gate_state != DECLINED:
                 self._shift, self._prev = shift, fused.prev
                 self._gate_state, self._outer_motion, self._outer_prev = gate_state, motion, outer_prev

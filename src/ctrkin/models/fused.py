@@ -88,21 +88,23 @@ def _joints_ok(raw: np.ndarray, shift: np.ndarray, n: int, lengths: np.ndarray, 
     return True
 
 
-# The constants and the state of one model reach the kernel as three flat buffers (`_Packed`): a numba
+# The constants and the state of one model reach the kernel as four flat buffers (`_Packed`): a numba
 # call unboxes each array argument and types each tuple element, which for the three dozen arrays of a
 # step cost as much as the network's arithmetic (issue 26: 2.2 of 15 µs quiet, 7.7 of 35 µs at load
 # 7), and each array it allocates costs an allocation and a free. Piece k of a buffer is
 # buf[o:o + d0·d1·d2] as shape (d0[, d1[, d2]]), with (o, d0, d1, d2) = directory[4k:4k + 4]; every
 # view is C-contiguous, so the kernels run the same specialisations (and give the same bits) as on the
-# engine's own arrays. The int64 buffer starts with the model's settings (cfg) and the three
+# engine's own arrays. The int64 buffer starts with the model's settings (cfg) and the four
 # directories, then its own pieces.
-# constants (float64): guard, normalisation, network, gate tables, registration, the play operators'
-# widths and inputs (ctrkin.models.play_lags.input_operators), the fold gate's slide memory (its play
-# operators' widths and inputs, its weights u); head layer l's weights at HEAD + 2l and biases at
-# HEAD + 2l + 1
-(LENGTHS, ALPHA_LO, ALPHA_HI, XLO, XSPAN, CLIP_LO, CLIP_HI, YLO, YSPAN, W_IH, W_HH, BIAS, OUT_W, OUT_B,
+# constants (float64): guard, normalisation, the network's biases, gate tables, registration, the play
+# operators' widths and inputs (ctrkin.models.play_lags.input_operators), the fold gate's slide memory
+# (its play operators' widths and inputs, its weights u); head layer l's biases at HEAD_B + l
+(LENGTHS, ALPHA_LO, ALPHA_HI, XLO, XSPAN, CLIP_LO, CLIP_HI, YLO, YSPAN, BIAS, OUT_B,
  GATE_W0, GATE_W1, GATE_B0, GATE_B1, T_AXES, T_FORWARD, T_BACKWARD, ROT, TRANS, GATE_CONSTS, TRAIN_LO,
- TRAIN_HI, PLAY_W, PLAY_SRC, GATE_PLAY_W, GATE_PLAY_SRC, GATE_SLIDE_U, HEAD) = range(32)
+ TRAIN_HI, PLAY_W, PLAY_SRC, GATE_PLAY_W, GATE_PLAY_SRC, GATE_SLIDE_U, HEAD_B) = range(29)
+# the weight matrices (float32, as the engine keeps them: ctrkin.models.engine._f32): the LSTM's
+# input and recurrent weights, the output layer's, head layer l's at W_HEAD + l
+(W_IH, W_HH, OUT_W, W_HEAD) = range(4)
 # the streaming state (float64; the engine's arrays are views of it), the step's previous joints as
 # the network saw them, its result and its scratch (predict's rows: SHIFT, PREV_IN), the play
 # operators' outputs and at-rest flag (PlayState's buffer), the slide memory's likewise and its lags'
@@ -114,48 +116,51 @@ T_START, T_SIZE, BITS = range(3)
 # the model's settings at the int64 buffer's start, then where each directory starts (C_DIR, S_DIR,
 # I_DIR) and ends (END_DIR)
 (N_TUBES, PHASE, DELTA, FLATTEN, RELU_OUT, GATE_KIND, OUTER_FRAME, HAS_LAG, LAGGED_INPUTS, N_PLAY,
- N_GATE_PLAY, N_HEAD, C_DIR, S_DIR, I_DIR, END_DIR, N_CFG) = range(17)
+ N_GATE_PLAY, N_HEAD, C_DIR, S_DIR, W_DIR, I_DIR, END_DIR, N_CFG) = range(18)
 
 
 # explicit signatures: one compiled version each, not one per piece number (numba would otherwise
 # specialise on each literal k)
-@njit(["float64[::1](float64[::1], int64[::1], int64)", "int64[::1](int64[::1], int64[::1], int64)"],
-      cache=True)
+@njit(["float64[::1](float64[::1], int64[::1], int64)", "float32[::1](float32[::1], int64[::1], int64)",
+       "int64[::1](int64[::1], int64[::1], int64)"], cache=True)
 def _piece(buf, where, k):
     """The flat view of piece k of buf (its shape: `where` at 4k + 1..3)."""
     o = where[4 * k]
     return buf[o:o + where[4 * k + 1] * where[4 * k + 2] * where[4 * k + 3]]
 
 
-@njit("float64[:, ::1](float64[::1], int64[::1], int64)", cache=True)
+@njit(["float64[:, ::1](float64[::1], int64[::1], int64)",
+       "float32[:, ::1](float32[::1], int64[::1], int64)"], cache=True)
 def _v2(buf, where, k):
     return _piece(buf, where, k).reshape((where[4 * k + 1], where[4 * k + 2]))
 
 
-@njit("float64[:, :, ::1](float64[::1], int64[::1], int64)", cache=True)
+@njit(["float64[:, :, ::1](float64[::1], int64[::1], int64)",
+       "float32[:, :, ::1](float32[::1], int64[::1], int64)"], cache=True)
 def _v3(buf, where, k):
     return _piece(buf, where, k).reshape((where[4 * k + 1], where[4 * k + 2], where[4 * k + 3]))
 
 
 @njit(cache=True)
-def _fk_step(raw, shift, prev, consts, state, ints, started, fresh, branch, gate_state, motion, outer_prev,
-             lag):
+def _fk_step(raw, shift, prev, consts, weights, state, ints, started, fresh, branch, gate_state, motion,
+             outer_prev, lag):
     """One FK step: joints raw (2N,) (deg, mm, as given) -> the (6,) tracker-frame pose in the state
     buffer's piece Y. Returns (gate state, m_N, αN, branch state) or a gate state DECLINED (nothing
     changed).
 
     shift (2N,): the sequence's whole turns; prev (2N,): the previous shifted joints (if `started`);
-    the state's piece PREV receives this step's (as the network sees them). consts, state, ints: the
-    flat buffers (module comment above); cfg (the start of ints): N, phase, delta, flatten, relu
-    output, gate kind, outer frame, its lag, its lagged inputs, Dense layers, the directories.
+    the state's piece PREV receives this step's (as the network sees them). consts, weights, state,
+    ints: the flat buffers (module comment above); cfg (the start of ints): N, phase, delta, flatten,
+    relu output, gate kind, outer frame, its lag, its lagged inputs, Dense layers, the directories.
     The constants: the guard (lengths, α lo, α hi), normalisation (x lo, x span, clip lo, clip hi,
-    y lo, y span), the LSTM (w_ih, w_hh, b: the StreamingEngine's), per Dense layer (B, out, in),
-    (B, out) for B branches and the output layer likewise, the learned gate's two layers, the fold
+    y lo, y span), the LSTM's bias b, per Dense layer the biases (B, out) for B branches and the
+    output layer's likewise (the weights: the LSTM's w_ih, w_hh, as the StreamingEngine's, per Dense
+    layer (B, out, in) and the output layer likewise), the learned gate's two layers, the fold
     gate's GateTables and (c, κ, band), the outer frame's registration (rot, trans). The state: the
     LSTM chains h, c (scratch h2, c2, g, t, bits), the history hist and the input row x (1, F) of the
     StreamingEngine; fresh: the sequence's first step. lag: the outer frame's λ(β) (deg) here."""
-    cwhere, swhere = ints[ints[C_DIR]:ints[S_DIR]], ints[ints[S_DIR]:ints[I_DIR]]
-    iwhere = ints[ints[I_DIR]:ints[END_DIR]]
+    cwhere, swhere = ints[ints[C_DIR]:ints[S_DIR]], ints[ints[S_DIR]:ints[W_DIR]]
+    wwhere, iwhere = ints[ints[W_DIR]:ints[I_DIR]], ints[ints[I_DIR]:ints[END_DIR]]
     n, gate_kind = ints[N_TUBES], ints[GATE_KIND]
     phase, delta = ints[PHASE] != 0, ints[DELTA] != 0
     flatten, relu_out = ints[FLATTEN] != 0, ints[RELU_OUT] != 0
@@ -210,14 +215,14 @@ def _fk_step(raw, shift, prev, consts, state, ints, started, fresh, branch, gate
                                widen, gc[1], gc[2])
         branch = 1.0 if gate_state > 0.5 else 0.0
     # the engine (StreamingEngine.step, one LSTM layer): a fresh sequence feeds its first step IB times
-    w_ih, w_hh, b = _v2(consts, cwhere, W_IH), _v2(consts, cwhere, W_HH), _piece(consts, cwhere, BIAS)
+    w_ih, w_hh, b = _v2(weights, wwhere, W_IH), _v2(weights, wwhere, W_HH), _piece(consts, cwhere, BIAS)
     h, c = _v2(state, swhere, H), _v2(state, swhere, C)
     h2, c2 = _v2(state, swhere, H2), _v2(state, swhere, C2)
     g, t, bits = _v2(state, swhere, G), _v2(state, swhere, T), _piece(ints, iwhere, BITS)
     hist = _v3(state, swhere, HIST)
     ib = hist.shape[0]
-    for _ in range(ib if fresh else 1):
-        _lstm_rows(x, True, w_ih, w_hh, b, h, c, h2, c2, g, t, bits)
+    for live in range(1 if fresh else ib, ib + 1):     # a sequence's start: IB updates, chain by chain
+        _lstm_rows(x, True, w_ih, w_hh, b, h, c, h2, c2, g, t, bits, live)
         _push_history(hist, h, False)
     window = hist[ib - 1]
     z = window.reshape((1, window.size)) if flatten else window[ib - 1:]
@@ -230,11 +235,11 @@ def _fk_step(raw, shift, prev, consts, state, ints, started, fresh, branch, gate
         branch = 1.0 if g2[0, 0] > 0 else 0.0
     head = int(branch) if gate_kind != GATE_NONE else 0
     for layer in range(ints[N_HEAD]):
-        hw, hb = _v3(consts, cwhere, HEAD + 2 * layer), _v2(consts, cwhere, HEAD + 2 * layer + 1)
+        hw, hb = _v3(weights, wwhere, W_HEAD + layer), _v2(consts, cwhere, HEAD_B + layer)
         buf = _v2(state, swhere, HEAD_OUT + layer)
         _dense_rows(z, hw[head], hb[head], buf, True)
         z = buf
-    out_w, out_b = _v3(consts, cwhere, OUT_W), _v2(consts, cwhere, OUT_B)
+    out_w, out_b = _v3(weights, wwhere, OUT_W), _v2(consts, cwhere, OUT_B)
     yn = _v2(state, swhere, YN)
     _dense_rows(z, out_w[head], out_b[head], yn, relu_out)
     local, y = _piece(state, swhere, LOCAL), _piece(state, swhere, Y)
@@ -264,12 +269,12 @@ def _first_shift(first, n, lo, hi, shift):
 
 
 @njit(cache=True)
-def _fk_rows(rows, consts, state, ints, out):
+def _fk_rows(rows, consts, weights, state, ints, out):
     """Each row of one sequence rows (T, 2N) as a step from a sequence start (reset() defaults: no
     branch state, the outer tube at rest) -> out (T, 6), as `_fk_step` would give them one by one.
     Returns T, or the first declined row (its checks failed: nothing is to be trusted)."""
     gate_state, motion, outer_prev, branch = -1, 0, math.nan, UNKNOWN_STATE
-    cwhere, swhere = ints[ints[C_DIR]:ints[S_DIR]], ints[ints[S_DIR]:ints[I_DIR]]
+    cwhere, swhere = ints[ints[C_DIR]:ints[S_DIR]], ints[ints[S_DIR]:ints[W_DIR]]
     for v in rows[0]:
         if not math.isfinite(v):
             return 0
@@ -281,8 +286,8 @@ def _fk_rows(rows, consts, state, ints, out):
     play[play.size - 1] = 1.0                   # the play operators start at rest
     for r in range(rows.shape[0]):
         gate_state, motion, outer_prev, branch = _fk_step(
-            rows[r], shift, prev, consts, state, ints, r > 0, r == 0, branch, gate_state, motion, outer_prev,
-            0.0)
+            rows[r], shift, prev, consts, weights, state, ints, r > 0, r == 0, branch, gate_state, motion,
+            outer_prev, 0.0)
         if gate_state == DECLINED:
             return r
         out[r] = y
@@ -310,6 +315,14 @@ class _Packed:
         """Piece k as an array of `shape` sharing the buffer."""
         o, d0, d1, d2 = (int(v) for v in self.where[4 * k:4 * k + 4])
         return self.buf[o:o + d0 * d1 * d2].reshape(shape)
+
+
+def _float32_weights(engine: StreamingEngine) -> bool:
+    """Whether every weight matrix of the engine is float32 (a net trained in float32; one trained in
+    float64 keeps its float64 weights and goes through the reference path)."""
+    mats = [engine.seq[0][1][0], engine.seq[0][1][1]]
+    mats += [w for head, out in engine.heads for w in [*(lw for lw, _ in head), out[0]]]
+    return all(m.dtype == np.float32 for m in mats)
 
 
 class FusedFK:
@@ -377,12 +390,11 @@ class FusedFK:
         """The flat buffers `_fk_step` reads (module comment above it); the engine's state arrays
         become views of the state buffer, so the reference path and this one share them."""
         w_ih, w_hh, b = self.lstm
-        self.consts = _Packed([*self.guard, *self.norm, w_ih, w_hh, b, self.out_w, self.out_b, *self.gate_w,
+        self.consts = _Packed([*self.guard, *self.norm, b, self.out_b, *self.gate_w,
                                *self.gate_b, self.tables[0], self.tables[3], self.tables[4], self.rot,
                                self.trans, np.array(self.gate_consts, float), *self.trained, *self.play,
-                               *self.slide,
-                               *(a for i in range(n_layers) for a in (self.head_w[i], self.head_b[i]))],
-                              np.float64)
+                               *self.slide, *self.head_b], np.float64)
+        self.weights = _Packed([w_ih, w_hh, self.out_w, *self.head_w], np.float32)
         e = self.engine
         n_out = self.out_w.shape[1]
         width = e._hist.shape[2] * (e.ib if e.pooling == "flatten" else 1)
@@ -396,11 +408,12 @@ class FusedFK:
         ints = [self.tables[1], self.tables[2], e._bits[0]]
         c_dir = N_CFG
         s_dir = c_dir + len(self.consts.where)
-        i_dir = s_dir + len(self.state.where)
+        w_dir = s_dir + len(self.state.where)
+        i_dir = w_dir + len(self.weights.where)
         end = i_dir + 4 * len(ints)
         self.ints = _Packed(ints, np.int64, head=end)
-        self.ints.buf[:end] = [*self.cfg, n_layers, c_dir, s_dir, i_dir, end, *self.consts.where,
-                               *self.state.where, *self.ints.where]
+        self.ints.buf[:end] = [*self.cfg, n_layers, c_dir, s_dir, w_dir, i_dir, end, *self.consts.where,
+                               *self.state.where, *self.weights.where, *self.ints.where]
         self._share_state()
         # whether a step depends on nothing before the sequence's start (no branch state, no outer
         # lag): then `rows` gives what `step` gives from a reset()
@@ -422,7 +435,7 @@ class FusedFK:
         self._y = self.state.view(Y, (6,))
         self.play_state = self.state.view(PLAY_Y, (len(self.play[0]) + 1,))  # PlayState's buffer
         self.slide_state = self.state.view(GATE_PLAY_Y, (len(self.slide[0]) + 1,))   # the slide memory's
-        self._bufs = (self.consts.buf, self.state.buf, self.ints.buf)
+        self._bufs = (self.consts.buf, self.weights.buf, self.state.buf, self.ints.buf)
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         """After a deep copy or unpickling the engine's arrays are copies of their own, no longer views
@@ -440,7 +453,7 @@ class FusedFK:
         if (eng is None or bundle.layout.angle_encoding not in ("minmax", "phase")
                 or bundle.layout.equivariant
                 or len(eng.seq) != 1 or eng.seq[0][0] != "lstm" or not eng.heads[0][0]
-                or len(eng.heads) > 2):
+                or len(eng.heads) > 2 or not _float32_weights(eng)):
             return None
         return cls(bundle, eng, guard, clip, frame, relay)
 
@@ -450,9 +463,9 @@ class FusedFK:
         previous shifted joints (None at a start), the fold gate's state and m_N, lag the outer frame's
         λ(β) (deg) -> the (6,) pose and the new state (gate state, m_N, αN, branch state; DECLINED:
         nothing changed, take the reference path)."""
-        consts, state, ints = self._bufs
+        consts, weights, state, ints = self._bufs
         e = self.engine
-        res = _fk_step(raw, shift, self._none if prev is None else prev, consts, state, ints,
+        res = _fk_step(raw, shift, self._none if prev is None else prev, consts, weights, state, ints,
                        prev is not None, e._fresh, e.state, gate_state, outer_motion, outer_prev, lag)
         y = self._y.copy()
         if self.field is not None and res[0] != DECLINED:
