@@ -33,6 +33,12 @@ every figure. Columns (held-out data of the reproduction; position RMSE in mm un
   IK floor    the recorded joints of the same held-out sequences driven as the IK's are (each from rest
               at its first row; benchmarks/bench_ik_floor.py): what an IK that answered the
               recording's own joints would get (the JSON line also has its first 100 steps and the rest)
+  reach sq/tri  how far the square's / triangle's targets are from poses the robot can take: the
+              position RMSE of the best pose fit on the true robot without friction (position plus
+              10 mm per radian of tangent; bench_ik_floor.path_reach; the JSON line also has the fit's
+              tangent miss and what matching the position alone costs in tangent). The targets'
+              orientations are interpolated between the corners (Fig. 12), so an edge's pose need not
+              be reachable: an IK that matches the pose misses the position by this before friction
   gate res/max (no fold)  the fold gate's assumption (`gate_residuals`): RMS / largest residual (deg)
               of the training snaps from the nominal folds shifted by the fitted offsets, and the
               snaps where the nominal robot has no fold, of all snaps in the band (the JSON line
@@ -247,6 +253,16 @@ def ik_floor(data_folder: Path) -> dict[str, float]:
     return {f"ik_floor_{k.removeprefix('recorded_')}": v for k, v in floor.items()}
 
 
+def path_reach_figures(data_folder: Path) -> dict[str, float]:
+    """`reach sq/tri` (module docstring) on a reproduction's virtual robot; none for data not recorded
+    on the virtual robot."""
+    from bench_ik_floor import path_reaches
+    from ctrkin.virtual.truth import virtual_from_meta
+
+    ds = Dataset.load(data_folder)
+    return path_reaches(virtual_from_meta(ds)) if "virtual_robot" in ds.meta else {}
+
+
 def _held_out(residuals: dict[str, Any]) -> dict[str, Any]:
     """gate_residuals on the held-out sweeps, under sweeps_* (the fitted offsets only once)."""
     fitted = ("gate_widen_deg", "gate_outer_lag_deg")
@@ -288,6 +304,7 @@ def _figures(name: str, case: Case, robot: Robot, out: Path, wall_s: float | Non
     for extra in (lambda: reversals(robot, case, fk_folder), lambda: small_moves(robot, case, fk_folder),
                   lambda: gate_residuals(fk_folder, out / name / "data" / "paper"),
                   lambda: ik_floor(out / name / "data" / "paper"),
+                  lambda: path_reach_figures(out / name / "data" / "paper"),
                   lambda: _held_out(gate_residuals(fk_folder, out / name / "data" / "sweeps"))):
         try:
             row |= extra()
@@ -358,7 +375,7 @@ def _cell(row: dict[str, Any], key: str, fmt: str) -> str:
 
 
 HEADER = ("robot", "FK true", "FK", "TCM (×)", "cal (×)", "sweeps P/R", "turns P/R", "mag", "rev", "small",
-          "IK", "IK floor", "rand", "sq", "tri", "gate res/max (no fold)", "wall s")
+          "IK", "IK floor", "rand", "sq", "tri", "reach sq/tri", "gate res/max (no fold)", "wall s")
 
 
 def table_row(row: dict[str, Any]) -> list[str]:
@@ -376,6 +393,7 @@ def table_row(row: dict[str, Any]) -> list[str]:
             _cell(row, "ik_floor_mm", ".2f"),
             f"{_cell(row, 'ik_random_within_1mm', 'd')}/{row['ik_random_points']}",
             _cell(row, "ik_square_mm", ".2f"), _cell(row, "ik_triangle_mm", ".2f"),
+            f"{_cell(row, 'ik_square_reach_mm', '.2f')}/{_cell(row, 'ik_triangle_reach_mm', '.2f')}",
             f"{_cell(row, 'gate_residual_rms_deg', '.1f')}/{_cell(row, 'gate_residual_max_deg', '.1f')} "
             f"({row.get('gate_no_fold_snaps', '–')} of {row.get('gate_snaps', '–')})", f"{row['wall_s']:.0f}"]
 

@@ -51,17 +51,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.optimize import least_squares
 from scipy.spatial import cKDTree
 
 import ctrkin.families.registry  # noqa: F401  (the families' feature layouts)
+from ctrkin.acquisition.task_paths import task_path
 from ctrkin.data.dataset import Dataset
 from ctrkin.data.schema import sequence_bounds
 from ctrkin.evaluation.context import valid_rows
+from ctrkin.evaluation.datasets import SEEDS as REPRO_SEEDS
 from ctrkin.evaluation.datasets import registered_truth
 from ctrkin.evaluation.experiments_ik import drive, joined
 from ctrkin.evaluation.table import FK_BRANCH, IK_FOLLOW
 from ctrkin.geometry import tangent_from_quat
 from ctrkin.inference import Kinematics
+from ctrkin.mechanics import solve
 from ctrkin.metrics import wrap_deg
 from ctrkin.virtual import VirtualRobot
 from ctrkin.virtual.truth import virtual_from_meta
@@ -70,6 +74,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))   # the benchmark besid
 from bench_fk_memory import collect_repro
 
 FIRST = 100              # the first steps of a held-out sequence: the start from rest
+PATH_TANGENT_MM = 10.0   # the square's and triangle's reach: mm of residual per radian of tangent
+PATH_FIT_EVALS = 400     # ... and its least squares' evaluations per start
 TRAIN_SEQUENCES = 6      # the IK on the first so many sequences of its own training rows
 # the lookup reference: candidates, the motion's span (steps) and weight, the weight of the distance
 # to the previous answer (10° of α weigh like 1 mm of β) against the pose distance (mm, 10 mm per rad)
@@ -150,6 +156,58 @@ def fk_along(virtual: VirtualRobot, fk: Kinematics, joints: np.ndarray, b: list[
     path, at, sid = joined(fk.alpha_into_range(joints), virtual.nominal.n_tubes, b)
     via_fk = np.asarray(fk.predict(path, sequence_id=sid), float)[at]
     return _rmse(_miss(via_fk, reached))
+
+
+def _best_pose_joints(virtual: VirtualRobot, target: np.ndarray, starts: np.ndarray, tangent_mm: float
+                      ) -> np.ndarray:
+    """Valid joints (2N,) whose tip on the true robot (point-wise solve, no friction) is nearest the
+    robot-frame `target` (6,) in position plus `tangent_mm` mm per radian of tangent: least squares
+    from each of `starts` (K, 2N), the best kept."""
+    robot = virtual.nominal
+    p_star, t_star = target[:3], tangent_from_quat(target[3:6])
+
+    def residual(q: np.ndarray) -> np.ndarray:
+        valid = robot.project_joints(q[None])
+        pose = solve(virtual.true_robot, virtual.base_joints(valid)[0]).tip_pose
+        return np.r_[pose[:3] - p_star, tangent_mm * (tangent_from_quat(pose[3:6]) - t_star)]
+
+    fits = [least_squares(residual, q0, diff_step=1e-4, max_nfev=PATH_FIT_EVALS) for q0 in starts]
+    best = min(fits, key=lambda f: f.cost)
+    return robot.project_joints(best.x[None])[0]
+
+
+def path_reach(virtual: VirtualRobot, shape: str, seed: int) -> dict[str, float]:
+    """How far the square's or triangle's targets (Fig. 12, `task_paths.task_path` with the
+    reproduction's seed) are from poses the robot can take. Their orientations are interpolated between
+    the corners, so on the edges a pose need not be reachable. For each target: the valid joints whose
+    tip on the true robot (point-wise solve, no friction, no hysteresis) is nearest its pose, position
+    plus PATH_TANGENT_MM mm per radian of tangent (the refined IK's weighting; least squares from every
+    corner's joints): `mm` and `tangent_deg`, the RMS misses of that fit (an IK that matches the pose
+    as well as any joints can misses the position by this before friction); and from there the
+    position alone: `position_only_tangent_deg`, what matching the position costs in tangent."""
+    path = task_path(virtual, shape, n_points=10, seed=seed)
+    fit, tangent_only = [], []
+    for target in path.poses:
+        q = _best_pose_joints(virtual, target, path.corner_joints, PATH_TANGENT_MM)
+        pose = solve(virtual.true_robot, virtual.base_joints(q[None])[0]).tip_pose
+        fit.append((np.linalg.norm(pose[:3] - target[:3]),
+                    _angle_deg(tangent_from_quat(pose[3:6]), tangent_from_quat(target[3:6]))))
+        q0 = _best_pose_joints(virtual, target, q[None], 0.0)
+        pose0 = solve(virtual.true_robot, virtual.base_joints(q0[None])[0]).tip_pose
+        tangent_only.append(_angle_deg(tangent_from_quat(pose0[3:6]), tangent_from_quat(target[3:6])))
+    fit_arr = np.array(fit)
+    return {"mm": _rmse(fit_arr[:, 0]), "tangent_deg": _rmse(fit_arr[:, 1]),
+            "position_only_tangent_deg": _rmse(np.array(tangent_only))}
+
+
+def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip(float(a @ b), -1.0, 1.0))))
+
+
+def path_reaches(virtual: VirtualRobot) -> dict[str, float]:
+    """`path_reach` of the square and the triangle, keys ik_{shape}_reach_{figure}."""
+    return {f"ik_{shape}_reach_{k}": v for shape in ("square", "triangle")
+            for k, v in path_reach(virtual, shape, REPRO_SEEDS[shape]).items()}
 
 
 def ik_figures(virtual: VirtualRobot, ds: Dataset, train: Dataset, rp: Dataset, ik: Kinematics,

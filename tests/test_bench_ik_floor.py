@@ -78,3 +78,30 @@ def test_bench_generalisation_reads_the_floor_of_a_reproductions_data(bench, tmp
     assert set(floor) == {"ik_floor_mm", "ik_floor_within_1mm", "ik_floor_first_mm", "ik_floor_after_mm",
                           "ik_floor_noise_mm"}
     assert floor["ik_floor_mm"] < 1e-6 and floor["ik_floor_within_1mm"] == 1.0
+
+
+def test_the_pose_fit_finds_a_reachable_pose_and_the_position_alone(bench) -> None:
+    """bench_ik_floor's square/triangle reach: a corner of the path is a pose the robot takes, so the
+    fit from perturbed joints returns to it; with the tangent unweighted a target whose tangent no
+    joints give is still reached in position."""
+    from ctrkin.acquisition.task_paths import task_path
+    from ctrkin.geometry import quat_from_tangent, tangent_from_quat
+    from ctrkin.mechanics import solve
+
+    virtual = VirtualRobot(paper_robot(), VirtualConfig().ideal(), seed=0)
+    path = task_path(virtual, "triangle", n_points=3, seed=5)
+    corner, q_corner = path.poses[0], path.corner_joints[0]
+
+    def tip(q: np.ndarray) -> np.ndarray:
+        return solve(virtual.true_robot, virtual.base_joints(q[None])[0]).tip_pose
+
+    start = q_corner + np.r_[15.0, -10.0, 1.0, 0.5]
+    assert np.linalg.norm(tip(start)[:3] - corner[:3]) > 1.0
+    q = bench._best_pose_joints(virtual, corner, start[None], bench.PATH_TANGENT_MM)
+    assert np.linalg.norm(tip(q)[:3] - corner[:3]) < 1e-3
+    tilted = corner.copy()
+    t = tangent_from_quat(corner[3:6])
+    tilted[3:6] = quat_from_tangent(t + np.array([0.5, 0.0, 0.0]) * np.linalg.norm(t))
+    q = bench._best_pose_joints(virtual, tilted, q_corner[None], 0.0)
+    assert np.linalg.norm(tip(q)[:3] - tilted[:3]) < 1e-3
+    assert bench._angle_deg(tangent_from_quat(tip(q)[3:6]), tangent_from_quat(tilted[3:6])) > 5.0
