@@ -34,6 +34,10 @@ what the experiment itself allows and what the models add, on the reproduction's
   iterations     with --iterations K,…: each follow IK's validation figure with the network applied K
                  times per target (Follower.iterations; 1 is the model's own setting): a contraction
                  that is weak gains from more, one towards wrong joints loses
+  arrive         with --arrive K,… (and nothing else): each follow IK along squares and triangles that
+                 are not the reproduction's (task_path seeds 100-104, VALIDATION_PATH_SEEDS), with K
+                 applications at each destination reached through intermediate targets
+                 (Follower.arrive; the choice of ARRIVE_ITERATIONS)
 An IK that takes no start joints (the paper's, the refined one) is scored from its own start there.
 
 Ends with one JSON line of the figures (mm unless named otherwise).
@@ -76,6 +80,7 @@ from bench_fk_memory import collect_repro
 FIRST = 100              # the first steps of a held-out sequence: the start from rest
 PATH_TANGENT_MM = 10.0   # the square's and triangle's reach: mm of residual per radian of tangent
 PATH_FIT_EVALS = 400     # ... and its least squares' evaluations per start
+VALIDATION_PATH_SEEDS = range(100, 105)   # --arrive: squares and triangles that are not the reproduction's
 TRAIN_SEQUENCES = 6      # the IK on the first so many sequences of its own training rows
 # the lookup reference: candidates, the motion's span (steps) and weight, the weight of the distance
 # to the previous answer (10° of α weigh like 1 mm of β) against the pose distance (mm, 10 mm per rad)
@@ -210,6 +215,34 @@ def path_reaches(virtual: VirtualRobot) -> dict[str, float]:
             for k, v in path_reach(virtual, shape, REPRO_SEEDS[shape]).items()}
 
 
+def validation_paths(virtual: VirtualRobot, ik: Kinematics, arrives: tuple[int, ...], ds: Dataset,
+                     seeds: range = VALIDATION_PATH_SEEDS) -> dict[int, dict[str, list[float]]]:
+    """A follow IK along squares and triangles that are not the reproduction's (task_path seeds
+    `seeds`; the reproduction's are 4 and 5), with `Follower.arrive` set to each of `arrives` (its
+    applications at a destination reached through intermediate targets): per K and shape the tip's
+    position RMSE via the robot (mm) on each path, its first target left out (the sequence start's
+    own settling); and under "validation" the figure on the validation sequences of `ds` (close
+    targets, where a step beyond the training steps' 95th percentile also takes them)."""
+    follower = ik.predictor.follower        # type: ignore[attr-defined]
+    own = follower.arrive
+    paths = {(shape, seed): virtual.tracker.registered(task_path(virtual, shape, 10, seed).poses)
+             for shape in ("square", "triangle") for seed in seeds}
+    out: dict[int, dict[str, list[float]]] = {}
+    rows, b = _part(ds, "val")
+    sid = ds.frame["sequence_id"].to_numpy()[rows]
+    try:
+        for k in arrives:
+            follower.arrive = k
+            for (shape, _), targets in paths.items():
+                reached, _ = drive(virtual, ik.predict(targets).joints, [(0, len(targets))])
+                out.setdefault(k, {}).setdefault(shape, []).append(_rmse(_miss(reached[1:], targets[1:])))
+            reached, _ = drive(virtual, ik.predict(ds.poses()[rows], sequence_id=sid).joints, b)
+            out[k]["validation"] = [_rmse(_miss(reached, ds.poses()[rows]))]
+    finally:
+        follower.arrive = own
+    return out
+
+
 def ik_figures(virtual: VirtualRobot, ds: Dataset, train: Dataset, rp: Dataset, ik: Kinematics,
                fk: Kinematics | None, iterations: tuple[int, ...] = ()) -> dict[str, Any]:
     out: dict[str, Any] = {}
@@ -315,6 +348,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--fk", type=Path, default=None, help=f"the FK folder (default: models/{FK_BRANCH})")
     ap.add_argument("--iterations", default="", help="comma-separated applications per target to score "
                     "each IK's validation figure with (e.g. 1,2,4)")
+    ap.add_argument("--arrive", default="", help="comma-separated applications at a far target (e.g. "
+                    "0,2,5): only score each follow IK along validation squares and triangles (task_path "
+                    f"seeds {VALIDATION_PATH_SEEDS.start}-{VALIDATION_PATH_SEEDS.stop - 1}) with each")
     args = ap.parse_args(argv)
     iterations = tuple(int(k) for k in args.iterations.split(",") if k.strip())
     if any(k < 1 for k in iterations):
@@ -335,6 +371,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     iks = [Path(p) for p in (args.ik.split(",") if args.ik else [str(args.repro / "models" / IK_FOLLOW)])]
     fk_dir = args.fk or args.repro / "models" / FK_BRANCH
     fk = Kinematics.load(fk_dir) if fk_dir.is_dir() else None
+    if args.arrive:
+        return _arrive_report(virtual, iks, tuple(int(k) for k in args.arrive.split(",")), ds)
 
     floor = recorded(virtual, ds) | replayed(virtual, ds) | lookup(virtual, ds, train)
     floor["recorded_random_within_1mm"] = random_within_1mm(virtual, rp, rp.joints())
@@ -363,6 +401,24 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         if "val_by_iterations_mm" in r:
             print(f"  {'':38s} validation by applications per target: " + ", ".join(
                 f"{k}: {v:.2f}" for k, v in r["val_by_iterations_mm"].items()), flush=True)
+    print(json.dumps(report, default=float))
+    return report
+
+
+def _arrive_report(virtual: VirtualRobot, iks: list[Path], arrives: tuple[int, ...], ds: Dataset
+                   ) -> dict[str, Any]:
+    """--arrive: the validation paths' table (mean over the paths, then each path) and JSON line."""
+    report: dict[str, Any] = {"arrive": {}}
+    print(f"follow IK along validation paths (seeds {VALIDATION_PATH_SEEDS.start}-"
+          f"{VALIDATION_PATH_SEEDS.stop - 1}; mm RMSE via the robot, first target left out) and on the "
+          "validation sequences")
+    for folder in iks:
+        got = validation_paths(virtual, Kinematics.load(folder), arrives, ds)
+        report["arrive"][str(folder)] = got
+        for k, shapes in got.items():
+            cells = "  ".join(f"{shape} {np.mean(v):.2f} ({', '.join(f'{x:.2f}' for x in v)})"
+                              for shape, v in shapes.items())
+            print(f"  {str(folder)[-38:]:38s} arrive {k:2d}: {cells}", flush=True)
     print(json.dumps(report, default=float))
     return report
 

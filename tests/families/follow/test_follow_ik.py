@@ -261,3 +261,50 @@ def test_catch_up_rows_start_from_the_recordings_own_earlier_joints_in_the_same_
         assert match, f"row {row}: its current joints are none of its sequence's earlier joints"
         back.append(row - match[-1])
     assert max(back) > 20 and np.mean(back) > 5            # the draws reach well back along the path
+
+
+def test_a_destination_is_settled_on_and_a_jump_within_a_stream_is_not(follow_dir, sweeps):
+    """A far target (reached through intermediate targets) after the sequence's first target or after
+    another far one, as along waypoints, gets `arrive` more applications of the network there (as the
+    first target gets `settle`); a close target none, and a far one right after a close one (a
+    stream's jump, as at a snap) none."""
+    from ctrkin.families.follow.stepper import ARRIVE_ITERATIONS, ARRIVE_SUBSTEPS
+
+    a, b = sweeps.sequence_bounds()[1]
+    targets = sweeps.poses(true=True)[a:b]
+    kin = Kinematics.load(follow_dir)
+    follower = kin.predictor.follower
+    assert follower.arrive == ARRIVE_ITERATIONS == 2          # stored in the folder by the recipe
+    applied: list[bool] = []                                 # each application: at the target itself?
+    original = follower._apply
+
+    def counting(target, previous, q, lags=None):
+        applied.append(bool(np.array_equal(target, previous)))
+        return original(target, previous, q, lags)
+
+    follower._apply = counting
+    far = targets[60]
+    k = int(np.argmax(np.linalg.norm(targets[:, :3] - far[:3], axis=1)))
+    farther, beside = targets[k], targets[k - 1 if k > 0 else 1]
+    for x, y in ((targets[0], far), (far, farther), (beside, targets[0])):
+        assert np.linalg.norm(x[:3] - y[:3]) > ARRIVE_SUBSTEPS * follower.max_step_mm
+
+    def run(arrive: int) -> tuple[list[list[bool]], np.ndarray]:
+        follower.arrive = arrive
+        kin.reset(sweeps.joints()[a])
+        kin.step(targets[0])
+        got, answers = [], []
+        for target in (far, farther, beside, targets[0]):
+            applied.clear()
+            answers.append(kin.step(target).joints)
+            got.append(list(applied))
+        return got, answers[0]
+
+    (to_far, to_farther, close, jump), settled = run(3)
+    assert to_far[-3:] == [True] * 3 and sum(to_far) == 3            # waypoints: each one settled on
+    assert to_farther[-3:] == [True] * 3 and sum(to_farther) == 3
+    assert close == [False]                                          # a training step away
+    assert not any(jump) and len(jump) >= ARRIVE_SUBSTEPS            # far, but after a close target
+    (to_far, *_), plain = run(0)
+    assert not any(to_far)
+    assert np.abs(settled - plain).max() > 1e-6

@@ -5,6 +5,13 @@ when it lies farther than the training steps (substeps).
 A sequence starts from joints the caller gives (where the robot is) or, without them, from the
 joints of the nearest training target; either way the network is applied `settle_iterations` times
 at the first target (its training from perturbed joints makes each application a correction).
+A destination is settled on likewise, `arrive_iterations` more applications there
+(ARRIVE_ITERATIONS without the setting): a far target (reached through ARRIVE_SUBSTEPS or more
+intermediate targets, farther away than twice the training steps' 95th percentile) in a path of far
+targets (the one before it far too, or the sequence's first), as a list of waypoints is. A path of
+close targets (a recorded sequence, a control loop's stream) never takes them, not even where one of
+its targets jumps (a snap): there settling cost accuracy on the validation sequences
+(docs/learned_kinematics.md: Settling at a far target).
 
 The outer tube lags its motor by λ(β) in the direction the motor last turned (ctrkin.models.outer_lag;
 stored as `outer_lag_deg` in the model's follow settings). The network learned from turns recorded
@@ -40,6 +47,10 @@ from ctrkin.models.store import ModelBundle
 from ctrkin.models.workspace import Workspace
 
 HOLD_DEG = 0.5   # a reversal of the outer tube smaller than this keeps the motor (no trip through the play)
+# a destination: reached through ARRIVE_SUBSTEPS or more sub-targets, settled on with ARRIVE_ITERATIONS
+# applications (both chosen on validation: docs/learned_kinematics.md, Settling at a far target)
+ARRIVE_ITERATIONS = 2
+ARRIVE_SUBSTEPS = 3
 
 
 class Follower:
@@ -58,6 +69,7 @@ class Follower:
         self.max_step_mm = float(settings.get("max_step_mm", 1.0))
         self.settle = int(settings.get("settle_iterations", 5))
         self.iterations = int(settings.get("iterations", 1))    # applications per (sub-)target
+        self.arrive = int(settings.get("arrive_iterations", ARRIVE_ITERATIONS))   # ... at a far target
         self.workspace = workspace
         lag = settings.get("outer_lag_deg", (0.0, 0.0))
         self.lag = (float(lag[0]), float(lag[1]))     # the outer tube's lag λ(β) (models.outer_lag)
@@ -68,6 +80,7 @@ class Follower:
         self.motor = np.nan                          # the outer motor's last command (deg)
         self.play = TargetPlay() if bundle.layout.play else None      # the target path's operators
         self.outer_angle = bundle.layout.outer_angle                 # sin/cos αN among the inputs
+        self.far = True                              # the last target was far, or the sequence's first
 
     def reset(self, joints: np.ndarray | None = None) -> None:
         """Start a sequence, at `joints` (2N,) (deg, mm) if the robot's joints are known."""
@@ -78,6 +91,7 @@ class Follower:
                                  f"{np.asarray(joints).tolist()}")
             joints = check_joints(self.robot, q)       # as every model input of joints
         self.joints, self.target, self.tube, self.motor = None, None, np.nan, np.nan
+        self.far = True
         if self.play is not None:
             self.play.reset()
         if joints is not None:
@@ -153,11 +167,16 @@ class Follower:
         else:
             assert self.joints is not None
             q, projected, previous = self.joints, False, self.target
-            for sub in substeps(previous, target, self.max_step_mm):
+            subs = substeps(previous, target, self.max_step_mm)
+            for sub in subs:
                 lags = self._target_lags(sub)
                 for _ in range(self.iterations):
                     q, projected = self._apply(sub, previous, q, lags)
                     previous = sub
+            far = len(subs) >= ARRIVE_SUBSTEPS
+            for _ in range(self.arrive if far and self.far else 0):      # a destination
+                q, projected = self._apply(target, target, q, lags)
+            self.far = far
         self.joints, self.target = q, np.array(target, dtype=np.float64)
         motor = self._backlash_inverse(q)
         valid = self.robot.project_joints(motor[None])[0]
