@@ -67,7 +67,7 @@ from ctrkin.evaluation.datasets import SEEDS as REPRO_SEEDS
 from ctrkin.evaluation.datasets import registered_truth
 from ctrkin.evaluation.experiments_ik import drive, joined
 from ctrkin.evaluation.table import FK_BRANCH, IK_FOLLOW
-from ctrkin.geometry import tangent_from_quat
+from ctrkin.geometry import tangent_angle_error, tangent_from_quat
 from ctrkin.inference import Kinematics
 from ctrkin.mechanics import solve
 from ctrkin.metrics import wrap_deg
@@ -164,21 +164,23 @@ def fk_along(virtual: VirtualRobot, fk: Kinematics, joints: np.ndarray, b: list[
 
 
 def _best_pose_joints(virtual: VirtualRobot, target: np.ndarray, starts: np.ndarray, tangent_mm: float
-                      ) -> np.ndarray:
+                      ) -> tuple[np.ndarray, np.ndarray]:
     """Valid joints (2N,) whose tip on the true robot (point-wise solve, no friction) is nearest the
     robot-frame `target` (6,) in position plus `tangent_mm` mm per radian of tangent: least squares
-    from each of `starts` (K, 2N), the best kept."""
+    from each of `starts` (K, 2N), the best kept; and that tip's pose (6,)."""
     robot = virtual.nominal
     p_star, t_star = target[:3], tangent_from_quat(target[3:6])
 
+    def tip(q: np.ndarray) -> np.ndarray:
+        return solve(virtual.true_robot, virtual.base_joints(robot.project_joints(q[None]))[0]).tip_pose
+
     def residual(q: np.ndarray) -> np.ndarray:
-        valid = robot.project_joints(q[None])
-        pose = solve(virtual.true_robot, virtual.base_joints(valid)[0]).tip_pose
+        pose = tip(q)
         return np.r_[pose[:3] - p_star, tangent_mm * (tangent_from_quat(pose[3:6]) - t_star)]
 
     fits = [least_squares(residual, q0, diff_step=1e-4, max_nfev=PATH_FIT_EVALS) for q0 in starts]
     best = min(fits, key=lambda f: f.cost)
-    return robot.project_joints(best.x[None])[0]
+    return robot.project_joints(best.x[None])[0], tip(best.x)
 
 
 def path_reach(virtual: VirtualRobot, shape: str, seed: int) -> dict[str, float]:
@@ -191,22 +193,14 @@ def path_reach(virtual: VirtualRobot, shape: str, seed: int) -> dict[str, float]
     as well as any joints can misses the position by this before friction); and from there the
     position alone: `position_only_tangent_deg`, what matching the position costs in tangent."""
     path = task_path(virtual, shape, n_points=10, seed=seed)
-    fit, tangent_only = [], []
+    fits, position_only = [], []
     for target in path.poses:
-        q = _best_pose_joints(virtual, target, path.corner_joints, PATH_TANGENT_MM)
-        pose = solve(virtual.true_robot, virtual.base_joints(q[None])[0]).tip_pose
-        fit.append((np.linalg.norm(pose[:3] - target[:3]),
-                    _angle_deg(tangent_from_quat(pose[3:6]), tangent_from_quat(target[3:6]))))
-        q0 = _best_pose_joints(virtual, target, q[None], 0.0)
-        pose0 = solve(virtual.true_robot, virtual.base_joints(q0[None])[0]).tip_pose
-        tangent_only.append(_angle_deg(tangent_from_quat(pose0[3:6]), tangent_from_quat(target[3:6])))
-    fit_arr = np.array(fit)
-    return {"mm": _rmse(fit_arr[:, 0]), "tangent_deg": _rmse(fit_arr[:, 1]),
-            "position_only_tangent_deg": _rmse(np.array(tangent_only))}
-
-
-def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.degrees(np.arccos(np.clip(float(a @ b), -1.0, 1.0))))
+        q, pose = _best_pose_joints(virtual, target, path.corner_joints, PATH_TANGENT_MM)
+        fits.append(pose)
+        position_only.append(_best_pose_joints(virtual, target, q[None], 0.0)[1])
+    return {"mm": _rmse(_miss(np.array(fits), path.poses)),
+            "tangent_deg": _rmse(tangent_angle_error(np.array(fits), path.poses)),
+            "position_only_tangent_deg": _rmse(tangent_angle_error(np.array(position_only), path.poses))}
 
 
 def path_reaches(virtual: VirtualRobot) -> dict[str, float]:
@@ -228,19 +222,24 @@ def validation_paths(virtual: VirtualRobot, ik: Kinematics, arrives: tuple[int, 
     paths = {(shape, seed): virtual.tracker.registered(task_path(virtual, shape, 10, seed).poses)
              for shape in ("square", "triangle") for seed in seeds}
     out: dict[int, dict[str, list[float]]] = {}
-    rows, b = _part(ds, "val")
-    sid = ds.frame["sequence_id"].to_numpy()[rows]
     try:
         for k in arrives:
             follower.arrive = k
             for (shape, _), targets in paths.items():
                 reached, _ = drive(virtual, ik.predict(targets).joints, [(0, len(targets))])
                 out.setdefault(k, {}).setdefault(shape, []).append(_rmse(_miss(reached[1:], targets[1:])))
-            reached, _ = drive(virtual, ik.predict(ds.poses()[rows], sequence_id=sid).joints, b)
-            out[k]["validation"] = [_rmse(_miss(reached, ds.poses()[rows]))]
+            out[k]["validation"] = [validation_mm(virtual, ik, ds)]
     finally:
         follower.arrive = own
     return out
+
+
+def validation_mm(virtual: VirtualRobot, ik: Kinematics, ds: Dataset) -> float:
+    """The IK via the robot on the validation sequences of `ds` (mm RMSE), each from rest."""
+    rows, b = _part(ds, "val")
+    sid = ds.frame["sequence_id"].to_numpy()[rows]
+    reached, _ = drive(virtual, ik.predict(ds.poses()[rows], sequence_id=sid).joints, b)
+    return _rmse(_miss(reached, ds.poses()[rows]))
 
 
 def ik_figures(virtual: VirtualRobot, ds: Dataset, train: Dataset, rp: Dataset, ik: Kinematics,
@@ -273,9 +272,7 @@ def ik_figures(virtual: VirtualRobot, ds: Dataset, train: Dataset, rp: Dataset, 
     own = None if follower is None else follower.iterations
     for k in iterations if follower is not None else ():
         follower.iterations = k
-        rows, b = _part(ds, "val")
-        reached, _ = drive(virtual, ik.predict(ds.poses()[rows], sequence_id=sid[rows]).joints, b)
-        out.setdefault("val_by_iterations_mm", {})[k] = _rmse(_miss(reached, ds.poses()[rows]))
+        out.setdefault("val_by_iterations_mm", {})[k] = validation_mm(virtual, ik, ds)
     if follower is not None:
         follower.iterations = own
     rows, b = _part(train, "train", TRAIN_SEQUENCES)

@@ -85,7 +85,7 @@ def test_the_pose_fit_finds_a_reachable_pose_and_the_position_alone(bench) -> No
     fit from perturbed joints returns to it; with the tangent unweighted a target whose tangent no
     joints give is still reached in position."""
     from ctrkin.acquisition.task_paths import task_path
-    from ctrkin.geometry import quat_from_tangent, tangent_from_quat
+    from ctrkin.geometry import quat_from_tangent, tangent_angle_error, tangent_from_quat
     from ctrkin.mechanics import solve
 
     virtual = VirtualRobot(paper_robot(), VirtualConfig().ideal(), seed=0)
@@ -97,11 +97,12 @@ def test_the_pose_fit_finds_a_reachable_pose_and_the_position_alone(bench) -> No
 
     start = q_corner + np.r_[15.0, -10.0, 1.0, 0.5]
     assert np.linalg.norm(tip(start)[:3] - corner[:3]) > 1.0
-    q = bench._best_pose_joints(virtual, corner, start[None], bench.PATH_TANGENT_MM)
+    q, pose = bench._best_pose_joints(virtual, corner, start[None], bench.PATH_TANGENT_MM)
     assert np.linalg.norm(tip(q)[:3] - corner[:3]) < 1e-3
+    np.testing.assert_allclose(pose, tip(q), atol=1e-9)
     tilted = corner.copy()
     t = tangent_from_quat(corner[3:6])
     tilted[3:6] = quat_from_tangent(t + np.array([0.5, 0.0, 0.0]) * np.linalg.norm(t))
-    q = bench._best_pose_joints(virtual, tilted, q_corner[None], 0.0)
+    q, _ = bench._best_pose_joints(virtual, tilted, q_corner[None], 0.0)
     assert np.linalg.norm(tip(q)[:3] - tilted[:3]) < 1e-3
-    assert bench._angle_deg(tangent_from_quat(tip(q)[3:6]), tangent_from_quat(tilted[3:6])) > 5.0
+    assert tangent_angle_error(tip(q), tilted) > 5.0

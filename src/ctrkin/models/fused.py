@@ -114,7 +114,7 @@ def _joints_ok(raw: np.ndarray, shift: np.ndarray, n: int, lengths: np.ndarray, 
 # the int64 buffer's pieces: the gate tables' start and size, the sigmoid's scratch
 T_START, T_SIZE, BITS = range(3)
 # the model's settings at the int64 buffer's start, then where each directory starts (C_DIR, S_DIR,
-# I_DIR) and ends (END_DIR)
+# W_DIR, I_DIR) and ends (END_DIR)
 (N_TUBES, PHASE, DELTA, FLATTEN, RELU_OUT, GATE_KIND, OUTER_FRAME, HAS_LAG, LAGGED_INPUTS, N_PLAY,
  N_GATE_PLAY, N_HEAD, C_DIR, S_DIR, W_DIR, I_DIR, END_DIR, N_CFG) = range(18)
 
