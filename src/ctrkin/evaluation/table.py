@@ -95,7 +95,8 @@ FK_PAPER_ROW = Row("lstm_mlp_paper", "LSTM-MLP (paper)", "fk", folder=FK_PAPER,
 FK_BRANCH_ROW = Row("lstm_mlp_branch", "snap-aware LSTM-MLP", "fk", folder=FK_BRANCH,
                     curve=Curve(MODEL_COLOUR, "line", 1.3), bars=True, flat=("fk", "snapping"))
 # ablations of the snap-aware model: its branch state from the nominal TCM continued along the same
-# joint path (a physics gate; batch only), and from its learned gate instead of its fold gate
+# joint path (a physics gate; batch only), and from its learned gate instead of its fold gate (where
+# its validation chose the learned gate, ctrkin.families.snap_aware.gate_choice, the two rows agree)
 TCM_GATED_ROW = Row("lstm_mlp_branch_tcm_gate", "snap-aware, TCM-gated", "fk", predict=_tcm_gated)
 LEARNED_GATE_ROW = Row("lstm_mlp_branch_learned_gate", "snap-aware, learned gate", "fk",
                        predict=_learned_gate)

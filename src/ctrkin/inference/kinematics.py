@@ -189,9 +189,10 @@ class Kinematics:
         branch_states: (T,) {0, 1}, a snap-aware FK only: use these states instead of its gate's;
         snaps: (T,) bool, a snap-aware FK only: the states the training labels give for these snap
         flags (e.g. the continued TCM's); gate: a snap-aware FK only, which gate sets the branch
-        state, "fold" (the default where the folder has one, ctrkin.families.snap_aware.fold_gate) or
-        "learned" (its classifier); the fold gate reads the outer tube's last rotation from the
-        joints, across the sequences of one run of a Dataset.
+        state, "fold" (ctrkin.families.snap_aware.fold_gate) or "learned" (its classifier); the default
+        is the fold gate where the folder has one and its validation rows chose it
+        (ctrkin.families.snap_aware.gate_choice), else the learned gate; the fold gate reads the outer
+        tube's last rotation from the joints, across the sequences of one run of a Dataset.
         start_joints: (S, 2N) or (2N,), a follow IK only: the robot's joints at the start of each of
         the S sequences (default: those of the nearest training target).
         """

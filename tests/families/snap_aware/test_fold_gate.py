@@ -280,3 +280,17 @@ def test_a_fold_scale_round_trips_and_an_older_gate_has_none(tmp_path) -> None:
     for bad in (0.0, -1.0, float("nan")):
         with pytest.raises(ModelError, match="fold_scale"):
             FoldGate.from_dict({**d, "fold_scale": bad})
+
+
+def test_in_use_round_trips_an_older_gate_is_in_use_and_a_malformed_flag_is_refused(tmp_path) -> None:
+    from dataclasses import replace
+
+    gate = replace(_gate(20.0, c=1.5), in_use=False)
+    gate.save(tmp_path)
+    back = FoldGate.load(tmp_path)
+    assert back.in_use is False and back.widen_deg == 1.5
+    d = gate.to_dict()
+    d.pop("in_use")                                         # a gate written before the choice
+    assert FoldGate.from_dict(d).in_use is True
+    with pytest.raises(ModelError, match="in_use"):
+        FoldGate.from_dict({**d, "in_use": "no"})

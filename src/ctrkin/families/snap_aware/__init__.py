@@ -5,6 +5,8 @@ FK): the paper's LSTM trunk, one head per equilibrium branch and a branch state 
     net.py        BranchNet: trunk, two heads, the gate; BranchNet.decode carries the state in batch
     labels.py     which branch each training row is on, from the dataset's snap flags
     fold_gate.py  the fold gate: tabulated folds of the nominal robot, offsets fitted to the snaps
+    gate_choice.py  which gate the model uses: the fold gate unless its validation rows clearly prefer
+                  the learned one
     play.py       a candidate delay identified from the history (play operators), measured beside the
                   fold gate by benchmarks/bench_fold_gate.py; not the gate's form
     recipe.py     training: the paper's windows and MAE, the gate's cross-entropy, the fold gate
@@ -29,6 +31,8 @@ def _build(n_inputs: int, n_outputs: int, ib: int, output_activation: str, struc
 def _load(opened: Opened) -> Predictor:
     folder = opened.folder
     gate = FoldGate.load(folder) if folder is not None and (folder / FOLD_GATE_FILE).is_file() else None
+    if gate is not None and not gate.in_use:        # validation chose the learned gate (gate_choice)
+        return SnapAwarePredictor(opened.bundle, None, opened.fused, gate_aside=gate)
     return SnapAwarePredictor(opened.bundle, gate, opened.fused)
 
 

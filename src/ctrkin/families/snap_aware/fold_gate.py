@@ -102,8 +102,11 @@ def slide_lags(data: Any, joints: np.ndarray, bounds: list[tuple[int, int]], n_t
 class FoldGate:
     """axes: per tube, the grid of β (mm, increasing); forward, backward: fold tables φ± (deg) of
     shape (len(axes[0]), …); widen_deg: c; outer_lag_deg: κ; band_deg: half-width of the band;
-    fold_scale: g. `tables` holds the grid flattened, the folds times g, for the relay's numba
-    kernels (ctrkin.models.relay: the batch scan, and `gate_step` in the fused FK step)."""
+    fold_scale: g; in_use: whether the model switches branches by this gate (False where its
+    validation rows chose the learned gate, ctrkin.families.snap_aware.gate_choice; the gate then
+    stays in the folder for `predict(..., gate="fold")`). `tables` holds the grid flattened, the folds
+    times g, for the relay's numba kernels (ctrkin.models.relay: the batch scan, and `gate_step` in the
+    fused FK step)."""
 
     axes: tuple[np.ndarray, ...]
     forward: np.ndarray
@@ -113,6 +116,7 @@ class FoldGate:
     band_deg: float = BAND_DEG
     slide_weights_deg: tuple[float, ...] = ()
     fold_scale: float = 1.0
+    in_use: bool = True
     tables: GateTables = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -195,7 +199,7 @@ class FoldGate:
                 "backward_deg": self.backward.tolist(), "widen_deg": self.widen_deg,
                 "outer_lag_deg": self.outer_lag_deg, "band_deg": self.band_deg,
                 "slide_widths_mm": list(SLIDE_WIDTHS_MM), "slide_weights_deg": list(self.slide_weights_deg),
-                "fold_scale": self.fold_scale}
+                "fold_scale": self.fold_scale, "in_use": self.in_use}
 
     @classmethod
     def from_dict(cls, d: dict) -> FoldGate:
@@ -210,6 +214,7 @@ class FoldGate:
             slide = tuple(float(u) for u in d.get("slide_weights_deg", ()))     # absent: an older gate
             widths = tuple(float(r) for r in d.get("slide_widths_mm", SLIDE_WIDTHS_MM))
             scale = float(d.get("fold_scale", 1.0))                               # absent: g = 1
+            in_use = d.get("in_use", True)                                      # absent: the fold gate
         except (KeyError, ValueError, TypeError, IndexError) as e:
             raise ModelError(f"malformed fold gate ({type(e).__name__}: {e})") from None
         if not all(np.all(np.diff(a) > 0) for a in axes) or not (
@@ -221,7 +226,9 @@ class FoldGate:
                              f"finite weights ≥ 0, got widths {list(widths)} and weights {list(slide)}")
         if not (math.isfinite(scale) and scale > 0):
             raise ModelError(f"malformed fold gate: fold_scale must be finite and > 0, got {scale}")
-        return cls(axes, fwd, bwd, widen, lag, band, slide, scale)
+        if not isinstance(in_use, bool):
+            raise ModelError(f"malformed fold gate: in_use must be true or false, got {in_use!r}")
+        return cls(axes, fwd, bwd, widen, lag, band, slide, scale, in_use)
 
     def save(self, folder: str | Path) -> None:
         write_json(Path(folder) / FOLD_GATE_FILE, self.to_dict())

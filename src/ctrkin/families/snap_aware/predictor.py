@@ -1,13 +1,15 @@
 """The snap-aware FK in use: the paper's FK predictor (ctrkin.models.fk_predictor) with a branch
 state carried through each sequence, set by the fold gate (ctrkin.families.snap_aware.fold_gate,
-the default where the folder has one) or by the network's learned gate.
+the default where the folder has one and its validation rows chose it, ctrkin.families.snap_aware.
+gate_choice) or by the network's learned gate.
 
 Batch prediction decodes the state along each sequence (BranchNet.decode, or the fold gate's relay
 with m_N followed across the runs of a Dataset); `branch_states=S` replaces both with given states,
 `snaps=F` with the states the training labels give for snap flags F (T,) (the TCM-gated ablation of
 the report: the snaps of the continued TCM), `gate="learned"` uses the learned gate where the folder
-has a fold gate. Streaming keeps the state, m_N and the previous αN; `reset(outer_motion=±1)` says
-how the outer tube last turned before a sequence.
+has a fold gate, `gate="fold"` the folder's fold gate where validation chose the learned one.
+Streaming keeps the state, m_N and the previous αN; `reset(outer_motion=±1)` says how the outer tube
+last turned before a sequence.
 """
 
 from __future__ import annotations
@@ -35,16 +37,20 @@ GATES = ("fold", "learned")
 
 
 class SnapAwarePredictor(FKPredictor):
-    """A snap-aware FK model (module docstring); fold_gate: its fold gate, None: the learned gate."""
+    """A snap-aware FK model (module docstring); fold_gate: its fold gate, None: the learned gate;
+    gate_aside: a fold gate the model does not use (validation chose the learned gate), kept for
+    `predict(..., gate="fold")`."""
 
     accepts: ClassVar[dict[str, frozenset[str]]] = {"predict": frozenset({"branch_states", "snaps", "gate"}),
                                                      "reset": frozenset({"outer_motion", "continue_run"})}
 
-    def __init__(self, bundle: ModelBundle, fold_gate: FoldGate | None = None, fused: bool = True) -> None:
+    def __init__(self, bundle: ModelBundle, fold_gate: FoldGate | None = None, fused: bool = True,
+                 gate_aside: FoldGate | None = None) -> None:
         if not isinstance(bundle.net, BranchNet):
             raise ModelError(f"a snap-aware model needs its branch network, not {type(bundle.net).__name__}")
         self._branch_net: BranchNet = bundle.net
         self._fold_gate = fold_gate
+        self._gate_aside = gate_aside
         self._slide_play: PlayState | None = None       # the gate's slide memory (_link_play)
         super().__init__(bundle, bundle.net, fused)
 
@@ -59,21 +65,26 @@ class SnapAwarePredictor(FKPredictor):
         self._rebuild_fused()                       # it holds the gate's tables
 
     def describe(self) -> str:
-        return ", fold_gate" if self._fold_gate is not None else ""
+        if self._fold_gate is not None:
+            return ", fold_gate"
+        return ", learned gate (chosen on validation)" if self._gate_aside is not None else ""
 
     # --- batch -----------------------------------------------------------------------------------
     def _batch_outputs(self, feats: np.ndarray, bounds: list[tuple[int, int]], data: Dataset | np.ndarray,
                        raw: np.ndarray, options: dict[str, Any]) -> np.ndarray:
         gate, states = options.get("gate"), options.get("branch_states")
-        if gate is not None and (gate not in GATES or (gate == "fold" and self._fold_gate is None)):
+        fold = None if gate == "learned" else self._fold_gate
+        if gate == "fold":
+            fold = self._fold_gate or self._gate_aside
+        if gate is not None and (gate not in GATES or (gate == "fold" and fold is None)):
             raise ModelError(f"gate={gate!r} needs a branch model (lstm_mlp_branch) and is 'learned' or "
                              "'fold' (where the model folder has fold_gate.json)")
         if options.get("snaps") is not None:
             states = self._snap_states(data, raw, bounds, np.asarray(options["snaps"]))
         net = self._branch_net
         h = seqnet_trunk(net, *padded_rows(feats, bounds, self.ib))   # the state: along each sequence
-        if states is None and self._fold_gate is not None and gate != "learned":
-            states = self._fold_states(data, raw, bounds)
+        if states is None and fold is not None:
+            states = self._fold_states(fold, data, raw, bounds)
         if states is None:
             yn, _ = net.decode(h, bounds)
             return yn
@@ -83,18 +94,17 @@ class SnapAwarePredictor(FKPredictor):
         with torch.inference_mode():
             return net.head_out(h, torch.from_numpy(s)).numpy()
 
-    def _fold_states(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]]
-                     ) -> np.ndarray:
-        """(T,) branch states from the fold gate, m_N as _recorded_motion."""
-        assert self._fold_gate is not None
+    def _fold_states(self, fold: FoldGate, data: Dataset | np.ndarray, raw: np.ndarray,
+                     bounds: list[tuple[int, int]]) -> np.ndarray:
+        """(T,) branch states from fold gate `fold`, m_N as _recorded_motion."""
         n = self.layout.n_tubes
         motion, runs = self._recorded_motion(data, raw, bounds)
         slide = None
-        if self._fold_gate.slides:         # the slide memory along the joints as recorded, as m_N
+        if fold.slides:                    # the slide memory along the joints as recorded, as m_N
             slide = (slide_lags(data, data.joints(), bounds, n) if isinstance(data, Dataset)
                      else slide_lags(None, raw, bounds, n))
-        return self._fold_gate.states(raw[:, 0] - raw[:, n - 1], raw[:, n:], motion, bounds,
-                                      run_continues(bounds, runs), slide)
+        return fold.states(raw[:, 0] - raw[:, n - 1], raw[:, n:], motion, bounds,
+                           run_continues(bounds, runs), slide)
 
     def _snap_states(self, data: Dataset | np.ndarray, raw: np.ndarray, bounds: list[tuple[int, int]],
                      snaps: np.ndarray) -> np.ndarray:

@@ -1,7 +1,8 @@
 """How the snap-aware FK learns (docs/learned_kinematics.md: Snap-aware FK): the paper's windows and
 MAE (ctrkin.models.recipe.WindowRecipe), plus the branch labels from the dataset's snap flags
 (ctrkin.families.snap_aware.labels), the gate's cross-entropy beside the MAE of the true branch's
-head, and at the end the fold gate from the nominal robot's folds (ctrkin.families.snap_aware.fold_gate).
+head, and at the end the fold gate from the nominal robot's folds (ctrkin.families.snap_aware.fold_gate),
+kept in use unless the validation rows prefer the learned gate (ctrkin.families.snap_aware.gate_choice).
 
 The gate sees the previous label (teacher forcing), hidden as "unknown" with probability
 `unknown_prob` and flipped on rows whose label does not depend on history (so a wrong state
@@ -14,7 +15,7 @@ docs/learned_kinematics.md: The offset head form).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -23,10 +24,12 @@ import torch
 
 from ctrkin.data.schema import sequence_bounds
 from ctrkin.families.snap_aware.fold_gate import FoldGate, build_fold_gate, slide_lags
+from ctrkin.families.snap_aware.gate_choice import GateChoice, judge_gates
 from ctrkin.families.snap_aware.labels import BAND_DEG, branch_labels, phase_deg, previous_labels, snap_events
 from ctrkin.families.snap_aware.net import BranchNet
+from ctrkin.families.snap_aware.predictor import SnapAwarePredictor
 from ctrkin.models.motion import recorded_motion
-from ctrkin.models.recipe import Log, Prepared, TrainingData, WindowRecipe
+from ctrkin.models.recipe import Log, Prepared, TrainingData, WindowRecipe, inputs_and_targets
 from ctrkin.models.seqnet import UNKNOWN_STATE
 from ctrkin.models.store import ModelBundle
 
@@ -153,8 +156,29 @@ class BranchRecipe(WindowRecipe):
 
     def finish(self, bundle: ModelBundle, folder: Path, log: Log) -> dict[str, Any]:
         log("tabulating the nominal robot's folds for the fold gate")
-        fold_gate(self.data.ds, self.rows["train"], self.cfg.fold_scale).save(folder)
-        return super().finish(bundle, folder, log)
+        gate = fold_gate(self.data.ds, self.rows["train"], self.cfg.fold_scale)
+        gate.save(folder)
+        metrics = super().finish(bundle, folder, log)
+        choice = self.gate_choice(bundle, gate)
+        if choice is not None:
+            metrics["gate"] = choice.to_dict()
+            used = "fold gate" if choice.use_fold else "learned gate"
+            log(f"gate on the validation rows: fold {choice.fold_mm:.3f} mm, learned {choice.learned_mm:.3f} "
+                f"mm, learned better in {100 * choice.p_learned_better:.0f} % of resamples:"
+                f" {used} used")
+            if not choice.use_fold:
+                replace(gate, in_use=False).save(folder)
+        return metrics
+
+    def gate_choice(self, bundle: ModelBundle, gate: FoldGate) -> GateChoice | None:
+        """Fold against learned gate on the validation rows (ctrkin.families.snap_aware.gate_choice),
+        each predicted along the whole dataset; None without validation rows."""
+        val = self.rows["val"]
+        if len(val) == 0:
+            return None
+        ds = self.data.ds
+        target = inputs_and_targets(ds, "fk", self.cfg.pose_source)[1]
+        return judge_gates(SnapAwarePredictor(bundle, gate), ds, val, target)
 
 
 def fold_gate(ds: Any, rows: np.ndarray, fold_scale: bool = False) -> FoldGate:
