@@ -23,7 +23,7 @@ import numpy as np
 
 import ctrkin
 from ctrkin.data.dataset import Dataset
-from ctrkin.families.snap_aware.gate_choice import LEVEL, judge_gates
+from ctrkin.families.snap_aware.gate_choice import LEVEL, choose_gate, gate_positions
 from ctrkin.models.recipe import inputs_and_targets
 
 FK = "fk_lstm_mlp_branch"
@@ -36,9 +36,14 @@ def figures(repro: Path) -> dict[str, Any]:
     model = kin.predictor
     target = inputs_and_targets(ds, "fk", kin.config.pose_source)[1]
     split = ds.get_split()
-    val, test = np.sort(split.val), np.sort(split.test)
-    choice = judge_gates(model, ds, val, target)
-    on_test = judge_gates(model, ds, test, target)
+    fold, learned = gate_positions(model, ds)          # each gate once, judged on two row sets
+    sequence = ds.frame["sequence_id"].to_numpy()
+
+    def on(rows: np.ndarray) -> Any:
+        rows = np.sort(rows)
+        return choose_gate(fold[rows], learned[rows], target[rows, :3], sequence[rows])
+
+    choice, on_test = on(split.val), on(split.test)
     return {**choice.to_dict(), "test_position_rmse_fold_mm": on_test.fold_mm,
             "test_position_rmse_learned_mm": on_test.learned_mm,
             "gate_in_use": "fold" if model.fold_gate is not None else "learned"}

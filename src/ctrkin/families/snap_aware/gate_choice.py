@@ -67,9 +67,15 @@ def choose_gate(fold_pos: np.ndarray, learned_pos: np.ndarray, target_pos: np.nd
     return GateChoice(fold_mm, learned_mm, p, len(seqs), p < LEVEL)
 
 
+def gate_positions(model: SnapAwarePredictor, ds: Dataset) -> tuple[np.ndarray, np.ndarray]:
+    """(T, 3) tip positions of `model` (with a fold gate, in use or aside) over every row of `ds` by
+    its fold gate and by its learned gate, each along the whole dataset (its runs' histories)."""
+    return (np.asarray(model.predict(ds, gate="fold"))[:, :3],
+            np.asarray(model.predict(ds, gate="learned"))[:, :3])
+
+
 def judge_gates(model: SnapAwarePredictor, ds: Dataset, val: np.ndarray, target: np.ndarray) -> GateChoice:
-    """The choice for `model` (with a fold gate, in use or aside) on rows `val` of `ds`, each gate's
-    predictions along the whole dataset (its runs' histories); target (T, ≥3): the poses it learned."""
-    fold = np.asarray(model.predict(ds, gate="fold"))[val, :3]
-    learned = np.asarray(model.predict(ds, gate="learned"))[val, :3]
-    return choose_gate(fold, learned, target[val, :3], ds.frame["sequence_id"].to_numpy()[val])
+    """The choice for `model` on rows `val` of `ds` (`gate_positions`); target (T, ≥3): the poses it
+    learned."""
+    fold, learned = gate_positions(model, ds)
+    return choose_gate(fold[val], learned[val], target[val, :3], ds.frame["sequence_id"].to_numpy()[val])

@@ -157,8 +157,7 @@ class BranchRecipe(WindowRecipe):
     def finish(self, bundle: ModelBundle, folder: Path, log: Log) -> dict[str, Any]:
         log("tabulating the nominal robot's folds for the fold gate")
         gate = fold_gate(self.data.ds, self.rows["train"], self.cfg.fold_scale)
-        gate.save(folder)
-        metrics = super().finish(bundle, folder, log)
+        metrics = super().finish(bundle, folder, log)    # the frame's field settled before the choice
         choice = self.gate_choice(bundle, gate)
         if choice is not None:
             metrics["gate"] = choice.to_dict()
@@ -166,8 +165,8 @@ class BranchRecipe(WindowRecipe):
             log(f"gate on the validation rows: fold {choice.fold_mm:.3f} mm, learned {choice.learned_mm:.3f} "
                 f"mm, learned better in {100 * choice.p_learned_better:.0f} % of resamples:"
                 f" {used} used")
-            if not choice.use_fold:
-                replace(gate, in_use=False).save(folder)
+            gate = replace(gate, in_use=choice.use_fold)
+        gate.save(folder)
         return metrics
 
     def gate_choice(self, bundle: ModelBundle, gate: FoldGate) -> GateChoice | None:
