@@ -38,6 +38,16 @@ def test_snap_score_matches_events_within_tolerance() -> None:
     assert s.n_predicted == 2 and s.precision == pytest.approx(1 / 2)
 
 
+def test_snap_magnitude_error_is_an_angle_difference() -> None:
+    """A jump across the axis read as +170° by the prediction and −175° by the reference lands 15° apart
+    (not 345°); a plain size error stays as it is."""
+    ref = np.r_[np.zeros(10), np.full(10, -175.0), np.zeros(10), np.full(10, 40.0)]
+    pred = np.r_[np.zeros(10), np.full(10, 170.0), np.zeros(10), np.full(10, 30.0)]
+    s = snap_score(pred, ref, [(0, 20), (20, 40)])
+    assert s.n_matched == 2
+    assert s.magnitude_error_deg == pytest.approx((15.0 + 10.0) / 2)
+
+
 def test_snap_steps_never_cross_sequences() -> None:
     az = np.r_[np.zeros(5), np.full(5, 90.0)]
     assert len(snap_steps(az, [(0, 5), (5, 10)])) == 0

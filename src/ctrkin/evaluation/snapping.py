@@ -55,7 +55,9 @@ def snap_event_rows(
 class SnapScore:
     """Snap prediction against a reference: counts, precision, recall, timing error (steps, mean
     |Δn| over matched events) and magnitude error (deg, mean |ΔT_pred − ΔT_ref| over matched events,
-    each event's magnitude being the T(L) change over rows n−1 … n+1)."""
+    each event's magnitude being the T(L) change over rows n−1 … n+1, the difference wrapped into
+    [−180°, 180°]: a tip that jumps across the axis turns T(L) by +170° or by −190° to the same
+    azimuth, which the per-row unwrapping decides by a hair, so the two differ by 0°, not 360°)."""
 
     n_reference: int
     n_predicted: int
@@ -104,7 +106,8 @@ def snap_score(
         i = min(cand, key=lambda j: abs(int(pred_ev[j]) - int(r)))
         used[i] = True
         timing.append(abs(int(pred_ev[i]) - int(r)))
-        magnitude.append(abs(mag(pred_azimuth, int(pred_ev[i])) - mag(ref_azimuth, int(r))))
+        diff = mag(pred_azimuth, int(pred_ev[i])) - mag(ref_azimuth, int(r))
+        magnitude.append(abs((diff + 180.0) % 360.0 - 180.0))
     n_m = int(used.sum())
     return SnapScore(
         n_reference=len(ref_ev),
