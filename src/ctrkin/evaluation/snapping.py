@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from ctrkin.geometry import tip_azimuth
+from ctrkin.metrics import wrap_deg
 
 SNAP_THRESHOLD_DEG = 10.0  # paper II.B: a snap is a step where T(L) changes by more than 10°
 
@@ -89,7 +90,7 @@ def snap_score(
     for k, (a, b) in enumerate(bounds):
         seq_of[a:b] = k
     used = np.zeros(len(pred_ev), dtype=bool)
-    timing, magnitude = [], []
+    timing, magnitude = [], []      # magnitude: ΔT_pred − ΔT_ref of each match, wrapped at the end
 
     def mag(az: np.ndarray, n: int) -> float:
         a, b = bounds[seq_of[n]]
@@ -106,8 +107,7 @@ def snap_score(
         i = min(cand, key=lambda j: abs(int(pred_ev[j]) - int(r)))
         used[i] = True
         timing.append(abs(int(pred_ev[i]) - int(r)))
-        diff = mag(pred_azimuth, int(pred_ev[i])) - mag(ref_azimuth, int(r))
-        magnitude.append(abs((diff + 180.0) % 360.0 - 180.0))
+        magnitude.append(mag(pred_azimuth, int(pred_ev[i])) - mag(ref_azimuth, int(r)))
     n_m = int(used.sum())
     return SnapScore(
         n_reference=len(ref_ev),
@@ -116,7 +116,8 @@ def snap_score(
         precision=n_m / len(pred_ev) if len(pred_ev) else float("nan"),
         recall=n_m / len(ref_ev) if len(ref_ev) else float("nan"),
         timing_error_steps=float(np.mean(timing)) if timing else float("nan"),
-        magnitude_error_deg=float(np.mean(magnitude)) if magnitude else float("nan"),
+        magnitude_error_deg=float(np.mean(np.abs(wrap_deg(np.array(magnitude))))) if magnitude
+        else float("nan"),
     )
 
 
