@@ -38,6 +38,9 @@ what the experiment itself allows and what the models add, on the reproduction's
                  are not the reproduction's (task_path seeds 100-104, VALIDATION_PATH_SEEDS), with K
                  applications at each destination reached through intermediate targets
                  (Follower.arrive; the choice of ARRIVE_ITERATIONS)
+  inversion      with --inversion S,… (and nothing else): each follow IK on the validation and test
+                 sequences and the random poses with the share S of its identified outer lag inverted
+                 as a play (Follower.inversion; the choice of OUTER_INVERSION, made on validation)
 An IK that takes no start joints (the paper's, the refined one) is scored from its own start there.
 
 Ends with one JSON line of the figures (mm unless named otherwise).
@@ -345,6 +348,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--fk", type=Path, default=None, help=f"the FK folder (default: models/{FK_BRANCH})")
     ap.add_argument("--iterations", default="", help="comma-separated applications per target to score "
                     "each IK's validation figure with (e.g. 1,2,4)")
+    ap.add_argument("--inversion", default="", help="comma-separated shares of the outer lag the follow IK "
+                    "inverts (e.g. 0,0.25,0.5,1): only score each follow IK on the validation and test "
+                    "sequences and the random poses with each")
     ap.add_argument("--arrive", default="", help="comma-separated applications at a far target (e.g. "
                     "0,2,5): only score each follow IK along validation squares and triangles (task_path "
                     f"seeds {VALIDATION_PATH_SEEDS.start}-{VALIDATION_PATH_SEEDS.stop - 1}) with each")
@@ -353,7 +359,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     if any(k < 1 for k in iterations):
         ap.error("--iterations are counts of at least 1")
     if args.collect is not None:
-        args.repro = collect_repro(args.collect, "quick", args.settings)
+        args.repro, _ = collect_repro(args.collect, "quick", args.settings)
         train_recommended(args.repro, "ik", args.repro / "models" / IK_FOLLOW, [])
         train_recommended(args.repro, "fk", args.repro / "models" / FK_BRANCH, [])
     if args.repro is None:
@@ -370,6 +376,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     fk = Kinematics.load(fk_dir) if fk_dir.is_dir() else None
     if args.arrive:
         return _arrive_report(virtual, iks, tuple(int(k) for k in args.arrive.split(",")), ds)
+    if args.inversion:
+        shares = tuple(float(k) for k in args.inversion.split(","))
+        if any(not 0.0 <= k <= 2.0 for k in shares):
+            ap.error("--inversion shares lie in [0, 2]")
+        return _inversion_report(virtual, iks, shares, ds, rp)
 
     floor = recorded(virtual, ds) | replayed(virtual, ds) | lookup(virtual, ds, train)
     floor["recorded_random_within_1mm"] = random_within_1mm(virtual, rp, rp.joints())
@@ -398,6 +409,47 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         if "val_by_iterations_mm" in r:
             print(f"  {'':38s} validation by applications per target: " + ", ".join(
                 f"{k}: {v:.2f}" for k, v in r["val_by_iterations_mm"].items()), flush=True)
+    print(json.dumps(report, default=float))
+    return report
+
+
+def inversion_figures(virtual: VirtualRobot, ik: Kinematics, shares: tuple[float, ...], ds: Dataset,
+                      rp: Dataset) -> dict[float, dict[str, float]]:
+    """A follow IK with each share of its outer lag inverted (Follower.inversion): via the robot on the
+    validation and test sequences (mm RMSE, each from rest) and the random poses within 1 mm."""
+    follower = ik.predictor.follower        # type: ignore[attr-defined]
+    own = follower.inversion
+    sid = ds.frame["sequence_id"].to_numpy()
+    out: dict[float, dict[str, float]] = {}
+    try:
+        for s in shares:
+            follower.inversion = s
+            row = out.setdefault(s, {})
+            for part in ("val", "test"):
+                rows, b = _part(ds, part)
+                reached, _ = drive(virtual, ik.predict(ds.poses()[rows], sequence_id=sid[rows]).joints, b)
+                row[f"ik_{part}_mm"] = _rmse(_miss(reached, ds.poses()[rows]))
+            row["random_within_1mm"] = random_within_1mm(virtual, rp, ik.predict(rp).joints)
+    finally:
+        follower.inversion = own
+    return out
+
+
+def _inversion_report(virtual: VirtualRobot, iks: list[Path], shares: tuple[float, ...], ds: Dataset,
+                      rp: Dataset) -> dict[str, Any]:
+    """--inversion: one row per follow IK and share, then the JSON line."""
+    report: dict[str, Any] = {"inversion": {}}
+    print("follow IK with a share of its outer lag inverted (mm RMSE via the robot; random poses within "
+          "1 mm)")
+    print(f"  {'IK':38s} {'λ (a, b)':>14s} {'share':>6s} {'val':>6s} {'test':>6s} {'rand':>5s}")
+    for folder in iks:
+        ik = Kinematics.load(folder)
+        got = report["inversion"][str(folder)] = inversion_figures(virtual, ik, shares, ds, rp)
+        a, b = ik.predictor.follower.lag                   # type: ignore[attr-defined]
+        lag = f"{a:.2f}, {b:.3f}"
+        for s, r in got.items():
+            print(f"  {str(folder)[-38:]:38s} {lag:>14s} {s:6.2f} {r['ik_val_mm']:6.2f} "
+                  f"{r['ik_test_mm']:6.2f} {r['random_within_1mm']:5d}", flush=True)
     print(json.dumps(report, default=float))
     return report
 

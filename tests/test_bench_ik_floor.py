@@ -106,3 +106,28 @@ def test_the_pose_fit_finds_a_reachable_pose_and_the_position_alone(bench) -> No
     q, _ = bench._best_pose_joints(virtual, tilted, q_corner[None], 0.0)
     assert np.linalg.norm(tip(q)[:3] - tilted[:3]) < 1e-3
     assert tangent_angle_error(tip(q), tilted) > 5.0
+
+
+def test_inversion_scores_each_share_of_the_outer_lag_and_keeps_the_models_own(bench, tmp_path) -> None:
+    """--inversion: a follow IK's figures with each share of its outer lag inverted as a play; a share
+    of 0 and of 1 drive the outer motor differently (so the figures differ), and the model keeps its
+    own share afterwards."""
+    from ctrkin.inference import Kinematics
+    from ctrkin.training import TrainConfig, train
+
+    virtual = VirtualRobot(paper_robot(), dataclasses.replace(VirtualConfig().ideal(), tube_friction=0.69),
+                           seed=0)
+    ds = _two_legs(virtual, 4.0)
+    rows = np.arange(len(ds.frame))
+    ds.split = Split(rows, rows, rows, "sequence", 0, (1.0, 1.0, 1.0), len(rows))
+    cfg = TrainConfig(task="ik", model="follow_mlp", max_epochs=4, patience=4, batch_size=64, lr=2e-3,
+                      threads=1, options={"structure": "|D32"})
+    train(ds, cfg, tmp_path / "ik", progress=False)
+    ik = Kinematics.load(tmp_path / "ik")
+    follower = ik.predictor.follower
+    follower.lag, own = (6.0, 0.0), follower.inversion
+    got = bench.inversion_figures(virtual, ik, (0.0, 1.0), ds, ds)
+    assert set(got) == {0.0, 1.0}
+    assert set(got[0.0]) == {"ik_val_mm", "ik_test_mm", "random_within_1mm"}
+    assert got[0.0]["ik_val_mm"] != got[1.0]["ik_val_mm"]
+    assert follower.inversion == own

@@ -104,7 +104,7 @@ def test_follower_inverts_the_outer_tubes_play(follow_dir):
 
     kin = Kinematics.load(follow_dir)
     f = kin.predictor.follower
-    f.lag, f.hold_deg = (2.0, 0.0), 0.0                  # λ = 2° whatever the translations; exact
+    f.lag, f.hold_deg, f.inversion = (2.0, 0.0), 0.0, 1.0   # λ = 2° whatever the translations; exact
     q0 = np.array([10.0, 30.0, -20.0, 0.0])
     f.reset(q0)
     assert f.joints[1] == pytest.approx(32.0) and f.tube == f.motor == 30.0
@@ -120,12 +120,35 @@ def test_follower_inverts_the_outer_tubes_play(follow_dir):
     assert motors[3] == motors[2] and motors[4] == pytest.approx(30.5)   # still: no move; back: θ − λ
 
 
+def test_follower_inverts_its_share_of_the_outer_lag(follow_dir):
+    """The follower inverts `inversion` · λ as the play (OUTER_INVERSION unless the folder says
+    otherwise, stored at training): with λ = 4° and a share of 0.5 its commands are those of a 2° play,
+    and a start at rest is seen at the tube's angle + 2°; `follower_lag` stays the identified lag."""
+    from ctrkin.families.follow.stepper import OUTER_INVERSION
+
+    kin = Kinematics.load(follow_dir)
+    assert kin.predictor.follower.inversion == OUTER_INVERSION
+    assert kin.predictor.bundle.extra["follow"]["outer_inversion"] == OUTER_INVERSION
+    f = kin.predictor.follower
+    f.lag, f.hold_deg, f.inversion = (4.0, 0.0), 0.0, 0.5
+    assert kin.predictor.follower_lag == (4.0, 0.0)
+    q0 = np.array([10.0, 30.0, -20.0, 0.0])
+    f.reset(q0)
+    assert f.joints[1] == pytest.approx(32.0)
+    motors = []
+    for th in (31.0, 29.0):                              # forward, then back
+        q = q0.copy()
+        q[1] = th + 2.0
+        motors.append(f._backlash_inverse(q)[1])
+    assert motors == [pytest.approx(33.0), pytest.approx(27.0)]
+
+
 def test_follower_holds_the_motor_through_small_reversals(follow_dir):
     """A reversal of the outer tube smaller than hold_deg keeps the motor (the tube stays, within
     hold_deg of the network's angle) instead of a trip of 2λ through the play."""
     kin = Kinematics.load(follow_dir)
     f = kin.predictor.follower
-    f.lag, f.hold_deg = (2.0, 0.0), 0.5
+    f.lag, f.hold_deg, f.inversion = (2.0, 0.0), 0.5, 1.0
     q0 = np.array([10.0, 30.0, -20.0, 0.0])
     f.reset(q0)
 

@@ -32,8 +32,9 @@ class FollowPredictor(BasePredictor):
 
     @property
     def follower_lag(self) -> tuple[float, float]:
-        """The outer lag (a deg, b deg/mm) of λ = a + b·overlap (ctrkin.models.outer_lag) whose play
-        the stepper inverts; (0, 0) for a follow IK trained before it."""
+        """The outer lag (a deg, b deg/mm) of λ = a + b·overlap (ctrkin.models.outer_lag), identified
+        on the training rows, of which the stepper inverts the share `Follower.inversion` as a play;
+        (0, 0) for a follow IK trained before it."""
         return self.follower.lag
 
     def predict(self, data: Dataset | np.ndarray, sequence_id: np.ndarray | None = None,

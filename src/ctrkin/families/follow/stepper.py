@@ -17,7 +17,8 @@ The outer tube lags its motor by λ(β) in the direction the motor last turned (
 stored as `outer_lag_deg` in the model's follow settings). The network learned from turns recorded
 after a forward outer step, so its joints are those of a tube lagging by +λ; the motor command it
 returns is the play's inverse for the tube angle the network means (Follower._backlash_inverse), and
-a start at rest is seen by the network with the tube's angle + λ.
+a start at rest is seen by the network with the tube's angle + λ. Both use the share
+`outer_inversion` (OUTER_INVERSION) of λ: the identified lag is not all play.
 
 With the play lags (FeatureLayout.play) the follower carries the play operators of its targets'
 positions (ctrkin.models.play_lags.TargetPlay): at rest at a sequence's first target (every lag 0, as
@@ -47,6 +48,11 @@ from ctrkin.models.store import ModelBundle
 from ctrkin.models.workspace import Workspace
 
 HOLD_DEG = 0.5   # a reversal of the outer tube smaller than this keeps the motor (no trip through the play)
+# the share of the identified outer lag λ(β) that the stepper inverts as a play (OUTER_INVERSION·λ each
+# side); chosen on the validation sequences via the robot of five reproductions (docs/learned_kinematics.md:
+# How much of the outer lag to invert): part of λ comes back when the motor reverses, so a full 2λ trip
+# overshoots
+OUTER_INVERSION = 0.25
 # a destination: reached through ARRIVE_SUBSTEPS or more sub-targets, settled on with ARRIVE_ITERATIONS
 # applications (both chosen on validation: docs/learned_kinematics.md, Settling at a far target)
 ARRIVE_ITERATIONS = 2
@@ -73,6 +79,7 @@ class Follower:
         self.workspace = workspace
         lag = settings.get("outer_lag_deg", (0.0, 0.0))
         self.lag = (float(lag[0]), float(lag[1]))     # the outer tube's lag λ(β) (models.outer_lag)
+        self.inversion = float(settings.get("outer_inversion", OUTER_INVERSION))   # the share inverted
         self.joints: np.ndarray | None = None        # where the robot is, as the network sees it
         self.target: np.ndarray | None = None        # the previous target of this sequence
         self.hold_deg = HOLD_DEG
@@ -122,20 +129,22 @@ class Follower:
         return joints, projected
 
     def _lag(self, q: np.ndarray) -> float:
-        return 0.0 if self.lag == (0.0, 0.0) else lag_one(self.robot, q, self.lag)
+        """The play the stepper inverts at joints q: `inversion` · λ(β) (deg)."""
+        return 0.0 if self.lag == (0.0, 0.0) else self.inversion * lag_one(self.robot, q, self.lag)
 
     def _at_rest(self, q: np.ndarray) -> None:
         """The robot stands at motor joints q, its outer tube at rest (m_N = 0: tube = motor). The
         network learned from turns after a forward outer step, where the tube lags by λ, so it sees
-        the joints whose outer angle is the tube's + λ."""
+        the joints whose outer angle is the tube's + λ (the inverted share of it, `_lag`)."""
         self.tube = self.motor = float(q[self.n - 1])
         self.joints = q.copy()
         self.joints[self.n - 1] += self._lag(q)
 
     def _backlash_inverse(self, q: np.ndarray) -> np.ndarray:
-        """Motor joints for the network's answer q: the tube is to stand at θ = q_N − λ(β); the motor
+        """Motor joints for the network's answer q: the tube is to stand at θ = q_N − λ; the motor
         goes to θ + λ turning forward, θ − λ turning back, and stays where the tube does not move
-        (the inverse of the transmission's play, ctrkin.virtual.transmission)."""
+        (the inverse of the transmission's play, ctrkin.virtual.transmission), with λ the inverted
+        share of λ(β) (`_lag`)."""
         out = q.copy()
         if self.lag == (0.0, 0.0):
             return out
