@@ -41,6 +41,9 @@ what the experiment itself allows and what the models add, on the reproduction's
   inversion      with --inversion S,… (and nothing else): each follow IK on the validation and test
                  sequences and the random poses with the share S of its identified outer lag inverted
                  as a play (Follower.inversion; the choice of OUTER_INVERSION, made on validation)
+  dead zone      with --dead-zone A/B,… (and nothing else): the same, with joint changes below A deg
+                 (α) and B mm (β) not made (Follower.dead_zone; the choice of DEAD_ZONE), and the
+                 validation squares and triangles of `arrive` beside them
 An IK that takes no start joints (the paper's, the refined one) is scored from its own start there.
 
 Ends with one JSON line of the figures (mm unless named otherwise).
@@ -351,6 +354,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--inversion", default="", help="comma-separated shares of the outer lag the follow IK "
                     "inverts (e.g. 0,0.25,0.5,1): only score each follow IK on the validation and test "
                     "sequences and the random poses with each")
+    ap.add_argument("--dead-zone", default="", help="comma-separated A/B dead zones of the follow IK's "
+                    "steps (α deg / β mm, e.g. 0/0,2/0.1): only score each follow IK on the validation and "
+                    "test sequences, the random poses and validation squares and triangles with each")
     ap.add_argument("--arrive", default="", help="comma-separated applications at a far target (e.g. "
                     "0,2,5): only score each follow IK along validation squares and triangles (task_path "
                     f"seeds {VALIDATION_PATH_SEEDS.start}-{VALIDATION_PATH_SEEDS.stop - 1}) with each")
@@ -380,7 +386,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         shares = tuple(float(k) for k in args.inversion.split(","))
         if any(not 0.0 <= k <= 2.0 for k in shares):
             ap.error("--inversion shares lie in [0, 2]")
-        return _inversion_report(virtual, iks, shares, ds, rp)
+        return _setting_report(virtual, iks, "inversion", shares, ds, rp, paths=False)
+    if args.dead_zone:
+        zones = tuple(tuple(float(x) for x in z.split("/")) for z in args.dead_zone.split(","))
+        if any(len(z) != 2 or min(z) < 0 for z in zones):
+            ap.error("--dead-zone takes comma-separated A/B pairs (α deg / β mm, each ≥ 0)")
+        return _setting_report(virtual, iks, "dead_zone", zones, ds, rp, paths=True)
 
     floor = recorded(virtual, ds) | replayed(virtual, ds) | lookup(virtual, ds, train)
     floor["recorded_random_within_1mm"] = random_within_1mm(virtual, rp, rp.joints())
@@ -413,43 +424,51 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     return report
 
 
-def inversion_figures(virtual: VirtualRobot, ik: Kinematics, shares: tuple[float, ...], ds: Dataset,
-                      rp: Dataset) -> dict[float, dict[str, float]]:
-    """A follow IK with each share of its outer lag inverted (Follower.inversion): via the robot on the
-    validation and test sequences (mm RMSE, each from rest) and the random poses within 1 mm."""
+def setting_figures(virtual: VirtualRobot, ik: Kinematics, name: str, values: tuple[Any, ...], ds: Dataset,
+                    rp: Dataset, paths: bool = False) -> dict[Any, dict[str, float]]:
+    """A follow IK with its stepper's setting `name` (a Follower attribute) at each of `values`: via the
+    robot on the validation and test sequences (mm RMSE, each from rest), the random poses within 1 mm,
+    and with `paths` the mean RMSE along the validation squares and triangles (`validation_paths`)."""
     follower = ik.predictor.follower        # type: ignore[attr-defined]
-    own = follower.inversion
+    own = getattr(follower, name)
     sid = ds.frame["sequence_id"].to_numpy()
-    out: dict[float, dict[str, float]] = {}
+    out: dict[Any, dict[str, float]] = {}
     try:
-        for s in shares:
-            follower.inversion = s
-            row = out.setdefault(s, {})
+        for v in values:
+            setattr(follower, name, v)
+            row = out.setdefault(v, {})
             for part in ("val", "test"):
                 rows, b = _part(ds, part)
                 reached, _ = drive(virtual, ik.predict(ds.poses()[rows], sequence_id=sid[rows]).joints, b)
                 row[f"ik_{part}_mm"] = _rmse(_miss(reached, ds.poses()[rows]))
             row["random_within_1mm"] = random_within_1mm(virtual, rp, ik.predict(rp).joints)
+            if paths:
+                got = validation_paths(virtual, ik, (follower.arrive,), ds)[follower.arrive]
+                row.update({f"val_{k}_mm": float(np.mean(got[k])) for k in ("square", "triangle")})
     finally:
-        follower.inversion = own
+        setattr(follower, name, own)
     return out
 
 
-def _inversion_report(virtual: VirtualRobot, iks: list[Path], shares: tuple[float, ...], ds: Dataset,
-                      rp: Dataset) -> dict[str, Any]:
-    """--inversion: one row per follow IK and share, then the JSON line."""
-    report: dict[str, Any] = {"inversion": {}}
-    print("follow IK with a share of its outer lag inverted (mm RMSE via the robot; random poses within "
-          "1 mm)")
-    print(f"  {'IK':38s} {'λ (a, b)':>14s} {'share':>6s} {'val':>6s} {'test':>6s} {'rand':>5s}")
+def _setting_report(virtual: VirtualRobot, iks: list[Path], name: str, values: tuple[Any, ...], ds: Dataset,
+                    rp: Dataset, paths: bool) -> dict[str, Any]:
+    """--inversion / --dead-zone: one row per follow IK and value, then the JSON line."""
+    report: dict[str, Any] = {name: {}}
+    print(f"follow IK with its {name} at each value (mm RMSE via the robot; random poses within 1 mm"
+          + ("; validation squares / triangles, task_path seeds 100-104)" if paths else ")"))
+    print(f"  {'IK':38s} {'λ (a, b)':>14s} {name:>12s} {'val':>6s} {'test':>6s} {'rand':>5s}"
+          + (f" {'val sq':>6s} {'val tri':>7s}" if paths else ""))
     for folder in iks:
         ik = Kinematics.load(folder)
-        got = report["inversion"][str(folder)] = inversion_figures(virtual, ik, shares, ds, rp)
+        got = setting_figures(virtual, ik, name, values, ds, rp, paths)
+        report[name][str(folder)] = {str(v): r for v, r in got.items()}
         a, b = ik.predictor.follower.lag                   # type: ignore[attr-defined]
         lag = f"{a:.2f}, {b:.3f}"
-        for s, r in got.items():
-            print(f"  {str(folder)[-38:]:38s} {lag:>14s} {s:6.2f} {r['ik_val_mm']:6.2f} "
-                  f"{r['ik_test_mm']:6.2f} {r['random_within_1mm']:5d}", flush=True)
+        for v, r in got.items():
+            value = "/".join(f"{x:g}" for x in v) if isinstance(v, tuple) else f"{v:g}"
+            print(f"  {str(folder)[-38:]:38s} {lag:>14s} {value:>12s} {r['ik_val_mm']:6.2f} "
+                  f"{r['ik_test_mm']:6.2f} {r['random_within_1mm']:5d}"
+                  + (f" {r['val_square_mm']:6.2f} {r['val_triangle_mm']:7.2f}" if paths else ""), flush=True)
     print(json.dumps(report, default=float))
     return report
 

@@ -126,7 +126,7 @@ def test_inversion_scores_each_share_of_the_outer_lag_and_keeps_the_models_own(b
     ik = Kinematics.load(tmp_path / "ik")
     follower = ik.predictor.follower
     follower.lag, own = (6.0, 0.0), follower.inversion
-    got = bench.inversion_figures(virtual, ik, (0.0, 1.0), ds, ds)
+    got = bench.setting_figures(virtual, ik, "inversion", (0.0, 1.0), ds, ds)
     assert set(got) == {0.0, 1.0}
     assert set(got[0.0]) == {"ik_val_mm", "ik_test_mm", "random_within_1mm"}
     assert got[0.0]["ik_val_mm"] != got[1.0]["ik_val_mm"]

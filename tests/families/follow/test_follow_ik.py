@@ -143,6 +143,28 @@ def test_follower_inverts_its_share_of_the_outer_lag(follow_dir):
     assert motors == [pytest.approx(33.0), pytest.approx(27.0)]
 
 
+def test_follower_makes_no_joint_change_inside_its_dead_zone(follow_dir, sweeps):
+    """An application sends no α change below dead_zone[0] deg and no β change below dead_zone[1] mm,
+    and the rest in full; the folder stores DEAD_ZONE."""
+    from ctrkin.families.follow.stepper import DEAD_ZONE
+
+    kin = Kinematics.load(follow_dir)
+    f = kin.predictor.follower
+    assert f.dead_zone == DEAD_ZONE == tuple(kin.predictor.bundle.extra["follow"]["dead_zone"])
+    a, _ = sweeps.sequence_bounds()[1]
+    target, previous, q = sweeps.poses(true=True)[a + 5], sweeps.poses(true=True)[a], sweeps.joints()[a]
+    f.dead_zone = (0.0, 0.0)
+    free, _ = f._apply(target, previous, q)
+    dq = free - q
+    zone = (float(np.median(np.abs(dq[:2]))), float(np.median(np.abs(dq[2:]))))
+    f.dead_zone = zone
+    held, _ = f._apply(target, previous, q)
+    small = np.r_[np.abs(dq[:2]) < zone[0], np.abs(dq[2:]) < zone[1]]
+    assert small.any() and not small.all()
+    np.testing.assert_array_equal(held[small], q[small])
+    np.testing.assert_allclose(held[~small], free[~small])
+
+
 def test_follower_holds_the_motor_through_small_reversals(follow_dir):
     """A reversal of the outer tube smaller than hold_deg keeps the motor (the tube stays, within
     hold_deg of the network's angle) instead of a trip of 2λ through the play."""
@@ -301,9 +323,9 @@ def test_a_destination_is_settled_on_and_a_jump_within_a_stream_is_not(follow_di
     applied: list[bool] = []                                 # each application: at the target itself?
     original = follower._apply
 
-    def counting(target, previous, q, lags=None):
+    def counting(target, previous, q, lags=None, dead_zone=True):
         applied.append(bool(np.array_equal(target, previous)))
-        return original(target, previous, q, lags)
+        return original(target, previous, q, lags, dead_zone)
 
     follower._apply = counting
     far = targets[60]

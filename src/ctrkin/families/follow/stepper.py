@@ -20,6 +20,12 @@ returns is the play's inverse for the tube angle the network means (Follower._ba
 a start at rest is seen by the network with the tube's angle + λ. Both use the share
 `outer_inversion` (OUTER_INVERSION) of λ: the identified lag is not all play.
 
+Along the targets an application makes no joint change smaller than the dead zone (`dead_zone`,
+DEAD_ZONE: α deg, β mm): on a robot with friction each small change the network's answer wobbles by
+runs the tubes through a stretch of their hysteresis, and its drift in joints the targets barely
+show (β2 above all) adds up along a sequence. Settling (a sequence's first target, a destination)
+corrects with changes of any size.
+
 With the play lags (FeatureLayout.play) the follower carries the play operators of its targets'
 positions (ctrkin.models.play_lags.TargetPlay): at rest at a sequence's first target (every lag 0, as
 a recorded run starts), then advanced to each (sub-)target before the network sees it.
@@ -53,6 +59,10 @@ HOLD_DEG = 0.5   # a reversal of the outer tube smaller than this keeps the moto
 # How much of the outer lag to invert): part of λ comes back when the motor reverses, so a full 2λ trip
 # overshoots
 OUTER_INVERSION = 0.25
+# the smallest joint change an application along the targets sends (α deg, β mm): a smaller change the
+# network asks for is not made (module docstring; chosen on validation sequences and paths:
+# docs/learned_kinematics.md, The follow IK's dead zone)
+DEAD_ZONE = (2.0, 0.1)
 # a destination: reached through ARRIVE_SUBSTEPS or more sub-targets, settled on with ARRIVE_ITERATIONS
 # applications (both chosen on validation: docs/learned_kinematics.md, Settling at a far target)
 ARRIVE_ITERATIONS = 2
@@ -80,6 +90,7 @@ class Follower:
         lag = settings.get("outer_lag_deg", (0.0, 0.0))
         self.lag = (float(lag[0]), float(lag[1]))     # the outer tube's lag λ(β) (models.outer_lag)
         self.inversion = float(settings.get("outer_inversion", OUTER_INVERSION))   # the share inverted
+        self.dead_zone = tuple(float(v) for v in settings.get("dead_zone", DEAD_ZONE))   # (deg, mm)
         self.joints: np.ndarray | None = None        # where the robot is, as the network sees it
         self.target: np.ndarray | None = None        # the previous target of this sequence
         self.hold_deg = HOLD_DEG
@@ -171,8 +182,8 @@ class Follower:
             assert self.joints is not None
             q, projected = self.joints, False
             lags = self._target_lags(target)
-            for _ in range(self.settle):
-                q, projected = self._apply(target, target, q, lags)
+            for _ in range(self.settle):                     # settling: corrections of any size
+                q, projected = self._apply(target, target, q, lags, dead_zone=False)
         else:
             assert self.joints is not None
             q, projected, previous = self.joints, False, self.target
@@ -183,8 +194,8 @@ class Follower:
                     q, projected = self._apply(sub, previous, q, lags)
                     previous = sub
             far = len(subs) >= ARRIVE_SUBSTEPS
-            for _ in range(self.arrive if far and self.far else 0):      # a destination
-                q, projected = self._apply(target, target, q, lags)
+            for _ in range(self.arrive if far and self.far else 0):      # a destination (settling)
+                q, projected = self._apply(target, target, q, lags, dead_zone=False)
             self.far = far
         self.joints, self.target = q, np.array(target, dtype=np.float64)
         motor = self._backlash_inverse(q)
@@ -196,10 +207,14 @@ class Follower:
         return None if self.play is None else self.play.advance(target[:3])[None]
 
     def _apply(self, target: np.ndarray, previous: np.ndarray, q: np.ndarray,
-               lags: np.ndarray | None = None) -> tuple[np.ndarray, bool]:
+               lags: np.ndarray | None = None, dead_zone: bool = True) -> tuple[np.ndarray, bool]:
         feat = follow_features(self.frame, self.n, target[None], previous[None], q[None], lags,
                                self.outer_angle)[0]
         dq = self.y_norm.inverse(self.engine.step(self.x_norm.transform(feat)))
+        if dead_zone:                                          # a step along the targets (DEAD_ZONE)
+            a_deg, b_mm = self.dead_zone
+            dq[:self.n][np.abs(dq[:self.n]) < a_deg] = 0.0
+            dq[self.n:][np.abs(dq[self.n:]) < b_mm] = 0.0
         new = q + dq
         valid = self.robot.project_joints(new[None])[0]
         return valid, bool(np.any(np.abs(valid - new) > 1e-9))
