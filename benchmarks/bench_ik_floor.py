@@ -40,10 +40,11 @@ what the experiment itself allows and what the models add, on the reproduction's
                  (Follower.arrive; the choice of ARRIVE_ITERATIONS)
   inversion      with --inversion S,… (and nothing else): each follow IK on the validation and test
                  sequences and the random poses with the share S of its identified outer lag inverted
-                 as a play (Follower.inversion; the choice of OUTER_INVERSION, made on validation)
+                 as a play (Follower.inversion; the choice of OUTER_INVERSION, made on validation), with
+                 no dead zone (as it was chosen)
   dead zone      with --dead-zone A/B,… (and nothing else): the same, with joint changes below A deg
-                 (α) and B mm (β) not made (Follower.dead_zone; the choice of DEAD_ZONE), and the
-                 validation squares and triangles of `arrive` beside them
+                 (α) and B mm (β) not made (Follower.dead_zone; the choice of DEAD_ZONE) and the
+                 share OUTER_INVERSION inverted, and the validation squares and triangles of `arrive`
 An IK that takes no start joints (the paper's, the refined one) is scored from its own start there.
 
 Ends with one JSON line of the figures (mm unless named otherwise).
@@ -73,6 +74,7 @@ from ctrkin.evaluation.datasets import SEEDS as REPRO_SEEDS
 from ctrkin.evaluation.datasets import registered_truth
 from ctrkin.evaluation.experiments_ik import drive, joined
 from ctrkin.evaluation.table import FK_BRANCH, IK_FOLLOW
+from ctrkin.families.follow.stepper import OUTER_INVERSION
 from ctrkin.geometry import tangent_angle_error, tangent_from_quat
 from ctrkin.inference import Kinematics
 from ctrkin.mechanics import solve
@@ -386,12 +388,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         shares = tuple(float(k) for k in args.inversion.split(","))
         if any(not 0.0 <= k <= 2.0 for k in shares):
             ap.error("--inversion shares lie in [0, 2]")
-        return _setting_report(virtual, iks, "inversion", shares, ds, rp, paths=False)
+        # as chosen: before the dead zone existed
+        return _setting_report(virtual, iks, "inversion", shares, ds, rp, False, {"dead_zone": (0.0, 0.0)})
     if args.dead_zone:
         zones = tuple(tuple(float(x) for x in z.split("/")) for z in args.dead_zone.split(","))
         if any(len(z) != 2 or min(z) < 0 for z in zones):
             ap.error("--dead-zone takes comma-separated A/B pairs (α deg / β mm, each ≥ 0)")
-        return _setting_report(virtual, iks, "dead_zone", zones, ds, rp, paths=True)
+        # as chosen: with the outer inversion already chosen
+        return _setting_report(virtual, iks, "dead_zone", zones, ds, rp, True, {"inversion": OUTER_INVERSION})
 
     floor = recorded(virtual, ds) | replayed(virtual, ds) | lookup(virtual, ds, train)
     floor["recorded_random_within_1mm"] = random_within_1mm(virtual, rp, rp.joints())
@@ -425,15 +429,20 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
 
 
 def setting_figures(virtual: VirtualRobot, ik: Kinematics, name: str, values: tuple[Any, ...], ds: Dataset,
-                    rp: Dataset, paths: bool = False) -> dict[Any, dict[str, float]]:
-    """A follow IK with its stepper's setting `name` (a Follower attribute) at each of `values`: via the
-    robot on the validation and test sequences (mm RMSE, each from rest), the random poses within 1 mm,
-    and with `paths` the mean RMSE along the validation squares and triangles (`validation_paths`)."""
+                    rp: Dataset, paths: bool = False, base: dict[str, Any] | None = None
+                    ) -> dict[Any, dict[str, float]]:
+    """A follow IK with its stepper's setting `name` (a Follower attribute) at each of `values` (and the
+    settings `base` fixed): via the robot on the validation and test sequences (mm RMSE, each from rest),
+    the random poses within 1 mm, and with `paths` the mean RMSE along the validation squares and
+    triangles (`validation_paths`). The follower's own settings are restored afterwards."""
     follower = ik.predictor.follower        # type: ignore[attr-defined]
-    own = getattr(follower, name)
+    base = base or {}
+    own = {k: getattr(follower, k) for k in (name, *base)}
     sid = ds.frame["sequence_id"].to_numpy()
     out: dict[Any, dict[str, float]] = {}
     try:
+        for k, v in base.items():
+            setattr(follower, k, v)
         for v in values:
             setattr(follower, name, v)
             row = out.setdefault(v, {})
@@ -446,12 +455,13 @@ def setting_figures(virtual: VirtualRobot, ik: Kinematics, name: str, values: tu
                 got = validation_paths(virtual, ik, (follower.arrive,), ds)[follower.arrive]
                 row.update({f"val_{k}_mm": float(np.mean(got[k])) for k in ("square", "triangle")})
     finally:
-        setattr(follower, name, own)
+        for k, v in own.items():
+            setattr(follower, k, v)
     return out
 
 
 def _setting_report(virtual: VirtualRobot, iks: list[Path], name: str, values: tuple[Any, ...], ds: Dataset,
-                    rp: Dataset, paths: bool) -> dict[str, Any]:
+                    rp: Dataset, paths: bool, base: dict[str, Any]) -> dict[str, Any]:
     """--inversion / --dead-zone: one row per follow IK and value, then the JSON line."""
     report: dict[str, Any] = {name: {}}
     print(f"follow IK with its {name} at each value (mm RMSE via the robot; random poses within 1 mm"
@@ -460,7 +470,7 @@ def _setting_report(virtual: VirtualRobot, iks: list[Path], name: str, values: t
           + (f" {'val sq':>6s} {'val tri':>7s}" if paths else ""))
     for folder in iks:
         ik = Kinematics.load(folder)
-        got = setting_figures(virtual, ik, name, values, ds, rp, paths)
+        got = setting_figures(virtual, ik, name, values, ds, rp, paths, base)
         report[name][str(folder)] = {str(v): r for v, r in got.items()}
         a, b = ik.predictor.follower.lag                   # type: ignore[attr-defined]
         lag = f"{a:.2f}, {b:.3f}"

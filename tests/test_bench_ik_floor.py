@@ -125,9 +125,9 @@ def test_inversion_scores_each_share_of_the_outer_lag_and_keeps_the_models_own(b
     train(ds, cfg, tmp_path / "ik", progress=False)
     ik = Kinematics.load(tmp_path / "ik")
     follower = ik.predictor.follower
-    follower.lag, own = (6.0, 0.0), follower.inversion
-    got = bench.setting_figures(virtual, ik, "inversion", (0.0, 1.0), ds, ds)
+    follower.lag, own, zone = (6.0, 0.0), follower.inversion, follower.dead_zone
+    got = bench.setting_figures(virtual, ik, "inversion", (0.0, 1.0), ds, ds, base={"dead_zone": (1.0, 0.1)})
     assert set(got) == {0.0, 1.0}
     assert set(got[0.0]) == {"ik_val_mm", "ik_test_mm", "random_within_1mm"}
     assert got[0.0]["ik_val_mm"] != got[1.0]["ik_val_mm"]
-    assert follower.inversion == own
+    assert follower.inversion == own and follower.dead_zone == zone

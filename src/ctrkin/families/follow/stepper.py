@@ -18,12 +18,12 @@ stored as `outer_lag_deg` in the model's follow settings). The network learned f
 after a forward outer step, so its joints are those of a tube lagging by +λ; the motor command it
 returns is the play's inverse for the tube angle the network means (Follower._backlash_inverse), and
 a start at rest is seen by the network with the tube's angle + λ. Both use the share
-`outer_inversion` (OUTER_INVERSION) of λ: the identified lag is not all play.
+`outer_inversion` (OUTER_INVERSION at training) of λ: the identified lag is not all play.
 
 Along the targets an application makes no joint change smaller than the dead zone (`dead_zone`,
-DEAD_ZONE: α deg, β mm): on a robot with friction each small change the network's answer wobbles by
-runs the tubes through a stretch of their hysteresis, and its drift in joints the targets barely
-show (β2 above all) adds up along a sequence. Settling (a sequence's first target, a destination)
+DEAD_ZONE at training: α deg, β mm): on a robot with friction each small change the network's
+answer wobbles by runs the tubes through a stretch of their hysteresis, and its drift in joints the
+targets barely show (β2 above all) adds up along a sequence. Settling (a sequence's first target, a destination)
 corrects with changes of any size.
 
 With the play lags (FeatureLayout.play) the follower carries the play operators of its targets'
@@ -89,8 +89,10 @@ class Follower:
         self.workspace = workspace
         lag = settings.get("outer_lag_deg", (0.0, 0.0))
         self.lag = (float(lag[0]), float(lag[1]))     # the outer tube's lag λ(β) (models.outer_lag)
-        self.inversion = float(settings.get("outer_inversion", OUTER_INVERSION))   # the share inverted
-        self.dead_zone = tuple(float(v) for v in settings.get("dead_zone", DEAD_ZONE))   # (deg, mm)
+        # the share of λ inverted and the dead zone (deg, mm); a folder trained before these settings
+        # has neither and steps as it did (the whole λ, no zone), so it predicts what it predicted
+        self.inversion = float(settings.get("outer_inversion", 1.0))
+        self.dead_zone = tuple(float(v) for v in settings.get("dead_zone", (0.0, 0.0)))
         self.joints: np.ndarray | None = None        # where the robot is, as the network sees it
         self.target: np.ndarray | None = None        # the previous target of this sequence
         self.hold_deg = HOLD_DEG
