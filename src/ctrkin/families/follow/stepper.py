@@ -23,8 +23,8 @@ a start at rest is seen by the network with the tube's angle + λ. Both use the 
 Along the targets an application makes no joint change smaller than the dead zone (`dead_zone`,
 DEAD_ZONE at training: α deg, β mm): on a robot with friction each small change the network's
 answer wobbles by runs the tubes through a stretch of their hysteresis, and its drift in joints the
-targets barely show (β2 above all) adds up along a sequence. Settling (a sequence's first target, a destination)
-corrects with changes of any size.
+targets barely show (β2 above all) adds up along a sequence. Settling (a sequence's first target,
+a destination) corrects with changes of any size.
 
 With the play lags (FeatureLayout.play) the follower carries the play operators of its targets'
 positions (ctrkin.models.play_lags.TargetPlay): at rest at a sequence's first target (every lag 0, as
