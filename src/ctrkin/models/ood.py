@@ -26,6 +26,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from ctrkin.metrics import wrap_deg
+
 HISTORY = 2           # changes of the input over the last HISTORY steps are features (the "history" blocks)
 RANGE_UNIT = 0.01    # a feature 1 % of its training spread beyond its trained range adds 1 to the score
 INPUTS = ("joints", "pose", "pose+joints")
@@ -33,11 +35,6 @@ SPLITS = ("config-history", "blocks", "fine", "blocks+translations")
 DEFAULT_SPLIT = "blocks+translations"   # chosen on validation walks (docs/planning.md: Uncertainty)
 POSE = 6
 _MODE = {"joints": 0, "pose": 1, "pose+joints": 2}
-
-
-def wrap_deg(x: np.ndarray) -> np.ndarray:
-    """Angles (deg) wrapped into [−180, 180)."""
-    return (np.asarray(x, float) + 180.0) % 360.0 - 180.0
 
 
 def input_width(inputs: str, n_tubes: int) -> int:
