@@ -3,6 +3,8 @@ streaming, start joints are honoured and checked, joints stay within limits or a
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 
@@ -163,6 +165,18 @@ def test_follower_makes_no_joint_change_inside_its_dead_zone(follow_dir, sweeps)
     assert small.any() and not small.all()
     np.testing.assert_array_equal(held[small], q[small])
     np.testing.assert_allclose(held[~small], free[~small])
+
+
+@pytest.mark.parametrize("bad", [{"dead_zone": [2.0]}, {"dead_zone": [2.0, -0.1]},
+                                 {"outer_inversion": float("nan")}])
+def test_follow_settings_with_a_malformed_dead_zone_or_inversion_are_refused(follow_dir, bad):
+    from ctrkin.families.follow.stepper import Follower
+
+    kin = Kinematics.load(follow_dir)
+    bundle = copy.copy(kin.predictor.bundle)
+    bundle.extra = {**bundle.extra, "follow": {**bundle.extra["follow"], **bad}}
+    with pytest.raises(ModelError, match="dead_zone"):
+        Follower(bundle, None)
 
 
 def test_follower_holds_the_motor_through_small_reversals(follow_dir):

@@ -55,7 +55,7 @@ from ctrkin.models.workspace import Workspace
 
 HOLD_DEG = 0.5   # a reversal of the outer tube smaller than this keeps the motor (no trip through the play)
 # the share of the identified outer lag λ(β) that the stepper inverts as a play (OUTER_INVERSION·λ each
-# side); chosen on the validation sequences via the robot of five reproductions (docs/learned_kinematics.md:
+# side); chosen on the validation sequences via the robot of six reproductions (docs/learned_kinematics.md:
 # How much of the outer lag to invert): part of λ comes back when the motor reverses, so a full 2λ trip
 # overshoots
 OUTER_INVERSION = 0.25
@@ -93,6 +93,11 @@ class Follower:
         # has neither and steps as it did (the whole λ, no zone), so it predicts what it predicted
         self.inversion = float(settings.get("outer_inversion", 1.0))
         self.dead_zone = tuple(float(v) for v in settings.get("dead_zone", (0.0, 0.0)))
+        if (len(self.dead_zone) != 2 or not all(np.isfinite(self.dead_zone)) or min(self.dead_zone) < 0
+                or not np.isfinite(self.inversion) or self.inversion < 0):
+            raise ModelError(f"the follow settings' dead_zone must be two numbers ≥ 0 (α deg, β mm) and "
+                             f"outer_inversion a number ≥ 0; got {settings.get('dead_zone')} and "
+                             f"{settings.get('outer_inversion')}")
         self.joints: np.ndarray | None = None        # where the robot is, as the network sees it
         self.target: np.ndarray | None = None        # the previous target of this sequence
         self.hold_deg = HOLD_DEG
