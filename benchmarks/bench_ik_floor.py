@@ -218,13 +218,14 @@ def path_reaches(virtual: VirtualRobot) -> dict[str, float]:
 
 
 def validation_paths(virtual: VirtualRobot, ik: Kinematics, arrives: tuple[int, ...], ds: Dataset,
-                     seeds: range = VALIDATION_PATH_SEEDS) -> dict[int, dict[str, list[float]]]:
+                     seeds: range = VALIDATION_PATH_SEEDS, sequences: bool = True
+                     ) -> dict[int, dict[str, list[float]]]:
     """A follow IK along squares and triangles that are not the reproduction's (task_path seeds
     `seeds`; the reproduction's are 4 and 5), with `Follower.arrive` set to each of `arrives` (its
     applications at a destination reached through intermediate targets): per K and shape the tip's
     position RMSE via the robot (mm) on each path, its first target left out (the sequence start's
-    own settling); and under "validation" the figure on the validation sequences of `ds` (close
-    targets, where a step beyond the training steps' 95th percentile also takes them)."""
+    own settling); and with `sequences`, under "validation", the figure on the validation sequences of
+    `ds` (close targets, where a step beyond the training steps' 95th percentile also takes them)."""
     follower = ik.predictor.follower        # type: ignore[attr-defined]
     own = follower.arrive
     paths = {(shape, seed): virtual.tracker.registered(task_path(virtual, shape, 10, seed).poses)
@@ -236,15 +237,16 @@ def validation_paths(virtual: VirtualRobot, ik: Kinematics, arrives: tuple[int, 
             for (shape, _), targets in paths.items():
                 reached, _ = drive(virtual, ik.predict(targets).joints, [(0, len(targets))])
                 out.setdefault(k, {}).setdefault(shape, []).append(_rmse(_miss(reached[1:], targets[1:])))
-            out[k]["validation"] = [validation_mm(virtual, ik, ds)]
+            if sequences:
+                out[k]["validation"] = [validation_mm(virtual, ik, ds)]
     finally:
         follower.arrive = own
     return out
 
 
-def validation_mm(virtual: VirtualRobot, ik: Kinematics, ds: Dataset) -> float:
-    """The IK via the robot on the validation sequences of `ds` (mm RMSE), each from rest."""
-    rows, b = _part(ds, "val")
+def validation_mm(virtual: VirtualRobot, ik: Kinematics, ds: Dataset, part: str = "val") -> float:
+    """The IK via the robot on the validation (or `part`'s) sequences of `ds` (mm RMSE), each from rest."""
+    rows, b = _part(ds, part)
     sid = ds.frame["sequence_id"].to_numpy()[rows]
     reached, _ = drive(virtual, ik.predict(ds.poses()[rows], sequence_id=sid).joints, b)
     return _rmse(_miss(reached, ds.poses()[rows]))
@@ -438,21 +440,17 @@ def setting_figures(virtual: VirtualRobot, ik: Kinematics, name: str, values: tu
     follower = ik.predictor.follower        # type: ignore[attr-defined]
     base = base or {}
     own = {k: getattr(follower, k) for k in (name, *base)}
-    sid = ds.frame["sequence_id"].to_numpy()
     out: dict[Any, dict[str, float]] = {}
     try:
         for k, v in base.items():
             setattr(follower, k, v)
         for v in values:
             setattr(follower, name, v)
-            row = out.setdefault(v, {})
-            for part in ("val", "test"):
-                rows, b = _part(ds, part)
-                reached, _ = drive(virtual, ik.predict(ds.poses()[rows], sequence_id=sid[rows]).joints, b)
-                row[f"ik_{part}_mm"] = _rmse(_miss(reached, ds.poses()[rows]))
+            row = out.setdefault(v, {f"ik_{part}_mm": validation_mm(virtual, ik, ds, part)
+                                     for part in ("val", "test")})
             row["random_within_1mm"] = random_within_1mm(virtual, rp, ik.predict(rp).joints)
             if paths:
-                got = validation_paths(virtual, ik, (follower.arrive,), ds)[follower.arrive]
+                got = validation_paths(virtual, ik, (follower.arrive,), ds, sequences=False)[follower.arrive]
                 row.update({f"val_{k}_mm": float(np.mean(got[k])) for k in ("square", "triangle")})
     finally:
         for k, v in own.items():
