@@ -45,6 +45,12 @@ what the experiment itself allows and what the models add, on the reproduction's
   dead zone      with --dead-zone A/B,… (and nothing else): the same, with joint changes below A deg
                  (α) and B mm (β) not made (Follower.dead_zone; the choice of DEAD_ZONE) and the
                  share OUTER_INVERSION inverted, and the validation squares and triangles of `arrive`
+  cap            with --cap A/B,… (and perhaps --arrive K,…): the same as `dead zone`, with DEAD_ZONE,
+                 each application on the way to a destination (the intermediate targets before a far
+                 target in a path of far targets) changing the joints by at most A deg (α) and B mm
+                 (β), scaled down as a whole (0/0: no cap; Follower.substep_cap, the choice of
+                 SUBSTEP_CAP), for each K of --arrive (default ARRIVE_ITERATIONS) applications at a
+                 destination
 An IK that takes no start joints (the paper's, the refined one) is scored from its own start there.
 
 Ends with one JSON line of the figures (mm unless named otherwise).
@@ -74,7 +80,7 @@ from ctrkin.evaluation.datasets import SEEDS as REPRO_SEEDS
 from ctrkin.evaluation.datasets import registered_truth
 from ctrkin.evaluation.experiments_ik import drive, joined
 from ctrkin.evaluation.table import FK_BRANCH, IK_FOLLOW
-from ctrkin.families.follow.stepper import OUTER_INVERSION
+from ctrkin.families.follow.stepper import ARRIVE_ITERATIONS, DEAD_ZONE, OUTER_INVERSION
 from ctrkin.geometry import tangent_angle_error, tangent_from_quat
 from ctrkin.inference import Kinematics
 from ctrkin.mechanics import solve
@@ -363,7 +369,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     "test sequences, the random poses and validation squares and triangles with each")
     ap.add_argument("--arrive", default="", help="comma-separated applications at a far target (e.g. "
                     "0,2,5): only score each follow IK along validation squares and triangles (task_path "
-                    f"seeds {VALIDATION_PATH_SEEDS.start}-{VALIDATION_PATH_SEEDS.stop - 1}) with each")
+                    f"seeds {VALIDATION_PATH_SEEDS.start}-{VALIDATION_PATH_SEEDS.stop - 1}) with each; "
+                    "with --cap, the applications to combine each cap with")
+    ap.add_argument("--cap", default="", help="comma-separated A/B caps on a joint change on the way to a "
+                    "destination (α deg / β mm, 0/0: none, e.g. 0/0,5/0.5,3/0.3): only score each follow "
+                    "IK as --dead-zone does, with each cap (and each --arrive count)")
     args = ap.parse_args(argv)
     iterations = tuple(int(k) for k in args.iterations.split(",") if k.strip())
     if any(k < 1 for k in iterations):
@@ -384,6 +394,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     iks = [Path(p) for p in (args.ik.split(",") if args.ik else [str(args.repro / "models" / IK_FOLLOW)])]
     fk_dir = args.fk or args.repro / "models" / FK_BRANCH
     fk = Kinematics.load(fk_dir) if fk_dir.is_dir() else None
+    if args.cap:
+        caps = tuple(tuple(float(x) for x in c.split("/")) for c in args.cap.split(","))
+        if any(len(c) != 2 or min(c) < 0 or (min(c) == 0 < max(c)) for c in caps):
+            ap.error("--cap takes comma-separated A/B pairs (α deg / β mm, both > 0, or 0/0 for none)")
+        arrives = tuple(int(k) for k in args.arrive.split(",")) if args.arrive else (ARRIVE_ITERATIONS,)
+        return _cap_report(virtual, iks, tuple(None if max(c) == 0 else c for c in caps), arrives, ds, rp)
     if args.arrive:
         return _arrive_report(virtual, iks, tuple(int(k) for k in args.arrive.split(",")), ds)
     if args.inversion:
@@ -461,6 +477,28 @@ def setting_figures(virtual: VirtualRobot, ik: Kinematics, name: str, values: tu
 def _setting_report(virtual: VirtualRobot, iks: list[Path], name: str, values: tuple[Any, ...], ds: Dataset,
                     rp: Dataset, paths: bool, base: dict[str, Any]) -> dict[str, Any]:
     """--inversion / --dead-zone: one row per follow IK and value, then the JSON line."""
+    report = _setting_rows(virtual, iks, name, values, ds, rp, paths, base)
+    print(json.dumps(report, default=float))
+    return report
+
+
+def _cap_report(virtual: VirtualRobot, iks: list[Path], caps: tuple[Any, ...], arrives: tuple[int, ...],
+                ds: Dataset, rp: Dataset) -> dict[str, Any]:
+    """--cap: `_setting_rows` of the substep cap for each applications count at a destination, with
+    the outer inversion and the dead zone as chosen; then the JSON line."""
+    report: dict[str, Any] = {"substep_cap": {}}
+    for k in arrives:
+        print(f"applications at a destination: {k}")
+        got = _setting_rows(virtual, iks, "substep_cap", caps, ds, rp, True,
+                            {"inversion": OUTER_INVERSION, "dead_zone": DEAD_ZONE, "arrive": k})
+        report["substep_cap"][str(k)] = got["substep_cap"]
+    print(json.dumps(report, default=float))
+    return report
+
+
+def _setting_rows(virtual: VirtualRobot, iks: list[Path], name: str, values: tuple[Any, ...], ds: Dataset,
+                  rp: Dataset, paths: bool, base: dict[str, Any]) -> dict[str, Any]:
+    """One printed row per follow IK and value of `setting_figures`; {name: {folder: {value: row}}}."""
     report: dict[str, Any] = {name: {}}
     print(f"follow IK with its {name} at each value (mm RMSE via the robot; random poses within 1 mm"
           + ("; validation squares / triangles, task_path seeds 100-104)" if paths else ")"))
@@ -473,11 +511,11 @@ def _setting_report(virtual: VirtualRobot, iks: list[Path], name: str, values: t
         a, b = ik.predictor.follower.lag                   # type: ignore[attr-defined]
         lag = f"{a:.2f}, {b:.3f}"
         for v, r in got.items():
-            value = "/".join(f"{x:g}" for x in v) if isinstance(v, tuple) else f"{v:g}"
+            value = ("none" if v is None else "/".join(f"{x:g}" for x in v) if isinstance(v, tuple)
+                     else f"{v:g}")
             print(f"  {str(folder)[-38:]:38s} {lag:>14s} {value:>12s} {r['ik_val_mm']:6.2f} "
                   f"{r['ik_test_mm']:6.2f} {r['random_within_1mm']:5d}"
                   + (f" {r['val_square_mm']:6.2f} {r['val_triangle_mm']:7.2f}" if paths else ""), flush=True)
-    print(json.dumps(report, default=float))
     return report
 
 

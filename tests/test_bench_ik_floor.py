@@ -131,3 +131,32 @@ def test_inversion_scores_each_share_of_the_outer_lag_and_keeps_the_models_own(b
     assert set(got[0.0]) == {"ik_val_mm", "ik_test_mm", "random_within_1mm"}
     assert got[0.0]["ik_val_mm"] != got[1.0]["ik_val_mm"]
     assert follower.inversion == own and follower.dead_zone == zone
+
+
+def test_cap_scores_the_paths_with_each_cap_and_keeps_the_models_own(bench, tmp_path, capsys) -> None:
+    """--cap: a follow IK's figures with each cap on its joint change on the way to a destination (None:
+    no cap), the validation squares and triangles among them; the cap moves the paths' figures, not
+    the close targets' of the sequences, and the model's folder is left as it was."""
+    from ctrkin.inference import Kinematics
+    from ctrkin.training import TrainConfig, train
+
+    virtual = VirtualRobot(paper_robot(), dataclasses.replace(VirtualConfig().ideal(), tube_friction=0.69),
+                           seed=0)
+    ds = _two_legs(virtual, 4.0)
+    rows = np.arange(len(ds.frame))
+    ds.split = Split(rows, rows, rows, "sequence", 0, (1.0, 1.0, 1.0), len(rows))
+    cfg = TrainConfig(task="ik", model="follow_mlp", max_epochs=4, patience=4, batch_size=64, lr=2e-3,
+                      threads=1, options={"structure": "|D32"})
+    train(ds, cfg, tmp_path / "ik", progress=False)
+    follower = Kinematics.load(tmp_path / "ik").predictor.follower
+    assert follower.substep_cap is not None and follower.arrive == 4
+    config = (tmp_path / "ik" / "config.json").read_bytes()
+    report = bench._cap_report(virtual, [tmp_path / "ik"], (None, (0.5, 0.05)), (3,), ds, ds)
+    got = report["substep_cap"]["3"][str(tmp_path / "ik")]
+    assert set(got) == {"None", "(0.5, 0.05)"}
+    assert set(got["None"]) == {"ik_val_mm", "ik_test_mm", "random_within_1mm", "val_square_mm",
+                                "val_triangle_mm"}
+    assert got["None"]["val_square_mm"] != got["(0.5, 0.05)"]["val_square_mm"]
+    assert got["None"]["ik_val_mm"] == got["(0.5, 0.05)"]["ik_val_mm"]       # close targets: no cap
+    assert "none" in capsys.readouterr().out
+    assert (tmp_path / "ik" / "config.json").read_bytes() == config

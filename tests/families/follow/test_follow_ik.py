@@ -168,15 +168,39 @@ def test_follower_makes_no_joint_change_inside_its_dead_zone(follow_dir, sweeps)
 
 
 @pytest.mark.parametrize("bad", [{"dead_zone": [2.0]}, {"dead_zone": [2.0, -0.1]},
-                                 {"outer_inversion": float("nan")}])
-def test_follow_settings_with_a_malformed_dead_zone_or_inversion_are_refused(follow_dir, bad):
+                                 {"outer_inversion": float("nan")}, {"substep_cap": [3.0, 0.0]},
+                                 {"substep_cap": 3.0}, {"substep_cap": [3.0, "x"]}])
+def test_follow_settings_with_a_malformed_dead_zone_inversion_or_cap_are_refused(follow_dir, bad):
     from ctrkin.families.follow.stepper import Follower
 
     kin = Kinematics.load(follow_dir)
     bundle = copy.copy(kin.predictor.bundle)
     bundle.extra = {**bundle.extra, "follow": {**bundle.extra["follow"], **bad}}
-    with pytest.raises(ModelError, match="dead_zone"):
+    with pytest.raises(ModelError, match="substep_cap" if "substep_cap" in bad else "dead_zone"):
         Follower(bundle, None)
+
+
+def test_a_capped_application_scales_the_whole_joint_change(follow_dir, sweeps):
+    """With a cap (α deg, β mm) an application's joint change is the uncapped one scaled down as a
+    whole until its largest α change or its largest β change meets the cap; within the cap it is
+    the uncapped one. The folder stores SUBSTEP_CAP."""
+    from ctrkin.families.follow.stepper import SUBSTEP_CAP
+
+    kin = Kinematics.load(follow_dir)
+    f = kin.predictor.follower
+    assert f.substep_cap == SUBSTEP_CAP == tuple(kin.predictor.bundle.extra["follow"]["substep_cap"])
+    a, _ = sweeps.sequence_bounds()[1]
+    target, previous, q = sweeps.poses(true=True)[a + 40], sweeps.poses(true=True)[a], sweeps.joints()[a]
+    free, _ = f._apply(target, previous, q, dead_zone=False)
+    dq = free - q
+    da, db = float(np.abs(dq[:2]).max()), float(np.abs(dq[2:]).max())
+    assert da > 0 and db > 0
+    capped, _ = f._apply(target, previous, q, dead_zone=False, cap=(da / 2, db))
+    np.testing.assert_allclose(capped - q, dq / 2, atol=1e-12)
+    capped, _ = f._apply(target, previous, q, dead_zone=False, cap=(2 * da, db / 4))
+    np.testing.assert_allclose(capped - q, dq / 4, atol=1e-12)
+    same, _ = f._apply(target, previous, q, dead_zone=False, cap=(2 * da, 2 * db))
+    np.testing.assert_array_equal(same, free)
 
 
 def test_follower_holds_the_motor_through_small_reversals(follow_dir):
@@ -333,13 +357,16 @@ def test_a_destination_is_settled_on_and_a_jump_within_a_stream_is_not(follow_di
     targets = sweeps.poses(true=True)[a:b]
     kin = Kinematics.load(follow_dir)
     follower = kin.predictor.follower
-    assert follower.arrive == ARRIVE_ITERATIONS == 2          # stored in the folder by the recipe
+    assert follower.arrive == ARRIVE_ITERATIONS == 4          # stored in the folder by the recipe
     applied: list[bool] = []                                 # each application: at the target itself?
+    capped: list[bool] = []                                  # ... with the substep cap?
     original = follower._apply
 
-    def counting(target, previous, q, lags=None, dead_zone=True):
+    def counting(target, previous, q, lags=None, dead_zone=True, cap=None):
         applied.append(bool(np.array_equal(target, previous)))
-        return original(target, previous, q, lags, dead_zone)
+        capped.append(cap is not None)
+        assert cap is None or cap == follower.substep_cap
+        return original(target, previous, q, lags, dead_zone, cap)
 
     follower._apply = counting
     far = targets[60]
@@ -353,10 +380,13 @@ def test_a_destination_is_settled_on_and_a_jump_within_a_stream_is_not(follow_di
         kin.reset(sweeps.joints()[a])
         kin.step(targets[0])
         got, answers = [], []
-        for target in (far, farther, beside, targets[0]):
+        for target, destination in ((far, True), (farther, True), (beside, False), (targets[0], False)):
             applied.clear()
+            capped.clear()
             answers.append(kin.step(target).joints)
             got.append(list(applied))
+            # on the way to a destination every application is capped, the settling there is not
+            assert capped == [destination and not at for at in applied]
         return got, answers[0]
 
     (to_far, to_farther, close, jump), settled = run(3)

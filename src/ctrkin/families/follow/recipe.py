@@ -35,7 +35,13 @@ import torch
 from ctrkin.data.schema import sequence_bounds
 from ctrkin.errors import ModelError
 from ctrkin.families.follow.features import follow_features, joint_noise, previous_rows
-from ctrkin.families.follow.stepper import ARRIVE_ITERATIONS, DEAD_ZONE, OUTER_INVERSION, Follower
+from ctrkin.families.follow.stepper import (
+    ARRIVE_ITERATIONS,
+    DEAD_ZONE,
+    OUTER_INVERSION,
+    SUBSTEP_CAP,
+    Follower,
+)
 from ctrkin.metrics import metrics_json_joint_errors, wrap_deg
 from ctrkin.models.features import check_raw
 from ctrkin.models.normalize import MinMax
@@ -97,7 +103,7 @@ class FollowRecipe:
         follow = {"max_step_mm": float(np.quantile(moved, STEP_QUANTILE)) if len(moved) else 1.0,
                   "settle_iterations": SETTLE_ITERATIONS, "arrive_iterations": ARRIVE_ITERATIONS,
                   "outer_lag_deg": list(lagged.lag), "outer_inversion": OUTER_INVERSION,
-                  "dead_zone": list(DEAD_ZONE)}
+                  "dead_zone": list(DEAD_ZONE), "substep_cap": list(SUBSTEP_CAP)}
         epochs = cfg.max_epochs or 0       # the engine hands a recipe its resolved budget
         self.rollouts = {int(epochs * f) for f in ROLLOUT_AT} - {0}
         return Prepared(self.layout, self.x_norm, self.y_norm, self.frame, {"follow": follow})
@@ -170,6 +176,7 @@ def _rollout(bundle: ModelBundle, poses: np.ndarray, joints: np.ndarray, bounds:
     follower = Follower(bundle, None)
     follower.lag = (0.0, 0.0)     # recorded joints already carry the recording's outer lag
     follower.dead_zone = (0.0, 0.0)   # the states the network's own answers lead to, each one made
+    follower.substep_cap = None       # ... and none held back
     used = np.zeros(len(joints), bool)
     used[train_rows] = True
     followed = [(a, b) for a, b in bounds if used[a:b].any()]

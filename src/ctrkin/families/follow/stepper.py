@@ -6,7 +6,7 @@ A sequence starts from joints the caller gives (where the robot is) or, without 
 joints of the nearest training target; either way the network is applied `settle_iterations` times
 at the first target (its training from perturbed joints makes each application a correction).
 A destination is settled on likewise, `arrive_iterations` more applications there
-(ARRIVE_ITERATIONS without the setting): a far target (reached through ARRIVE_SUBSTEPS or more
+(ARRIVE_ITERATIONS at training): a far target (reached through ARRIVE_SUBSTEPS or more
 intermediate targets, farther away than twice the training steps' 95th percentile) in a path of far
 targets (the one before it far too, or the sequence's first), as a list of waypoints is. A path of
 close targets (a recorded sequence, a control loop's stream) never takes them, not even where one of
@@ -25,6 +25,14 @@ DEAD_ZONE at training: α deg, β mm): on a robot with friction each small chang
 answer wobbles by runs the tubes through a stretch of their hysteresis, and its drift in joints the
 targets barely show (β2 above all) adds up along a sequence. Settling (a sequence's first target,
 a destination) corrects with changes of any size.
+
+On the way to a destination (the intermediate targets before a far target in a path of far targets:
+the stepper's own interpolation, not poses anyone asked for) an application changes the joints by at
+most `substep_cap` (SUBSTEP_CAP at training: α deg, β mm), its change scaled down as a whole: on a
+robot with friction an unbounded correction towards an interpolated pose can carry the tubes onto
+another branch (a snap) on the way, and the destination's settling (uncapped) makes up what the cap
+held back. A stream's far target after a close one (a snap in the targets) is neither capped nor
+settled on.
 
 With the play lags (FeatureLayout.play) the follower carries the play operators of its targets'
 positions (ctrkin.models.play_lags.TargetPlay): at rest at a sequence's first target (every lag 0, as
@@ -64,9 +72,23 @@ OUTER_INVERSION = 0.25
 # docs/learned_kinematics.md, The follow IK's dead zone)
 DEAD_ZONE = (2.0, 0.1)
 # a destination: reached through ARRIVE_SUBSTEPS or more sub-targets, settled on with ARRIVE_ITERATIONS
-# applications (both chosen on validation: docs/learned_kinematics.md, Settling at a far target)
-ARRIVE_ITERATIONS = 2
+# applications (chosen on validation: docs/learned_kinematics.md, Settling at a far target, and with the
+# cap below, The intermediate targets' cap)
+ARRIVE_ITERATIONS = 4
 ARRIVE_SUBSTEPS = 3
+# the largest joint change (α deg, β mm) of an application on the way to a destination (module docstring;
+# chosen on validation squares and triangles of seven reproductions with ARRIVE_ITERATIONS:
+# docs/learned_kinematics.md, The intermediate targets' cap)
+SUBSTEP_CAP = (3.0, 0.3)
+
+
+def _positive_pair(value: object) -> tuple[float, float] | None:
+    """value as two finite numbers > 0, or None where it is not."""
+    try:
+        a, b = (float(v) for v in value)      # type: ignore[attr-defined]
+    except (TypeError, ValueError):
+        return None
+    return (a, b) if np.isfinite(a) and np.isfinite(b) and min(a, b) > 0 else None
 
 
 class Follower:
@@ -85,7 +107,8 @@ class Follower:
         self.max_step_mm = float(settings.get("max_step_mm", 1.0))
         self.settle = int(settings.get("settle_iterations", 5))
         self.iterations = int(settings.get("iterations", 1))    # applications per (sub-)target
-        self.arrive = int(settings.get("arrive_iterations", ARRIVE_ITERATIONS))   # ... at a far target
+        # ... at a far target; a folder trained before the setting settles as it did since (2)
+        self.arrive = int(settings.get("arrive_iterations", 2))
         self.workspace = workspace
         lag = settings.get("outer_lag_deg", (0.0, 0.0))
         self.lag = (float(lag[0]), float(lag[1]))     # the outer tube's lag λ(β) (models.outer_lag)
@@ -98,6 +121,12 @@ class Follower:
             raise ModelError(f"the follow settings' dead_zone must be two numbers ≥ 0 (α deg, β mm) and "
                              f"outer_inversion a number ≥ 0; got {settings.get('dead_zone')} and "
                              f"{settings.get('outer_inversion')}")
+        # the cap on the way to a destination (deg, mm); None (a folder trained before it): no cap
+        cap = settings.get("substep_cap")
+        self.substep_cap = None if cap is None else _positive_pair(cap)
+        if cap is not None and self.substep_cap is None:
+            raise ModelError(f"the follow settings' substep_cap must be two numbers > 0 (α deg, β mm), "
+                             f"got {cap}")
         self.joints: np.ndarray | None = None        # where the robot is, as the network sees it
         self.target: np.ndarray | None = None        # the previous target of this sequence
         self.hold_deg = HOLD_DEG
@@ -195,12 +224,13 @@ class Follower:
             assert self.joints is not None
             q, projected, previous = self.joints, False, self.target
             subs = substeps(previous, target, self.max_step_mm)
+            far = len(subs) >= ARRIVE_SUBSTEPS
+            cap = self.substep_cap if far and self.far else None     # on the way to a destination
             for sub in subs:
                 lags = self._target_lags(sub)
                 for _ in range(self.iterations):
-                    q, projected = self._apply(sub, previous, q, lags)
+                    q, projected = self._apply(sub, previous, q, lags, cap=cap)
                     previous = sub
-            far = len(subs) >= ARRIVE_SUBSTEPS
             for _ in range(self.arrive if far and self.far else 0):      # a destination (settling)
                 q, projected = self._apply(target, target, q, lags, dead_zone=False)
             self.far = far
@@ -214,10 +244,15 @@ class Follower:
         return None if self.play is None else self.play.advance(target[:3])[None]
 
     def _apply(self, target: np.ndarray, previous: np.ndarray, q: np.ndarray,
-               lags: np.ndarray | None = None, dead_zone: bool = True) -> tuple[np.ndarray, bool]:
+               lags: np.ndarray | None = None, dead_zone: bool = True,
+               cap: tuple[float, ...] | None = None) -> tuple[np.ndarray, bool]:
         feat = follow_features(self.frame, self.n, target[None], previous[None], q[None], lags,
                                self.outer_angle)[0]
         dq = self.y_norm.inverse(self.engine.step(self.x_norm.transform(feat)))
+        if cap is not None:                                    # an intermediate target (SUBSTEP_CAP)
+            big = (float(np.abs(dq[:self.n]).max()) / cap[0], float(np.abs(dq[self.n:]).max()) / cap[1])
+            if max(big) > 1.0:
+                dq = dq / max(big)
         if dead_zone:                                          # a step along the targets (DEAD_ZONE)
             a_deg, b_mm = self.dead_zone
             dq[:self.n][np.abs(dq[:self.n]) < a_deg] = 0.0
