@@ -108,11 +108,10 @@ def test_the_pose_fit_finds_a_reachable_pose_and_the_position_alone(bench) -> No
     assert tangent_angle_error(tip(q), tilted) > 5.0
 
 
-def test_inversion_scores_each_share_of_the_outer_lag_and_keeps_the_models_own(bench, tmp_path) -> None:
-    """--inversion: a follow IK's figures with each share of its outer lag inverted as a play; a share
-    of 0 and of 1 drive the outer motor differently (so the figures differ), and the model keeps its
-    own share afterwards."""
-    from ctrkin.inference import Kinematics
+@pytest.fixture(scope="module")
+def friction_ik(tmp_path_factory):
+    """A robot whose tubes rub (μ 0.69), its two legs as every part of a dataset, and a small follow IK
+    trained on them: (virtual robot, dataset, the IK's folder)."""
     from ctrkin.training import TrainConfig, train
 
     virtual = VirtualRobot(paper_robot(), dataclasses.replace(VirtualConfig().ideal(), tube_friction=0.69),
@@ -122,8 +121,19 @@ def test_inversion_scores_each_share_of_the_outer_lag_and_keeps_the_models_own(b
     ds.split = Split(rows, rows, rows, "sequence", 0, (1.0, 1.0, 1.0), len(rows))
     cfg = TrainConfig(task="ik", model="follow_mlp", max_epochs=4, patience=4, batch_size=64, lr=2e-3,
                       threads=1, options={"structure": "|D32"})
-    train(ds, cfg, tmp_path / "ik", progress=False)
-    ik = Kinematics.load(tmp_path / "ik")
+    folder = tmp_path_factory.mktemp("friction_ik") / "ik"
+    train(ds, cfg, folder, progress=False)
+    return virtual, ds, folder
+
+
+def test_inversion_scores_each_share_of_the_outer_lag_and_keeps_the_models_own(bench, friction_ik) -> None:
+    """--inversion: a follow IK's figures with each share of its outer lag inverted as a play; a share
+    of 0 and of 1 drive the outer motor differently (so the figures differ), and the model keeps its
+    own share afterwards."""
+    from ctrkin.inference import Kinematics
+
+    virtual, ds, folder = friction_ik
+    ik = Kinematics.load(folder)
     follower = ik.predictor.follower
     follower.lag, own, zone = (6.0, 0.0), follower.inversion, follower.dead_zone
     got = bench.setting_figures(virtual, ik, "inversion", (0.0, 1.0), ds, ds, base={"dead_zone": (1.0, 0.1)})
@@ -133,30 +143,22 @@ def test_inversion_scores_each_share_of_the_outer_lag_and_keeps_the_models_own(b
     assert follower.inversion == own and follower.dead_zone == zone
 
 
-def test_cap_scores_the_paths_with_each_cap_and_keeps_the_models_own(bench, tmp_path, capsys) -> None:
+def test_cap_scores_the_paths_with_each_cap_and_keeps_the_models_own(bench, friction_ik, capsys) -> None:
     """--cap: a follow IK's figures with each cap on its joint change on the way to a destination (None:
     no cap), the validation squares and triangles among them; the cap moves the paths' figures, not
     the close targets' of the sequences, and the model's folder is left as it was."""
     from ctrkin.inference import Kinematics
-    from ctrkin.training import TrainConfig, train
 
-    virtual = VirtualRobot(paper_robot(), dataclasses.replace(VirtualConfig().ideal(), tube_friction=0.69),
-                           seed=0)
-    ds = _two_legs(virtual, 4.0)
-    rows = np.arange(len(ds.frame))
-    ds.split = Split(rows, rows, rows, "sequence", 0, (1.0, 1.0, 1.0), len(rows))
-    cfg = TrainConfig(task="ik", model="follow_mlp", max_epochs=4, patience=4, batch_size=64, lr=2e-3,
-                      threads=1, options={"structure": "|D32"})
-    train(ds, cfg, tmp_path / "ik", progress=False)
-    follower = Kinematics.load(tmp_path / "ik").predictor.follower
+    virtual, ds, folder = friction_ik
+    follower = Kinematics.load(folder).predictor.follower
     assert follower.substep_cap is not None and follower.arrive == 4
-    config = (tmp_path / "ik" / "config.json").read_bytes()
-    report = bench._cap_report(virtual, [tmp_path / "ik"], (None, (0.5, 0.05)), (3,), ds, ds)
-    got = report["substep_cap"]["3"][str(tmp_path / "ik")]
+    config = (folder / "config.json").read_bytes()
+    report = bench._cap_report(virtual, [folder], (None, (0.5, 0.05)), (3,), ds, ds)
+    got = report["substep_cap"]["3"][str(folder)]
     assert set(got) == {"None", "(0.5, 0.05)"}
     assert set(got["None"]) == {"ik_val_mm", "ik_test_mm", "random_within_1mm", "val_square_mm",
                                 "val_triangle_mm"}
     assert got["None"]["val_square_mm"] != got["(0.5, 0.05)"]["val_square_mm"]
     assert got["None"]["ik_val_mm"] == got["(0.5, 0.05)"]["ik_val_mm"]       # close targets: no cap
     assert "none" in capsys.readouterr().out
-    assert (tmp_path / "ik" / "config.json").read_bytes() == config
+    assert (folder / "config.json").read_bytes() == config
