@@ -167,8 +167,9 @@ def test_follower_makes_no_joint_change_inside_its_dead_zone(follow_dir, sweeps)
     np.testing.assert_allclose(held[~small], free[~small])
 
 
-@pytest.mark.parametrize("bad", [{"dead_zone": [2.0]}, {"dead_zone": [2.0, -0.1]},
-                                 {"outer_inversion": float("nan")}, {"substep_cap": [3.0, 0.0]},
+@pytest.mark.parametrize("bad", [{"dead_zone": [2.0]}, {"dead_zone": [2.0, -0.1]}, {"dead_zone": 2.0},
+                                 {"outer_inversion": float("nan")}, {"outer_inversion": "x"},
+                                 {"substep_cap": [3.0, 0.0]},
                                  {"substep_cap": 3.0}, {"substep_cap": [3.0, "x"]}])
 def test_follow_settings_with_a_malformed_dead_zone_inversion_or_cap_are_refused(follow_dir, bad):
     from ctrkin.families.follow.stepper import Follower

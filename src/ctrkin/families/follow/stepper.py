@@ -73,22 +73,31 @@ OUTER_INVERSION = 0.25
 DEAD_ZONE = (2.0, 0.1)
 # a destination: reached through ARRIVE_SUBSTEPS or more sub-targets, settled on with ARRIVE_ITERATIONS
 # applications (chosen on validation: docs/learned_kinematics.md, Settling at a far target, and with the
-# cap below, The intermediate targets' cap)
+# cap below, The cap on the way to a destination)
 ARRIVE_ITERATIONS = 4
 ARRIVE_SUBSTEPS = 3
 # the largest joint change (α deg, β mm) of an application on the way to a destination (module docstring;
 # chosen on validation squares and triangles of seven reproductions with ARRIVE_ITERATIONS:
-# docs/learned_kinematics.md, The intermediate targets' cap)
+# docs/learned_kinematics.md, The cap on the way to a destination)
 SUBSTEP_CAP = (3.0, 0.3)
 
 
-def _positive_pair(value: object) -> tuple[float, float] | None:
-    """value as two finite numbers > 0, or None where it is not."""
+def _pair(value: object) -> tuple[float, float] | None:
+    """value (a follow setting) as two finite numbers, or None where it is not."""
     try:
         a, b = (float(v) for v in value)      # type: ignore[attr-defined]
     except (TypeError, ValueError):
         return None
-    return (a, b) if np.isfinite(a) and np.isfinite(b) and min(a, b) > 0 else None
+    return (a, b) if np.isfinite(a) and np.isfinite(b) else None
+
+
+def _number(value: object) -> float:
+    """value (a follow setting) as a finite number, or NaN where it is not."""
+    try:
+        x = float(value)                      # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return np.nan
+    return x if np.isfinite(x) else np.nan
 
 
 class Follower:
@@ -114,17 +123,17 @@ class Follower:
         self.lag = (float(lag[0]), float(lag[1]))     # the outer tube's lag λ(β) (models.outer_lag)
         # the share of λ inverted and the dead zone (deg, mm); a folder trained before these settings
         # has neither and steps as it did (the whole λ, no zone), so it predicts what it predicted
-        self.inversion = float(settings.get("outer_inversion", 1.0))
-        self.dead_zone = tuple(float(v) for v in settings.get("dead_zone", (0.0, 0.0)))
-        if (len(self.dead_zone) != 2 or not all(np.isfinite(self.dead_zone)) or min(self.dead_zone) < 0
-                or not np.isfinite(self.inversion) or self.inversion < 0):
+        self.inversion = _number(settings.get("outer_inversion", 1.0))
+        zone = _pair(settings.get("dead_zone", (0.0, 0.0)))
+        if zone is None or min(zone) < 0 or not self.inversion >= 0:
             raise ModelError(f"the follow settings' dead_zone must be two numbers ≥ 0 (α deg, β mm) and "
                              f"outer_inversion a number ≥ 0; got {settings.get('dead_zone')} and "
                              f"{settings.get('outer_inversion')}")
+        self.dead_zone: tuple[float, ...] = zone
         # the cap on the way to a destination (deg, mm); None (a folder trained before it): no cap
         cap = settings.get("substep_cap")
-        self.substep_cap = None if cap is None else _positive_pair(cap)
-        if cap is not None and self.substep_cap is None:
+        self.substep_cap = None if cap is None else _pair(cap)
+        if cap is not None and (self.substep_cap is None or min(self.substep_cap) <= 0):
             raise ModelError(f"the follow settings' substep_cap must be two numbers > 0 (α deg, β mm), "
                              f"got {cap}")
         self.joints: np.ndarray | None = None        # where the robot is, as the network sees it
