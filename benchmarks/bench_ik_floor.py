@@ -395,7 +395,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     fk_dir = args.fk or args.repro / "models" / FK_BRANCH
     fk = Kinematics.load(fk_dir) if fk_dir.is_dir() else None
     if args.cap:
-        caps = tuple(tuple(float(x) for x in c.split("/")) for c in args.cap.split(","))
+        caps = _slash_pairs(args.cap)
         if any(len(c) != 2 or min(c) < 0 or (min(c) == 0 < max(c)) for c in caps):
             ap.error("--cap takes comma-separated A/B pairs (α deg / β mm, both > 0, or 0/0 for none)")
         arrives = tuple(int(k) for k in args.arrive.split(",")) if args.arrive else (ARRIVE_ITERATIONS,)
@@ -409,7 +409,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         # as chosen: before the dead zone existed
         return _setting_report(virtual, iks, "inversion", shares, ds, rp, False, {"dead_zone": (0.0, 0.0)})
     if args.dead_zone:
-        zones = tuple(tuple(float(x) for x in z.split("/")) for z in args.dead_zone.split(","))
+        zones = _slash_pairs(args.dead_zone)
         if any(len(z) != 2 or min(z) < 0 for z in zones):
             ap.error("--dead-zone takes comma-separated A/B pairs (α deg / β mm, each ≥ 0)")
         # as chosen: with the outer inversion already chosen
@@ -444,6 +444,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                 f"{k}: {v:.2f}" for k, v in r["val_by_iterations_mm"].items()), flush=True)
     print(json.dumps(report, default=float))
     return report
+
+
+def _slash_pairs(text: str) -> tuple[tuple[float, ...], ...]:
+    """"A/B,C/D,…" (--dead-zone, --cap) as ((A, B), (C, D), …); a malformed item gives a tuple of
+    another length, which the caller refuses."""
+    return tuple(tuple(float(x) for x in item.split("/")) for item in text.split(","))
 
 
 def setting_figures(virtual: VirtualRobot, ik: Kinematics, name: str, values: tuple[Any, ...], ds: Dataset,

@@ -234,13 +234,14 @@ class Follower:
             q, projected, previous = self.joints, False, self.target
             subs = substeps(previous, target, self.max_step_mm)
             far = len(subs) >= ARRIVE_SUBSTEPS
-            cap = self.substep_cap if far and self.far else None     # on the way to a destination
+            destination = far and self.far                  # a far target in a path of far targets
+            cap = self.substep_cap if destination else None  # on the way there: capped
             for sub in subs:
                 lags = self._target_lags(sub)
                 for _ in range(self.iterations):
                     q, projected = self._apply(sub, previous, q, lags, cap=cap)
                     previous = sub
-            for _ in range(self.arrive if far and self.far else 0):      # a destination (settling)
+            for _ in range(self.arrive if destination else 0):          # settling there
                 q, projected = self._apply(target, target, q, lags, dead_zone=False)
             self.far = far
         self.joints, self.target = q, np.array(target, dtype=np.float64)
@@ -258,7 +259,7 @@ class Follower:
         feat = follow_features(self.frame, self.n, target[None], previous[None], q[None], lags,
                                self.outer_angle)[0]
         dq = self.y_norm.inverse(self.engine.step(self.x_norm.transform(feat)))
-        if cap is not None:                                    # an intermediate target (SUBSTEP_CAP)
+        if cap is not None:                                    # on the way to a destination
             big = (float(np.abs(dq[:self.n]).max()) / cap[0], float(np.abs(dq[self.n:]).max()) / cap[1])
             if max(big) > 1.0:
                 dq = dq / max(big)
